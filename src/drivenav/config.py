@@ -1,0 +1,55 @@
+"""The paper's constants in one typed config (DRIVE-Nav, Sec. IV). Every default is the paper's value."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+
+@dataclass(frozen=True)
+class SpeedFieldConfig:
+    """Weighted FMM speed field F = F_obs * F_vor (Sec. IV-A a, Eqs. 1-3)."""
+
+    lam: float = 0.65  # lambda in F_obs = 1 - lambda * exp(-d_obs / r_obs)
+    r_obs: float = 0.8  # metres
+    beta: float = 3.0  # beta in F_vor = 1 + beta * exp(-d_vor / r_vor)
+    r_vor: float = 0.5  # metres
+    weighted: bool = True  # False: uniform speed (ablation "w/o weighted FMM")
+
+
+@dataclass(frozen=True)
+class DirectionConfig:
+    """Path-induced bearings, clustering and tracking (Sec. IV-A b)."""
+
+    bearing_radius: float = 0.8  # R_e, metres
+    cluster_span: float = math.radians(45.0)  # tau_theta
+    path_bearings: bool = True  # False: straight-line bearing to the frontier (ablation)
+    merge_tolerance: float = 0.25  # metres: frontier points "at the same world-frame location"
+
+
+@dataclass(frozen=True)
+class InspectionConfig:
+    """Representative views and the forward inspection range (Sec. IV-A c)."""
+
+    forward_range: float = math.radians(240.0)  # directions with |alpha| <= 120 deg are inspectable
+    view_tolerance: float = math.radians(15.0)  # a view is recorded once |yaw - bearing| < 15 deg
+    restrict_forward: bool = True  # False: ablation "w/o 240 inspection view"
+
+
+@dataclass(frozen=True)
+class SemanticsConfig:
+    """Prompt enrichment and cross-frame verification (Sec. IV-B, IV-C)."""
+
+    enrich_rounds: int = 5
+    verify_frames: int = 3
+    max_images_per_prompt: int = 30
+
+
+@dataclass(frozen=True)
+class DriveNavConfig:
+    """All DRIVE-Nav constants, grouped by the paper's subsections."""
+
+    speed: SpeedFieldConfig = field(default_factory=SpeedFieldConfig)
+    directions: DirectionConfig = field(default_factory=DirectionConfig)
+    inspection: InspectionConfig = field(default_factory=InspectionConfig)
+    semantics: SemanticsConfig = field(default_factory=SemanticsConfig)

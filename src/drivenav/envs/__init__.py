@@ -1,0 +1,1 @@
+"""Worlds behind one interface: the embedded simulator (default), later Habitat and a robot bridge."""

@@ -1,0 +1,27 @@
+"""Errors for bad user input: each names the file, the field, and what was expected."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+class InputError(Exception):
+    """Bad input from a user-supplied file or option.
+
+    The command line prints ``str(error)`` on one line and exits with status 2, without a traceback.
+    """
+
+    def __init__(self, source: str | Path, field: str, expected: str, got: object = None) -> None:
+        self.source = str(source)
+        self.field = field
+        self.expected = expected
+        self.got = got
+        message = f"{self.source}: field '{field}': expected {expected}"
+        if got is not None:
+            message += f", got {_short(got)}"
+        super().__init__(message)
+
+
+def _short(value: object, limit: int = 80) -> str:
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."

@@ -1,0 +1,65 @@
+"""Metric 2-D grids shared by the world, the maps and the planners.
+
+Convention (used everywhere in drivenav): a grid array is indexed ``[row, col]``; row ``i`` grows with world
+``y`` and column ``j`` with world ``x``. Cell ``(i, j)`` covers ``x in [ox + j*res, ox + (j+1)*res)`` and
+``y in [oy + i*res, oy + (i+1)*res)`` where ``(ox, oy)`` is :attr:`GridSpec.origin`, the world position of the
+lower-left corner of cell ``(0, 0)`` -- the same meaning as ``origin`` in a ROS map_server YAML. (ROS images
+store the top row first, so loaders flip them vertically.)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+
+@dataclass(frozen=True)
+class GridSpec:
+    """Geometry of a metric grid: cell size in metres, world origin of cell (0, 0), shape (rows, cols)."""
+
+    resolution: float
+    origin: tuple[float, float]
+    shape: tuple[int, int]
+
+    @property
+    def extent(self) -> tuple[float, float, float, float]:
+        """World bounds ``(xmin, xmax, ymin, ymax)``."""
+        ox, oy = self.origin
+        rows, cols = self.shape
+        return ox, ox + cols * self.resolution, oy, oy + rows * self.resolution
+
+    def world_to_cell(self, xy: ArrayLike) -> NDArray[np.int64]:
+        """World ``(..., 2)`` points ``(x, y)`` to integer cells ``(..., 2)`` as ``(row, col)``."""
+        p = np.asarray(xy, dtype=np.float64)
+        col = np.floor((p[..., 0] - self.origin[0]) / self.resolution)
+        row = np.floor((p[..., 1] - self.origin[1]) / self.resolution)
+        return np.stack([row, col], axis=-1).astype(np.int64)
+
+    def cell_to_world(self, rc: ArrayLike) -> NDArray[np.float64]:
+        """Cells ``(..., 2)`` as ``(row, col)`` to the world ``(x, y)`` of their centres."""
+        c = np.asarray(rc, dtype=np.float64)
+        x = self.origin[0] + (c[..., 1] + 0.5) * self.resolution
+        y = self.origin[1] + (c[..., 0] + 0.5) * self.resolution
+        return np.stack([x, y], axis=-1)
+
+    def contains(self, rc: ArrayLike) -> NDArray[np.bool_]:
+        """Whether cells ``(..., 2)`` lie inside the grid."""
+        c = np.asarray(rc)
+        return (c[..., 0] >= 0) & (c[..., 0] < self.shape[0]) & (c[..., 1] >= 0) & (c[..., 1] < self.shape[1])
+
+    def cell_centers(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """World ``x`` and ``y`` of every cell centre, each of shape :attr:`shape`."""
+        rows, cols = self.shape
+        xs = self.origin[0] + (np.arange(cols) + 0.5) * self.resolution
+        ys = self.origin[1] + (np.arange(rows) + 0.5) * self.resolution
+        gx, gy = np.meshgrid(xs, ys)
+        return gx, gy
+
+
+def wrap_angle(angle: float) -> float:
+    """Map an angle in radians to ``(-pi, pi]``."""
+    wrapped = math.remainder(angle, 2.0 * math.pi)
+    return math.pi if wrapped == -math.pi else wrapped
