@@ -25,6 +25,7 @@ class DirectionConfig:
     cluster_span: float = math.radians(45.0)  # tau_theta
     path_bearings: bool = True  # False: straight-line bearing to the frontier (ablation)
     merge_tolerance: float = 0.25  # metres: frontier points "at the same world-frame location"
+    association_gate: float = math.radians(90.0)  # not in the paper: max Delta for an angular match
 
 
 @dataclass(frozen=True)

@@ -54,9 +54,12 @@ class ObjectInstance:
         local = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
         c, s = math.cos(self.yaw), math.sin(self.yaw)
         rot = np.array([[c, -s], [s, c]])
-        return local @ rot.T + np.asarray(self.center)
+        corners: NDArray[np.float64] = local @ rot.T + np.asarray(self.center)
+        return corners
 
-    def contains(self, x: NDArray[np.float64], y: NDArray[np.float64], margin: float = 0.0) -> NDArray[np.bool_]:
+    def contains(
+        self, x: NDArray[np.float64], y: NDArray[np.float64], margin: float = 0.0
+    ) -> NDArray[np.bool_]:
         """Whether world points lie inside the footprint grown by ``margin``."""
         c, s = math.cos(self.yaw), math.sin(self.yaw)
         dx, dy = x - self.center[0], y - self.center[1]
@@ -70,7 +73,8 @@ class ObjectInstance:
         u, v = c * dx + s * dy, -s * dx + c * dy
         du = np.maximum(np.abs(u) - self.size[0] / 2.0, 0.0)
         dv = np.maximum(np.abs(v) - self.size[1] / 2.0, 0.0)
-        return np.hypot(du, dv)
+        distance: NDArray[np.float64] = np.hypot(du, dv)
+        return distance
 
 
 @dataclass(frozen=True)
@@ -131,7 +135,7 @@ class Scene:
 
     def obstacle_grid(self, agent_height: float) -> NDArray[np.bool_]:
         """Cells the agent's body cannot overlap: non-free structure and blocking object footprints."""
-        blocked = self.structure != Material.FREE
+        blocked: NDArray[np.bool_] = self.structure != Material.FREE
         gx, gy = self.grid.cell_centers()
         half = self.grid.resolution / 2.0
         for obj in self.blocking_objects(agent_height):
@@ -139,13 +143,14 @@ class Scene:
         return blocked
 
     def navigable_grid(self, agent_radius: float, agent_height: float) -> NDArray[np.bool_]:
-        """Cells where the agent's centre may stand: farther than ``agent_radius`` from every obstacle."""
+        """Cells whose centre is farther than ``agent_radius`` from every obstacle cell's face."""
         key = (round(agent_radius, 6), round(agent_height, 6))
         cached = self._navigable_cache.get(key)
         if cached is None:
             obstacles = self.obstacle_grid(agent_height)
-            clearance = ndimage.distance_transform_edt(~obstacles) * self.grid.resolution
-            cached = clearance > agent_radius
+            # Distance from the cell centre to the nearest obstacle cell's face (half a cell nearer than its centre).
+            clearance = (ndimage.distance_transform_edt(~obstacles) - 0.5) * self.grid.resolution
+            cached = np.asarray(clearance > agent_radius)
             self._navigable_cache[key] = cached
         return cached
 

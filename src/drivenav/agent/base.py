@@ -1,0 +1,67 @@
+"""The agent interface shared by DRIVE-Nav, its baselines and the reference agents.
+
+An agent is reset with the goal text, then maps each :class:`Observation` to an :class:`Action`. It marks the
+start of every frontier-selection segment (for the revisit metric), counts its reasoning-model calls, and says
+why it stopped.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from drivenav.envs.base import Action, Observation, Pose, SimConfig
+from drivenav.envs.scene import Scene
+from drivenav.eval.geodesic import GeodesicField
+
+
+@dataclass(frozen=True)
+class PrivilegedInfo:
+    """Ground truth handed only to agents that declare ``uses_privileged`` (the oracle)."""
+
+    scene: Scene
+    navigable: NDArray[np.bool_]
+    goal_field: GeodesicField
+    start_pose: Pose
+
+
+class Agent(ABC):
+    """Base class: segment bookkeeping, stop reason and model-call counting."""
+
+    name: ClassVar[str]
+    uses_privileged: ClassVar[bool] = False
+
+    def __init__(self, sim: SimConfig) -> None:
+        self.sim = sim
+        self.goal_text = ""
+        self.segment_starts: list[int] = []
+        self.stop_reason: str | None = None
+        self.vlm_calls = 0
+
+    def reset(self, goal_text: str, seed: int) -> None:
+        """Start an episode looking for ``goal_text``; ``seed`` makes any randomness reproducible."""
+        self.goal_text = goal_text
+        self.segment_starts = []
+        self.stop_reason = None
+        self.vlm_calls = 0
+
+    def set_privileged(self, info: PrivilegedInfo) -> None:  # noqa: B027 (optional hook, no-op by default)
+        """Receive ground truth (only called when ``uses_privileged`` is true)."""
+
+    def start_segment(self, step: int) -> None:
+        """Mark that a new frontier-selection segment begins at ``step`` (paper Sec. V-C revisits)."""
+        if not self.segment_starts or self.segment_starts[-1] != step:
+            self.segment_starts.append(step)
+
+    def stop(self, reason: str) -> Action:
+        """Issue STOP and remember why."""
+        self.stop_reason = reason
+        return Action.STOP
+
+    @abstractmethod
+    def act(self, observation: Observation) -> Action:
+        """The next action."""

@@ -1,0 +1,192 @@
+"""The ``drivenav`` command line: evaluation, episode generation, benchmarks, pictures and the demo.
+
+Bad input (files, fields, options) prints one line naming what was wrong and exits with status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from drivenav.errors import InputError
+
+Handler = Callable[[argparse.Namespace], int]
+
+
+def _add_eval(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    from drivenav.agent.registry import agent_names
+
+    parser = commands.add_parser("eval", help="run an agent on episodes and write metrics")
+    parser.add_argument("--agent", required=True, help=f"agent name ({', '.join(agent_names())})")
+    parser.add_argument(
+        "--scenes", default="procedural", help="procedural[:K], a scene dir, or a folder of them"
+    )
+    parser.add_argument(
+        "--episodes", required=True, help="a number of episodes to generate, or an episodes file"
+    )
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--out", required=True, type=Path, help="run directory (rerun to resume)")
+    parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument("--max-steps", type=int, default=500)
+    parser.set_defaults(handler=_cmd_eval)
+
+
+def _add_episodes(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    parser = commands.add_parser("episodes", help="episode files")
+    sub = parser.add_subparsers(dest="episodes_command", required=True)
+    generate = sub.add_parser("generate", help="generate HM3D-OVON-style episodes (json.gz)")
+    generate.add_argument("--scenes", default="procedural")
+    generate.add_argument("--num", type=int, required=True)
+    generate.add_argument("--seed", type=int, default=0)
+    generate.add_argument("--out", type=Path, required=True)
+    generate.set_defaults(handler=_cmd_episodes_generate)
+
+
+def _add_bench(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    parser = commands.add_parser("bench", help="speed benchmarks")
+    sub = parser.add_subparsers(dest="bench_command", required=True)
+    sim = sub.add_parser(
+        "sim", help="embedded simulator frames per second (RGB + depth + semantic, one core)"
+    )
+    sim.add_argument("--frames", type=int, default=300)
+    sim.add_argument("--json", action="store_true", help="print one JSON object")
+    sim.set_defaults(handler=_cmd_bench_sim)
+
+
+def _add_viz(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    parser = commands.add_parser("viz", help="pictures of a finished episode")
+    parser.add_argument("run_dir", type=Path)
+    parser.add_argument("episode_id")
+    parser.add_argument("--out", type=Path, default=None, help="output folder (default RUN_DIR/viz)")
+    parser.set_defaults(handler=_cmd_viz)
+
+
+def _add_demo(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    parser = commands.add_parser("demo", help="a short embedded benchmark with pictures")
+    parser.add_argument("--out", type=Path, default=Path("demo-output"))
+    parser.add_argument("--episodes", type=int, default=4)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.set_defaults(handler=_cmd_demo)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="drivenav", description=__doc__)
+    parser.add_argument("-v", "--verbose", action="store_true")
+    commands = parser.add_subparsers(dest="command", required=True)
+    for add in (_add_eval, _add_episodes, _add_bench, _add_viz, _add_demo):
+        add(commands)
+    return parser
+
+
+def _positive(value: int, option: str) -> int:
+    if value < 1:
+        raise InputError("command line", option, "a positive integer", value)
+    return value
+
+
+def _load_or_generate(args: argparse.Namespace) -> tuple[Any, list[Any]]:
+    from drivenav.envs.base import SimConfig
+    from drivenav.envs.library import SceneLibrary
+    from drivenav.eval.episodes import generate_episodes, load_episodes, validate_for_scenes
+
+    library = SceneLibrary(args.scenes, args.seed)
+    sim = SimConfig(max_steps=args.max_steps)
+    if str(args.episodes).isdigit():
+        episodes = generate_episodes(library, _positive(int(args.episodes), "--episodes"), args.seed, sim)
+    else:
+        episodes = load_episodes(args.episodes)
+        validate_for_scenes(episodes, library, args.episodes, sim)
+    return library, episodes
+
+
+def _cmd_eval(args: argparse.Namespace) -> int:
+    from drivenav.agent.registry import make_agent
+    from drivenav.envs.base import SimConfig
+    from drivenav.eval.episodes import save_episodes
+    from drivenav.eval.report import format_table
+    from drivenav.eval.runner import EPISODES_FILE, RunSpec, evaluate
+
+    make_agent(args.agent, SimConfig())  # an unknown name fails before any work
+    _positive(args.workers, "--workers")
+    _positive(args.max_steps, "--max-steps")
+    _, episodes = _load_or_generate(args)
+    args.out.mkdir(parents=True, exist_ok=True)
+    episodes_copy = args.out / "episodes.json.gz"
+    if not episodes_copy.exists():
+        save_episodes(episodes, episodes_copy)
+    spec = RunSpec(args.agent, args.scenes, args.seed, args.max_steps)
+    summary = evaluate(
+        episodes, spec, args.out, workers=args.workers, sim=SimConfig(max_steps=args.max_steps)
+    )
+    print(format_table(summary, f"{args.agent} on {args.scenes}"))
+    print(f"results: {args.out / EPISODES_FILE}  summary: {args.out / 'summary.json'}")
+    return 0
+
+
+def _cmd_episodes_generate(args: argparse.Namespace) -> int:
+    from drivenav.envs.base import SimConfig
+    from drivenav.envs.library import SceneLibrary
+    from drivenav.eval.episodes import generate_episodes, save_episodes
+
+    library = SceneLibrary(args.scenes, args.seed)
+    episodes = generate_episodes(library, _positive(args.num, "--num"), args.seed, SimConfig())
+    save_episodes(episodes, args.out)
+    synonyms = sum(bool(e.info.get("synonym")) for e in episodes)
+    scenes = len({e.scene_id for e in episodes})
+    print(f"wrote {len(episodes)} episodes over {scenes} scenes ({synonyms} by synonym) to {args.out}")
+    return 0
+
+
+def _cmd_bench_sim(args: argparse.Namespace) -> int:
+    from drivenav.envs.bench import bench_sim
+
+    result = bench_sim(frames=_positive(args.frames, "--frames"))
+    if args.json:
+        print(json.dumps(result))
+    else:
+        for key, value in result.items():
+            print(f"{key:>16}: {value}")
+    return 0
+
+
+def _cmd_viz(args: argparse.Namespace) -> int:
+    from drivenav.viz.episode import render_episode_pictures
+
+    paths = render_episode_pictures(args.run_dir, args.episode_id, args.out)
+    for path in paths:
+        print(path)
+    return 0
+
+
+def _cmd_demo(args: argparse.Namespace) -> int:
+    from drivenav.viz.demo import run_demo
+
+    index = run_demo(args.out, _positive(args.episodes, "--episodes"), args.seed)
+    print(f"demo results and pictures: {args.out.resolve()}  (start with {index})")
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(
+        level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s"
+    )
+    handler: Handler = args.handler
+    try:
+        return handler(args)
+    except InputError as error:
+        print(f"drivenav: error: {error}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("drivenav: interrupted (finished episodes are saved; rerun to resume)", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

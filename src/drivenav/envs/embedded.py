@@ -1,0 +1,176 @@
+"""The embedded simulator: an :class:`~drivenav.envs.base.Env` over 2.5-D scenes, rendered by numba.
+
+It provides what the paper's problem formulation (Sec. III) gives the agent -- an egocentric RGB-D
+observation and a pose relative to the start ``p_0`` at every step -- with the Habitat set-up of the
+experiments (Sec. V-A: 79 degree RGB-D camera, 0.25 m steps, 30 degree turns), plus ground-truth instance ids.
+
+The env only moves the agent and renders; success, SPL and step limits belong to the evaluator. It is cheap to
+construct and pickles without its scene cache (scenes are reloaded through ``scene_loader`` on demand), so it
+can be shipped to worker processes.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import OrderedDict
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from drivenav.envs.base import Action, Observation, Pose, SimConfig
+from drivenav.envs.episode import Episode
+from drivenav.envs.motion import forward_step, is_navigable
+from drivenav.envs.render import Images, Renderer
+from drivenav.envs.scene import Scene
+from drivenav.grid import wrap_angle
+
+_DEFAULT_CONFIG = SimConfig()
+
+
+@dataclass(frozen=True)
+class _World:
+    """A loaded scene with what the env derives from it."""
+
+    scene: Scene
+    navigable: NDArray[np.bool_]
+    renderer: Renderer
+
+
+class EmbeddedEnv:
+    """ObjectNav environment over embedded scenes (Habitat action space and sensor defaults).
+
+    ``scene_loader`` maps an episode's ``scene_id`` to a :class:`Scene`; up to ``cache_size`` loaded scenes
+    are kept. Headings are kept as a whole number of turns from the start heading, so turning a full circle
+    gives back exactly the start yaw.
+    """
+
+    def __init__(
+        self, scene_loader: Callable[[str], Scene], config: SimConfig = _DEFAULT_CONFIG, cache_size: int = 2
+    ) -> None:
+        self._loader = scene_loader
+        self._config = config
+        self._cache_size = max(1, cache_size)
+        self._worlds: OrderedDict[str, _World] = OrderedDict()
+        self._scene_id: str | None = None
+        self._start = Pose(0.0, 0.0, 0.0)
+        self._xy = (0.0, 0.0)
+        self._turns = 0
+        self._steps = 0
+
+    # -- pickling: drop the scene cache ---------------------------------------------------------------
+    def __getstate__(self) -> dict[str, Any]:
+        state = dict(self.__dict__)
+        state["_worlds"] = OrderedDict()
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+
+    # -- read-only state ------------------------------------------------------------------------------
+    @property
+    def config(self) -> SimConfig:
+        return self._config
+
+    @property
+    def scene(self) -> Scene:
+        """The current episode's scene."""
+        return self._world().scene
+
+    @property
+    def start_pose(self) -> Pose:
+        """The episode's start pose in the world frame."""
+        return self._start
+
+    @property
+    def state(self) -> Pose:
+        """The agent's current pose in the world frame."""
+        return Pose(self._xy[0], self._xy[1], self._yaw())
+
+    @property
+    def steps(self) -> int:
+        """Actions taken since the last reset (turns and STOP included)."""
+        return self._steps
+
+    # -- Env protocol ---------------------------------------------------------------------------------
+    def reset(self, episode: Episode) -> Observation:
+        """Load the episode's scene and place the agent at its start (ValueError if not navigable)."""
+        self._scene_id = episode.scene_id
+        world = self._world()
+        x, y = episode.start_xy
+        if not is_navigable(world.navigable, world.scene.grid, x, y):
+            raise ValueError(
+                f"episode {episode.episode_id}: start {(x, y)} is not navigable in {episode.scene_id}"
+            )
+        self._start = Pose(x, y, wrap_angle(episode.start_yaw))
+        self._xy = (x, y)
+        self._turns = 0
+        self._steps = 0
+        return self._observe(collided=False)
+
+    def step(self, action: Action) -> Observation:
+        """Apply one action (Habitat semantics: 0.25 m forward, 30 degree turns, STOP does not move)."""
+        world = self._world()
+        collided = False
+        if action == Action.MOVE_FORWARD:
+            x, y, collided = forward_step(
+                world.navigable,
+                world.scene.grid,
+                self._xy[0],
+                self._xy[1],
+                self._yaw(),
+                self._config.forward_step,
+            )
+            self._xy = (x, y)
+        elif action == Action.TURN_LEFT:
+            self._turns = self._wrap_turns(self._turns + 1)
+        elif action == Action.TURN_RIGHT:
+            self._turns = self._wrap_turns(self._turns - 1)
+        self._steps += 1
+        return self._observe(collided)
+
+    def render(self, pose_world: Pose) -> Images:
+        """RGB, depth and semantic images from a world-frame pose of the current scene."""
+        return self._world().renderer.render(pose_world)
+
+    # -- internals --------------------------------------------------------------------------------------
+    def _world(self) -> _World:
+        if self._scene_id is None:
+            raise RuntimeError("EmbeddedEnv: call reset() before using the scene")
+        world = self._worlds.get(self._scene_id)
+        if world is None:
+            scene = self._loader(self._scene_id)
+            cfg = self._config
+            navigable = scene.navigable_grid(cfg.agent_radius, cfg.agent_height)
+            world = _World(scene, navigable, Renderer(scene, cfg))
+            self._worlds[self._scene_id] = world
+            while len(self._worlds) > self._cache_size:
+                self._worlds.popitem(last=False)
+        self._worlds.move_to_end(self._scene_id)
+        return world
+
+    def _wrap_turns(self, turns: int) -> int:
+        """Reduce a turn count modulo a full circle when the turn angle divides 360 degrees."""
+        per_circle = 360.0 / self._config.turn_angle_deg
+        if abs(per_circle - round(per_circle)) < 1e-9:
+            return turns % round(per_circle)
+        return turns
+
+    def _yaw(self) -> float:
+        return wrap_angle(self._start.yaw + self._turns * math.radians(self._config.turn_angle_deg))
+
+    def _observe(self, collided: bool) -> Observation:
+        state = self.state
+        rgb, depth, semantic = self.render(state)
+        local = self._start.inverse().compose(state)
+        return Observation(
+            rgb=rgb,
+            depth=depth,
+            semantic=semantic,
+            pose=Pose(local.x, local.y, wrap_angle(local.yaw)),
+            intrinsics=self._config.intrinsics,
+            step=self._steps,
+            collided=collided,
+        )

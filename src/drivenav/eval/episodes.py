@@ -1,0 +1,300 @@
+"""HM3D-OVON-style episode files: generation over a scene set, and validated reading and writing.
+
+A file is gzip-compressed JSON ``{"episodes": [...]}``; each episode carries ``episode_id``, ``scene_id``,
+``start_position`` and ``start_rotation`` (Habitat's y-up frame, see :mod:`drivenav.envs.episode`),
+``object_category`` (the text given to the agent, a synonym in some episodes as in HM3D-OVON's
+val_seen_synonyms), ``goals`` (every instance of the category with ``position`` and ``view_points``) and
+``info`` (``geodesic_distance``, ``canonical_category``, ``synonym``).
+"""
+
+from __future__ import annotations
+
+import gzip
+import json
+import math
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from drivenav.envs.base import SimConfig
+from drivenav.envs.episode import (
+    Episode,
+    ObjectGoal,
+    Quat,
+    Vec3,
+    ViewPoint,
+    world_to_habitat,
+    yaw_to_quaternion,
+)
+from drivenav.envs.library import SceneLibrary
+from drivenav.envs.scene import Scene
+from drivenav.errors import InputError
+from drivenav.eval.geodesic import GeodesicField, largest_component
+from drivenav.eval.goals import object_goal
+
+MIN_GEODESIC = 1.0  # metres, start to nearest view point
+MAX_GEODESIC = 30.0
+SYNONYM_SHARE = 0.25  # share of episodes naming the target by a synonym
+
+
+@dataclass
+class SceneGoals:
+    """Per scene: the reachable region, goals by category, and geodesic fields (built lazily)."""
+
+    scene: Scene
+    reachable: NDArray[np.bool_]
+    goals: dict[str, list[ObjectGoal]]
+    fields: dict[str, GeodesicField] = field(default_factory=dict)
+
+    def field_for(self, category: str) -> GeodesicField:
+        if category not in self.fields:
+            points = [vp.xy for goal in self.goals[category] for vp in goal.view_points]
+            self.fields[category] = GeodesicField(self.reachable, self.scene.grid, points)
+        return self.fields[category]
+
+
+def scene_goals(scene: Scene, sim: SimConfig) -> SceneGoals:
+    """Goals of every object that has at least one reachable view point, grouped by category."""
+    reachable = largest_component(scene.navigable_grid(sim.agent_radius, sim.agent_height))
+    goals: dict[str, list[ObjectGoal]] = {}
+    for obj in scene.objects:
+        goal = object_goal(scene, obj, reachable, sim)
+        if goal.view_points:
+            goals.setdefault(obj.category, []).append(goal)
+    return SceneGoals(scene, reachable, goals)
+
+
+def _synonyms(category: str) -> tuple[str, ...]:
+    from drivenav.envs.vocabulary import synonyms
+
+    try:
+        return tuple(synonyms(category))
+    except KeyError:
+        return ()
+
+
+def _sample_start(
+    goals: SceneGoals, category: str, rng: np.random.Generator
+) -> tuple[tuple[float, float], float] | None:
+    """A reachable start cell whose geodesic distance to the category lies in the allowed range."""
+    distances = goals.field_for(category).distances
+    candidates = np.argwhere(goals.reachable & (distances >= MIN_GEODESIC) & (distances <= MAX_GEODESIC))
+    if len(candidates) == 0:
+        return None
+    cell = candidates[rng.integers(len(candidates))]
+    x, y = goals.scene.grid.cell_to_world(cell)
+    return (float(x), float(y)), float(distances[cell[0], cell[1]])
+
+
+def generate_episodes(
+    library: SceneLibrary, num: int, seed: int, sim: SimConfig | None = None
+) -> list[Episode]:
+    """``num`` episodes spread round-robin over the library's scenes and across categories.
+
+    Deterministic in ``seed``. Scenes without any valid start/goal pair are skipped.
+    """
+    sim = sim or SimConfig()
+    rng = np.random.default_rng(seed)
+    contexts: dict[str, SceneGoals] = {}
+    used: Counter[str] = Counter()
+    episodes: list[Episode] = []
+    usable = list(library.scene_ids)
+    turn = 0
+    while len(episodes) < num and usable:
+        scene_id = usable[turn % len(usable)]
+        if scene_id not in contexts:
+            contexts[scene_id] = scene_goals(library.load(scene_id), sim)
+        episode = _make_episode(str(len(episodes)), scene_id, contexts[scene_id], used, rng)
+        if episode is None:
+            usable.remove(scene_id)
+            continue
+        episodes.append(episode)
+        used[episode.info["canonical_category"]] += 1
+        turn += 1
+    return episodes
+
+
+def _make_episode(
+    episode_id: str, scene_id: str, goals: SceneGoals, used: Counter[str], rng: np.random.Generator
+) -> Episode | None:
+    present = sorted(goals.goals)
+    shuffled = [present[i] for i in rng.permutation(len(present))]
+    categories = sorted(shuffled, key=lambda c: used[c])  # least-used first, random among ties
+    for category in categories:
+        start = _sample_start(goals, category, rng)
+        if start is None:
+            continue
+        (x, y), geodesic = start
+        names = _synonyms(category)
+        synonym = bool(names) and rng.random() < SYNONYM_SHARE
+        text = str(names[rng.integers(len(names))]) if synonym else category
+        return Episode(
+            episode_id=episode_id,
+            scene_id=scene_id,
+            start_position=world_to_habitat(round(x, 4), round(y, 4)),
+            start_rotation=yaw_to_quaternion(float(rng.uniform(0.0, 2.0 * math.pi))),
+            object_category=text,
+            goals=tuple(goals.goals[category]),
+            info={
+                "geodesic_distance": round(geodesic, 4),
+                "canonical_category": category,
+                "synonym": synonym,
+            },
+        )
+    return None
+
+
+def _round(values: tuple[float, ...]) -> list[float]:
+    return [round(float(v), 4) for v in values]
+
+
+def episode_to_dict(episode: Episode) -> dict[str, Any]:
+    """The HM3D-OVON JSON form of an episode."""
+    return {
+        "episode_id": episode.episode_id,
+        "scene_id": episode.scene_id,
+        "start_position": _round(episode.start_position),
+        "start_rotation": _round(episode.start_rotation),
+        "object_category": episode.object_category,
+        "goals": [
+            {
+                "object_id": goal.object_id,
+                "object_category": goal.object_category,
+                "position": _round(goal.position),
+                "view_points": [
+                    {
+                        "agent_state": {"position": _round(vp.position), "rotation": _round(vp.rotation)},
+                        "iou": vp.iou,
+                    }
+                    for vp in goal.view_points
+                ],
+            }
+            for goal in episode.goals
+        ],
+        "info": dict(episode.info),
+    }
+
+
+def save_episodes(episodes: list[Episode], path: str | Path) -> None:
+    """Write a json.gz episode file, byte-identical for identical episodes."""
+    payload = json.dumps({"episodes": [episode_to_dict(e) for e in episodes]}, separators=(",", ":"))
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with target.open("wb") as raw, gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0) as gz:
+        gz.write(payload.encode())
+
+
+def load_episodes(path: str | Path) -> list[Episode]:
+    """Read and validate an episode file (json.gz, or plain .json)."""
+    source = Path(path)
+    if not source.is_file():
+        raise InputError(source, "--episodes", "an episode count or an existing .json.gz file")
+    try:
+        raw = source.read_bytes()
+        text = gzip.decompress(raw) if raw[:2] == b"\x1f\x8b" else raw
+        data = json.loads(text)
+    except (OSError, EOFError, ValueError) as exc:
+        raise InputError(source, "<file>", "gzip-compressed JSON (json.gz) or JSON", str(exc)) from None
+    if not isinstance(data, dict) or not isinstance(data.get("episodes"), list):
+        raise InputError(source, "episodes", "a top-level object with an 'episodes' list")
+    return [_parse_episode(source, f"episodes[{i}]", item) for i, item in enumerate(data["episodes"])]
+
+
+def _numbers(source: Path, name: str, value: Any, count: int) -> list[float]:
+    ok = isinstance(value, list) and len(value) == count
+    ok = ok and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value
+    )
+    if not ok:
+        raise InputError(source, name, f"a list of {count} finite numbers", value)
+    return [float(v) for v in value]
+
+
+def _vec3(source: Path, name: str, value: Any) -> Vec3:
+    x, y, z = _numbers(source, name, value, 3)
+    return (x, y, z)
+
+
+def _quat(source: Path, name: str, value: Any) -> Quat:
+    x, y, z, w = _numbers(source, name, value, 4)
+    return (x, y, z, w)
+
+
+def _string(source: Path, name: str, value: Any) -> str:
+    if isinstance(value, int) and not isinstance(value, bool):
+        return str(value)
+    if not isinstance(value, str) or not value:
+        raise InputError(source, name, "a non-empty string", value)
+    return value
+
+
+def _parse_episode(source: Path, name: str, item: Any) -> Episode:
+    if not isinstance(item, dict):
+        raise InputError(source, name, "an object", type(item).__name__)
+    goals = item.get("goals")
+    if not isinstance(goals, list) or not goals:
+        raise InputError(source, f"{name}.goals", "a non-empty list of goals", goals)
+    info = item.get("info", {})
+    if not isinstance(info, dict):
+        raise InputError(source, f"{name}.info", "an object", info)
+    return Episode(
+        episode_id=_string(source, f"{name}.episode_id", item.get("episode_id")),
+        scene_id=_string(source, f"{name}.scene_id", item.get("scene_id")),
+        start_position=_vec3(source, f"{name}.start_position", item.get("start_position")),
+        start_rotation=_quat(source, f"{name}.start_rotation", item.get("start_rotation")),
+        object_category=_string(source, f"{name}.object_category", item.get("object_category")),
+        goals=tuple(_parse_goal(source, f"{name}.goals[{k}]", g) for k, g in enumerate(goals)),
+        info=info,
+    )
+
+
+def _parse_goal(source: Path, name: str, item: Any) -> ObjectGoal:
+    if not isinstance(item, dict):
+        raise InputError(source, name, "an object", type(item).__name__)
+    points = item.get("view_points")
+    if not isinstance(points, list) or not points:
+        raise InputError(source, f"{name}.view_points", "a non-empty list", points)
+    view_points = []
+    for k, vp in enumerate(points):
+        state = vp.get("agent_state") if isinstance(vp, dict) else None
+        if not isinstance(state, dict):
+            raise InputError(
+                source, f"{name}.view_points[{k}].agent_state", "an object with position and rotation"
+            )
+        position = _vec3(source, f"{name}.view_points[{k}].agent_state.position", state.get("position"))
+        rotation = _quat(source, f"{name}.view_points[{k}].agent_state.rotation", state.get("rotation"))
+        view_points.append(ViewPoint(position, rotation, float(vp.get("iou", 1.0))))
+    object_id = item.get("object_id", -1)
+    if not isinstance(object_id, int) or isinstance(object_id, bool):
+        raise InputError(source, f"{name}.object_id", "an integer", object_id)
+    return ObjectGoal(
+        object_id=object_id,
+        object_category=_string(source, f"{name}.object_category", item.get("object_category", "object")),
+        position=_vec3(source, f"{name}.position", item.get("position")),
+        view_points=tuple(view_points),
+    )
+
+
+def validate_for_scenes(
+    episodes: list[Episode], library: SceneLibrary, source: str | Path, sim: SimConfig
+) -> None:
+    """Every episode's scene is in ``library`` and its start is navigable there; else an :class:`InputError`."""
+    for i, episode in enumerate(episodes):
+        if episode.scene_id not in library:
+            raise InputError(
+                source, f"episodes[{i}].scene_id", f"a scene of --scenes {library.spec}", episode.scene_id
+            )
+        scene = library.load(episode.scene_id)
+        navigable = scene.navigable_grid(sim.agent_radius, sim.agent_height)
+        row, col = scene.grid.world_to_cell(episode.start_xy)
+        if not (scene.grid.contains((row, col)) and navigable[row, col]):
+            raise InputError(
+                source,
+                f"episodes[{i}].start_position",
+                f"a navigable position in {episode.scene_id}",
+                list(episode.start_position),
+            )

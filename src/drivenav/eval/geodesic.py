@@ -1,0 +1,81 @@
+"""Geodesic distances on the navigable grid, the embedded stand-in for Habitat's navmesh queries.
+
+One Fast-Marching solve (scikit-fmm) from a set of goal points gives the shortest-path distance from every
+navigable cell to the nearest goal; queries interpolate bilinearly between cell centres. This is what the
+metrics use (distance to goal, SPL's d0) and what the oracle agent descends.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+import skfmm
+from numpy.typing import NDArray
+from scipy import ndimage
+
+from drivenav.grid import GridSpec
+
+
+def largest_component(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """The largest 8-connected component of ``mask`` (all False if ``mask`` is empty)."""
+    labels, count = ndimage.label(mask, structure=np.ones((3, 3), dtype=bool))
+    if count == 0:
+        return np.zeros_like(mask)
+    sizes = np.bincount(labels.ravel())
+    sizes[0] = 0
+    largest: NDArray[np.bool_] = labels == int(np.argmax(sizes))
+    return largest
+
+
+class GeodesicField:
+    """Shortest-path distance (metres) over ``navigable`` to the nearest of ``goals`` (world points).
+
+    Cells that cannot reach a goal hold ``inf``. Goal points off the navigable grid are ignored; if none is
+    left every distance is ``inf``.
+    """
+
+    def __init__(
+        self, navigable: NDArray[np.bool_], grid: GridSpec, goals: Sequence[tuple[float, float]]
+    ) -> None:
+        self.grid = grid
+        self.distances = np.full(grid.shape, np.inf)
+        cells = grid.world_to_cell(np.asarray(goals, dtype=np.float64).reshape(-1, 2))
+        inside = grid.contains(cells)
+        cells = cells[inside]
+        cells = cells[navigable[cells[:, 0], cells[:, 1]]]
+        if len(cells) == 0:
+            return
+        rows, cols = np.nonzero(navigable)
+        r0, r1 = max(rows.min() - 1, 0), min(rows.max() + 2, grid.shape[0])
+        c0, c1 = max(cols.min() - 1, 0), min(cols.max() + 2, grid.shape[1])
+        window = navigable[r0:r1, c0:c1]
+        phi = np.ones(window.shape)
+        phi[cells[:, 0] - r0, cells[:, 1] - c0] = -1.0
+        solved = skfmm.distance(np.ma.MaskedArray(phi, ~window), dx=grid.resolution)
+        values = np.ma.filled(solved, np.inf) + 0.5 * grid.resolution
+        self.distances[r0:r1, c0:c1] = np.maximum(values, 0.0)
+
+    def at(self, x: float, y: float) -> float:
+        """Distance at a world point: bilinear over the finite ones of the four nearest cell centres."""
+        res = self.grid.resolution
+        fx = (x - self.grid.origin[0]) / res - 0.5
+        fy = (y - self.grid.origin[1]) / res - 0.5
+        c0, r0 = math.floor(fx), math.floor(fy)
+        tx, ty = fx - c0, fy - r0
+        total, weight_sum = 0.0, 0.0
+        for dr, dc, w in (
+            (0, 0, (1 - tx) * (1 - ty)),
+            (0, 1, tx * (1 - ty)),
+            (1, 0, (1 - tx) * ty),
+            (1, 1, tx * ty),
+        ):
+            r, c = r0 + dr, c0 + dc
+            if w <= 0.0 or not (0 <= r < self.grid.shape[0] and 0 <= c < self.grid.shape[1]):
+                continue
+            value = float(self.distances[r, c])
+            if math.isfinite(value):
+                total += w * value
+                weight_sum += w
+        return total / weight_sum if weight_sum > 0.0 else math.inf

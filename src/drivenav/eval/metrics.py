@@ -1,0 +1,79 @@
+"""Navigation metrics, computed as Habitat / HM3D-OVON do, plus the paper's revisit count (Sec. V-C).
+
+Success: STOP called with geodesic distance to the nearest goal view point <= the success distance.
+SPL = S * d0 / max(d0, path length) with d0 the start-to-goal geodesic distance and the path the executed
+translation (turns add nothing).
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+REVISIT_TRAVEL = 5.0  # metres of travel near earlier trajectory for a segment to count as a revisit
+REVISIT_RADIUS = 0.5  # metres: "within 0.5 m of the previously traversed 2-D trajectory"
+
+
+def success(called_stop: bool, distance_to_goal: float, success_distance: float) -> bool:
+    """Habitat's ObjectNav success."""
+    return called_stop and distance_to_goal <= success_distance
+
+
+def spl(is_success: bool, geodesic_distance: float, path_length: float) -> float:
+    """Success weighted by path length: ``S * d0 / max(d0, path)``."""
+    if not is_success:
+        return 0.0
+    denominator = max(geodesic_distance, path_length)
+    return 1.0 if denominator <= 0.0 else geodesic_distance / denominator
+
+
+def path_length(positions: NDArray[np.float64]) -> float:
+    """Length of the polyline through ``(T, 2)`` positions."""
+    if len(positions) < 2:
+        return 0.0
+    return float(np.sum(np.linalg.norm(np.diff(positions, axis=0), axis=1)))
+
+
+def densify(positions: NDArray[np.float64], spacing: float) -> NDArray[np.float64]:
+    """Points along the polyline no farther apart than ``spacing`` (vertices included)."""
+    if len(positions) < 2:
+        return positions.reshape(-1, 2)
+    pieces = [positions[:1]]
+    for a, b in itertools.pairwise(positions):
+        n = max(1, int(np.ceil(np.linalg.norm(b - a) / spacing)))
+        t = np.arange(1, n + 1)[:, None] / n
+        pieces.append(a + t * (b - a))
+    return np.concatenate(pieces)
+
+
+def count_revisits(
+    positions: NDArray[np.float64],
+    segment_starts: Sequence[int],
+    min_travel: float = REVISIT_TRAVEL,
+    radius: float = REVISIT_RADIUS,
+) -> int:
+    """Number of frontier-selection segments that are revisits (paper Sec. V-C).
+
+    ``positions[t]`` is the agent position after ``t`` actions (``positions[0]`` is the start);
+    ``segment_starts`` are the indices at which agents started a new segment. A segment counts when the
+    translation it makes within ``radius`` of the trajectory traversed before the segment began adds up to at
+    least ``min_travel``.
+    """
+    starts = sorted({s for s in segment_starts if 0 <= s < len(positions)})
+    revisits = 0
+    for k, start in enumerate(starts):
+        end = starts[k + 1] if k + 1 < len(starts) else len(positions) - 1
+        if start < 1 or end <= start:
+            continue
+        earlier = cKDTree(densify(positions[: start + 1], radius / 4.0))
+        moves = positions[start : end + 1]
+        lengths = np.linalg.norm(np.diff(moves, axis=0), axis=1)
+        midpoints = 0.5 * (moves[1:] + moves[:-1])
+        near, _ = earlier.query(midpoints, distance_upper_bound=radius + 1e-9)
+        if float(np.sum(lengths[np.isfinite(near)])) >= min_travel:
+            revisits += 1
+    return revisits

@@ -1,0 +1,33 @@
+"""Shared fixtures: the shared maps folder and a command-line runner."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from drivenav.envs.rosmap import default_shared_maps_dir
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture
+def maps_dir() -> Path:
+    found = default_shared_maps_dir()
+    if found is None:
+        pytest.skip("shared/data/maps not found")
+    return found
+
+
+def run_cli(*args: str, timeout: float = 600.0) -> subprocess.CompletedProcess[str]:
+    """Run ``drivenav ARGS`` in a fresh interpreter, capturing output."""
+    return subprocess.run(
+        [sys.executable, "-m", "drivenav.cli", *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        cwd=REPO,
+        check=False,
+    )

@@ -1,0 +1,92 @@
+"""Episode files: round trip, determinism of bytes, and one clear error per kind of bad input."""
+
+from __future__ import annotations
+
+import gzip
+import json
+from pathlib import Path
+
+import pytest
+
+from drivenav.envs.episode import Episode, ObjectGoal, ViewPoint, world_to_habitat, yaw_to_quaternion
+from drivenav.errors import InputError
+from drivenav.eval.episodes import episode_to_dict, load_episodes, save_episodes
+
+
+def _episode(episode_id: str = "0") -> Episode:
+    view = ViewPoint(world_to_habitat(2.0, 1.0), yaw_to_quaternion(0.0))
+    goal = ObjectGoal(7, "sofa", world_to_habitat(3.0, 1.0, 0.4), (view,))
+    return Episode(
+        episode_id=episode_id,
+        scene_id="procedural/house_00001",
+        start_position=world_to_habitat(0.5, 0.5),
+        start_rotation=yaw_to_quaternion(1.0),
+        object_category="couch",
+        goals=(goal,),
+        info={"geodesic_distance": 1.58, "canonical_category": "sofa", "synonym": True},
+    )
+
+
+def test_round_trip(tmp_path: Path) -> None:
+    path = tmp_path / "eps.json.gz"
+    save_episodes([_episode("0"), _episode("1")], path)
+    loaded = load_episodes(path)
+    assert [e.episode_id for e in loaded] == ["0", "1"]
+    assert episode_to_dict(loaded[0]) == episode_to_dict(_episode("0"))
+    assert loaded[0].start_xy == pytest.approx((0.5, 0.5))
+    assert loaded[0].start_yaw == pytest.approx(1.0, abs=1e-4)
+    assert loaded[0].view_points_xy() == [pytest.approx((2.0, 1.0))]
+
+
+def test_same_episodes_same_bytes(tmp_path: Path) -> None:
+    save_episodes([_episode()], tmp_path / "a.json.gz")
+    save_episodes([_episode()], tmp_path / "b.json.gz")
+    assert (tmp_path / "a.json.gz").read_bytes() == (tmp_path / "b.json.gz").read_bytes()
+
+
+def _write(tmp_path: Path, payload: object) -> Path:
+    path = tmp_path / "bad.json.gz"
+    path.write_bytes(gzip.compress(json.dumps(payload).encode()))
+    return path
+
+
+def _valid() -> dict[str, object]:
+    return episode_to_dict(_episode())
+
+
+@pytest.mark.parametrize(
+    ("mutate", "field"),
+    [
+        (lambda e: e.pop("scene_id"), "episodes[0].scene_id"),
+        (lambda e: e.update(start_position=[1.0, 2.0]), "episodes[0].start_position"),
+        (lambda e: e.update(start_rotation="north"), "episodes[0].start_rotation"),
+        (lambda e: e.update(goals=[]), "episodes[0].goals"),
+        (lambda e: e["goals"][0].update(view_points=[{"agent_state": {"position": [0, 0]}}]), "position"),
+        (lambda e: e.update(object_category=""), "episodes[0].object_category"),
+    ],
+)
+def test_bad_fields_are_named(tmp_path: Path, mutate, field: str) -> None:  # type: ignore[no-untyped-def]
+    episode = _valid()
+    mutate(episode)
+    path = _write(tmp_path, {"episodes": [episode]})
+    with pytest.raises(InputError) as info:
+        load_episodes(path)
+    assert str(path) in str(info.value)
+    assert field in str(info.value)
+
+
+def test_not_gzip_json(tmp_path: Path) -> None:
+    path = tmp_path / "eps.json.gz"
+    path.write_bytes(b"\x1f\x8b\x08garbage")
+    with pytest.raises(InputError, match="gzip-compressed JSON"):
+        load_episodes(path)
+
+
+def test_missing_episodes_list(tmp_path: Path) -> None:
+    with pytest.raises(InputError, match="'episodes' list"):
+        load_episodes(_write(tmp_path, {"eps": []}))
+
+
+def test_missing_file(tmp_path: Path) -> None:
+    with pytest.raises(InputError, match="--episodes"):
+        load_episodes(tmp_path / "nope.json.gz")
