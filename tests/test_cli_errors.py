@@ -56,16 +56,12 @@ def test_malformed_map_yaml(tmp_path: Path) -> None:
     scene = tmp_path / "scene"
     scene.mkdir()
     (scene / "map.yaml").write_text("image: map.pgm\nresolution: [oops\n")
-    result = run_cli(
-        "episodes", "generate", "--scenes", str(scene), "--num", "1", "--out", str(tmp_path / "e.json.gz")
-    )
+    result = run_cli("episodes", "generate", "--scenes", str(scene), "--num", "1", "--out", str(tmp_path / "e.json.gz"))
     _assert_clean_error(result, "map.yaml")
 
 
 def test_missing_scene_path(tmp_path: Path) -> None:
-    result = run_cli(
-        "episodes", "generate", "--scenes", str(tmp_path / "nowhere"), "--num", "1", "--out", "x.json.gz"
-    )
+    result = run_cli("episodes", "generate", "--scenes", str(tmp_path / "nowhere"), "--num", "1", "--out", "x.json.gz")
     _assert_clean_error(result, "--scenes")
 
 

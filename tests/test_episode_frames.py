@@ -40,9 +40,7 @@ def test_position_round_trip(x: float, y: float) -> None:
 
 
 @given(st.floats(-10, 10), st.floats(-10, 10), angles, st.floats(-10, 10), st.floats(-10, 10), angles)
-def test_pose_inverse_composes_to_identity(
-    x: float, y: float, t: float, a: float, b: float, c: float
-) -> None:
+def test_pose_inverse_composes_to_identity(x: float, y: float, t: float, a: float, b: float, c: float) -> None:
     pose, local = Pose(x, y, t), Pose(a, b, c)
     back = pose.inverse().compose(pose.compose(local))
     assert (back.x, back.y, wrap_angle(back.yaw - local.yaw)) == pytest.approx((a, b, 0.0), abs=1e-9)

@@ -73,9 +73,7 @@ def test_oracle_on_every_real_floor_plan(tmp_path: Path, maps_dir: Path) -> None
     assert len(library.scene_ids) >= 9
     episodes = generate_episodes(library, len(library.scene_ids), seed=1)
     assert {e.scene_id for e in episodes} == set(library.scene_ids)
-    summary = evaluate(
-        episodes, RunSpec("oracle", str(maps_dir), 1, 500), tmp_path / "maps", show_progress=False
-    )
+    summary = evaluate(episodes, RunSpec("oracle", str(maps_dir), 1, 500), tmp_path / "maps", show_progress=False)
     assert summary["success_rate"] == 1.0
     assert summary["spl"] >= 0.95
 

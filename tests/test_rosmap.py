@@ -194,9 +194,7 @@ def test_corrupt_image_fails(tmp_path: Path, content: bytes) -> None:
 
 
 def test_truncated_png_fails(tmp_path: Path) -> None:
-    write_map(
-        tmp_path, Image.fromarray(np.random.default_rng(0).integers(0, 255, (64, 64), np.uint8)), "map.png"
-    )
+    write_map(tmp_path, Image.fromarray(np.random.default_rng(0).integers(0, 255, (64, 64), np.uint8)), "map.png")
     data = (tmp_path / "map.png").read_bytes()
     (tmp_path / "map.png").write_bytes(data[: len(data) // 2])
     assert input_error(load_structure, tmp_path).field == "image"
@@ -244,14 +242,12 @@ def reference_resample(src: NDArray[np.uint8], rs: float, rt: float) -> NDArray[
 @given(
     grid=st.integers(1, 9).flatmap(
         lambda rows: st.integers(1, 9).flatmap(
-            lambda cols: st.lists(
-                st.sampled_from([F, F, F, W, U]), min_size=rows * cols, max_size=rows * cols
-            ).map(lambda v: np.array(v, np.uint8).reshape(rows, cols))
+            lambda cols: st.lists(st.sampled_from([F, F, F, W, U]), min_size=rows * cols, max_size=rows * cols).map(
+                lambda v: np.array(v, np.uint8).reshape(rows, cols)
+            )
         )
     ),
-    rs=st.one_of(
-        st.sampled_from([0.025, 0.045, 0.0504, 0.05, 0.1]), st.integers(150, 1500).map(lambda k: k / 1e4)
-    ),
+    rs=st.one_of(st.sampled_from([0.025, 0.045, 0.0504, 0.05, 0.1]), st.integers(150, 1500).map(lambda k: k / 1e4)),
 )
 def test_resample_matches_brute_force_overlaps(grid: NDArray[np.uint8], rs: float) -> None:
     np.testing.assert_array_equal(resample_structure(grid, rs, 0.05), reference_resample(grid, rs, 0.05))
@@ -259,9 +255,7 @@ def test_resample_matches_brute_force_overlaps(grid: NDArray[np.uint8], rs: floa
 
 @pytest.mark.parametrize("source_resolution", [0.025, 0.045, 0.0504, 0.1])
 def test_load_keeps_origin_and_covers_extent(tmp_path: Path, source_resolution: float) -> None:
-    directory = write_map(
-        tmp_path, np.full((37, 53), 254), resolution=source_resolution, origin=[-3.5, 2.25, 0.0]
-    )
+    directory = write_map(tmp_path, np.full((37, 53), 254), resolution=source_resolution, origin=[-3.5, 2.25, 0.0])
     grid, structure = load_structure(directory)
     assert grid.origin == (-3.5, 2.25) and grid.resolution == 0.05
     xmin, xmax, ymin, ymax = grid.extent
@@ -482,19 +476,14 @@ def test_write_objects_json_round_trip(tmp_path: Path) -> None:
         max_size=6,
     )
 )
-def test_write_then_read_preserves_objects(
-    tmp_path_factory: pytest.TempPathFactory, boxes: list[Any]
-) -> None:
+def test_write_then_read_preserves_objects(tmp_path_factory: pytest.TempPathFactory, boxes: list[Any]) -> None:
     grid = GridSpec(0.05, ORIGIN, (40, 40))
     structure = np.full(grid.shape, F, np.uint8)
     objects = [
-        ObjectInstance(k + 1, c, (x, y), (sx, sy, sz), yaw, e)
-        for k, (x, y, sx, sy, sz, yaw, e, c) in enumerate(boxes)
+        ObjectInstance(k + 1, c, (x, y), (sx, sy, sz), yaw, e) for k, (x, y, sx, sy, sz, yaw, e, c) in enumerate(boxes)
     ]
     rooms = [Room("hall", ((-1.0, 2.0), (0.7, 2.0), (0.1 / 3, 4.0)))]
-    path = write_objects_json(
-        Scene("s", grid, structure, objects, rooms), tmp_path_factory.mktemp("rt") / "o.json"
-    )
+    path = write_objects_json(Scene("s", grid, structure, objects, rooms), tmp_path_factory.mktemp("rt") / "o.json")
     assert read_objects_json(path, grid, structure) == (objects, rooms)
 
 
@@ -572,9 +561,7 @@ def shared_map(request: pytest.FixtureRequest) -> Path:
     return SHARED_MAPS / str(request.param)
 
 
-def test_shared_map_loads_with_sensible_navigable_space(
-    shared_map: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
+def test_shared_map_loads_with_sensible_navigable_space(shared_map: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     no_placement(monkeypatch)
     assert is_map_scene_dir(shared_map)
     start = time.perf_counter()

@@ -23,12 +23,8 @@ def _add_eval(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
 
     parser = commands.add_parser("eval", help="run an agent on episodes and write metrics")
     parser.add_argument("--agent", required=True, help=f"agent name ({', '.join(agent_names())})")
-    parser.add_argument(
-        "--scenes", default="procedural", help="procedural[:K], a scene dir, or a folder of them"
-    )
-    parser.add_argument(
-        "--episodes", required=True, help="a number of episodes to generate, or an episodes file"
-    )
+    parser.add_argument("--scenes", default="procedural", help="procedural[:K], a scene dir, or a folder of them")
+    parser.add_argument("--episodes", required=True, help="a number of episodes to generate, or an episodes file")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", required=True, type=Path, help="run directory (rerun to resume)")
     parser.add_argument("--workers", type=int, default=1)
@@ -50,12 +46,18 @@ def _add_episodes(commands: argparse._SubParsersAction[argparse.ArgumentParser])
 def _add_bench(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     parser = commands.add_parser("bench", help="speed benchmarks")
     sub = parser.add_subparsers(dest="bench_command", required=True)
-    sim = sub.add_parser(
-        "sim", help="embedded simulator frames per second (RGB + depth + semantic, one core)"
-    )
+    sim = sub.add_parser("sim", help="embedded simulator frames per second (RGB + depth + semantic, one core)")
     sim.add_argument("--frames", type=int, default=300)
     sim.add_argument("--json", action="store_true", help="print one JSON object")
     sim.set_defaults(handler=_cmd_bench_sim)
+    directions = sub.add_parser("directions", help="map -> labelled directions for all frontiers (480x480 map)")
+    directions.add_argument("--repeats", type=int, default=50)
+    directions.add_argument("--json", action="store_true", help="print one JSON object")
+    directions.set_defaults(handler=_cmd_bench_directions)
+    mapping = sub.add_parser("mapping", help="mapping update per 640x480 depth frame, frontier extraction")
+    mapping.add_argument("--frames", type=int, default=24)
+    mapping.add_argument("--json", action="store_true", help="print one JSON object")
+    mapping.set_defaults(handler=_cmd_bench_mapping)
 
 
 def _add_viz(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -120,9 +122,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     if not episodes_copy.exists():
         save_episodes(episodes, episodes_copy)
     spec = RunSpec(args.agent, args.scenes, args.seed, args.max_steps)
-    summary = evaluate(
-        episodes, spec, args.out, workers=args.workers, sim=SimConfig(max_steps=args.max_steps)
-    )
+    summary = evaluate(episodes, spec, args.out, workers=args.workers, sim=SimConfig(max_steps=args.max_steps))
     print(format_table(summary, f"{args.agent} on {args.scenes}"))
     print(f"results: {args.out / EPISODES_FILE}  summary: {args.out / 'summary.json'}")
     return 0
@@ -142,16 +142,31 @@ def _cmd_episodes_generate(args: argparse.Namespace) -> int:
     return 0
 
 
-def _cmd_bench_sim(args: argparse.Namespace) -> int:
-    from drivenav.envs.bench import bench_sim
-
-    result = bench_sim(frames=_positive(args.frames, "--frames"))
-    if args.json:
+def _print_bench(result: dict[str, Any], as_json: bool) -> int:
+    if as_json:
         print(json.dumps(result))
     else:
         for key, value in result.items():
-            print(f"{key:>16}: {value}")
+            print(f"{key:>20}: {value}")
     return 0
+
+
+def _cmd_bench_sim(args: argparse.Namespace) -> int:
+    from drivenav.envs.bench import bench_sim
+
+    return _print_bench(bench_sim(frames=_positive(args.frames, "--frames")), args.json)
+
+
+def _cmd_bench_directions(args: argparse.Namespace) -> int:
+    from drivenav.directions.bench import bench_directions
+
+    return _print_bench(bench_directions(_positive(args.repeats, "--repeats")), args.json)
+
+
+def _cmd_bench_mapping(args: argparse.Namespace) -> int:
+    from drivenav.mapping.bench import bench_mapping
+
+    return _print_bench(dict(bench_mapping(frames=_positive(args.frames, "--frames"))), args.json)
 
 
 def _cmd_viz(args: argparse.Namespace) -> int:
@@ -174,9 +189,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    logging.basicConfig(
-        level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s"
-    )
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
     handler: Handler = args.handler
     try:
         return handler(args)

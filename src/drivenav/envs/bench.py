@@ -106,8 +106,7 @@ def demo_house() -> Scene:
         _door(structure, grid, door)
     rooms = [Room(name, ((x0, y0), (x1, y0), (x1, y1), (x0, y1))) for name, (x0, y0, x1, y1) in _ROOMS]
     objects = [
-        ObjectInstance(i + 1, cat, centre, size, yaw, elev)
-        for i, (cat, centre, size, yaw, elev) in enumerate(_OBJECTS)
+        ObjectInstance(i + 1, cat, centre, size, yaw, elev) for i, (cat, centre, size, yaw, elev) in enumerate(_OBJECTS)
     ]
     return Scene("demo_house", grid, structure, objects, rooms, source="drivenav.envs.bench.demo_house")
 
@@ -133,9 +132,7 @@ def sample_poses(scene: Scene, config: SimConfig, count: int, seed: int = 0) -> 
     return [Pose(float(x), float(y), float(yaw)) for (x, y), yaw in zip(xy, yaws, strict=True)]
 
 
-def bench_sim(
-    frames: int = 300, scene: Scene | None = None, config: SimConfig | None = None
-) -> dict[str, object]:
+def bench_sim(frames: int = 300, scene: Scene | None = None, config: SimConfig | None = None) -> dict[str, object]:
     """Rendering throughput (RGB + depth + semantic per frame) on one thread, JIT compile time excluded."""
     numba.set_num_threads(1)
     config = config or SimConfig()

@@ -101,9 +101,7 @@ class EmbeddedEnv:
         world = self._world()
         x, y = episode.start_xy
         if not is_navigable(world.navigable, world.scene.grid, x, y):
-            raise ValueError(
-                f"episode {episode.episode_id}: start {(x, y)} is not navigable in {episode.scene_id}"
-            )
+            raise ValueError(f"episode {episode.episode_id}: start {(x, y)} is not navigable in {episode.scene_id}")
         self._start = Pose(x, y, wrap_angle(episode.start_yaw))
         self._xy = (x, y)
         self._turns = 0

@@ -55,9 +55,7 @@ class SceneLibrary:
         return self._procedural_ids + sorted(self._maps)
 
     def __contains__(self, scene_id: str) -> bool:
-        return scene_id in self._maps or (
-            bool(self._procedural_ids) and PROCEDURAL_ID.match(scene_id) is not None
-        )
+        return scene_id in self._maps or (bool(self._procedural_ids) and PROCEDURAL_ID.match(scene_id) is not None)
 
     def load(self, scene_id: str) -> Scene:
         """The scene with this id (cached per process)."""
@@ -79,21 +77,16 @@ def _parse_house_count(spec: str) -> int:
 
 
 def _find_map_dirs(path: Path) -> dict[str, Path]:
-    from drivenav.envs.rosmap import is_map_scene_dir
+    from drivenav.envs.rosmap import find_map_yaml, is_map_scene_dir, read_map_yaml
 
     if not path.exists():
-        raise InputError(
-            path, "--scenes", "'procedural', a scene directory, or a folder of scene directories"
-        )
+        raise InputError(path, "--scenes", "'procedural', a scene directory, or a folder of scene directories")
     path = path.resolve()
-    if path.is_file() or is_map_scene_dir(path):
+    if path.is_file() or is_map_scene_dir(path) or any(path.glob("*.yaml")):
+        read_map_yaml(find_map_yaml(path))  # a broken map names its own file and field
         directory = path.parent if path.is_file() else path
         return {directory.name: path}
-    found = {
-        child.name: child for child in sorted(path.iterdir()) if child.is_dir() and is_map_scene_dir(child)
-    }
+    found = {child.name: child for child in sorted(path.iterdir()) if child.is_dir() and is_map_scene_dir(child)}
     if not found:
-        raise InputError(
-            path, "--scenes", "a scene directory (map YAML + image) or a folder of them", "no map found"
-        )
+        raise InputError(path, "--scenes", "a scene directory (map YAML + image) or a folder of them", "no map found")
     return found

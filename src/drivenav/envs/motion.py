@@ -25,9 +25,7 @@ def is_navigable(navigable: NDArray[np.bool_], grid: GridSpec, x: float, y: floa
     return 0 <= row < rows and 0 <= col < cols and bool(navigable[row, col])
 
 
-def _free_prefix(
-    navigable: NDArray[np.bool_], grid: GridSpec, x: float, y: float, dx: float, dy: float
-) -> float:
+def _free_prefix(navigable: NDArray[np.bool_], grid: GridSpec, x: float, y: float, dx: float, dy: float) -> float:
     """Largest fraction ``f`` in ``[0, 1]`` of the motion ``(dx, dy)`` whose sub-step samples are navigable.
 
     Samples lie at most half a cell apart; ``f`` is the last sample before the first blocked one.

@@ -198,9 +198,7 @@ def _structure_hit(
 
 
 @numba.njit(cache=True)
-def _box_interval(
-    geom: NDArray[np.float64], px: float, py: float, dx: float, dy: float
-) -> tuple[float, float, int]:
+def _box_interval(geom: NDArray[np.float64], px: float, py: float, dx: float, dy: float) -> tuple[float, float, int]:
     """Slab test of the ray against one box footprint in the box frame: ``(d_in, d_out, entry face)``.
 
     ``d_in > d_out`` means a miss. A ray starting inside the footprint has ``d_in = 0`` and face

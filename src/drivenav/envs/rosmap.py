@@ -115,9 +115,7 @@ def find_map_yaml(path: str | Path) -> Path:
     if not maps and broken:
         raise broken[0]
     got = "none" if not maps else ", ".join(p.name for p in maps)
-    raise InputError(
-        path, "map yaml", "exactly one map YAML (a .yaml with an 'image' key) in the directory", got
-    )
+    raise InputError(path, "map yaml", "exactly one map YAML (a .yaml with an 'image' key) in the directory", got)
 
 
 def _map_yamls(directory: Path) -> tuple[list[Path], list[InputError]]:
@@ -177,9 +175,7 @@ def read_map_yaml(path: str | Path) -> MapYaml:
     mode = doc.get("mode", "trinary")
     if mode not in MAP_MODES:
         raise InputError(path, "mode", f"one of {', '.join(MAP_MODES)}", mode)
-    return MapYaml(
-        path, path.parent / image, resolution, (origin[0], origin[1]), bool(negate), occupied, free, mode
-    )
+    return MapYaml(path, path.parent / image, resolution, (origin[0], origin[1]), bool(negate), occupied, free, mode)
 
 
 def _threshold(doc: dict[str, Any], key: str, path: Path) -> float:
@@ -196,9 +192,7 @@ def _threshold(doc: dict[str, Any], key: str, path: Path) -> float:
 def _read_levels(meta: MapYaml) -> tuple[NDArray[np.integer[Any]], float]:
     """Integer grey levels (channel sums for colour) and the factor turning them into 0..255 values."""
     if not meta.image.is_file():
-        raise InputError(
-            meta.path, "image", "an existing image file (path relative to the YAML)", str(meta.image)
-        )
+        raise InputError(meta.path, "image", "an existing image file (path relative to the YAML)", str(meta.image))
     try:
         with Image.open(meta.image) as img:
             img.load()
@@ -206,9 +200,7 @@ def _read_levels(meta: MapYaml) -> tuple[NDArray[np.integer[Any]], float]:
                 raise InputError(
                     meta.image, "image mode", f"one of the Pillow modes {', '.join(IMAGE_MODES)}", img.mode
                 )
-            converted = (
-                img.convert("RGBA") if img.mode == "P" else img.convert("L") if img.mode == "1" else img
-            )
+            converted = img.convert("RGBA") if img.mode == "P" else img.convert("L") if img.mode == "1" else img
             pixels = np.asarray(converted)
     except (OSError, SyntaxError, ValueError, Image.DecompressionBombError) as exc:
         raise InputError(meta.image, "image", "a readable PGM or PNG image", str(exc)) from exc
@@ -247,9 +239,7 @@ def read_map_image(meta: MapYaml) -> NDArray[np.uint8]:
 # Resampling
 
 
-def resample_structure(
-    structure: NDArray[np.uint8], source_resolution: float, resolution: float
-) -> NDArray[np.uint8]:
+def resample_structure(structure: NDArray[np.uint8], source_resolution: float, resolution: float) -> NDArray[np.uint8]:
     """Resample a material grid to ``resolution``, keeping its origin and covering its whole extent.
 
     A target cell is a wall if any source cell it overlaps (with positive area) is a wall or door frame, else
@@ -311,18 +301,14 @@ def _numbers(value: Any, count: int, source: Path, field: str, expected: str) ->
     return tuple(_number(v, source, f"{field}[{k}]") for k, v in enumerate(value))
 
 
-def _entry(
-    value: Any, keys: frozenset[str], required: Sequence[str], source: Path, field: str
-) -> dict[str, Any]:
+def _entry(value: Any, keys: frozenset[str], required: Sequence[str], source: Path, field: str) -> dict[str, Any]:
     """A JSON object with only ``keys`` and every ``required`` key; ``field`` names it ("" = the document)."""
     if not isinstance(value, dict):
         raise InputError(source, field or "<document>", "a JSON object", value)
     prefix = f"{field}." if field else ""
     unknown = sorted(set(value) - keys)
     if unknown:
-        raise InputError(
-            source, prefix + unknown[0], f"only the keys {', '.join(sorted(keys))}", "unknown key"
-        )
+        raise InputError(source, prefix + unknown[0], f"only the keys {', '.join(sorted(keys))}", "unknown key")
     for key in required:
         if key not in value:
             raise InputError(source, prefix + key, "a value", "missing")
@@ -352,9 +338,7 @@ def _extent_text(grid: GridSpec) -> str:
     return f"x in [{xmin:g}, {xmax:g}], y in [{ymin:g}, {ymax:g}]"
 
 
-def _read_object(
-    value: Any, index: int, source: Path, grid: GridSpec, structure: NDArray[np.uint8]
-) -> ObjectInstance:
+def _read_object(value: Any, index: int, source: Path, grid: GridSpec, structure: NDArray[np.uint8]) -> ObjectInstance:
     field = f"objects[{index}]"
     entry = _entry(value, _OBJECT_KEYS, ("category", "center", "size"), source, field)
     center = _numbers(entry["center"], 2, source, f"{field}.center", "a list of 2 numbers [x, y]")
@@ -374,20 +358,14 @@ def _read_object(
     )
     cell = grid.world_to_cell(obj.center)
     if not grid.contains(cell):
-        raise InputError(
-            source, f"{field}.center", f"a point on the map ({_extent_text(grid)})", entry["center"]
-        )
+        raise InputError(source, f"{field}.center", f"a point on the map ({_extent_text(grid)})", entry["center"])
     material = Material(int(structure[cell[0], cell[1]]))
     if material != Material.FREE:
         name = material.name.lower()
         got = f"{list(obj.center)} inside {'an' if name[0] in 'aeiou' else 'a'} {name} cell"
-        raise InputError(
-            source, f"{field}.center", "a point in free space, not inside a wall or unknown cell", got
-        )
+        raise InputError(source, f"{field}.center", "a point in free space, not inside a wall or unknown cell", got)
     if not all(_inside(grid, x, y) for x, y in obj.footprint()):
-        raise InputError(
-            source, field, f"a footprint within the map ({_extent_text(grid)})", "footprint off the map"
-        )
+        raise InputError(source, field, f"a footprint within the map ({_extent_text(grid)})", "footprint off the map")
     return obj
 
 
@@ -402,9 +380,7 @@ def _read_room(value: Any, index: int, source: Path, grid: GridSpec) -> Room:
     for k, point in enumerate(polygon):
         x, y = _numbers(point, 2, source, f"{field}.polygon[{k}]", "a point [x, y]")
         if not _inside(grid, x, y):
-            raise InputError(
-                source, f"{field}.polygon[{k}]", f"a point on the map ({_extent_text(grid)})", point
-            )
+            raise InputError(source, f"{field}.polygon[{k}]", f"a point on the map ({_extent_text(grid)})", point)
         points.append((x, y))
     return Room(name, tuple(points))
 
@@ -430,9 +406,7 @@ def read_objects_json(
     rooms = [_read_room(v, k, path, grid) for k, v in enumerate(_list(doc, "rooms", path))]
     if "objects" not in doc:
         return None, rooms
-    return [
-        _read_object(v, k, path, grid, structure) for k, v in enumerate(_list(doc, "objects", path))
-    ], rooms
+    return [_read_object(v, k, path, grid, structure) for k, v in enumerate(_list(doc, "objects", path))], rooms
 
 
 def write_objects_json(scene: Scene, path: str | Path) -> Path:
@@ -455,9 +429,7 @@ def write_objects_json(scene: Scene, path: str | Path) -> Path:
             }
             for o in scene.objects
         ],
-        "rooms": [
-            {"name": r.name, "polygon": [[float(x), float(y)] for x, y in r.polygon]} for r in scene.rooms
-        ],
+        "rooms": [{"name": r.name, "polygon": [[float(x), float(y)] for x, y in r.polygon]} for r in scene.rooms],
     }
     path.write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
     return path

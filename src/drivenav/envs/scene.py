@@ -57,9 +57,7 @@ class ObjectInstance:
         corners: NDArray[np.float64] = local @ rot.T + np.asarray(self.center)
         return corners
 
-    def contains(
-        self, x: NDArray[np.float64], y: NDArray[np.float64], margin: float = 0.0
-    ) -> NDArray[np.bool_]:
+    def contains(self, x: NDArray[np.float64], y: NDArray[np.float64], margin: float = 0.0) -> NDArray[np.bool_]:
         """Whether world points lie inside the footprint grown by ``margin``."""
         c, s = math.cos(self.yaw), math.sin(self.yaw)
         dx, dy = x - self.center[0], y - self.center[1]

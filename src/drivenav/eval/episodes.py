@@ -90,9 +90,7 @@ def _sample_start(
     return (float(x), float(y)), float(distances[cell[0], cell[1]])
 
 
-def generate_episodes(
-    library: SceneLibrary, num: int, seed: int, sim: SimConfig | None = None
-) -> list[Episode]:
+def generate_episodes(library: SceneLibrary, num: int, seed: int, sim: SimConfig | None = None) -> list[Episode]:
     """``num`` episodes spread round-robin over the library's scenes and across categories.
 
     Deterministic in ``seed``. Scenes without any valid start/goal pair are skipped.
@@ -206,9 +204,7 @@ def load_episodes(path: str | Path) -> list[Episode]:
 
 def _numbers(source: Path, name: str, value: Any, count: int) -> list[float]:
     ok = isinstance(value, list) and len(value) == count
-    ok = ok and all(
-        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value
-    )
+    ok = ok and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)
     if not ok:
         raise InputError(source, name, f"a list of {count} finite numbers", value)
     return [float(v) for v in value]
@@ -262,9 +258,7 @@ def _parse_goal(source: Path, name: str, item: Any) -> ObjectGoal:
     for k, vp in enumerate(points):
         state = vp.get("agent_state") if isinstance(vp, dict) else None
         if not isinstance(state, dict):
-            raise InputError(
-                source, f"{name}.view_points[{k}].agent_state", "an object with position and rotation"
-            )
+            raise InputError(source, f"{name}.view_points[{k}].agent_state", "an object with position and rotation")
         position = _vec3(source, f"{name}.view_points[{k}].agent_state.position", state.get("position"))
         rotation = _quat(source, f"{name}.view_points[{k}].agent_state.rotation", state.get("rotation"))
         view_points.append(ViewPoint(position, rotation, float(vp.get("iou", 1.0))))
@@ -279,15 +273,11 @@ def _parse_goal(source: Path, name: str, item: Any) -> ObjectGoal:
     )
 
 
-def validate_for_scenes(
-    episodes: list[Episode], library: SceneLibrary, source: str | Path, sim: SimConfig
-) -> None:
+def validate_for_scenes(episodes: list[Episode], library: SceneLibrary, source: str | Path, sim: SimConfig) -> None:
     """Every episode's scene is in ``library`` and its start is navigable there; else an :class:`InputError`."""
     for i, episode in enumerate(episodes):
         if episode.scene_id not in library:
-            raise InputError(
-                source, f"episodes[{i}].scene_id", f"a scene of --scenes {library.spec}", episode.scene_id
-            )
+            raise InputError(source, f"episodes[{i}].scene_id", f"a scene of --scenes {library.spec}", episode.scene_id)
         scene = library.load(episode.scene_id)
         navigable = scene.navigable_grid(sim.agent_radius, sim.agent_height)
         row, col = scene.grid.world_to_cell(episode.start_xy)

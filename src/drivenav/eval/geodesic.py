@@ -36,9 +36,7 @@ class GeodesicField:
     left every distance is ``inf``.
     """
 
-    def __init__(
-        self, navigable: NDArray[np.bool_], grid: GridSpec, goals: Sequence[tuple[float, float]]
-    ) -> None:
+    def __init__(self, navigable: NDArray[np.bool_], grid: GridSpec, goals: Sequence[tuple[float, float]]) -> None:
         self.grid = grid
         self.distances = np.full(grid.shape, np.inf)
         cells = grid.world_to_cell(np.asarray(goals, dtype=np.float64).reshape(-1, 2))

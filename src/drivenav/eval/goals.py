@@ -46,9 +46,7 @@ def _nearest_footprint_points(obj: ObjectInstance, points: NDArray[np.float64]) 
     return nearest
 
 
-def _within_vertical_fov(
-    obj: ObjectInstance, points: NDArray[np.float64], sim: SimConfig
-) -> NDArray[np.bool_]:
+def _within_vertical_fov(obj: ObjectInstance, points: NDArray[np.float64], sim: SimConfig) -> NDArray[np.bool_]:
     """Whether some part of the object lies inside the vertical field of view from each point."""
     intr = sim.intrinsics
     tan_half = (intr.height / 2.0) / intr.fy
@@ -88,9 +86,7 @@ def view_point_cells(
     return points[visible]
 
 
-def object_goal(
-    scene: Scene, obj: ObjectInstance, reachable: NDArray[np.bool_], sim: SimConfig
-) -> ObjectGoal:
+def object_goal(scene: Scene, obj: ObjectInstance, reachable: NDArray[np.bool_], sim: SimConfig) -> ObjectGoal:
     """The goal entry of one object: its Habitat position and its view points facing it."""
     points = view_point_cells(scene, obj, reachable, sim)
     view_points = []

@@ -198,9 +198,7 @@ def _check_run_spec(out: Path, spec: RunSpec) -> None:
         previous = json.loads(run_file.read_text(encoding="utf-8"))
         for key, value in asdict(spec).items():
             if previous.get(key) != value:
-                raise InputError(
-                    run_file, key, f"{previous.get(key)!r} (this directory's run) to resume", value
-                )
+                raise InputError(run_file, key, f"{previous.get(key)!r} (this directory's run) to resume", value)
     else:
         _write_json_atomic(run_file, asdict(spec))
 
@@ -250,9 +248,7 @@ def _run_all(
             yield worker.run(episode)
         return
     context = get_context("spawn")
-    with ProcessPoolExecutor(
-        workers, mp_context=context, initializer=_init_worker, initargs=(spec, sim)
-    ) as pool:
+    with ProcessPoolExecutor(workers, mp_context=context, initializer=_init_worker, initargs=(spec, sim)) as pool:
         futures = [pool.submit(_run_in_worker, episode) for episode in todo]
         for future in as_completed(futures):
             yield future.result()

@@ -11,8 +11,9 @@ from numpy.typing import NDArray
 from PIL import Image
 
 from drivenav.envs.base import Pose, SimConfig
-from drivenav.envs.embedded import EmbeddedEnv
 from drivenav.envs.library import SceneLibrary
+from drivenav.envs.render import render_views
+from drivenav.envs.scene import Scene
 from drivenav.errors import InputError
 from drivenav.eval.episodes import load_episodes
 from drivenav.eval.runner import EPISODES_FILE, RUN_FILE, read_finished, trace_path
@@ -37,17 +38,15 @@ def depth_to_rgb(depth: NDArray[np.float32], max_depth: float) -> NDArray[np.uin
 def semantic_to_rgb(semantic: NDArray[np.int32]) -> NDArray[np.uint8]:
     """Instance ids as distinct colours (0 black)."""
     ids = semantic.astype(np.uint32)
-    rgb = np.stack([(ids * 97) % 256, (ids * 57 + 80) % 256, (ids * 181 + 40) % 256], axis=-1).astype(
-        np.uint8
-    )
+    rgb = np.stack([(ids * 97) % 256, (ids * 57 + 80) % 256, (ids * 181 + 40) % 256], axis=-1).astype(np.uint8)
     rgb[semantic == 0] = 0
     return rgb
 
 
-def view_strip(env: EmbeddedEnv, pose: Pose) -> Image.Image:
+def view_strip(scene: Scene, pose: Pose, sim: SimConfig) -> Image.Image:
     """RGB, depth and semantic images side by side for a world pose."""
-    rgb, depth, semantic = env.render(pose)
-    panels = [rgb, depth_to_rgb(depth, env.config.max_depth), semantic_to_rgb(semantic)]
+    rgb, depth, semantic = render_views(scene, pose, sim)
+    panels = [rgb, depth_to_rgb(depth, sim.max_depth), semantic_to_rgb(semantic)]
     return Image.fromarray(np.concatenate(panels, axis=1))
 
 
@@ -67,11 +66,10 @@ def render_episode_pictures(run_dir: Path, episode_id: str, out: Path | None = N
     stem = trace_path(folder, episode_id).stem
     topdown = folder / f"{stem}_topdown.png"
     draw_episode(scene, episode, trace["positions"], trace["yaws"], records.get(episode_id), topdown)
-    env = EmbeddedEnv(library.load, SimConfig())
     written = [topdown]
     for label, index in (("start", 0), ("end", -1)):
         x, y = trace["positions"][index]
         path = folder / f"{stem}_{label}_view.png"
-        view_strip(env, Pose(x, y, trace["yaws"][index])).save(path)
+        view_strip(scene, Pose(x, y, trace["yaws"][index]), SimConfig()).save(path)
         written.append(path)
     return written

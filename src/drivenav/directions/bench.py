@@ -1,0 +1,127 @@
+"""Benchmark of the directions core on a synthetic, partly explored 480 x 480 house map (5 cm cells).
+
+The house (24 m x 24 m) has a cross of corridors and eight furnished rooms; the explored region is what a
+5 m range sensor saw from a handful of viewpoints along the corridors, so frontiers appear at range limits,
+at doorways and in shadows. Each timed run recomputes everything from the map (no caching across runs).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from drivenav.config import DriveNavConfig
+from drivenav.directions.pipeline import TIMING_KEYS, DirectionPipeline
+from drivenav.directions.synthetic import extract_frontiers, make_snapshot, rect
+from drivenav.mapping.types import Frontier, MapSnapshot
+
+RESOLUTION = 0.05
+SIZE = 480
+SENSOR_RANGE = 5.0
+N_RAYS = 1440
+VIEWPOINTS = (
+    (4.0, 11.8),
+    (8.0, 11.8),
+    (11.8, 11.8),
+    (11.8, 8.5),
+    (6.5, 15.0),
+    (11.8, 14.5),
+    (15.5, 11.8),
+    (19.5, 11.8),
+    (16.0, 15.5),
+    (8.5, 8.0),
+)
+ROBOT_XY = (11.8, 11.8)
+MIN_FRONTIER_CELLS = 8
+WALL = 0.1
+
+
+def house_free_space() -> NDArray[np.bool_]:
+    """Ground-truth free space of the synthetic house (True = free)."""
+    free = np.zeros((SIZE, SIZE), np.bool_)
+    rect(free, 1.0, 1.0, 23.0, 23.0)
+    walls = np.zeros_like(free)
+    for y in (11.0, 12.6):  # horizontal corridor walls
+        rect(walls, 1.0, y - WALL / 2, 23.0, y + WALL / 2)
+    for x in (11.0, 12.6):  # vertical corridor walls
+        rect(walls, x - WALL / 2, 1.0, x + WALL / 2, 23.0)
+    for x in (6.0, 17.6):  # walls splitting each quadrant into two rooms
+        rect(walls, x - WALL / 2, 1.0, x + WALL / 2, 11.0)
+        rect(walls, x - WALL / 2, 12.6, x + WALL / 2, 23.0)
+    free &= ~walls
+    rect(free, 10.9, 11.0, 12.7, 12.6)  # corridor crossing
+    rect(free, 11.0, 10.9, 12.6, 12.7)
+    for x0 in (3.0, 8.0, 14.0, 19.5):  # doors from the horizontal corridor into every room
+        rect(free, x0, 10.9, x0 + 0.9, 11.1)
+        rect(free, x0, 12.5, x0 + 0.9, 12.7)
+    rect(free, 5.9, 15.0, 6.1, 15.9)  # a door between two rooms
+    furniture = ((2.0, 14.0, 3.2, 15.0), (7.5, 17.0, 9.5, 18.0), (14.0, 5.0, 15.5, 6.0), (19.0, 15.0, 20.5, 17.5))
+    for box in furniture:
+        obstacle = np.zeros_like(free)
+        rect(obstacle, *box)
+        free &= ~obstacle
+    return free
+
+
+def visible_cells(free: NDArray[np.bool_], viewpoint: tuple[float, float]) -> NDArray[np.bool_]:
+    """Cells seen from ``viewpoint`` by a 360-degree range sensor: free cells up to the first wall, and it."""
+    angles = np.linspace(0.0, 2.0 * math.pi, N_RAYS, endpoint=False)
+    steps = np.arange(0.0, SENSOR_RANGE, RESOLUTION / 2)
+    xs = viewpoint[0] + np.cos(angles)[:, None] * steps[None, :]
+    ys = viewpoint[1] + np.sin(angles)[:, None] * steps[None, :]
+    rows = np.clip((ys / RESOLUTION).astype(np.int64), 0, SIZE - 1)
+    cols = np.clip((xs / RESOLUTION).astype(np.int64), 0, SIZE - 1)
+    blocked = ~free[rows, cols]
+    first_hit = np.where(blocked.any(axis=1), blocked.argmax(axis=1), steps.size - 1)
+    keep = np.arange(steps.size)[None, :] <= first_hit[:, None]
+    seen = np.zeros_like(free)
+    seen[rows[keep], cols[keep]] = True
+    return seen
+
+
+def bench_scene() -> tuple[MapSnapshot, list[Frontier], tuple[float, float]]:
+    """The benchmark's snapshot, frontiers (at least ``MIN_FRONTIER_CELLS`` cells each) and robot position."""
+    free = house_free_space()
+    explored = np.zeros_like(free)
+    for viewpoint in VIEWPOINTS:
+        explored |= visible_cells(free, viewpoint)
+    snapshot = make_snapshot(free, explored, RESOLUTION, inflation=0.15)
+    return snapshot, extract_frontiers(snapshot, MIN_FRONTIER_CELLS), ROBOT_XY
+
+
+def bench_directions(repeats: int = 50, config: DriveNavConfig | None = None) -> dict[str, Any]:
+    """Time :meth:`DirectionPipeline.update` (map -> labelled directions for all frontiers) on one core.
+
+    Returns the map size, frontier and direction counts, the median total in ms and the median of each stage.
+    """
+    numba.set_num_threads(1)
+    snapshot, frontiers, robot = bench_scene()
+    pipeline = DirectionPipeline(config or DriveNavConfig())
+    result = pipeline.update(snapshot, frontiers, robot)  # warm-up: compiles or loads the numba kernels
+    runs: list[dict[str, float]] = []
+    wall: list[float] = []
+    for _ in range(repeats):
+        pipeline.reset()
+        start = time.perf_counter()
+        result = pipeline.update(snapshot, frontiers, robot)
+        wall.append((time.perf_counter() - start) * 1e3)
+        runs.append(result.timings_ms)
+    breakdown = {key: float(np.median([r[key] for r in runs])) for key in TIMING_KEYS if key != "total"}
+    return {
+        "map_cells": int(snapshot.obstacle.size),
+        "map_shape": [int(s) for s in snapshot.obstacle.shape],
+        "resolution": RESOLUTION,
+        "explored_cells": int(snapshot.explored.sum()),
+        "frontiers": len(frontiers),
+        "reachable_frontiers": len(result.paths),
+        "directions": len(result.directions),
+        "repeats": repeats,
+        "median_ms": float(np.median(wall)),
+        "min_ms": float(np.min(wall)),
+        "breakdown_ms": breakdown,
+    }

@@ -1,0 +1,112 @@
+"""Exact Euclidean distance and feature transforms in linear time (Felzenszwalb & Huttenlocher, 2012).
+
+The speed field of Sec. IV-A(a) needs three distance transforms per mapping step (to obstacles, to the
+boundary of navigable space for the skeleton, and to the skeleton); ``scipy.ndimage.distance_transform_edt``
+costs ~10 ms each on a 480 x 480 grid, so this module provides a single-threaded numba version. Distances are
+in cells; multiply by the resolution for metres.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+
+@numba.njit(cache=True)
+def _column_pass(feature: NDArray[np.bool_]) -> tuple[NDArray[np.float64], NDArray[np.int32]]:
+    """Per column: squared row distance to the nearest feature cell and that cell's row (-1: none)."""
+    rows, cols = feature.shape
+    big = np.int32(rows + cols + 1)
+    near = np.empty((rows, cols), np.int32)
+    for j in range(cols):
+        near[0, j] = 0 if feature[0, j] else -big
+    for i in range(1, rows):
+        for j in range(cols):
+            near[i, j] = i if feature[i, j] else near[i - 1, j]
+    sq = np.empty((rows, cols), np.float64)
+    below = np.full(cols, np.int32(2 * big), np.int32)
+    for i in range(rows - 1, -1, -1):
+        for j in range(cols):
+            if feature[i, j]:
+                below[j] = i
+            up = i - near[i, j]
+            down = below[j] - i
+            if down < up:
+                near[i, j] = below[j]
+                up = down
+            if up < big:
+                sq[i, j] = up * up
+            else:
+                sq[i, j] = np.inf
+                near[i, j] = -1
+    return sq, near
+
+
+@numba.njit(cache=True)
+def _row_pass(
+    g: NDArray[np.float64],
+    i: int,
+    out_sq: NDArray[np.float64],
+    out_col: NDArray[np.int32],
+    v: NDArray[np.int64],
+    fv: NDArray[np.float64],
+) -> None:
+    """1-D squared distance transform of row ``i`` of ``g``: lower envelope of the parabolas
+    ``(q - v)^2 + g[i, v]``, built without divisions (all quantities are integers held in floats)."""
+    cols = g.shape[1]
+    k = -1
+    for q in range(cols):
+        fq = g[i, q]
+        if fq == np.inf:
+            continue
+        fq += q * q
+        while k >= 1 and (fq - fv[k]) * (v[k] - v[k - 1]) <= (fv[k] - fv[k - 1]) * (q - v[k]):
+            k -= 1
+        k += 1
+        v[k] = q
+        fv[k] = fq
+    if k < 0:
+        out_sq[i, :] = np.inf
+        out_col[i, :] = -1
+        return
+    m = 0
+    for q in range(cols):
+        while m < k and fv[m + 1] - fv[m] < 2.0 * q * (v[m + 1] - v[m]):
+            m += 1
+        d = q - v[m]
+        out_sq[i, q] = fv[m] - v[m] * v[m] + d * d
+        out_col[i, q] = v[m]
+
+
+@numba.njit(cache=True)
+def _edt_kernel(
+    feature: NDArray[np.bool_],
+) -> tuple[NDArray[np.float64], NDArray[np.int32], NDArray[np.int32]]:
+    g, near = _column_pass(feature)
+    rows, cols = feature.shape
+    sq = np.empty((rows, cols), np.float64)
+    fcol = np.empty((rows, cols), np.int32)
+    frow = np.empty((rows, cols), np.int32)
+    v = np.empty(cols, np.int64)
+    fv = np.empty(cols, np.float64)
+    for i in range(rows):
+        _row_pass(g, i, sq, fcol, v, fv)
+        for j in range(cols):
+            c = fcol[i, j]
+            frow[i, j] = near[i, c] if c >= 0 else -1
+    return sq, frow, fcol
+
+
+def squared_edt(feature: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """Squared Euclidean distance (cells^2) from every cell to the nearest ``True`` cell; ``inf`` if none."""
+    sq, _, _ = _edt_kernel(np.ascontiguousarray(feature, dtype=np.bool_))
+    return np.asarray(sq, dtype=np.float64)
+
+
+def feature_transform(
+    feature: NDArray[np.bool_],
+) -> tuple[NDArray[np.float64], NDArray[np.int32], NDArray[np.int32]]:
+    """Squared distance plus the ``(row, col)`` of the nearest feature cell (``-1`` where there is none)."""
+    sq, frow, fcol = _edt_kernel(np.ascontiguousarray(feature, dtype=np.bool_))
+    return np.asarray(sq), np.asarray(frow), np.asarray(fcol)

@@ -1,0 +1,180 @@
+"""Map + frontiers -> labelled persistent directions, one call per mapping step (Sec. IV-A a-b).
+
+One weighted FMM solve from the robot serves every frontier. Per frontier:
+
+* the backtracked point is the frontier's reachable cell of least arrival time ``T`` (the natural end of the
+  weighted path towards that frontier; it is also the first frontier cell the marching settles, which is what
+  lets the solve stop early); frontiers none of whose cells is reachable are dropped;
+* the "farthest frontier point" kept for the agent is the member cell farthest from the robot in Euclidean
+  distance (cheap, and independent of where the marching stopped);
+* the bearing theta_i goes from the robot to the first crossing of the path with the R_e circle, or to the
+  frontier waypoint in the ``path_bearings=False`` ablation.
+
+The robot's own cell seeds the marching (``T = 0``). If that cell is not traversable (the robot stands in the
+inflation band), the nearest traversable cell within ``SNAP_RADIUS`` seeds it instead and the path's first
+segment runs from the robot to that cell's centre -- the only segment allowed to touch non-traversable cells.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from drivenav.config import DriveNavConfig
+from drivenav.directions.bearings import Point, bearing_to, circle_crossing
+from drivenav.directions.clustering import build_clusters
+from drivenav.directions.fmm import travel_time
+from drivenav.directions.paths import backtrack
+from drivenav.directions.speed import SpeedField, build_speed_field
+from drivenav.directions.timing import elapsed_ms
+from drivenav.directions.tracking import DirectionTracker
+from drivenav.directions.types import DirectionResult, FrontierPath
+from drivenav.mapping.types import Frontier, MapSnapshot
+
+SNAP_RADIUS = 0.5  # metres: how far the FMM source may be moved to reach traversable space
+MARGIN_CELLS = 3.0  # extra marching (in cells at the slowest speed) after the last frontier is reached
+
+TIMING_KEYS = ("distance_transforms", "skeleton", "fmm", "backtracking", "clustering", "tracking", "total")
+
+
+def source_cell(field: SpeedField, robot_xy: Sequence[float]) -> tuple[int, int] | None:
+    """The window cell that seeds the FMM: the robot's cell, else the nearest traversable one within
+    ``SNAP_RADIUS``; ``None`` if there is none."""
+    grid = field.window.grid
+    r, c = (int(v) for v in grid.world_to_cell(np.asarray(robot_xy[:2], dtype=np.float64)))
+    reach = int(np.ceil(SNAP_RADIUS / grid.resolution))
+    r0, c0 = max(r - reach, 0), max(c - reach, 0)
+    patch = field.traversable[r0 : max(r + reach + 1, 0), c0 : max(c + reach + 1, 0)]
+    cells = np.argwhere(patch) + np.array([r0, c0])
+    if cells.size == 0:
+        return None
+    d2 = ((cells - (r, c)) ** 2).sum(axis=1)
+    best = int(np.argmin(d2))
+    if d2[best] * grid.resolution**2 > SNAP_RADIUS**2:
+        return None
+    return int(cells[best, 0]), int(cells[best, 1])
+
+
+def _frontier_cells(field: SpeedField, frontier: Frontier) -> NDArray[np.int64]:
+    """The frontier's traversable cells, in window coordinates."""
+    w = field.window
+    cells = frontier.cells - (w.r0, w.c0)
+    cells = cells[w.grid.contains(cells)]
+    return np.asarray(cells[field.traversable[cells[:, 0], cells[:, 1]]], dtype=np.int64)
+
+
+class DirectionPipeline:
+    """Stateful per-episode entry point: :meth:`update` once per mapping step, :meth:`reset` per episode."""
+
+    def __init__(self, config: DriveNavConfig) -> None:
+        self._config = config
+        self._tracker = DirectionTracker(config.directions)
+
+    def reset(self) -> None:
+        self._tracker.reset()
+
+    def update(
+        self, snapshot: MapSnapshot, frontiers: Sequence[Frontier], robot_xy: Sequence[float]
+    ) -> DirectionResult:
+        """Speed field, one FMM solve, paths, bearings, clustering and label tracking for this step.
+
+        ``robot_xy`` is the robot's world position (extra items, e.g. a yaw, are ignored).
+        """
+        t_start = time.perf_counter()
+        robot_xy = (float(robot_xy[0]), float(robot_xy[1]))
+        timings = dict.fromkeys(TIMING_KEYS, 0.0)
+        field = build_speed_field(snapshot, frontiers, self._config.speed)
+        timings.update(field.timings_ms)
+
+        t = time.perf_counter()
+        source = source_cell(field, robot_xy)
+        cells = [_frontier_cells(field, f) for f in frontiers]
+        T = self._solve(field, source, cells)
+        timings["fmm"] = elapsed_ms(t)
+
+        t = time.perf_counter()
+        paths: list[FrontierPath] = []
+        unreachable: list[int] = []
+        for frontier, own in zip(frontiers, cells, strict=True):
+            path = None if source is None else self._frontier_path(field, T, source, frontier, own, robot_xy)
+            if path is None:
+                unreachable.append(frontier.frontier_id)
+            else:
+                paths.append(path)
+        timings["backtracking"] = elapsed_ms(t)
+
+        t = time.perf_counter()
+        by_id = {f.frontier_id: f for f in frontiers}
+        clusters = build_clusters(paths, by_id, robot_xy, self._config.directions.cluster_span)
+        timings["clustering"] = elapsed_ms(t)
+
+        t = time.perf_counter()
+        directions = self._tracker.update(clusters)
+        timings["tracking"] = elapsed_ms(t)
+        timings["total"] = elapsed_ms(t_start)
+        return DirectionResult(directions, {p.frontier_id: p for p in paths}, tuple(unreachable), timings)
+
+    def _solve(
+        self, field: SpeedField, source: tuple[int, int] | None, cells: Sequence[NDArray[np.int64]]
+    ) -> NDArray[np.float64]:
+        """One FMM solve from ``source`` that stops shortly after every frontier with cells is reached."""
+        if source is None or not any(c.size for c in cells):
+            return np.full(field.speed.shape, np.inf)
+        labels = np.full(field.speed.shape, -1, np.int32)
+        for k, own in enumerate(c for c in cells if c.size):
+            labels[own[:, 0], own[:, 1]] = k
+        res = field.window.grid.resolution
+        slowest = float(field.speed[field.traversable].min())
+        return travel_time(
+            field.speed,
+            res,
+            np.array([source], dtype=np.int64),
+            np.zeros(1),
+            target_label=labels,
+            margin=MARGIN_CELLS * res / slowest,
+        )
+
+    def _frontier_path(
+        self,
+        field: SpeedField,
+        T: NDArray[np.float64],
+        source: tuple[int, int],
+        frontier: Frontier,
+        own: NDArray[np.int64],
+        robot_xy: Sequence[float],
+    ) -> FrontierPath | None:
+        """Backtrack from the frontier's least-time cell and derive its bearing; ``None`` if unreachable."""
+        if own.size == 0:
+            return None
+        times = T[own[:, 0], own[:, 1]]
+        best = int(np.argmin(times))
+        if not np.isfinite(times[best]):
+            return None
+        grid = field.window.grid
+        rc = backtrack(T, field.traversable, (int(own[best, 0]), int(own[best, 1])), source)
+        world = (rc[::-1, ::-1] + 0.5) * grid.resolution + grid.origin  # (x, y), from the source outward
+        robot = np.asarray(robot_xy[:2], dtype=np.float64)
+        path = world if _same_point(world[0], robot) else np.vstack([robot, world])
+        cfg = self._config.directions
+        waypoint = (float(frontier.waypoint[0]), float(frontier.waypoint[1]))
+        point = circle_crossing(path, robot, cfg.bearing_radius) if cfg.path_bearings else waypoint
+        if _same_point(point, robot):  # degenerate: the frontier is at the robot; use its waypoint
+            point = waypoint
+        far = frontier.points[int(np.argmax(((frontier.points - robot) ** 2).sum(axis=1)))]
+        target = world[-1]
+        return FrontierPath(
+            frontier.frontier_id,
+            (float(target[0]), float(target[1])),
+            float(times[best]),
+            path,
+            point,
+            bearing_to(robot, point),
+            (float(far[0]), float(far[1])),
+        )
+
+
+def _same_point(a: Point, b: Point) -> bool:
+    return bool(abs(a[0] - b[0]) < 1e-9 and abs(a[1] - b[1]) < 1e-9)

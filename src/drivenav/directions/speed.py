@@ -1,0 +1,256 @@
+"""The weighted-FMM speed field F = F_obs * F_vor on a cropped window of the map (Sec. IV-A a, Eqs. 1-3).
+
+Traversability. FMM paths may only run through *traversable* cells: navigable cells plus the cells of the given
+frontiers (frontier cells lie on the navigable/unexplored boundary; whichever side of it the mapping module puts
+them on, they must be reachable), minus obstacle cells. Unexplored cells are *not* traversable: a path-induced
+bearing should describe how the known free space leads towards a frontier, not a shortcut through unseen space.
+Non-traversable cells get speed 0 (infinite cost).
+
+Skeleton. The medial skeleton is taken with respect to the obstacles: the pruned integer medial axis of the
+obstacle feature transform (the ridge of ``d_obs``), restricted to navigable cells. The boundary between
+explored and unexplored space does not spawn skeleton branches -- it moves every step and says nothing about
+where the free space's centre lines are -- and one feature transform serves both ``d_obs`` and the skeleton.
+
+Cropping. Everything is computed on the bounding box of the traversable and obstacle cells plus a small margin.
+Because every obstacle and every navigable cell lies inside the window, ``d_obs``, the skeleton and ``d_vor``
+are exactly what the full map would give.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from drivenav.config import SpeedFieldConfig
+from drivenav.directions.edt import feature_transform, squared_edt
+from drivenav.directions.timing import elapsed_ms
+from drivenav.grid import GridSpec
+from drivenav.mapping.types import Frontier, MapSnapshot
+
+CROP_MARGIN = 2  # cells around the bounding box of the traversable and obstacle cells
+SKELETON_MIN_SEPARATION = 3.0  # cells: gamma of the integer medial axis (prunes pixel-noise branches)
+SKELETON_MIN_ANGLE_RATIO = 1.3  # |f(p) - f(q)| >= ratio * d: the two features subtend >= ~81 degrees
+TABLE_TOLERANCE = 1e-6  # exponential terms below this are replaced by their asymptote
+
+
+@dataclass(frozen=True)
+class Window:
+    """A crop ``[r0:r1, c0:c1]`` of a map grid, with its own :class:`GridSpec`."""
+
+    r0: int
+    c0: int
+    r1: int
+    c1: int
+    grid: GridSpec
+
+    @property
+    def slices(self) -> tuple[slice, slice]:
+        return slice(self.r0, self.r1), slice(self.c0, self.c1)
+
+
+@dataclass(frozen=True)
+class SpeedField:
+    """The speed field on a window; ``speed`` is 0 on non-traversable cells.
+
+    ``obstacle_sq`` / ``skeleton_sq`` are squared distances in cells^2 to the nearest obstacle / skeleton cell
+    (``inf`` where there is none, and everywhere in the uniform-speed ablation).
+    """
+
+    window: Window
+    traversable: NDArray[np.bool_]
+    obstacle_sq: NDArray[np.float64]
+    skeleton: NDArray[np.bool_]
+    skeleton_sq: NDArray[np.float64]
+    speed: NDArray[np.float64]
+    timings_ms: dict[str, float]
+
+    @property
+    def d_obs(self) -> NDArray[np.float64]:
+        """Distance to the nearest obstacle in metres."""
+        return np.asarray(np.sqrt(self.obstacle_sq) * self.window.grid.resolution, dtype=np.float64)
+
+    @property
+    def d_vor(self) -> NDArray[np.float64]:
+        """Distance to the medial skeleton in metres."""
+        return np.asarray(np.sqrt(self.skeleton_sq) * self.window.grid.resolution, dtype=np.float64)
+
+
+def traversable_mask(snapshot: MapSnapshot, frontiers: Sequence[Frontier]) -> NDArray[np.bool_]:
+    """Navigable cells plus in-grid frontier cells, minus obstacles (see the module docstring)."""
+    trav = np.array(snapshot.navigable, dtype=np.bool_)
+    for frontier in frontiers:
+        cells = frontier.cells[snapshot.grid.contains(frontier.cells)]
+        trav[cells[:, 0], cells[:, 1]] = True
+    return np.asarray(trav & ~snapshot.obstacle, dtype=np.bool_)
+
+
+def crop_window(grid: GridSpec, keep: NDArray[np.bool_], margin: int = CROP_MARGIN) -> Window:
+    """The bounding box of ``keep`` grown by ``margin`` cells and clipped to the grid (the whole grid if empty)."""
+    rows_any = np.flatnonzero(keep.any(axis=1))
+    cols_any = np.flatnonzero(keep.any(axis=0))
+    if rows_any.size == 0:
+        r0, c0, r1, c1 = 0, 0, grid.shape[0], grid.shape[1]
+    else:
+        r0 = max(int(rows_any[0]) - margin, 0)
+        r1 = min(int(rows_any[-1]) + margin + 1, grid.shape[0])
+        c0 = max(int(cols_any[0]) - margin, 0)
+        c1 = min(int(cols_any[-1]) + margin + 1, grid.shape[1])
+    res = grid.resolution
+    origin = (grid.origin[0] + c0 * res, grid.origin[1] + r0 * res)
+    return Window(r0, c0, r1, c1, GridSpec(res, origin, (r1 - r0, c1 - c0)))
+
+
+@numba.njit(cache=True)
+def _medial_axis_kernel(
+    inside: NDArray[np.bool_],
+    sq: NDArray[np.float64],
+    frow: NDArray[np.int32],
+    fcol: NDArray[np.int32],
+    min_sep: float,
+    angle_ratio: float,
+) -> NDArray[np.bool_]:
+    rows, cols = inside.shape
+    out = np.zeros((rows, cols), np.bool_)
+    for i in range(rows):
+        for j in range(cols):
+            if not inside[i, j]:
+                continue
+            for di, dj in ((0, 1), (1, 0)):
+                qi, qj = i + di, j + dj
+                if qi >= rows or qj >= cols or not inside[qi, qj]:
+                    continue
+                dr = float(frow[i, j] - frow[qi, qj])
+                dc = float(fcol[i, j] - fcol[qi, qj])
+                sep2 = dr * dr + dc * dc
+                depth2 = max(sq[i, j], sq[qi, qj])
+                if sep2 < min_sep * min_sep or sep2 < angle_ratio * angle_ratio * depth2:
+                    continue
+                # Mark the cell of the pair nearer the bisector of the two features (Hesselink & Roerdink).
+                side = (i + qi - frow[i, j] - frow[qi, qj]) * dr + (j + qj - fcol[i, j] - fcol[qi, qj]) * dc
+                if side <= 0:
+                    out[i, j] = True
+                if side >= 0:
+                    out[qi, qj] = True
+    return out
+
+
+def medial_skeleton(
+    region: NDArray[np.bool_],
+    sq: NDArray[np.float64],
+    frow: NDArray[np.int32],
+    fcol: NDArray[np.int32],
+    min_separation: float = SKELETON_MIN_SEPARATION,
+    angle_ratio: float = SKELETON_MIN_ANGLE_RATIO,
+) -> NDArray[np.bool_]:
+    """The medial skeleton of ``region`` w.r.t. the features of a feature transform: a pruned integer medial
+    axis (Hesselink & Roerdink, 2008).
+
+    ``sq``, ``frow``, ``fcol`` are :func:`feature_transform` outputs. Two 4-adjacent region cells whose
+    nearest features are at least ``min_separation`` cells apart and subtend a large enough angle
+    (``|f(p) - f(q)| >= angle_ratio * distance``) straddle the medial axis; the one nearer the bisector of
+    the two features is marked.
+    """
+    out = _medial_axis_kernel(region, sq, frow, fcol, min_separation, angle_ratio)
+    return np.asarray(out, dtype=np.bool_)
+
+
+def speed_from_distances(
+    d_obs: NDArray[np.float64], d_vor: NDArray[np.float64], config: SpeedFieldConfig
+) -> NDArray[np.float64]:
+    """Eqs. 1-3: ``(1 - lam exp(-d_obs / r_obs)) * (1 + beta exp(-d_vor / r_vor))`` (distances in metres)."""
+    return np.asarray(_f_obs(d_obs, config) * _f_vor(d_vor, config), dtype=np.float64)
+
+
+def _f_obs(d: NDArray[np.float64], config: SpeedFieldConfig) -> NDArray[np.float64]:
+    return np.asarray(1.0 - config.lam * np.exp(-d / config.r_obs), dtype=np.float64)
+
+
+def _f_vor(d: NDArray[np.float64], config: SpeedFieldConfig) -> NDArray[np.float64]:
+    return np.asarray(1.0 + config.beta * np.exp(-d / config.r_vor), dtype=np.float64)
+
+
+def _squared_distance_table(
+    factor: Callable[[NDArray[np.float64], SpeedFieldConfig], NDArray[np.float64]],
+    config: SpeedFieldConfig,
+    rate: float,
+    amplitude: float,
+    resolution: float,
+) -> NDArray[np.float64]:
+    """``factor`` sampled at every integer squared distance (cells^2) up to where its exponential term drops
+    below ``TABLE_TOLERANCE``; the last entry holds the asymptote and serves every farther cell."""
+    far_cells = rate * math.log(max(amplitude, TABLE_TOLERANCE) / TABLE_TOLERANCE) / resolution
+    sq = np.arange(math.ceil(far_cells * far_cells) + 2, dtype=np.float64)
+    table = factor(np.sqrt(sq) * resolution, config)
+    table[-1] = factor(np.array([np.inf]), config)[0]
+    return table
+
+
+@numba.njit(cache=True)
+def _speed_kernel(
+    trav: NDArray[np.bool_],
+    obstacle_sq: NDArray[np.float64],
+    skeleton_sq: NDArray[np.float64],
+    obs_table: NDArray[np.float64],
+    vor_table: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    rows, cols = trav.shape
+    out = np.zeros((rows, cols), np.float64)
+    last_obs = obs_table.size - 1
+    last_vor = vor_table.size - 1
+    for i in range(rows):
+        for j in range(cols):
+            if trav[i, j]:
+                a = obstacle_sq[i, j]
+                b = skeleton_sq[i, j]
+                ka = last_obs if a >= last_obs else int(a)
+                kb = last_vor if b >= last_vor else int(b)
+                out[i, j] = obs_table[ka] * vor_table[kb]
+    return out
+
+
+def weighted_speed(
+    trav: NDArray[np.bool_],
+    obstacle_sq: NDArray[np.float64],
+    skeleton_sq: NDArray[np.float64],
+    config: SpeedFieldConfig,
+    resolution: float,
+) -> NDArray[np.float64]:
+    """Eqs. 1-3 on the traversable cells, from squared cell distances, via per-call lookup tables (squared
+    distances on a grid are integers, so a table lookup is exact and much cheaper than two exponentials)."""
+    obs = _squared_distance_table(_f_obs, config, config.r_obs, config.lam, resolution)
+    vor = _squared_distance_table(_f_vor, config, config.r_vor, config.beta, resolution)
+    return np.asarray(_speed_kernel(trav, obstacle_sq, skeleton_sq, obs, vor), dtype=np.float64)
+
+
+def build_speed_field(snapshot: MapSnapshot, frontiers: Sequence[Frontier], config: SpeedFieldConfig) -> SpeedField:
+    """Crop, traversability, distance transforms, skeleton and speed (uniform 1 if ``config.weighted`` is off).
+
+    ``timings_ms`` holds ``distance_transforms`` (including cropping and the speed itself) and ``skeleton``.
+    """
+    t0 = time.perf_counter()
+    trav_full = traversable_mask(snapshot, frontiers)
+    window = crop_window(snapshot.grid, trav_full | snapshot.obstacle)
+    rs, cs = window.slices
+    trav = np.ascontiguousarray(trav_full[rs, cs])
+    if not config.weighted:
+        far = np.full(trav.shape, np.inf)
+        speed = np.where(trav, 1.0, 0.0)
+        timings = {"distance_transforms": elapsed_ms(t0), "skeleton": 0.0}
+        return SpeedField(window, trav, far, np.zeros(trav.shape, np.bool_), far, speed, timings)
+    obstacle_sq, frow, fcol = feature_transform(snapshot.obstacle[rs, cs])
+    t1 = time.perf_counter()
+    skeleton = medial_skeleton(trav & snapshot.navigable[rs, cs], obstacle_sq, frow, fcol)
+    t2 = time.perf_counter()
+    skeleton_sq = squared_edt(skeleton)
+    speed = weighted_speed(trav, obstacle_sq, skeleton_sq, config, window.grid.resolution)
+    timings = {
+        "distance_transforms": (t1 - t0) * 1e3 + elapsed_ms(t2),
+        "skeleton": (t2 - t1) * 1e3,
+    }
+    return SpeedField(window, trav, obstacle_sq, skeleton, skeleton_sq, speed, timings)

@@ -1,0 +1,281 @@
+"""The open-vocabulary object categories of the embedded world (HM3D-OVON-style homes and offices).
+
+Each category carries its synonyms (the open-vocabulary task may name a target by any of them, Sec. III),
+realistic box sizes, a mounting height, a placement style and per-room-type priors used by
+:mod:`drivenav.envs.placement`. The data live in ``drivenav/data/vocabulary.json``; :func:`load_vocabulary`
+validates a file of that schema and raises :class:`~drivenav.errors.InputError` on the first bad field.
+
+Size convention (used by placement): ``sx`` is the extent along the wall the object stands against, ``sy``
+its depth away from that wall, ``sz`` its height.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from dataclasses import dataclass
+from enum import Enum
+from functools import cached_property
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from drivenav.errors import InputError
+
+Vec3 = tuple[float, float, float]
+
+
+class PlacementStyle(str, Enum):
+    """Where an object of a category goes in a room."""
+
+    WALL = "wall"  # on the floor, back against a wall
+    CORNER = "corner"  # on the floor, against a wall and slid into a corner
+    CENTER = "center"  # on the floor, away from the walls
+    MOUNTED = "mounted"  # on a wall at the category's elevation
+    SURFACE = "surface"  # on top of a host object (one of ``hosts``)
+
+
+@dataclass(frozen=True)
+class CategorySpec:
+    """One object category.
+
+    ``priors`` maps room types to non-negative weights (missing types weigh 0); ``generic_prior`` is the
+    weight in rooms of unknown type. ``elevation`` is the range of the box bottom above the floor (0 for
+    furniture); ``max_per_room`` caps repeats in one room; ``hosts`` lists the categories a ``SURFACE``
+    object may stand on.
+    """
+
+    name: str
+    synonyms: tuple[str, ...]
+    size_min: Vec3
+    size_max: Vec3
+    style: PlacementStyle
+    priors: tuple[tuple[str, float], ...]
+    generic_prior: float = 0.0
+    elevation: tuple[float, float] = (0.0, 0.0)
+    max_per_room: int = 2
+    hosts: tuple[str, ...] = ()
+
+    def prior(self, room_type: str | None) -> float:
+        """Weight of this category in a room of ``room_type`` (``None``: unknown type, the generic prior)."""
+        if room_type is None:
+            return self.generic_prior
+        return dict(self.priors).get(room_type, 0.0)
+
+    def sample_size(self, rng: np.random.Generator) -> Vec3:
+        """A size drawn uniformly per axis within ``[size_min, size_max]``."""
+        sx, sy, sz = (float(rng.uniform(lo, hi)) for lo, hi in zip(self.size_min, self.size_max, strict=True))
+        return sx, sy, sz
+
+    def sample_elevation(self, rng: np.random.Generator) -> float:
+        return float(rng.uniform(*self.elevation))
+
+
+@dataclass(frozen=True, eq=False)
+class Vocabulary:
+    """All categories, the room types they refer to, per-room anchors and object densities.
+
+    ``anchors`` name the categories placed first in every room of a type (a bedroom's bed); ``density`` is
+    the expected number of further objects per m^2 of room floor, ``generic_density`` the same for space of
+    unknown type.
+    """
+
+    room_types: tuple[str, ...]
+    specs: tuple[CategorySpec, ...]
+    anchors: Mapping[str, tuple[str, ...]]
+    density: Mapping[str, float]
+    generic_density: float
+
+    @cached_property
+    def _by_name(self) -> dict[str, CategorySpec]:
+        return {spec.name: spec for spec in self.specs}
+
+    @cached_property
+    def _lookup(self) -> dict[str, str]:
+        table: dict[str, str] = {}
+        for spec in self.specs:
+            for term in (spec.name, *spec.synonyms):
+                table[normalize_term(term)] = spec.name
+        return table
+
+    def categories(self) -> list[str]:
+        """Canonical category names, in file order."""
+        return [spec.name for spec in self.specs]
+
+    def spec(self, category: str) -> CategorySpec:
+        """The spec of a canonical category name (``KeyError`` if unknown)."""
+        return self._by_name[category]
+
+    def canonical(self, name: str) -> str | None:
+        """The canonical category for a name or synonym; case, spacing, '-' and '_' are ignored.
+
+        A trailing plural ``s`` / ``es`` is dropped when the name itself is unknown. ``None`` if unresolved.
+        """
+        key = normalize_term(name)
+        for candidate in (key, key[:-1] if key.endswith("s") else "", key[:-2] if key.endswith("es") else ""):
+            if candidate and candidate in self._lookup:
+                return self._lookup[candidate]
+        return None
+
+    def synonyms(self, category: str) -> tuple[str, ...]:
+        return self.spec(category).synonyms
+
+
+def normalize_term(name: str) -> str:
+    """Lower case with spaces, hyphens and underscores removed: the key synonyms are matched on."""
+    return "".join(name.lower().replace("-", " ").replace("_", " ").split())
+
+
+def load_vocabulary(path: str | Path | None = None) -> Vocabulary:
+    """Read and validate a vocabulary JSON file (default: the packaged ``data/vocabulary.json``)."""
+    if path is None:
+        text = resources.files("drivenav").joinpath("data/vocabulary.json").read_text(encoding="utf-8")
+        source: str | Path = "drivenav/data/vocabulary.json"
+    else:
+        source = Path(path)
+        text = source.read_text(encoding="utf-8")
+    try:
+        raw = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(source, "<file>", "valid JSON", str(exc)) from exc
+    return _parse(raw, source)
+
+
+def _parse(raw: Any, source: str | Path) -> Vocabulary:
+    if not isinstance(raw, dict):
+        raise InputError(source, "<file>", "a JSON object", type(raw).__name__)
+    room_types = tuple(_str_list(raw.get("room_types"), source, "room_types"))
+    specs = tuple(
+        _parse_spec(entry, source, f"categories[{k}]", room_types)
+        for k, entry in enumerate(_list(raw.get("categories"), source, "categories"))
+    )
+    vocab = Vocabulary(
+        room_types=room_types,
+        specs=specs,
+        anchors={
+            room: tuple(_str_list(names, source, f"anchors.{room}"))
+            for room, names in _dict(raw.get("anchors"), source, "anchors").items()
+        },
+        density={
+            room: _nonneg(value, source, f"density.{room}")
+            for room, value in _dict(raw.get("density"), source, "density").items()
+        },
+        generic_density=_nonneg(raw.get("generic_density"), source, "generic_density"),
+    )
+    _check_references(vocab, source)
+    return vocab
+
+
+def _parse_spec(entry: Any, source: str | Path, where: str, room_types: tuple[str, ...]) -> CategorySpec:
+    item = _dict(entry, source, where)
+    size_min = _vec3(item.get("size_min"), source, f"{where}.size_min")
+    size_max = _vec3(item.get("size_max"), source, f"{where}.size_max")
+    if any(lo > hi for lo, hi in zip(size_min, size_max, strict=True)):
+        raise InputError(source, f"{where}.size_max", "size_max >= size_min per axis", size_max)
+    style_name = item.get("style")
+    if style_name not in {s.value for s in PlacementStyle}:
+        raise InputError(source, f"{where}.style", f"one of {[s.value for s in PlacementStyle]}", style_name)
+    priors = _dict(item.get("priors", {}), source, f"{where}.priors")
+    for room in priors:
+        if room not in room_types:
+            raise InputError(source, f"{where}.priors", f"room types from {list(room_types)}", room)
+    elevation = _list(item.get("elevation", [0.0, 0.0]), source, f"{where}.elevation")
+    if len(elevation) != 2 or not 0.0 <= _nonneg(elevation[0], source, f"{where}.elevation") <= elevation[1]:
+        raise InputError(source, f"{where}.elevation", "[low, high] with 0 <= low <= high", elevation)
+    max_per_room = item.get("max_per_room", 2)
+    if not isinstance(max_per_room, int) or max_per_room < 1:
+        raise InputError(source, f"{where}.max_per_room", "a positive integer", max_per_room)
+    return CategorySpec(
+        name=_str(item.get("name"), source, f"{where}.name"),
+        synonyms=tuple(_str_list(item.get("synonyms", []), source, f"{where}.synonyms")),
+        size_min=size_min,
+        size_max=size_max,
+        style=PlacementStyle(style_name),
+        priors=tuple((room, _nonneg(w, source, f"{where}.priors.{room}")) for room, w in priors.items()),
+        generic_prior=_nonneg(item.get("generic", 0.0), source, f"{where}.generic"),
+        elevation=(float(elevation[0]), float(elevation[1])),
+        max_per_room=max_per_room,
+        hosts=tuple(_str_list(item.get("hosts", []), source, f"{where}.hosts")),
+    )
+
+
+def _check_references(vocab: Vocabulary, source: str | Path) -> None:
+    """Names and synonyms map to one category each; anchors, densities and hosts name known things."""
+    names = set(vocab.categories())
+    owner: dict[str, str] = {}
+    for spec in vocab.specs:
+        for term in (spec.name, *spec.synonyms):
+            key = normalize_term(term)
+            if owner.setdefault(key, spec.name) != spec.name or not key:
+                expected = f"terms unique across categories (this one is also under '{owner.get(key)}')"
+                raise InputError(source, f"{spec.name}.synonyms", expected, term)
+        if spec.style is PlacementStyle.SURFACE and not spec.hosts:
+            raise InputError(source, f"{spec.name}.hosts", "at least one host for a surface object", [])
+        if not set(spec.hosts) <= names:
+            raise InputError(source, f"{spec.name}.hosts", "known category names", spec.hosts)
+    for room, anchors in vocab.anchors.items():
+        if room not in vocab.room_types or not set(anchors) <= names:
+            raise InputError(source, f"anchors.{room}", "a room type mapped to known categories", anchors)
+    for room in vocab.density:
+        if room not in vocab.room_types:
+            raise InputError(source, f"density.{room}", f"room types from {list(vocab.room_types)}", room)
+
+
+def _dict(value: Any, source: str | Path, where: str) -> dict[str, Any]:
+    if not isinstance(value, dict):
+        raise InputError(source, where, "a JSON object", value)
+    return value
+
+
+def _list(value: Any, source: str | Path, where: str) -> list[Any]:
+    if not isinstance(value, list):
+        raise InputError(source, where, "a JSON list", value)
+    return value
+
+
+def _str(value: Any, source: str | Path, where: str) -> str:
+    if not isinstance(value, str) or not value.strip():
+        raise InputError(source, where, "a non-empty string", value)
+    return value
+
+
+def _str_list(value: Any, source: str | Path, where: str) -> list[str]:
+    return [_str(v, source, where) for v in _list(value, source, where)]
+
+
+def _nonneg(value: Any, source: str | Path, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not value >= 0.0:
+        raise InputError(source, where, "a non-negative number", value)
+    return float(value)
+
+
+def _vec3(value: Any, source: str | Path, where: str) -> Vec3:
+    items = _list(value, source, where)
+    if len(items) != 3 or any(_nonneg(v, source, where) <= 0.0 for v in items):
+        raise InputError(source, where, "three positive numbers (metres)", value)
+    return float(items[0]), float(items[1]), float(items[2])
+
+
+VOCABULARY: Vocabulary = load_vocabulary()
+
+
+def categories() -> list[str]:
+    """Canonical names of the packaged vocabulary."""
+    return VOCABULARY.categories()
+
+
+def canonical_category(name: str) -> str | None:
+    """Resolve a category name or synonym against the packaged vocabulary (see :meth:`Vocabulary.canonical`)."""
+    return VOCABULARY.canonical(name)
+
+
+def synonyms(category: str) -> tuple[str, ...]:
+    """Synonyms of a canonical category of the packaged vocabulary."""
+    return VOCABULARY.synonyms(category)
+
+
+def category_spec(category: str) -> CategorySpec:
+    """The spec of a canonical category of the packaged vocabulary."""
+    return VOCABULARY.spec(category)

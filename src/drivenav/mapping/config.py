@@ -1,0 +1,78 @@
+"""Settings of the occupancy mapper (paper Sec. IV-A a: "a standard frontier-map pipeline")."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from drivenav.envs.base import SimConfig
+
+
+@dataclass(frozen=True)
+class MappingConfig:
+    """Geometry and thresholds of the obstacle / explored / navigable maps and of frontier filtering.
+
+    Heights are measured above the floor. A depth point whose height lies in
+    ``[min_obstacle_height, max_obstacle_height]`` is an obstacle; lower points are floor, higher points are
+    ignored. The default band starts above floor clutter the agent can step over (rugs, thresholds; Habitat's
+    navmesh climbs 0.2 m) and ends at the agent's height (0.88 m): structure above the agent does not block
+    it.
+    Depth readings within ``clip_epsilon`` of ``min_depth`` / ``max_depth`` are clip values, never obstacles.
+
+    ``min_frontier_area`` (m^2, VLFM's 1.5) drops frontiers whose unexplored pocket is smaller; the pocket is
+    measured inside a window ``pocket_window`` metres around the frontier (:mod:`drivenav.mapping.frontiers`).
+    The grid starts ``initial_size`` metres square around the episode origin and grows by ``growth_margin``
+    metres beyond what an observation needs whenever the sensor range would reach its edge, up to ``max_size``
+    metres a side (frames from farther poses, e.g. after an odometry jump, are ignored).
+    ``pixel_stride`` subsamples rows and columns of the depth image for the update.
+    """
+
+    resolution: float = 0.05
+    min_obstacle_height: float = 0.15
+    max_obstacle_height: float = 0.88
+    min_depth: float = 0.5
+    max_depth: float = 5.0
+    clip_epsilon: float = 0.01
+    camera_height: float = 0.88
+    agent_radius: float = 0.18
+    min_frontier_area: float = 1.5
+    pocket_window: float = 2.0
+    initial_size: float = 20.0
+    growth_margin: float = 5.0
+    max_size: float = 200.0
+    pixel_stride: int = 2
+
+    def __post_init__(self) -> None:
+        positive = {
+            "resolution": self.resolution,
+            "max_depth": self.max_depth,
+            "initial_size": self.initial_size,
+            "pocket_window": self.pocket_window,
+            "max_size": self.max_size,
+        }
+        for name, value in positive.items():
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"MappingConfig.{name} must be a positive finite number, got {value!r}")
+        if not 0.0 <= self.min_depth < self.max_depth:
+            raise ValueError(f"MappingConfig needs 0 <= min_depth < max_depth, got {self.min_depth}, {self.max_depth}")
+        if not self.min_obstacle_height < self.max_obstacle_height:
+            raise ValueError("MappingConfig needs min_obstacle_height < max_obstacle_height")
+        if self.agent_radius < 0.0 or self.growth_margin < 0.0 or self.clip_epsilon < 0.0:
+            raise ValueError("MappingConfig: agent_radius, growth_margin and clip_epsilon must be >= 0")
+        if self.pixel_stride < 1:
+            raise ValueError(f"MappingConfig.pixel_stride must be >= 1, got {self.pixel_stride}")
+
+    @staticmethod
+    def from_sim(sim: SimConfig, **overrides: Any) -> MappingConfig:
+        """The mapping settings matching a simulator set-up (depth range, camera height, agent, grid)."""
+        base = MappingConfig(
+            resolution=sim.grid_resolution,
+            min_depth=sim.min_depth,
+            max_depth=sim.max_depth,
+            camera_height=sim.camera_height,
+            agent_radius=sim.agent_radius,
+            max_obstacle_height=sim.agent_height,
+        )
+        return dataclasses.replace(base, **overrides)

@@ -1,0 +1,161 @@
+"""Numba kernels of the mapper. Callers pass plain numpy arrays; the typed wrappers live in the callers.
+
+All grids follow :mod:`drivenav.grid`: ``[row, col]``, row along world ``y``, column along world ``x``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any, TypeVar, cast
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+_F = TypeVar("_F", bound=Callable[..., Any])
+
+F64 = NDArray[np.float64]
+I64 = NDArray[np.int64]
+Mask = NDArray[np.bool_]
+
+
+def _jit(fn: _F) -> _F:
+    """``numba.njit(cache=True)`` keeping the Python signature visible to the type checker."""
+    return cast(_F, numba.njit(cache=True)(fn))
+
+
+@_jit
+def project_depth(
+    depth: NDArray[np.float32],
+    rows: I64,
+    cols: I64,
+    camera: F64,
+    band: F64,
+    pose: F64,
+    grid: F64,
+    obstacle: Mask,
+    inflated: Mask,
+    disk: I64,
+    col_range: F64,
+) -> int:
+    """Back-project subsampled depth pixels, mark obstacles, and find each column's free range.
+
+    ``camera`` = (fx, fy, cx, cy, camera height), ``band`` = (min depth, max depth, clip epsilon, min obstacle
+    height, max obstacle height), ``pose`` = (x, y, yaw), ``grid`` = (origin x, origin y, resolution).
+    Newly marked obstacle cells stamp ``disk`` (row/col offsets) into ``inflated``. ``col_range[k]``
+    receives the horizontal distance to which column ``cols[k]`` saw free space: the nearest obstacle (0 where
+    something is closer than the minimum depth), else the farthest floor-level evidence. Returns the number of
+    new obstacle cells.
+    """
+    fx, fy, cx, cy, cam_h = camera[0], camera[1], camera[2], camera[3], camera[4]
+    min_d, max_d, eps, min_h, max_h = band[0], band[1], band[2], band[3], band[4]
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    ox, oy, res = grid[0], grid[1], grid[2]
+    n_rows, n_cols = obstacle.shape
+    added = 0
+    for k in range(cols.shape[0]):
+        u = cols[k]
+        kx = (cx - u) / fx
+        norm = math.sqrt(1.0 + kx * kx)
+        hit = math.inf
+        seen = 0.0
+        for v in rows:
+            z = depth[v, u]
+            if not (math.isfinite(z) and z > 0.0):
+                continue
+            if z <= min_d + eps:
+                hit = 0.0
+                continue
+            ky = (cy - v) / fy
+            if z >= max_d - eps:
+                if cam_h + ky * max_d <= max_h:
+                    seen = max(seen, max_d * norm)
+                continue
+            h = cam_h + ky * z
+            if h > max_h:
+                continue
+            seen = max(seen, z * norm)
+            if h < min_h:
+                continue
+            hit = min(hit, z * norm)
+            x = pose[0] + c * z - s * z * kx
+            y = pose[1] + s * z + c * z * kx
+            i = math.floor((y - oy) / res)
+            j = math.floor((x - ox) / res)
+            if 0 <= i < n_rows and 0 <= j < n_cols and not obstacle[i, j]:
+                obstacle[i, j] = True
+                added += 1
+                stamp(inflated, i, j, disk)
+        col_range[k] = hit if hit < math.inf else seen
+    return added
+
+
+@_jit
+def stamp(mask: Mask, i: int, j: int, disk: I64) -> None:
+    """Set ``mask`` at cell ``(i, j)`` plus each ``disk`` offset, skipping cells outside the grid."""
+    n_rows, n_cols = mask.shape
+    for d in range(disk.shape[0]):
+        ii = i + disk[d, 0]
+        jj = j + disk[d, 1]
+        if 0 <= ii < n_rows and 0 <= jj < n_cols:
+            mask[ii, jj] = True
+
+
+@_jit
+def cast_rays(origin: F64, angles: F64, ranges: F64, grid: F64, explored: Mask) -> None:
+    """Mark the cells along 2-D rays from ``origin`` = (x, y) at world ``angles`` out to ``ranges`` (metres).
+
+    Rays are sampled every half cell and always include their end point, so the cell of an obstacle hit is
+    marked too. ``grid`` = (origin x, origin y, resolution).
+    """
+    ox, oy, res = grid[0], grid[1], grid[2]
+    n_rows, n_cols = explored.shape
+    step = 0.5 * res
+    for k in range(angles.shape[0]):
+        r = ranges[k]
+        if not r > 0.0:
+            continue
+        ca, sa = math.cos(angles[k]), math.sin(angles[k])
+        n = math.ceil(r / step)
+        for m in range(n + 1):
+            t = min(m * step, r)
+            i = math.floor((origin[1] + sa * t - oy) / res)
+            j = math.floor((origin[0] + ca * t - ox) / res)
+            if 0 <= i < n_rows and 0 <= j < n_cols:
+                explored[i, j] = True
+
+
+@_jit
+def pocket_size(passable: Mask, cells: I64, window: I64) -> int:
+    """Count the ``passable`` cells 4-connected to the 4-neighbours of ``cells`` inside ``window``.
+
+    ``window`` = (row0, row1, col0, col1), half-open. The flood starts from every passable 4-neighbour of a
+    member of ``cells`` (an (N, 2) array of rows and columns) that lies in the window.
+    """
+    r0, r1, c0, c1 = window[0], window[1], window[2], window[3]
+    h, w = r1 - r0, c1 - c0
+    visited = np.zeros((h, w), dtype=np.bool_)
+    queue = np.empty(h * w, dtype=np.int64)
+    di = np.array([1, -1, 0, 0])
+    dj = np.array([0, 0, 1, -1])
+    tail = 0
+    for n in range(cells.shape[0]):
+        for d in range(4):
+            i = cells[n, 0] + di[d] - r0
+            j = cells[n, 1] + dj[d] - c0
+            if 0 <= i < h and 0 <= j < w and not visited[i, j] and passable[i + r0, j + c0]:
+                visited[i, j] = True
+                queue[tail] = i * w + j
+                tail += 1
+    head = 0
+    while head < tail:
+        i, j = queue[head] // w, queue[head] % w
+        head += 1
+        for d in range(4):
+            ii, jj = i + di[d], j + dj[d]
+            if 0 <= ii < h and 0 <= jj < w and not visited[ii, jj] and passable[ii + r0, jj + c0]:
+                visited[ii, jj] = True
+                queue[tail] = ii * w + jj
+                tail += 1
+    return tail

@@ -1,0 +1,79 @@
+"""Property tests: invalid frames change nothing, random frames keep the maps' invariants."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from drivenav.envs.base import CameraIntrinsics, Pose
+from drivenav.mapping.config import MappingConfig
+from drivenav.mapping.occupancy import OccupancyMapper
+from drivenav.mapping.synthetic import Box3, BoxWorld
+
+K = CameraIntrinsics.from_hfov(32, 24, 79.0)
+CONFIG = MappingConfig(initial_size=6.0, growth_margin=1.0, pixel_stride=1)
+HOLES = st.sampled_from([math.nan, math.inf, -math.inf, 0.0, -0.0, -1.0, -1e30])
+CLIPS = st.sampled_from([0.5, 0.505, 5.0, 4.995, 7.0, 1e30])
+poses = st.builds(
+    Pose,
+    st.floats(-20.0, 20.0),
+    st.floats(-20.0, 20.0),
+    st.floats(-4 * math.pi, 4 * math.pi),
+)
+
+
+def first_map(pose: Pose) -> OccupancyMapper:
+    mapper = OccupancyMapper(CONFIG)
+    world = BoxWorld((Box3((pose.x + 1.02, pose.x + 1.5), (pose.y - 5.0, pose.y + 5.0)),))
+    mapper.update(world.render(Pose(pose.x, pose.y, 0.0), K), K, pose)
+    return mapper
+
+
+@settings(max_examples=40, deadline=None)
+@given(pose=poses, frame=arrays(np.float32, (24, 32), elements=HOLES))
+def test_frames_of_holes_change_nothing(pose: Pose, frame: np.ndarray) -> None:
+    mapper = first_map(pose)
+    before = mapper.snapshot()
+    mapper.update(frame, K, pose)
+    after = mapper.snapshot()
+    assert after.grid == before.grid
+    for layer in ("obstacle", "explored", "navigable"):
+        np.testing.assert_array_equal(getattr(after, layer), getattr(before, layer))
+
+
+@settings(max_examples=40, deadline=None)
+@given(pose=poses, frame=arrays(np.float32, (24, 32), elements=CLIPS | HOLES))
+def test_clip_values_never_add_obstacles(pose: Pose, frame: np.ndarray) -> None:
+    mapper = OccupancyMapper(CONFIG)
+    mapper.update(frame, K, pose)
+    assert not mapper.snapshot().obstacle.any()
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    steps=st.lists(
+        st.tuples(poses, arrays(np.float32, (24, 32), elements=st.floats(0.25, 6.0, width=32) | HOLES)),
+        min_size=1,
+        max_size=3,
+    )
+)
+def test_random_frames_keep_the_invariants(steps: list[tuple[Pose, np.ndarray]]) -> None:
+    mapper = OccupancyMapper(CONFIG)
+    for pose, frame in steps:
+        mapper.update(frame, K, pose)
+        assert mapper.last_update is not None and mapper.last_update.accepted
+    snap = mapper.snapshot()
+    assert not (snap.navigable & ~snap.explored).any()
+    assert not (snap.navigable & snap.obstacle).any()
+    obstacle_xy = snap.grid.cell_to_world(np.argwhere(snap.obstacle))
+    near_any = np.zeros(len(obstacle_xy), dtype=np.bool_)
+    for pose, _ in steps:
+        near_any |= np.hypot(obstacle_xy[:, 0] - pose.x, obstacle_xy[:, 1] - pose.y) <= 5.0 * 1.3 + 0.05
+    assert near_any.all()
+    for f in mapper.frontiers():
+        assert snap.navigable[f.cells[:, 0], f.cells[:, 1]].all()
+        assert f.unexplored_area >= CONFIG.min_frontier_area
