@@ -14,9 +14,11 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
+from drivenav.agent.trace import StopEvent, Trace
 from drivenav.envs.base import Action, Observation, Pose, SimConfig
 from drivenav.envs.scene import Scene
 from drivenav.eval.geodesic import GeodesicField
+from drivenav.semantics.protocols import SemanticLabels
 
 
 @dataclass(frozen=True)
@@ -32,7 +34,7 @@ class PrivilegedInfo:
 class Agent(ABC):
     """Base class: segment bookkeeping, stop reason and model-call counting."""
 
-    name: ClassVar[str]
+    name: str = "agent"
     uses_privileged: ClassVar[bool] = False
 
     def __init__(self, sim: SimConfig) -> None:
@@ -41,13 +43,21 @@ class Agent(ABC):
         self.segment_starts: list[int] = []
         self.stop_reason: str | None = None
         self.vlm_calls = 0
+        self.trace = Trace()
+        self.step = 0
 
-    def reset(self, goal_text: str, seed: int) -> None:
-        """Start an episode looking for ``goal_text``; ``seed`` makes any randomness reproducible."""
+    def reset(self, goal_text: str, seed: int, labels: SemanticLabels | None = None) -> None:
+        """Start an episode looking for ``goal_text``.
+
+        ``seed`` makes any randomness reproducible; ``labels`` say what the world's semantic instance ids mean
+        (for ground-truth grounding), where the world has them.
+        """
         self.goal_text = goal_text
         self.segment_starts = []
         self.stop_reason = None
         self.vlm_calls = 0
+        self.trace = Trace()
+        self.step = 0
 
     def set_privileged(self, info: PrivilegedInfo) -> None:  # noqa: B027 (optional hook, no-op by default)
         """Receive ground truth (only called when ``uses_privileged`` is true)."""
@@ -60,8 +70,16 @@ class Agent(ABC):
     def stop(self, reason: str) -> Action:
         """Issue STOP and remember why."""
         self.stop_reason = reason
+        self.trace.add(StopEvent(self.step, reason))
         return Action.STOP
 
-    @abstractmethod
     def act(self, observation: Observation) -> Action:
-        """The next action."""
+        """The next action (``step`` is kept for events and segments)."""
+        self.step = observation.step
+        if self.step == 0:
+            self.start_segment(0)
+        return self.decide(observation)
+
+    @abstractmethod
+    def decide(self, observation: Observation) -> Action:
+        """The policy itself."""

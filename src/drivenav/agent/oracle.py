@@ -28,9 +28,7 @@ class OracleAgent(Agent):
     def set_privileged(self, info: PrivilegedInfo) -> None:
         self._info = info
 
-    def act(self, observation: Observation) -> Action:
-        if observation.step == 0:
-            self.start_segment(0)
+    def decide(self, observation: Observation) -> Action:
         info = self._info
         pose = info.start_pose.compose(observation.pose)
         here = info.goal_field.at(pose.x, pose.y)  # the metric's own distance to goal

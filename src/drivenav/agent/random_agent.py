@@ -6,6 +6,7 @@ import numpy as np
 
 from drivenav.agent.base import Agent
 from drivenav.envs.base import Action, Observation
+from drivenav.semantics.protocols import SemanticLabels
 
 FORWARD_PROBABILITY = 0.6
 
@@ -15,13 +16,11 @@ class RandomAgent(Agent):
 
     name = "random"
 
-    def reset(self, goal_text: str, seed: int) -> None:
-        super().reset(goal_text, seed)
+    def reset(self, goal_text: str, seed: int, labels: SemanticLabels | None = None) -> None:
+        super().reset(goal_text, seed, labels)
         self._rng = np.random.default_rng(seed)
 
-    def act(self, observation: Observation) -> Action:
-        if observation.step == 0:
-            self.start_segment(0)
+    def decide(self, observation: Observation) -> Action:
         draw = self._rng.random()
         if observation.collided or draw >= FORWARD_PROBABILITY:
             return Action.TURN_LEFT if draw < 0.5 * (1.0 + FORWARD_PROBABILITY) else Action.TURN_RIGHT

@@ -10,6 +10,11 @@ One weighted FMM solve from the robot serves every frontier. Per frontier:
 * the bearing theta_i goes from the robot to the first crossing of the path with the R_e circle, or to the
   frontier waypoint in the ``path_bearings=False`` ablation.
 
+Goal paths (for the low-level planner that follows the selected direction's farthest frontier point or
+approaches a detected object, Sec. IV): each goal point is snapped to the nearest traversable cell within
+``GOAL_SNAP_RADIUS``, marked as one more target of the same early-stopping solve, and backtracked like a
+frontier, so following a goal costs no second FMM solve.
+
 The robot's own cell seeds the marching (``T = 0``). If that cell is not traversable (the robot stands in the
 inflation band), the nearest traversable cell within ``SNAP_RADIUS`` seeds it instead and the path's first
 segment runs from the robot to that cell's centre -- the only segment allowed to touch non-traversable cells.
@@ -35,6 +40,7 @@ from drivenav.directions.types import DirectionResult, FrontierPath
 from drivenav.mapping.types import Frontier, MapSnapshot
 
 SNAP_RADIUS = 0.5  # metres: how far the FMM source may be moved to reach traversable space
+GOAL_SNAP_RADIUS = 1.0  # metres: how far a goal point may be moved to reach traversable space
 MARGIN_CELLS = 3.0  # extra marching (in cells at the slowest speed) after the last frontier is reached
 
 TIMING_KEYS = ("distance_transforms", "skeleton", "fmm", "backtracking", "clustering", "tracking", "total")
@@ -43,9 +49,15 @@ TIMING_KEYS = ("distance_transforms", "skeleton", "fmm", "backtracking", "cluste
 def source_cell(field: SpeedField, robot_xy: Sequence[float]) -> tuple[int, int] | None:
     """The window cell that seeds the FMM: the robot's cell, else the nearest traversable one within
     ``SNAP_RADIUS``; ``None`` if there is none."""
+    return nearest_traversable(field, robot_xy, SNAP_RADIUS)
+
+
+def nearest_traversable(field: SpeedField, xy: Point, radius: float) -> tuple[int, int] | None:
+    """The window cell holding world point ``xy`` if traversable, else the nearest traversable cell whose
+    centre distance from that cell is at most ``radius``; ``None`` if there is none."""
     grid = field.window.grid
-    r, c = (int(v) for v in grid.world_to_cell(np.asarray(robot_xy[:2], dtype=np.float64)))
-    reach = int(np.ceil(SNAP_RADIUS / grid.resolution))
+    r, c = (int(v) for v in grid.world_to_cell(np.asarray(xy[:2], dtype=np.float64)))
+    reach = int(np.ceil(radius / grid.resolution))
     r0, c0 = max(r - reach, 0), max(c - reach, 0)
     patch = field.traversable[r0 : max(r + reach + 1, 0), c0 : max(c + reach + 1, 0)]
     cells = np.argwhere(patch) + np.array([r0, c0])
@@ -53,7 +65,7 @@ def source_cell(field: SpeedField, robot_xy: Sequence[float]) -> tuple[int, int]
         return None
     d2 = ((cells - (r, c)) ** 2).sum(axis=1)
     best = int(np.argmin(d2))
-    if d2[best] * grid.resolution**2 > SNAP_RADIUS**2:
+    if d2[best] * grid.resolution**2 > radius**2:
         return None
     return int(cells[best, 0]), int(cells[best, 1])
 
@@ -77,11 +89,17 @@ class DirectionPipeline:
         self._tracker.reset()
 
     def update(
-        self, snapshot: MapSnapshot, frontiers: Sequence[Frontier], robot_xy: Sequence[float]
+        self,
+        snapshot: MapSnapshot,
+        frontiers: Sequence[Frontier],
+        robot_xy: Sequence[float],
+        goals: Sequence[Point] = (),
     ) -> DirectionResult:
         """Speed field, one FMM solve, paths, bearings, clustering and label tracking for this step.
 
-        ``robot_xy`` is the robot's world position (extra items, e.g. a yaw, are ignored).
+        ``robot_xy`` is the robot's world position (extra items, e.g. a yaw, are ignored). ``goals`` are world
+        points to plan to from the same solve (see the module docstring); their paths come back, in order, in
+        :attr:`DirectionResult.goal_paths`.
         """
         t_start = time.perf_counter()
         robot_xy = (float(robot_xy[0]), float(robot_xy[1]))
@@ -92,7 +110,8 @@ class DirectionPipeline:
         t = time.perf_counter()
         source = source_cell(field, robot_xy)
         cells = [_frontier_cells(field, f) for f in frontiers]
-        T = self._solve(field, source, cells)
+        goal_cells = [nearest_traversable(field, goal, GOAL_SNAP_RADIUS) for goal in goals]
+        T = self._solve(field, source, cells, [g for g in goal_cells if g is not None])
         timings["fmm"] = elapsed_ms(t)
 
         t = time.perf_counter()
@@ -104,6 +123,8 @@ class DirectionPipeline:
                 unreachable.append(frontier.frontier_id)
             else:
                 paths.append(path)
+        robot = np.asarray(robot_xy, dtype=np.float64)
+        goal_paths = tuple(_goal_path(field, T, source, cell, robot) for cell in goal_cells)
         timings["backtracking"] = elapsed_ms(t)
 
         t = time.perf_counter()
@@ -115,17 +136,21 @@ class DirectionPipeline:
         directions = self._tracker.update(clusters)
         timings["tracking"] = elapsed_ms(t)
         timings["total"] = elapsed_ms(t_start)
-        return DirectionResult(directions, {p.frontier_id: p for p in paths}, tuple(unreachable), timings)
+        return DirectionResult(directions, {p.frontier_id: p for p in paths}, tuple(unreachable), timings, goal_paths)
 
     def _solve(
-        self, field: SpeedField, source: tuple[int, int] | None, cells: Sequence[NDArray[np.int64]]
+        self,
+        field: SpeedField,
+        source: tuple[int, int] | None,
+        cells: Sequence[NDArray[np.int64]],
+        goal_cells: Sequence[tuple[int, int]],
     ) -> NDArray[np.float64]:
-        """One FMM solve from ``source`` that stops shortly after every frontier with cells is reached."""
-        if source is None or not any(c.size for c in cells):
+        """One FMM solve from ``source`` that stops shortly after every frontier with cells and every goal
+        cell is reached."""
+        targets = [c for c in cells if c.size] + [np.array([g], dtype=np.int64) for g in goal_cells]
+        if source is None or not targets:
             return np.full(field.speed.shape, np.inf)
-        labels = np.full(field.speed.shape, -1, np.int32)
-        for k, own in enumerate(c for c in cells if c.size):
-            labels[own[:, 0], own[:, 1]] = k
+        labels = _target_labels(field.speed.shape, targets)
         res = field.window.grid.resolution
         slowest = float(field.speed[field.traversable].min())
         return travel_time(
@@ -153,18 +178,16 @@ class DirectionPipeline:
         best = int(np.argmin(times))
         if not np.isfinite(times[best]):
             return None
-        grid = field.window.grid
         rc = backtrack(T, field.traversable, (int(own[best, 0]), int(own[best, 1])), source)
-        world = (rc[::-1, ::-1] + 0.5) * grid.resolution + grid.origin  # (x, y), from the source outward
         robot = np.asarray(robot_xy[:2], dtype=np.float64)
-        path = world if _same_point(world[0], robot) else np.vstack([robot, world])
+        path = _world_path(field, rc, robot)
         cfg = self._config.directions
         waypoint = (float(frontier.waypoint[0]), float(frontier.waypoint[1]))
         point = circle_crossing(path, robot, cfg.bearing_radius) if cfg.path_bearings else waypoint
         if _same_point(point, robot):  # degenerate: the frontier is at the robot; use its waypoint
             point = waypoint
         far = frontier.points[int(np.argmax(((frontier.points - robot) ** 2).sum(axis=1)))]
-        target = world[-1]
+        target = path[-1]
         return FrontierPath(
             frontier.frontier_id,
             (float(target[0]), float(target[1])),
@@ -174,6 +197,43 @@ class DirectionPipeline:
             bearing_to(robot, point),
             (float(far[0]), float(far[1])),
         )
+
+
+def _target_labels(shape: tuple[int, int], targets: Sequence[NDArray[np.int64]]) -> NDArray[np.int32]:
+    """Early-termination labels: the cells of target set ``k`` get label ``k``, later sets overwriting earlier
+    ones. The marching waits for a cell of every label, so labels left without cells (a frontier all of whose
+    cells are goal cells) are dropped and the rest renumbered ``0..L-1``."""
+    labels = np.full(shape, -1, np.int32)
+    for k, own in enumerate(targets):
+        labels[own[:, 0], own[:, 1]] = k
+    every = np.concatenate(targets)
+    present = np.zeros(len(targets), np.bool_)
+    present[labels[every[:, 0], every[:, 1]]] = True
+    if not present.all():
+        renumber = np.cumsum(present, dtype=np.int32) - 1
+        labels[every[:, 0], every[:, 1]] = renumber[labels[every[:, 0], every[:, 1]]]
+    return labels
+
+
+def _world_path(field: SpeedField, rc: NDArray[np.float64], robot: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Backtracked window ``(row, col)`` points (target to source) as a world ``(x, y)`` polyline from the
+    robot to the target; the robot itself is prepended unless it stands on the source cell's centre."""
+    grid = field.window.grid
+    world = (rc[::-1, ::-1] + 0.5) * grid.resolution + grid.origin
+    return world if _same_point(world[0], robot) else np.vstack([robot, world])
+
+
+def _goal_path(
+    field: SpeedField,
+    T: NDArray[np.float64],
+    source: tuple[int, int] | None,
+    cell: tuple[int, int] | None,
+    robot: NDArray[np.float64],
+) -> NDArray[np.float64] | None:
+    """The path from the robot to a snapped goal cell (ending at its centre); ``None`` if unreachable."""
+    if source is None or cell is None or not np.isfinite(T[cell]):
+        return None
+    return _world_path(field, backtrack(T, field.traversable, cell, source), robot)
 
 
 def _same_point(a: Point, b: Point) -> bool:

@@ -79,10 +79,14 @@ class DirectionResult:
     ``directions`` are sorted by label; ``paths`` maps frontier id to its path (reachable frontiers only);
     ``unreachable`` lists the frontier ids dropped because no traversable path reaches them;
     ``timings_ms`` breaks the step down into ``distance_transforms``, ``skeleton``, ``fmm``, ``backtracking``
-    (including bearings), ``clustering``, ``tracking`` and ``total``.
+    (including bearings and goal paths), ``clustering``, ``tracking`` and ``total``; ``goal_paths`` holds, per
+    goal point passed to the pipeline and in that order, the robot-to-goal polyline ``(N, 2)`` from the same
+    FMM solve (ending at the centre of the traversable cell the goal was snapped to), or ``None`` where the goal
+    is unreachable.
     """
 
     directions: tuple[Direction, ...]
     paths: dict[int, FrontierPath]
     unreachable: tuple[int, ...]
     timings_ms: dict[str, float] = field(default_factory=dict)
+    goal_paths: tuple[NDArray[np.float64] | None, ...] = ()

@@ -68,7 +68,8 @@ def run_episode(
     observation = env.reset(episode)
     navigable = largest_component(env.scene.navigable_grid(sim.agent_radius, sim.agent_height))
     goal_field = GeodesicField(navigable, env.scene.grid, episode.view_points_xy())
-    agent.reset(episode.object_category, episode_seed(run_seed, episode.episode_id))
+    labels = {obj.instance_id: obj.category for obj in env.scene.objects}
+    agent.reset(episode.object_category, episode_seed(run_seed, episode.episode_id), labels)
     if agent.uses_privileged:
         agent.set_privileged(PrivilegedInfo(env.scene, navigable, goal_field, env.start_pose))
     positions = [(env.state.x, env.state.y)]
@@ -129,6 +130,7 @@ def run_episode(
         "yaws": np.round(yaws, 4).tolist(),
         "actions": actions,
         "segment_starts": list(agent.segment_starts),
+        "events": agent.trace.to_json(),
     }
     return record, trace
 

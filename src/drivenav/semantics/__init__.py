@@ -1,1 +1,1 @@
-"""drivenav.semantics."""
+"""Reasoner and grounding protocols, their backends, prompt enrichment and verification (Sec. IV-B, IV-C)."""

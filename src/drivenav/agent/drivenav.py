@@ -1,0 +1,384 @@
+"""The DRIVE-Nav decision loop (paper Sec. IV overview and IV-A c), composable into its baselines.
+
+Each step: depth + pose update the maps; one weighted-FMM solve turns frontiers into tracked directions and
+gives the path to the current goal; representative views are recorded opportunistically; the grounder looks for
+the target. The policy then continues the current mode:
+
+- ``SCAN``: the 360 deg start scan (twelve 30 deg turns), then a reasoner decision;
+- ``SWEEP``: an inspection event -- rotate only over the forward-240 deg directions lacking views, then decide;
+- ``FOLLOW``: drive toward the farthest frontier point of the selected direction (re-planned each step);
+- ``APPROACH``: drive to an accepted target and STOP within ``stop_distance``.
+
+Config switches give the baselines and ablations: ``use_reasoner=False`` (nearest frontier), ``decision_scan``
+(a full 360 deg scan at every decision: ``direction-360``, ``frontier``), ``cluster_span`` 0 (raw frontiers as
+candidates), the speed field's ``weighted`` flag and the inspection's ``restrict_forward`` flag.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+from numpy.typing import NDArray
+
+from drivenav.agent.base import Agent
+from drivenav.agent.planner import LocalPlanner
+from drivenav.agent.trace import (
+    DetectionEvent,
+    DirectionSelected,
+    InspectionStarted,
+    ScanStarted,
+    TargetAccepted,
+    TargetRejected,
+    ViewCaptured,
+)
+from drivenav.config import DriveNavConfig
+from drivenav.directions import Direction, DirectionPipeline, DirectionResult
+from drivenav.envs.base import Action, Observation, Pose, SimConfig
+from drivenav.grid import wrap_angle
+from drivenav.inspection import RepresentativeViews, full_scan_turns, needs_inspection, plan_sweep, turn_toward
+from drivenav.mapping.config import MappingConfig
+from drivenav.mapping.objects import ObjectMap, nearest_point, project_mask
+from drivenav.mapping.occupancy import OccupancyMapper
+from drivenav.mapping.types import Frontier, MapSnapshot
+from drivenav.semantics.geometric import GeometricReasoner
+from drivenav.semantics.ground_truth import GroundTruthGrounder
+from drivenav.semantics.protocols import Candidate, Grounder, Reasoner, SemanticLabels
+
+Point = tuple[float, float]
+REPLAN_SHIFT = 0.3  # metres the approach goal may move before this step's path is re-planned
+
+
+class Mode(Enum):
+    SCAN = "scan"
+    SWEEP = "sweep"
+    FOLLOW = "follow"
+    APPROACH = "approach"
+
+
+@dataclass(frozen=True)
+class AgentConfig:
+    """Switches composing DRIVE-Nav and its baselines (paper Tables II, V, VI)."""
+
+    paper: DriveNavConfig = field(default_factory=DriveNavConfig)
+    use_reasoner: bool = True  # False: greedy nearest frontier, no views, no reasoner
+    decision_scan: bool = False  # True: a full 360 deg scan at every decision point
+    stop_distance: float = 0.75  # metres from the target's nearest observed point at which to STOP
+    give_up_distance: float = 1.0  # a stuck approach this close to the target still STOPs
+    blacklist_steps: int = 40  # steps a direction that could not be followed is left out of decisions
+
+
+@dataclass
+class StepContext:
+    """What this step's perception produced (episode frame)."""
+
+    pose: Pose
+    snapshot: MapSnapshot
+    frontiers: list[Frontier]
+    result: DirectionResult
+    goal: Point | None
+    directions: dict[int, Direction] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.directions = {d.label: d for d in self.result.directions}
+
+    @property
+    def goal_path(self) -> NDArray[np.float64] | None:
+        return self.result.goal_paths[0] if self.result.goal_paths else None
+
+
+class DriveNavAgent(Agent):
+    """DRIVE-Nav (``drive-nav``) and, through :class:`AgentConfig`, its baselines."""
+
+    def __init__(
+        self,
+        sim: SimConfig,
+        config: AgentConfig | None = None,
+        name: str = "drive-nav",
+        reasoner_factory: Callable[[], Reasoner] = GeometricReasoner,
+    ) -> None:
+        super().__init__(sim)
+        self.name = name
+        self.config = config or AgentConfig()
+        self._reasoner_factory = reasoner_factory
+        self._turn = math.radians(sim.turn_angle_deg)
+        self.timings: list[dict[str, float]] = []
+
+    # ----------------------------------------------------------------- episode set-up
+
+    def reset(self, goal_text: str, seed: int, labels: SemanticLabels | None = None) -> None:
+        super().reset(goal_text, seed, labels)
+        paper = self.config.paper
+        self._mapper = OccupancyMapper(MappingConfig.from_sim(self.sim))
+        self._pipeline = DirectionPipeline(paper)
+        self._views = RepresentativeViews(paper.inspection.view_tolerance)
+        self._objects = ObjectMap()
+        self._planner = LocalPlanner(self.sim)
+        self._reasoner = self._reasoner_factory()
+        self._grounder: Grounder | None = GroundTruthGrounder(labels) if labels is not None else None
+        self._mode = Mode.SCAN
+        self._scan_turns = full_scan_turns(self._turn)
+        self._pending_yaws: list[float] = []
+        self._inspected: set[int] = set()
+        self._blacklist: dict[int, int] = {}
+        self._selected: int | None = None
+        self._goal: Point | None = None
+        self._target: int | None = None
+        self.timings = []
+        self.trace.add(ScanStarted(0, self._scan_turns))
+
+    # ----------------------------------------------------------------- one step
+
+    def decide(self, observation: Observation) -> Action:
+        timings: dict[str, float] = {}
+        start = time.perf_counter()
+        self._mapper.update(observation.depth, observation.intrinsics, observation.pose)
+        snapshot, frontiers = self._mapper.snapshot(), self._mapper.frontiers()
+        timings["mapping"] = _ms_since(start)
+        ctx = self._perceive(observation.pose, snapshot, frontiers, self._goal)
+        timings.update({f"directions.{k}": v for k, v in ctx.result.timings_ms.items()})
+        mark = time.perf_counter()
+        self._record_views(observation, ctx)
+        timings["inspection"] = _ms_since(mark)
+        mark = time.perf_counter()
+        self._ground(observation)
+        timings["grounding"] = _ms_since(mark)
+        mark = time.perf_counter()
+        action = self._policy(observation, ctx)
+        timings["policy"] = _ms_since(mark)
+        timings["total"] = _ms_since(start)
+        self.timings.append(timings)
+        return action
+
+    def _perceive(
+        self, pose: Pose, snapshot: MapSnapshot, frontiers: list[Frontier], goal: Point | None
+    ) -> StepContext:
+        goals = [goal] if goal is not None else []
+        result = self._pipeline.update(snapshot, frontiers, (pose.x, pose.y), goals=goals)
+        return StepContext(pose, snapshot, frontiers, result, goal)
+
+    def _replan(self, ctx: StepContext, goal: Point) -> StepContext:
+        """The same step's perception with a new goal (only at decision steps)."""
+        if ctx.goal == goal:
+            return ctx
+        return self._perceive(ctx.pose, ctx.snapshot, ctx.frontiers, goal)
+
+    def _record_views(self, observation: Observation, ctx: StepContext) -> None:
+        self._views.retain(ctx.directions)
+        if not self.config.use_reasoner:
+            return
+        for label, updated in self._views.observe(ctx.result.directions, observation, self.step):
+            view = self._views.get(label)
+            if view is not None:
+                self.trace.add(ViewCaptured(self.step, label, view.pose.yaw, view.error, updated))
+
+    def _ground(self, observation: Observation) -> None:
+        """Ground the target every step; accepted detections enter the object map (Sec. IV-B, IV-C)."""
+        if self._grounder is None:
+            return
+        for detection in self._grounder.segment(observation, self.goal_text):
+            points = project_mask(
+                detection.mask,
+                observation.depth,
+                observation.intrinsics,
+                observation.pose,
+                camera_height=self.sim.camera_height,
+                min_depth=self.sim.min_depth,
+                max_depth=self.sim.max_depth,
+            )
+            if len(points) == 0:
+                continue
+            candidate = self._objects.add(points, detection.phrase, detection.score, self.step)
+            if candidate is None:
+                continue
+            self.trace.add(DetectionEvent(self.step, detection.phrase, detection.score, candidate.center))
+            if candidate.status == "candidate":
+                self._objects.accept(candidate.candidate_id)
+                self.trace.add(TargetAccepted(self.step, candidate.candidate_id, candidate.center))
+        if self._target is None:
+            accepted = self._objects.accepted()
+            if accepted:
+                self._target = accepted[0].candidate_id
+                self._mode = Mode.APPROACH
+                self.start_segment(self.step)
+
+    # ----------------------------------------------------------------- policy
+
+    def _policy(self, observation: Observation, ctx: StepContext) -> Action:
+        if self._mode is Mode.APPROACH:
+            action = self._approach(observation, ctx)
+            if action is not None:
+                return action
+        if self._mode is Mode.SCAN:
+            if self._scan_turns > 0:
+                self._scan_turns -= 1
+                return Action.TURN_LEFT
+            return self._decide(observation, ctx, "scan")
+        if self._mode is Mode.SWEEP:
+            action = self._continue_sweep(ctx.pose.yaw)
+            return action if action is not None else self._decide(observation, ctx, "inspection")
+        return self._follow(observation, ctx)
+
+    def _follow(self, observation: Observation, ctx: StepContext) -> Action:
+        if not self.config.use_reasoner:
+            return self._follow_nearest(observation, ctx)
+        if self._selected not in ctx.directions:
+            return self._decide(observation, ctx, "vanished")
+        if self._start_inspection(ctx):
+            return self._policy(observation, ctx)
+        direction = ctx.directions[self._selected]
+        self._goal = direction.farthest_point
+        action = self._planner.act(self._path(ctx, direction), ctx.pose, observation.collided)
+        if action is None:
+            self._blacklist[direction.label] = self.step + self.config.blacklist_steps
+            return self._decide(observation, ctx, "stuck")
+        return action
+
+    def _path(self, ctx: StepContext, direction: Direction) -> NDArray[np.float64] | None:
+        """The path to the goal, or to the direction's nearest reachable frontier when the goal is unreachable."""
+        if ctx.goal_path is not None:
+            return ctx.goal_path
+        members = [ctx.result.paths[f] for f in direction.frontier_ids if f in ctx.result.paths]
+        return min(members, key=lambda p: p.travel_time).path if members else None
+
+    def _start_inspection(self, ctx: StepContext) -> bool:
+        """An inspection event (Sec. IV-A c): new forward directions lack views; True if rotation starts."""
+        fresh = [
+            d
+            for d in needs_inspection(ctx.result.directions, self._views, ctx.pose.yaw, self.config.paper.inspection)
+            if d.label not in self._inspected
+        ]
+        if not fresh:
+            return False
+        self._inspected.update(ctx.directions)
+        if self.config.decision_scan:
+            self._mode, self._scan_turns = Mode.SCAN, full_scan_turns(self._turn)
+            self.trace.add(ScanStarted(self.step, self._scan_turns))
+            return True
+        self._pending_yaws = plan_sweep(ctx.pose.yaw, [d.bearing for d in fresh], self._turn)
+        self.trace.add(InspectionStarted(self.step, tuple(d.label for d in fresh), tuple(self._pending_yaws)))
+        self._mode = Mode.SWEEP
+        return True
+
+    def _continue_sweep(self, yaw: float) -> Action | None:
+        while self._pending_yaws:
+            action = turn_toward(yaw, self._pending_yaws[0], self._turn)
+            if action is not None:
+                return action
+            self._pending_yaws.pop(0)
+        return None
+
+    # ----------------------------------------------------------------- decisions
+
+    def _candidates(self, ctx: StepContext) -> list[Candidate]:
+        usable = [d for d in ctx.result.directions if self._blacklist.get(d.label, -1) < self.step]
+        if not usable:
+            self._blacklist.clear()
+            usable = list(ctx.result.directions)
+        with_views = [d for d in usable if self._views.has_view(d.label)]
+        return [self._candidate(ctx, d) for d in (with_views or usable)]
+
+    def _candidate(self, ctx: StepContext, direction: Direction) -> Candidate:
+        times = [ctx.result.paths[f].travel_time for f in direction.frontier_ids if f in ctx.result.paths]
+        return Candidate(
+            label=direction.label,
+            bearing=direction.bearing,
+            turn=wrap_angle(direction.bearing - ctx.pose.yaw),
+            travel_time=min(times) if times else math.inf,
+            frontier_cells=len(direction.points),
+            view=self._views.get(direction.label),
+        )
+
+    def _decide(self, observation: Observation, ctx: StepContext, reason: str) -> Action:
+        """Ask the reasoner for the next direction, then take the first step toward it."""
+        self._inspected.update(ctx.directions)
+        candidates = self._candidates(ctx)
+        if not candidates:
+            return self.stop("no_frontier")
+        selection = self._reasoner.select_direction(self.goal_text, candidates)
+        by_label = {c.label: c for c in candidates}
+        label = selection.label if selection.label in by_label else _nearest(candidates)
+        direction = ctx.directions[label]
+        self._select(direction, reason, [c.label for c in candidates], selection.fallback)
+        ctx = self._replan(ctx, direction.farthest_point)
+        self._mode = Mode.FOLLOW
+        action = self._planner.act(self._path(ctx, direction), ctx.pose, observation.collided)
+        return (
+            action
+            if action is not None
+            else (turn_toward(ctx.pose.yaw, direction.bearing, self._turn) or Action.TURN_LEFT)
+        )
+
+    def _select(self, direction: Direction, reason: str, candidates: list[int], fallback: bool) -> None:
+        self._selected = direction.label
+        self._goal = direction.farthest_point
+        self._planner.reset()
+        self.start_segment(self.step)
+        self.trace.add(
+            DirectionSelected(
+                self.step,
+                direction.label,
+                direction.bearing,
+                direction.farthest_point,
+                tuple(candidates),
+                reason,
+                fallback,
+            )
+        )
+
+    def _follow_nearest(self, observation: Observation, ctx: StepContext) -> Action:
+        """Greedy baseline: always the nearest frontier point (least weighted-FMM time)."""
+        if not ctx.result.paths:
+            return self.stop("no_frontier")
+        nearest = min(ctx.result.paths.values(), key=lambda p: p.travel_time)
+        if (
+            self._goal is None
+            or math.dist(self._goal, nearest.target) > self.config.paper.directions.merge_tolerance * 4
+        ):
+            self.start_segment(self.step)
+            self._planner.reset()
+        self._goal = nearest.target
+        action = self._planner.act(nearest.path, ctx.pose, observation.collided)
+        return (
+            action
+            if action is not None
+            else (turn_toward(ctx.pose.yaw, nearest.bearing, self._turn) or Action.TURN_LEFT)
+        )
+
+    # ----------------------------------------------------------------- target approach
+
+    def _approach(self, observation: Observation, ctx: StepContext) -> Action | None:
+        """Drive to the accepted target and STOP; a target that cannot be reached is rejected."""
+        assert self._target is not None
+        candidate = self._objects.get(self._target)
+        here = (ctx.pose.x, ctx.pose.y)
+        closest = nearest_point(candidate, here)
+        distance = math.dist(here, closest)
+        if distance <= self.config.stop_distance:
+            return self.stop("target_reached")
+        if self._goal is None or math.dist(self._goal, closest) > REPLAN_SHIFT:
+            ctx = self._replan(ctx, closest)
+        self._goal = closest
+        action = self._planner.act(ctx.goal_path, ctx.pose, observation.collided)
+        if action is not None:
+            return action
+        if distance <= self.config.give_up_distance:
+            return self.stop("target_reached")
+        self._objects.reject(self._target)
+        self.trace.add(TargetRejected(self.step, self._target, candidate.center, "unreachable"))
+        self._target, self._goal = None, None
+        self._mode = Mode.FOLLOW
+        self._selected = None
+        return None
+
+
+def _nearest(candidates: list[Candidate]) -> int:
+    return min(candidates, key=lambda c: (c.travel_time, abs(c.turn))).label
+
+
+def _ms_since(start: float) -> float:
+    return (time.perf_counter() - start) * 1000.0

@@ -1,0 +1,91 @@
+"""Representative views of tracked directions (DRIVE-Nav Sec. IV-A c).
+
+A direction's representative view is the frame whose camera yaw was closest to its bearing: a view is recorded
+once the yaw is within ``view_tolerance`` (15 deg) of the bearing -- inclusively, see
+:mod:`drivenav.inspection.sweep` -- and replaced whenever a later frame has a smaller angular error. Views are
+keyed by direction label; the tracker never re-uses a label, so a stored view always belongs to the direction that
+carries its label, and views of retired labels are simply dropped.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+
+from drivenav.config import InspectionConfig
+from drivenav.directions.types import Direction
+from drivenav.envs.base import Observation
+from drivenav.inspection.sweep import signed_offset, within
+from drivenav.semantics.protocols import View
+
+
+class RepresentativeViews:
+    """Per-episode memory of one representative view per direction label (Sec. IV-A c)."""
+
+    def __init__(self, tolerance: float = InspectionConfig().view_tolerance) -> None:
+        self.tolerance = tolerance
+        self._views: dict[int, View] = {}
+
+    def observe(self, directions: Sequence[Direction], observation: Observation, step: int) -> list[tuple[int, bool]]:
+        """Record ``observation`` for every direction whose bearing is within tolerance of the camera yaw.
+
+        A direction without a view gets this frame; one with a view gets it only if the new error is smaller than
+        the stored one. Returns ``(label, replaced)`` for every view written, in the order of ``directions``.
+        """
+        written: list[tuple[int, bool]] = []
+        for direction in directions:
+            error = abs(signed_offset(direction.bearing, observation.pose.yaw))
+            stored = self._views.get(direction.label)
+            if not within(error, self.tolerance) or (stored is not None and error >= stored.error):
+                continue
+            self._views[direction.label] = _view(direction, observation, error, step)
+            written.append((direction.label, stored is not None))
+        return written
+
+    def has_view(self, label: int) -> bool:
+        return label in self._views
+
+    def get(self, label: int) -> View | None:
+        return self._views.get(label)
+
+    def labels(self) -> set[int]:
+        return set(self._views)
+
+    def retain(self, labels: Iterable[int]) -> None:
+        """Keep only the views of ``labels`` (the directions still tracked)."""
+        keep = set(labels)
+        self._views = {label: view for label, view in self._views.items() if label in keep}
+
+    def reset(self) -> None:
+        """Forget every view (a new episode)."""
+        self._views.clear()
+
+
+def _view(direction: Direction, observation: Observation, error: float, step: int) -> View:
+    return View(
+        label=direction.label,
+        rgb=observation.rgb,
+        depth=observation.depth,
+        semantic=observation.semantic,
+        pose=observation.pose,
+        bearing=direction.bearing,
+        error=error,
+        step=step,
+    )
+
+
+def needs_inspection(
+    directions: Sequence[Direction], views: RepresentativeViews, heading: float, config: InspectionConfig
+) -> list[Direction]:
+    """The directions an inspection event must turn to (Sec. IV-A c): inspectable and lacking a view.
+
+    Inspectable means ``|alpha_k| <= forward_range / 2`` (the forward 240 deg set) when ``config.restrict_forward``
+    holds, and every direction otherwise (the "w/o 240 deg inspection view" ablation). Directions that already have
+    a view trigger no rotation.
+    """
+    half_range = config.forward_range / 2.0
+    return [
+        d
+        for d in directions
+        if not views.has_view(d.label)
+        and (not config.restrict_forward or within(signed_offset(d.bearing, heading), half_range))
+    ]

@@ -1,0 +1,49 @@
+"""A geometry-only reasoner: the VLM-free stand-in for direction selection (Sec. IV-A c, IV-B).
+
+DRIVE-Nav asks Qwen3-VL which persistent direction to explore next. Without a vision-language model, this
+reasoner ranks the candidates by their unexplored extent discounted by how far away it is:
+
+    score = frontier_cells / (1 + travel_time / distance_scale)
+
+``travel_time`` is the weighted-FMM time (metres at unit speed), so ``distance_scale`` is the travel distance
+that halves a direction's worth. An unreachable direction (infinite or NaN time) scores 0. Equal scores go to
+the smallest ``|turn|`` and then the smallest label, so the choice is deterministic. It cannot see, so it never
+reports the target as visible.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+from drivenav.semantics.protocols import Candidate, Selection
+
+
+def direction_score(candidate: Candidate, distance_scale: float) -> float:
+    """Frontier extent discounted by travel distance (module docstring); 0 when unreachable."""
+    if not math.isfinite(candidate.travel_time):
+        return 0.0
+    return candidate.frontier_cells / (1.0 + max(candidate.travel_time, 0.0) / distance_scale)
+
+
+class GeometricReasoner:
+    """Implements :class:`~drivenav.semantics.protocols.Reasoner` from candidate geometry alone."""
+
+    name = "geometric"
+
+    def __init__(self, distance_scale: float = 5.0) -> None:
+        if not (math.isfinite(distance_scale) and distance_scale > 0.0):
+            raise ValueError(f"distance_scale must be a positive finite number, got {distance_scale!r}")
+        self.distance_scale = distance_scale
+
+    def select_direction(self, goal: str, candidates: Sequence[Candidate]) -> Selection:
+        """The best-scoring candidate (``label=None`` when there is none); ``goal`` plays no part."""
+        if not candidates:
+            return Selection(label=None, note="no candidates")
+        best = max(candidates, key=self._rank)
+        score = direction_score(best, self.distance_scale)
+        return Selection(label=best.label, note=f"geometric score {score:.2f}")
+
+    def _rank(self, candidate: Candidate) -> tuple[float, float, int]:
+        """Sort key, larger is better: score, then smaller |turn|, then smaller label."""
+        return direction_score(candidate, self.distance_scale), -abs(candidate.turn), -candidate.label

@@ -1,0 +1,75 @@
+"""The ground-truth grounder on hand-made instance images: synonyms, other categories, tiny masks, no semantics."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from drivenav.envs.base import CameraIntrinsics, Observation, Pose
+from drivenav.semantics.ground_truth import GroundTruthGrounder, category_key
+from drivenav.semantics.protocols import Grounder
+
+H, W = 60, 80
+LABELS = {1: "sofa", 2: "Couch", 3: "tv", 4: "sofa", 5: "potted plant", 9: "sofa"}  # 9 is not in the image
+
+
+def observation(semantic: np.ndarray | None) -> Observation:
+    return Observation(
+        rgb=np.zeros((H, W, 3), np.uint8),
+        depth=np.full((H, W), 2.0, np.float32),
+        semantic=semantic,
+        pose=Pose(0.0, 0.0, 0.0),
+        intrinsics=CameraIntrinsics.from_hfov(W, H, 79.0),
+        step=0,
+        collided=False,
+    )
+
+
+def scene_image() -> np.ndarray:
+    sem = np.zeros((H, W), np.int32)
+    sem[10:20, 5:25] = 1  # sofa, 200 px
+    sem[30:50, 30:60] = 2  # "Couch" label: a sofa too, 600 px
+    sem[0:30, 60:80] = 3  # tv, 600 px
+    sem[55:60, 0:4] = 4  # sofa, 20 px: too small
+    sem[40:52, 0:15] = 5  # plant, 180 px
+    return sem
+
+
+def test_satisfies_grounder_protocol() -> None:
+    grounder: Grounder = GroundTruthGrounder(LABELS)
+    assert grounder.name == "ground-truth"
+
+
+def test_synonym_phrase_finds_every_large_instance_largest_first() -> None:
+    sem = scene_image()
+    detections = GroundTruthGrounder(LABELS, min_pixels=50).segment(observation(sem), "couch")
+    assert [int(d.mask.sum()) for d in detections] == [600, 200]
+    assert np.array_equal(detections[0].mask, sem == 2)
+    assert np.array_equal(detections[1].mask, sem == 1)
+    assert all(d.score == 1.0 and d.phrase == "couch" and d.mask.dtype == np.bool_ for d in detections)
+
+
+def test_min_pixels_threshold_is_inclusive() -> None:
+    sem = scene_image()
+    assert len(GroundTruthGrounder(LABELS, min_pixels=200).segment(observation(sem), "Sofa")) == 2
+    assert len(GroundTruthGrounder(LABELS, min_pixels=201).segment(observation(sem), "Sofa")) == 1
+    assert len(GroundTruthGrounder(LABELS, min_pixels=20).segment(observation(sem), "sofas")) == 3
+
+
+def test_other_categories_are_ignored() -> None:
+    sem = scene_image()
+    grounder = GroundTruthGrounder(LABELS, min_pixels=50)
+    (tv,) = grounder.segment(observation(sem), "television")
+    assert np.array_equal(tv.mask, sem == 3)
+    assert grounder.segment(observation(sem), "bed") == []
+
+
+def test_unknown_names_match_verbatim_case_insensitively() -> None:
+    assert category_key("  Flux Capacitor ") == "flux capacitor"
+    sem = np.zeros((H, W), np.int32)
+    sem[:20, :20] = 7
+    grounder = GroundTruthGrounder({7: "Flux Capacitor"}, min_pixels=10)
+    assert len(grounder.segment(observation(sem), "flux capacitor")) == 1
+
+
+def test_no_semantic_image() -> None:
+    assert GroundTruthGrounder(LABELS).segment(observation(None), "sofa") == []
