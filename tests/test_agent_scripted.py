@@ -23,8 +23,7 @@ SIM = SimConfig()
 def _run(scene: Scene, agent_name: str, start: tuple[float, float], yaw: float, category: str, text: str = ""):  # type: ignore[no-untyped-def]
     env = EmbeddedEnv(lambda _: scene, SIM)
     agent = make_agent(agent_name, SIM)
-    record, trace = run_episode(env, agent, episode_for(scene, start, yaw, category, text), 0, SIM.max_steps)
-    return record, trace, agent
+    return run_episode(env, agent, episode_for(scene, start, yaw, category, text), 0, SIM.max_steps)
 
 
 def _events(trace: dict[str, object], kind: str) -> list[dict[str, object]]:
@@ -32,14 +31,14 @@ def _events(trace: dict[str, object], kind: str) -> list[dict[str, object]]:
 
 
 def test_target_down_one_branch_is_reached_and_stop_issued() -> None:
-    record, trace, _ = _run(t_junction(target_on_left=True), "drive-nav", (12.0, 2.5), math.pi / 2, "plant")
+    record, _ = _run(t_junction(target_on_left=True), "drive-nav", (12.0, 2.5), math.pi / 2, "plant")
     assert record["success"] == 1, record
     assert record["stop_reason"] == "target_reached"
     assert record["distance_to_goal"] <= SIM.success_distance
 
 
 def test_no_360_scan_after_the_start() -> None:
-    record, trace, _ = _run(t_junction(target_on_left=False), "drive-nav", (12.0, 2.5), math.pi / 2, "plant")
+    record, trace = _run(t_junction(target_on_left=False), "drive-nav", (12.0, 2.5), math.pi / 2, "plant")
     scans = _events(trace, "scan")
     assert [e["step"] for e in scans] == [0]
     assert record["success"] == 1
@@ -47,7 +46,7 @@ def test_no_360_scan_after_the_start() -> None:
 
 def test_junction_inspection_turns_only_toward_new_directions() -> None:
     """At the T the agent sweeps over the forward 240 deg directions lacking views, no more than needed."""
-    _, trace, _ = _run(t_junction(target_on_left=True), "drive-nav", (12.0, 2.5), math.pi / 2, "plant")
+    _, trace = _run(t_junction(target_on_left=True), "drive-nav", (12.0, 2.5), math.pi / 2, "plant")
     actions = trace["actions"]
     start_yaw = trace["yaws"][0]
     decisions = [int(e["step"]) for e in _events(trace, "direction_selected")]  # type: ignore[arg-type]
@@ -67,8 +66,8 @@ def test_junction_inspection_turns_only_toward_new_directions() -> None:
 
 def test_direction_360_turns_more_than_drive_nav() -> None:
     scene = t_junction(target_on_left=False)
-    drive, _, _ = _run(scene, "drive-nav", (12.0, 2.5), math.pi / 2, "plant")
-    full, full_trace, _ = _run(scene, "direction-360", (12.0, 2.5), math.pi / 2, "plant")
+    drive, _ = _run(scene, "drive-nav", (12.0, 2.5), math.pi / 2, "plant")
+    full, full_trace = _run(scene, "direction-360", (12.0, 2.5), math.pi / 2, "plant")
     assert len(_events(full_trace, "scan")) >= 2
     assert drive["steps"] < full["steps"]
 
@@ -80,7 +79,7 @@ def test_dead_end_triggers_reselection() -> None:
         [(11.25, 1.5, 12.75, 9.0), (8.0, 7.5, 12.75, 9.0), (11.25, 7.5, 20.0, 9.0), (18.5, 7.5, 20.0, 16.0)],
         [ObjectInstance(1, "plant", (19.25, 15.5), (0.5, 0.5, 1.2))],
     )
-    record, trace, _ = _run(scene, "drive-nav", (12.0, 2.0), math.pi / 2, "plant")
+    record, trace = _run(scene, "drive-nav", (12.0, 2.0), math.pi / 2, "plant")
     assert len(_events(trace, "direction_selected")) >= 2
     assert record["success"] == 1
 
@@ -96,7 +95,7 @@ def test_blocked_doorway_does_not_loop_forever() -> None:
             ObjectInstance(2, "plant", (4.5, 9.5), (0.5, 0.5, 1.2)),
         ],
     )
-    record, trace, _ = _run(scene, "drive-nav", (6.0, 7.0), 0.0, "plant", text="unicorn")
+    record, _ = _run(scene, "drive-nav", (6.0, 7.0), 0.0, "plant", text="unicorn")
     assert record["stop_reason"] == "no_frontier"
     assert record["steps"] < 250
 

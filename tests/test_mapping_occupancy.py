@@ -166,10 +166,12 @@ def test_float64_depth_and_non_finite_pose() -> None:
 
 
 def test_navigable_excludes_the_agent_radius_band() -> None:
-    # Obstacle column centres at x = 2.025: centre 1.875 is 0.15 m away (blocked), 1.825 is 0.20 m away.
+    # Obstacle column centres at x = 2.025; inflation 0.18 m + one cell (from_sim) = 0.23 m: centre 1.825 is
+    # 0.20 m away (blocked), 1.775 is 0.25 m away (free).
     snap = mapped(BoxWorld((Box3((2.02, 2.3), (-5.0, 5.0)),)), Pose(0.0, 0.0, 0.0)).snapshot()
-    assert at(snap, "navigable", 1.83, 0.0)
-    assert at(snap, "navigable", 1.83, 0.6)
+    assert at(snap, "navigable", 1.78, 0.0)
+    assert at(snap, "navigable", 1.78, 0.6)
+    assert not at(snap, "navigable", 1.83, 0.0)
     assert not at(snap, "navigable", 1.88, 0.0)
     assert not at(snap, "navigable", 2.03, 0.0)
     assert at(snap, "navigable", 0.0, 0.0)

@@ -58,6 +58,11 @@ def _add_bench(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     mapping.add_argument("--frames", type=int, default=24)
     mapping.add_argument("--json", action="store_true", help="print one JSON object")
     mapping.set_defaults(handler=_cmd_bench_mapping)
+    agent = sub.add_parser("agent", help="agent compute per step (models excluded) and per-module breakdown")
+    agent.add_argument("--episodes", type=int, default=4)
+    agent.add_argument("--max-steps", type=int, default=150)
+    agent.add_argument("--json", action="store_true", help="print one JSON object")
+    agent.set_defaults(handler=_cmd_bench_agent)
 
 
 def _add_viz(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -66,6 +71,14 @@ def _add_viz(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> N
     parser.add_argument("episode_id")
     parser.add_argument("--out", type=Path, default=None, help="output folder (default RUN_DIR/viz)")
     parser.set_defaults(handler=_cmd_viz)
+
+
+def _add_compare(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    parser = commands.add_parser("compare", help="compare runs; steps and revisits on commonly solved long episodes")
+    parser.add_argument("run_dirs", type=Path, nargs="+")
+    parser.add_argument("--min-distance", type=float, default=10.0, help="Table II: geodesic distance above this")
+    parser.add_argument("--json", action="store_true")
+    parser.set_defaults(handler=_cmd_compare)
 
 
 def _add_demo(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -80,7 +93,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="drivenav", description=__doc__)
     parser.add_argument("-v", "--verbose", action="store_true")
     commands = parser.add_subparsers(dest="command", required=True)
-    for add in (_add_eval, _add_episodes, _add_bench, _add_viz, _add_demo):
+    for add in (_add_eval, _add_episodes, _add_bench, _add_viz, _add_compare, _add_demo):
         add(commands)
     return parser
 
@@ -167,6 +180,26 @@ def _cmd_bench_mapping(args: argparse.Namespace) -> int:
     from drivenav.mapping.bench import bench_mapping
 
     return _print_bench(dict(bench_mapping(frames=_positive(args.frames, "--frames"))), args.json)
+
+
+def _cmd_bench_agent(args: argparse.Namespace) -> int:
+    from drivenav.agent.bench import bench_agent
+
+    result = bench_agent(_positive(args.episodes, "--episodes"), _positive(args.max_steps, "--max-steps"))
+    return _print_bench(result, args.json)
+
+
+def _cmd_compare(args: argparse.Namespace) -> int:
+    from drivenav.eval.compare import compare, format_comparison
+
+    dirs = {}
+    for path in args.run_dirs:
+        if not (path / "episodes.jsonl").is_file():
+            raise InputError(path, "RUN_DIR", "a run directory written by 'drivenav eval'")
+        dirs[path.name] = path
+    result = compare(dirs, args.min_distance)
+    print(json.dumps(result) if args.json else format_comparison(result))
+    return 0
 
 
 def _cmd_viz(args: argparse.Namespace) -> int:

@@ -67,9 +67,11 @@ class AgentConfig:
     paper: DriveNavConfig = field(default_factory=DriveNavConfig)
     use_reasoner: bool = True  # False: greedy nearest frontier, no views, no reasoner
     decision_scan: bool = False  # True: a full 360 deg scan at every decision point
-    stop_distance: float = 0.75  # metres from the target's nearest observed point at which to STOP
+    stop_distance: float = 0.9  # metres from the target's nearest observed point within which to STOP ...
+    # ... once the target is in the current frame (goal view points are positions that see the object).
     give_up_distance: float = 1.0  # a stuck approach this close to the target still STOPs
-    blacklist_steps: int = 40  # steps a direction that could not be followed is left out of decisions
+    blacklist_steps: int = 40  # steps a direction (or greedy goal) that could not be followed is left out
+    min_goal_distance: float = 1.0  # greedy baseline: frontier points nearer than this (metres) are not goals
 
 
 @dataclass
@@ -85,6 +87,12 @@ class StepContext:
 
     def __post_init__(self) -> None:
         self.directions = {d.label: d for d in self.result.directions}
+
+    def free(self, x: float, y: float) -> bool:
+        """Whether a point is navigable on the robot's map (the planner's line-of-sight test)."""
+        row, col = self.snapshot.grid.world_to_cell((x, y))
+        inside = 0 <= row < self.snapshot.navigable.shape[0] and 0 <= col < self.snapshot.navigable.shape[1]
+        return bool(inside and self.snapshot.navigable[row, col])
 
     @property
     def goal_path(self) -> NDArray[np.float64] | None:
@@ -125,6 +133,7 @@ class DriveNavAgent(Agent):
         self._pending_yaws: list[float] = []
         self._inspected: set[int] = set()
         self._blacklist: dict[int, int] = {}
+        self._failed_goals: list[tuple[Point, int]] = []  # greedy baseline: (goal, step until which it is skipped)
         self._selected: int | None = None
         self._goal: Point | None = None
         self._target: int | None = None
@@ -178,6 +187,7 @@ class DriveNavAgent(Agent):
 
     def _ground(self, observation: Observation) -> None:
         """Ground the target every step; accepted detections enter the object map (Sec. IV-B, IV-C)."""
+        self._seen_now: set[int] = set()
         if self._grounder is None:
             return
         for detection in self._grounder.segment(observation, self.goal_text):
@@ -195,6 +205,7 @@ class DriveNavAgent(Agent):
             candidate = self._objects.add(points, detection.phrase, detection.score, self.step)
             if candidate is None:
                 continue
+            self._seen_now.add(candidate.candidate_id)
             self.trace.add(DetectionEvent(self.step, detection.phrase, detection.score, candidate.center))
             if candidate.status == "candidate":
                 self._objects.accept(candidate.candidate_id)
@@ -232,7 +243,7 @@ class DriveNavAgent(Agent):
             return self._policy(observation, ctx)
         direction = ctx.directions[self._selected]
         self._goal = direction.farthest_point
-        action = self._planner.act(self._path(ctx, direction), ctx.pose, observation.collided)
+        action = self._planner.act(self._path(ctx, direction), ctx.pose, observation.collided, ctx.free)
         if action is None:
             self._blacklist[direction.label] = self.step + self.config.blacklist_steps
             return self._decide(observation, ctx, "stuck")
@@ -306,7 +317,7 @@ class DriveNavAgent(Agent):
         self._select(direction, reason, [c.label for c in candidates], selection.fallback)
         ctx = self._replan(ctx, direction.farthest_point)
         self._mode = Mode.FOLLOW
-        action = self._planner.act(self._path(ctx, direction), ctx.pose, observation.collided)
+        action = self._planner.act(self._path(ctx, direction), ctx.pose, observation.collided, ctx.free)
         return (
             action
             if action is not None
@@ -314,10 +325,12 @@ class DriveNavAgent(Agent):
         )
 
     def _select(self, direction: Direction, reason: str, candidates: list[int], fallback: bool) -> None:
+        """Follow ``direction``; choosing a different direction starts a new segment (revisit metric)."""
+        if direction.label != self._selected:
+            self._planner.reset()
+            self.start_segment(self.step)
         self._selected = direction.label
         self._goal = direction.farthest_point
-        self._planner.reset()
-        self.start_segment(self.step)
         self.trace.add(
             DirectionSelected(
                 self.step,
@@ -331,23 +344,32 @@ class DriveNavAgent(Agent):
         )
 
     def _follow_nearest(self, observation: Observation, ctx: StepContext) -> Action:
-        """Greedy baseline: always the nearest frontier point (least weighted-FMM time)."""
-        if not ctx.result.paths:
+        """Greedy baseline: head for the nearest frontier point (least weighted-FMM time, at least
+        ``min_goal_distance`` away) and keep it until it is explored or cannot be reached."""
+        self._failed_goals = [(g, until) for g, until in self._failed_goals if until >= self.step]
+        paths = [
+            p
+            for p in ctx.result.paths.values()
+            if not any(math.dist(p.target, g) < self.config.min_goal_distance for g, _ in self._failed_goals)
+        ]
+        if not paths:
             return self.stop("no_frontier")
-        nearest = min(ctx.result.paths.values(), key=lambda p: p.travel_time)
-        if (
-            self._goal is None
-            or math.dist(self._goal, nearest.target) > self.config.paper.directions.merge_tolerance * 4
-        ):
+        tolerance = self.config.paper.directions.merge_tolerance
+        current = [p for p in paths if self._goal is not None and math.dist(p.target, self._goal) <= tolerance]
+        if current:
+            chosen = min(current, key=lambda p: math.dist(p.target, self._goal or p.target))
+        else:
+            far_enough = [p for p in paths if p.travel_time >= self.config.min_goal_distance]
+            chosen = min(far_enough or paths, key=lambda p: p.travel_time)
             self.start_segment(self.step)
             self._planner.reset()
-        self._goal = nearest.target
-        action = self._planner.act(nearest.path, ctx.pose, observation.collided)
-        return (
-            action
-            if action is not None
-            else (turn_toward(ctx.pose.yaw, nearest.bearing, self._turn) or Action.TURN_LEFT)
-        )
+        self._goal = chosen.target
+        action = self._planner.act(chosen.path, ctx.pose, observation.collided, ctx.free)
+        if action is not None:
+            return action
+        self._failed_goals.append((chosen.target, self.step + self.config.blacklist_steps))
+        self._goal = None
+        return turn_toward(ctx.pose.yaw, chosen.bearing, self._turn) or Action.TURN_LEFT
 
     # ----------------------------------------------------------------- target approach
 
@@ -359,11 +381,14 @@ class DriveNavAgent(Agent):
         closest = nearest_point(candidate, here)
         distance = math.dist(here, closest)
         if distance <= self.config.stop_distance:
-            return self.stop("target_reached")
+            if self._target in self._seen_now:
+                return self.stop("target_reached")
+            bearing = math.atan2(candidate.center[1] - ctx.pose.y, candidate.center[0] - ctx.pose.x)
+            return turn_toward(ctx.pose.yaw, bearing, self._turn) or self.stop("target_reached")
         if self._goal is None or math.dist(self._goal, closest) > REPLAN_SHIFT:
             ctx = self._replan(ctx, closest)
         self._goal = closest
-        action = self._planner.act(ctx.goal_path, ctx.pose, observation.collided)
+        action = self._planner.act(ctx.goal_path, ctx.pose, observation.collided, ctx.free)
         if action is not None:
             return action
         if distance <= self.config.give_up_distance:

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -37,6 +38,10 @@ from numpy.typing import NDArray
 from drivenav.directions.bearings import circle_crossing
 from drivenav.envs.base import Action, Pose, SimConfig
 from drivenav.grid import wrap_angle
+
+OWN_CELL = 0.1  # metres of a sight line ignored next to the robot (its own cell may lie in the inflation band)
+FreeSpace = Callable[[float, float], bool]
+"""Whether a world point (episode frame) is free space on the robot's map."""
 
 Polyline = NDArray[np.float64]  # (N, 2) world (x, y), from the robot to the goal
 
@@ -88,10 +93,11 @@ class LocalPlanner:
         self._turns_in_row = 0
         self._last: tuple[Action, float, float] | None = None  # last action and where it was issued
 
-    def act(self, path: Polyline | None, pose: Pose, collided: bool) -> Action | None:
+    def act(self, path: Polyline | None, pose: Pose, collided: bool, free: FreeSpace | None = None) -> Action | None:
         """The next action toward the end of ``path``, or ``None`` (see :attr:`failure`).
 
-        ``collided`` is the observation's flag for the previous action.
+        ``collided`` is the observation's flag for the previous action. ``free`` (the map's navigable space)
+        keeps the pursuit point in line of sight, so the robot does not cut corners through obstacles.
         """
         if path is None or len(path) < 2:
             self._fail("no_path", forget=False)
@@ -104,20 +110,29 @@ class LocalPlanner:
             self._fail("stuck", forget=True)
             return None
         self._escaping = bool(self._escape)
-        action = self._escape.popleft() if self._escaping else self._pursue(path, pose)
+        action = self._escape.popleft() if self._escaping else self._pursue(path, pose, free)
         if action != Action.MOVE_FORWARD and self._turns_in_row >= self.max_turns:
             self._fail("spinning", forget=True)
             return None
         return self._issue(action, pose)
 
-    def carrot(self, path: Polyline, pose: Pose) -> tuple[float, float]:
+    def carrot(self, path: Polyline, pose: Pose, lookahead: float | None = None) -> tuple[float, float]:
         """The pursuit point: walking ``path`` on from its vertex nearest the robot, the first crossing with
         the lookahead circle, or the end of the path inside it (the nearest vertex if it lies outside)."""
         nearest = int(np.argmin(np.hypot(path[:, 0] - pose.x, path[:, 1] - pose.y)))
-        return circle_crossing(path[nearest:], (pose.x, pose.y), self.lookahead)
+        return circle_crossing(path[nearest:], (pose.x, pose.y), lookahead or self.lookahead)
 
-    def _pursue(self, path: Polyline, pose: Pose) -> Action:
-        error = heading_error(pose, self.carrot(path, pose))
+    def _visible_carrot(self, path: Polyline, pose: Pose, free: FreeSpace | None) -> tuple[float, float]:
+        """The farthest pursuit point (lookahead shrinking toward one step) the robot can see in ``free``."""
+        lookahead = self.lookahead
+        while True:
+            point = self.carrot(path, pose, lookahead)
+            if free is None or lookahead <= self._step or _segment_free(free, (pose.x, pose.y), point, OWN_CELL):
+                return point
+            lookahead = max(self._step, 0.6 * lookahead)
+
+    def _pursue(self, path: Polyline, pose: Pose, free: FreeSpace | None) -> Action:
+        error = heading_error(pose, self._visible_carrot(path, pose, free))
         if abs(error) <= self._half_turn:
             return Action.MOVE_FORWARD
         return Action.TURN_LEFT if error > 0.0 else Action.TURN_RIGHT
@@ -165,3 +180,15 @@ class LocalPlanner:
         if forget:
             self.reset()
         self.failure = reason
+
+
+def _segment_free(free: FreeSpace, start: tuple[float, float], end: tuple[float, float], skip: float) -> bool:
+    """Whether ``free`` holds along the segment, ignoring its first ``skip`` metres."""
+    length = math.dist(start, end)
+    samples = max(2, int(length / 0.05) + 1)
+    for t in np.linspace(0.0, 1.0, samples):
+        if t * length < skip:
+            continue
+        if not free(start[0] + t * (end[0] - start[0]), start[1] + t * (end[1] - start[1])):
+            return False
+    return True

@@ -3,7 +3,8 @@
 Grids follow :mod:`drivenav.grid`. The structure grid holds one material per cell (:class:`Material`): walls,
 door frames and unknown space are full height (floor to ceiling), sensor-opaque and not navigable. Objects are
 boxes standing on the floor (or mounted at ``elevation``); those whose vertical extent reaches below the agent's
-height block navigation.
+height block navigation, except floor items no taller than :data:`MAX_CLIMB` that the agent rolls over (like
+Habitat's navmesh step height; the mapper's obstacle band starts at the same height).
 """
 
 from __future__ import annotations
@@ -18,6 +19,8 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from drivenav.grid import GridSpec
+
+MAX_CLIMB = 0.15  # metres: floor objects this low do not block the agent
 
 
 class Material(IntEnum):
@@ -128,8 +131,8 @@ class Scene:
         return index
 
     def blocking_objects(self, agent_height: float) -> list[ObjectInstance]:
-        """Objects whose vertical extent reaches below ``agent_height`` (they block the agent's body)."""
-        return [o for o in self.objects if o.elevation < agent_height]
+        """Objects that block the agent's body: below ``agent_height`` and taller than :data:`MAX_CLIMB`."""
+        return [o for o in self.objects if o.elevation < agent_height and o.top > MAX_CLIMB]
 
     def obstacle_grid(self, agent_height: float) -> NDArray[np.bool_]:
         """Cells the agent's body cannot overlap: non-free structure and blocking object footprints."""

@@ -26,7 +26,9 @@ class MappingConfig:
     The grid starts ``initial_size`` metres square around the episode origin and grows by ``growth_margin``
     metres beyond what an observation needs whenever the sensor range would reach its edge, up to ``max_size``
     metres a side (frames from farther poses, e.g. after an odometry jump, are ignored).
-    ``pixel_stride`` subsamples rows and columns of the depth image for the update.
+    ``pixel_stride`` subsamples rows and columns of the depth image for the update. Obstacles are inflated by
+    ``agent_radius + inflation_margin`` for the navigable map; :meth:`from_sim` sets a margin of one cell so that
+    planned paths keep clear of what the world counts as blocked.
     """
 
     resolution: float = 0.05
@@ -37,6 +39,7 @@ class MappingConfig:
     clip_epsilon: float = 0.01
     camera_height: float = 0.88
     agent_radius: float = 0.18
+    inflation_margin: float = 0.0
     min_frontier_area: float = 1.5
     pocket_window: float = 2.0
     initial_size: float = 20.0
@@ -59,8 +62,8 @@ class MappingConfig:
             raise ValueError(f"MappingConfig needs 0 <= min_depth < max_depth, got {self.min_depth}, {self.max_depth}")
         if not self.min_obstacle_height < self.max_obstacle_height:
             raise ValueError("MappingConfig needs min_obstacle_height < max_obstacle_height")
-        if self.agent_radius < 0.0 or self.growth_margin < 0.0 or self.clip_epsilon < 0.0:
-            raise ValueError("MappingConfig: agent_radius, growth_margin and clip_epsilon must be >= 0")
+        if min(self.agent_radius, self.inflation_margin, self.growth_margin, self.clip_epsilon) < 0.0:
+            raise ValueError("MappingConfig: radius, inflation margin, growth margin and clip epsilon must be >= 0")
         if self.pixel_stride < 1:
             raise ValueError(f"MappingConfig.pixel_stride must be >= 1, got {self.pixel_stride}")
 
@@ -73,6 +76,7 @@ class MappingConfig:
             max_depth=sim.max_depth,
             camera_height=sim.camera_height,
             agent_radius=sim.agent_radius,
+            inflation_margin=sim.grid_resolution,
             max_obstacle_height=sim.agent_height,
         )
         return dataclasses.replace(base, **overrides)

@@ -95,11 +95,17 @@ class OccupancyMapper:
     def __init__(self, config: MappingConfig | None = None) -> None:
         self.config = config if config is not None else MappingConfig()
         cfg = self.config
-        self._disk = disk_offsets(cfg.agent_radius, cfg.resolution)
+        self._disk = disk_offsets(cfg.agent_radius, cfg.resolution)  # the agent's footprint
+        self._inflation = disk_offsets(self.inflation_radius, cfg.resolution)
         self._band = np.array(
             [cfg.min_depth, cfg.max_depth, cfg.clip_epsilon, cfg.min_obstacle_height, cfg.max_obstacle_height]
         )
         self.reset()
+
+    @property
+    def inflation_radius(self) -> float:
+        """Obstacles are grown by this much (metres) to get the navigable map."""
+        return self.config.agent_radius + self.config.inflation_margin
 
     def reset(self) -> None:
         """Forget everything: an empty grid of ``initial_size`` metres centred on the episode origin."""
@@ -155,7 +161,7 @@ class OccupancyMapper:
             grid_params,
             self._obstacle,
             self._inflated,
-            self._disk,
+            self._inflation,
             col_range,
         )
         position = np.array([pose.x, pose.y])
@@ -215,7 +221,7 @@ class OccupancyMapper:
         agent = (row - r0, col - c0)
         explored = component_at(self._explored[r0:r1, c0:c1], agent, eight=True)
         free = explored & ~self._inflated[r0:r1, c0:c1]
-        search = math.ceil(self.config.agent_radius / self.config.resolution) + 2
+        search = math.ceil(self.inflation_radius / self.config.resolution) + 2
         seed = agent if free[agent] else nearest_in(free, agent, search)
         navigable = component_at(free, seed, eight=False) if seed is not None else np.zeros_like(free)
         return _Derived(self._box, explored, navigable)

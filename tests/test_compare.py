@@ -1,0 +1,36 @@
+"""Run comparison: the Table II subset holds exactly the long episodes every method solved."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from drivenav.eval.compare import compare, format_comparison
+
+
+def _run_dir(root: Path, name: str, rows: list[tuple[str, int, float, int, int]]) -> Path:
+    out = root / name
+    out.mkdir()
+    with (out / "episodes.jsonl").open("w") as handle:
+        for episode_id, success, d0, steps, revisits in rows:
+            record = {"episode_id": episode_id, "success": success, "spl": 0.5 * success, "geodesic_distance": d0}
+            record.update(steps=steps, revisits=revisits, path_length=d0, distance_to_goal=0.1, collisions=0)
+            record.update(vlm_calls=0, stop_reason="target_reached" if success else "timeout")
+            handle.write(json.dumps(record) + "\n")
+    return out
+
+
+def test_common_long_successes(tmp_path: Path) -> None:
+    a = _run_dir(
+        tmp_path, "a", [("0", 1, 12.0, 100, 0), ("1", 1, 15.0, 200, 1), ("2", 1, 5.0, 50, 0), ("3", 0, 20.0, 500, 2)]
+    )
+    b = _run_dir(
+        tmp_path, "b", [("0", 1, 12.0, 150, 1), ("1", 0, 15.0, 500, 3), ("2", 1, 5.0, 60, 0), ("3", 1, 20.0, 300, 0)]
+    )
+    result = compare({"a": a, "b": b}, min_distance=10.0)
+    assert result["common_episodes"] == 1  # only episode 0: long and solved by both
+    assert result["methods"]["a"]["common"]["avg_steps"] == 100
+    assert result["methods"]["b"]["common"]["avg_steps"] == 150
+    assert result["methods"]["b"]["common"]["avg_revisits"] == 1
+    assert result["methods"]["a"]["overall"]["success_rate"] == 0.75
+    assert "common (n=1" in format_comparison(result)
