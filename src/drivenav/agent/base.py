@@ -42,7 +42,6 @@ class Agent(ABC):
         self.goal_text = ""
         self.segment_starts: list[int] = []
         self.stop_reason: str | None = None
-        self.vlm_calls = 0
         self.trace = Trace()
         self.step = 0
 
@@ -55,12 +54,20 @@ class Agent(ABC):
         self.goal_text = goal_text
         self.segment_starts = []
         self.stop_reason = None
-        self.vlm_calls = 0
         self.trace = Trace()
         self.step = 0
 
     def set_privileged(self, info: PrivilegedInfo) -> None:  # noqa: B027 (optional hook, no-op by default)
         """Receive ground truth (only called when ``uses_privileged`` is true)."""
+
+    @property
+    def model_calls(self) -> int:
+        """Reasoning-model (VLM) calls made this episode."""
+        return 0
+
+    def episode_stats(self) -> dict[str, object]:
+        """Agent-specific fields for the episode record (model calls by kind, enrichment, verification)."""
+        return {}
 
     def start_segment(self, step: int) -> None:
         """Mark that a new frontier-selection segment begins at ``step`` (paper Sec. V-C revisits)."""

@@ -7,7 +7,10 @@ the target. The policy then continues the current mode:
 - ``SCAN``: the 360 deg start scan (twelve 30 deg turns), then a reasoner decision;
 - ``SWEEP``: an inspection event -- rotate only over the forward-240 deg directions lacking views, then decide;
 - ``FOLLOW``: drive toward the farthest frontier point of the selected direction (re-planned each step);
-- ``APPROACH``: drive to an accepted target and STOP within ``stop_distance``.
+- ``ENRICH``: the reasoner sees the target but the grounder does not: face that direction, then prompt
+  enrichment (Sec. IV-B);
+- ``APPROACH``: drive to the target candidate, verifying it on the way (Sec. IV-C), and STOP within
+  ``stop_distance`` once it is accepted.
 
 Config switches give the baselines and ablations: ``use_reasoner=False`` (nearest frontier), ``decision_scan``
 (a full 360 deg scan at every decision: ``direction-360``, ``frontier``), ``cluster_span`` 0 (raw frontiers as
@@ -27,27 +30,20 @@ from numpy.typing import NDArray
 
 from drivenav.agent.base import Agent
 from drivenav.agent.planner import LocalPlanner
-from drivenav.agent.trace import (
-    DetectionEvent,
-    DirectionSelected,
-    InspectionStarted,
-    ScanStarted,
-    TargetAccepted,
-    TargetRejected,
-    ViewCaptured,
-)
+from drivenav.agent.target import SearchConfig, TargetSearch
+from drivenav.agent.trace import DirectionSelected, InspectionStarted, ScanStarted, ViewCaptured
 from drivenav.config import DriveNavConfig
 from drivenav.directions import Direction, DirectionPipeline, DirectionResult
 from drivenav.envs.base import Action, Observation, Pose, SimConfig
 from drivenav.grid import wrap_angle
 from drivenav.inspection import RepresentativeViews, full_scan_turns, needs_inspection, plan_sweep, turn_toward
 from drivenav.mapping.config import MappingConfig
-from drivenav.mapping.objects import ObjectMap, nearest_point, project_mask
+from drivenav.mapping.objects import nearest_point
 from drivenav.mapping.occupancy import OccupancyMapper
 from drivenav.mapping.types import Frontier, MapSnapshot
 from drivenav.semantics.geometric import GeometricReasoner
 from drivenav.semantics.ground_truth import GroundTruthGrounder
-from drivenav.semantics.protocols import Candidate, Grounder, Reasoner, SemanticLabels
+from drivenav.semantics.protocols import Candidate, Grounder, Reasoner, Selection, SemanticLabels, View
 
 Point = tuple[float, float]
 REPLAN_SHIFT = 0.3  # metres the approach goal may move before this step's path is re-planned
@@ -57,6 +53,7 @@ class Mode(Enum):
     SCAN = "scan"
     SWEEP = "sweep"
     FOLLOW = "follow"
+    ENRICH = "enrich"
     APPROACH = "approach"
 
 
@@ -66,6 +63,8 @@ class AgentConfig:
 
     paper: DriveNavConfig = field(default_factory=DriveNavConfig)
     use_reasoner: bool = True  # False: greedy nearest frontier, no views, no reasoner
+    enrich: bool = True  # prompt enrichment (Sec. IV-B)
+    verify: bool = True  # cross-frame verification (Sec. IV-C)
     decision_scan: bool = False  # True: a full 360 deg scan at every decision point
     stop_distance: float = 0.9  # metres from the target's nearest observed point within which to STOP ...
     # ... once the target is in the current frame (goal view points are positions that see the object).
@@ -108,11 +107,13 @@ class DriveNavAgent(Agent):
         config: AgentConfig | None = None,
         name: str = "drive-nav",
         reasoner_factory: Callable[[], Reasoner] = GeometricReasoner,
+        grounder_factory: Callable[[], Grounder] = GroundTruthGrounder,
     ) -> None:
         super().__init__(sim)
         self.name = name
         self.config = config or AgentConfig()
         self._reasoner_factory = reasoner_factory
+        self._grounder_factory = grounder_factory
         self._turn = math.radians(sim.turn_angle_deg)
         self.timings: list[dict[str, float]] = []
 
@@ -124,10 +125,18 @@ class DriveNavAgent(Agent):
         self._mapper = OccupancyMapper(MappingConfig.from_sim(self.sim))
         self._pipeline = DirectionPipeline(paper)
         self._views = RepresentativeViews(paper.inspection.view_tolerance)
-        self._objects = ObjectMap()
         self._planner = LocalPlanner(self.sim)
         self._reasoner = self._reasoner_factory()
-        self._grounder: Grounder | None = GroundTruthGrounder(labels) if labels is not None else None
+        self._reasoner.begin_episode(goal_text, labels)
+        grounder = self._grounder_factory()
+        grounder.begin_episode(labels, seed)
+        semantics = paper.semantics
+        search = SearchConfig(self.config.enrich, self.config.verify, semantics.enrich_rounds, semantics.verify_frames)
+        self._search = TargetSearch(self.sim, search, grounder, self._reasoner)
+        self._search.begin(goal_text)
+        self._descriptions: dict[int, str] = {}
+        self._enriched: set[int] = set()
+        self._enrich_label: int | None = None
         self._mode = Mode.SCAN
         self._scan_turns = full_scan_turns(self._turn)
         self._pending_yaws: list[float] = []
@@ -139,6 +148,10 @@ class DriveNavAgent(Agent):
         self._target: int | None = None
         self.timings = []
         self.trace.add(ScanStarted(0, self._scan_turns))
+
+    @property
+    def model_calls(self) -> int:
+        return len(self._reasoner.calls)
 
     # ----------------------------------------------------------------- one step
 
@@ -154,7 +167,8 @@ class DriveNavAgent(Agent):
         self._record_views(observation, ctx)
         timings["inspection"] = _ms_since(mark)
         mark = time.perf_counter()
-        self._ground(observation)
+        self._search.observe(observation, self.trace)
+        self._track_target()
         timings["grounding"] = _ms_since(mark)
         mark = time.perf_counter()
         action = self._policy(observation, ctx)
@@ -185,37 +199,27 @@ class DriveNavAgent(Agent):
             if view is not None:
                 self.trace.add(ViewCaptured(self.step, label, view.pose.yaw, view.error, updated))
 
-    def _ground(self, observation: Observation) -> None:
-        """Ground the target every step; accepted detections enter the object map (Sec. IV-B, IV-C)."""
-        self._seen_now: set[int] = set()
-        if self._grounder is None:
-            return
-        for detection in self._grounder.segment(observation, self.goal_text):
-            points = project_mask(
-                detection.mask,
-                observation.depth,
-                observation.intrinsics,
-                observation.pose,
-                camera_height=self.sim.camera_height,
-                min_depth=self.sim.min_depth,
-                max_depth=self.sim.max_depth,
-            )
-            if len(points) == 0:
-                continue
-            candidate = self._objects.add(points, detection.phrase, detection.score, self.step)
-            if candidate is None:
-                continue
-            self._seen_now.add(candidate.candidate_id)
-            self.trace.add(DetectionEvent(self.step, detection.phrase, detection.score, candidate.center))
-            if candidate.status == "candidate":
-                self._objects.accept(candidate.candidate_id)
-                self.trace.add(TargetAccepted(self.step, candidate.candidate_id, candidate.center))
-        if self._target is None:
-            accepted = self._objects.accepted()
-            if accepted:
-                self._target = accepted[0].candidate_id
-                self._mode = Mode.APPROACH
-                self.start_segment(self.step)
+    def _track_target(self) -> None:
+        """Switch to approaching a target candidate when one appears; drop it when it is rejected."""
+        current = self._search.current()
+        if self._target is not None and (current is None or current.candidate_id != self._target):
+            self._target, self._goal, self._selected = None, None, None
+            self._mode = Mode.FOLLOW
+        if current is not None and self._target is None:
+            self._target = current.candidate_id
+            self._mode = Mode.APPROACH
+            self._planner.reset()
+            self.start_segment(self.step)
+
+    def episode_stats(self) -> dict[str, object]:
+        calls = self._reasoner.calls
+        kinds = sorted({c.kind for c in calls})
+        return {
+            "vlm_calls_by_kind": {k: sum(c.kind == k for c in calls) for k in kinds},
+            "vlm_latency_ms": {k: round(sum(c.latency_ms for c in calls if c.kind == k), 2) for k in kinds},
+            "vlm_fallbacks": sum(c.outcome == "fallback" for c in calls),
+            **self._search.stats(),
+        }
 
     # ----------------------------------------------------------------- policy
 
@@ -232,7 +236,27 @@ class DriveNavAgent(Agent):
         if self._mode is Mode.SWEEP:
             action = self._continue_sweep(ctx.pose.yaw)
             return action if action is not None else self._decide(observation, ctx, "inspection")
+        if self._mode is Mode.ENRICH:
+            return self._enrich(observation, ctx)
         return self._follow(observation, ctx)
+
+    def _enrich(self, observation: Observation, ctx: StepContext) -> Action:
+        """Face the direction whose view shows the target, then run prompt enrichment on that frame."""
+        direction = ctx.directions.get(self._enrich_label) if self._enrich_label is not None else None
+        if direction is None:
+            self._mode = Mode.FOLLOW
+            return self._follow(observation, ctx)
+        action = turn_toward(ctx.pose.yaw, direction.bearing, self._turn)
+        if action is not None:
+            return action
+        error = abs(wrap_angle(ctx.pose.yaw - direction.bearing))
+        rgb, depth, semantic = observation.rgb, observation.depth, observation.semantic
+        view = View(direction.label, rgb, depth, semantic, ctx.pose, direction.bearing, error, self.step)
+        self._enriched.add(direction.label)
+        self._search.enrich(observation, view, self._descriptions.get(direction.label, ""), self.trace)
+        self._mode = Mode.FOLLOW
+        self._track_target()
+        return self._policy(observation, ctx)
 
     def _follow(self, observation: Observation, ctx: StepContext) -> Action:
         if not self.config.use_reasoner:
@@ -311,10 +335,15 @@ class DriveNavAgent(Agent):
         if not candidates:
             return self.stop("no_frontier")
         selection = self._reasoner.select_direction(self.goal_text, candidates)
+        self._descriptions.update(selection.descriptions)
         by_label = {c.label: c for c in candidates}
-        label = selection.label if selection.label in by_label else _nearest(candidates)
+        label = self._chosen_label(selection, by_label, candidates)
         direction = ctx.directions[label]
         self._select(direction, reason, [c.label for c in candidates], selection.fallback)
+        wants_enrichment = self.config.enrich and label not in self._enriched and self._search.current() is None
+        if label == selection.target_label and wants_enrichment:
+            self._enrich_label, self._mode = label, Mode.ENRICH
+            return self._enrich(observation, ctx)
         ctx = self._replan(ctx, direction.farthest_point)
         self._mode = Mode.FOLLOW
         action = self._planner.act(self._path(ctx, direction), ctx.pose, observation.collided, ctx.free)
@@ -323,6 +352,13 @@ class DriveNavAgent(Agent):
             if action is not None
             else (turn_toward(ctx.pose.yaw, direction.bearing, self._turn) or Action.TURN_LEFT)
         )
+
+    @staticmethod
+    def _chosen_label(selection: Selection, by_label: dict[int, Candidate], candidates: list[Candidate]) -> int:
+        """The direction to follow: toward the target when the reasoner sees it (Sec. IV-B), else its choice."""
+        if selection.target_visible and selection.target_label in by_label:
+            return int(selection.target_label)
+        return selection.label if selection.label in by_label else _nearest(candidates)
 
     def _select(self, direction: Direction, reason: str, candidates: list[int], fallback: bool) -> None:
         """Follow ``direction``; choosing a different direction starts a new segment (revisit metric)."""
@@ -376,12 +412,17 @@ class DriveNavAgent(Agent):
     def _approach(self, observation: Observation, ctx: StepContext) -> Action | None:
         """Drive to the accepted target and STOP; a target that cannot be reached is rejected."""
         assert self._target is not None
-        candidate = self._objects.get(self._target)
+        candidate = self._search.objects.get(self._target)
         here = (ctx.pose.x, ctx.pose.y)
         closest = nearest_point(candidate, here)
         distance = math.dist(here, closest)
         if distance <= self.config.stop_distance:
-            if self._target in self._seen_now:
+            if candidate.status != "accepted":
+                self._search.verify_now(observation, self._target, self.trace)
+                self._track_target()
+                if self._target is None:
+                    return None
+            if self._target in self._search.seen_now:
                 return self.stop("target_reached")
             bearing = math.atan2(candidate.center[1] - ctx.pose.y, candidate.center[0] - ctx.pose.x)
             return turn_toward(ctx.pose.yaw, bearing, self._turn) or self.stop("target_reached")
@@ -391,13 +432,10 @@ class DriveNavAgent(Agent):
         action = self._planner.act(ctx.goal_path, ctx.pose, observation.collided, ctx.free)
         if action is not None:
             return action
-        if distance <= self.config.give_up_distance:
+        if distance <= self.config.give_up_distance and candidate.status == "accepted":
             return self.stop("target_reached")
-        self._objects.reject(self._target)
-        self.trace.add(TargetRejected(self.step, self._target, candidate.center, "unreachable"))
-        self._target, self._goal = None, None
-        self._mode = Mode.FOLLOW
-        self._selected = None
+        self._search.reject(self._target, self.step, self.trace, "unreachable")
+        self._track_target()
         return None
 
 

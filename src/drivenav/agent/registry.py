@@ -16,15 +16,25 @@ from drivenav.errors import InputError
 
 _PAPER = DriveNavConfig()
 
+_DIRECTIONAL = AgentConfig(enrich=False, verify=False)  # "Full Directional Reasoning Pipeline" (Tables V, VI)
+
 DRIVE_NAV_VARIANTS: dict[str, AgentConfig] = {
-    "drive-nav": AgentConfig(),
-    "nearest-frontier": AgentConfig(use_reasoner=False),
-    "frontier": AgentConfig(
-        paper=replace(_PAPER, directions=replace(_PAPER.directions, cluster_span=0.0)), decision_scan=True
+    # Table VI: module ablation.
+    "frontier": replace(
+        _DIRECTIONAL, paper=replace(_PAPER, directions=replace(_PAPER.directions, cluster_span=0.0)), decision_scan=True
     ),
+    "directional": _DIRECTIONAL,
+    "directional-enrich": replace(_DIRECTIONAL, enrich=True),
+    "directional-verify": replace(_DIRECTIONAL, verify=True),
+    "drive-nav": AgentConfig(),
+    # Table V: directional-reasoning components (on the directional pipeline).
+    "no-weighted-fmm": replace(_DIRECTIONAL, paper=replace(_PAPER, speed=replace(_PAPER.speed, weighted=False))),
+    "no-240": replace(
+        _DIRECTIONAL, paper=replace(_PAPER, inspection=replace(_PAPER.inspection, restrict_forward=False))
+    ),
+    # Table II: analytical comparison with the full system.
     "direction-360": AgentConfig(decision_scan=True),
-    "no-weighted-fmm": AgentConfig(paper=replace(_PAPER, speed=replace(_PAPER.speed, weighted=False))),
-    "no-240": AgentConfig(paper=replace(_PAPER, inspection=replace(_PAPER.inspection, restrict_forward=False))),
+    "nearest-frontier": AgentConfig(use_reasoner=False, enrich=False, verify=False),
 }
 """DRIVE-Nav and its baselines / ablations, composed from config switches (paper Tables II, V, VI)."""
 

@@ -21,11 +21,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 from tqdm import tqdm
 
 from drivenav.agent.base import Agent, PrivilegedInfo
 from drivenav.agent.registry import make_agent
-from drivenav.envs.base import Action, SimConfig
+from drivenav.envs.base import Action, Observation, SimConfig
 from drivenav.envs.embedded import EmbeddedEnv
 from drivenav.envs.episode import Episode
 from drivenav.envs.library import SceneLibrary
@@ -72,6 +73,8 @@ def run_episode(
     agent.reset(episode.object_category, episode_seed(run_seed, episode.episode_id), labels)
     if agent.uses_privileged:
         agent.set_privileged(PrivilegedInfo(env.scene, navigable, goal_field, env.start_pose))
+    goal_ids = np.array([goal.object_id for goal in episode.goals])
+    target_seen = _shows(observation, goal_ids)
     positions = [(env.state.x, env.state.y)]
     yaws = [env.state.yaw]
     actions: list[int] = []
@@ -87,6 +90,7 @@ def run_episode(
             error = "".join(traceback.format_exception_only(type(exc), exc)).strip()
             break
         actions.append(int(action))
+        target_seen = target_seen or _shows(observation, goal_ids)
         collisions += int(observation.collided)
         positions.append((env.state.x, env.state.y))
         yaws.append(env.state.yaw)
@@ -120,8 +124,10 @@ def run_episode(
         "revisits": metrics.count_revisits(path, agent.segment_starts),
         "collisions": collisions,
         "stop_reason": stop_reason,
-        "vlm_calls": agent.vlm_calls,
+        "vlm_calls": agent.model_calls,
         "error": error,
+        "failure_cause": failure_cause(is_success, stop_reason, target_seen),
+        **agent.episode_stats(),
     }
     trace = {
         "episode_id": episode.episode_id,
@@ -133,6 +139,32 @@ def run_episode(
         "events": agent.trace.to_json(),
     }
     return record, trace
+
+
+TARGET_SEEN_PIXELS = 150  # goal-instance pixels in one frame for the target to count as seen
+
+
+def _shows(observation: Observation, goal_ids: NDArray[np.int64]) -> bool:
+    """Whether the frame shows a goal instance clearly (ground truth, for the failure analysis only)."""
+    if observation.semantic is None:
+        return False
+    return int(np.count_nonzero(np.isin(observation.semantic, goal_ids))) >= TARGET_SEEN_PIXELS
+
+
+def failure_cause(success: bool, stop_reason: str, target_seen: bool) -> str:
+    """Why an episode failed ("" for successes).
+
+    ``false_positive_stop``: STOP away from every goal; ``missed_target``: a goal was in view at some step but
+    not reached; otherwise the target was never in view and the cause is the stop reason: ``timeout``,
+    ``no_frontier``, or ``target_never_seen`` (e.g. stuck or an error).
+    """
+    if success:
+        return ""
+    if stop_reason == "target_reached":
+        return "false_positive_stop"
+    if target_seen:
+        return "missed_target"
+    return stop_reason if stop_reason in ("timeout", "no_frontier") else "target_never_seen"
 
 
 class _Worker:

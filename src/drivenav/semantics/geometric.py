@@ -16,7 +16,16 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from drivenav.semantics.protocols import Candidate, Selection
+from drivenav.semantics.protocols import (
+    Candidate,
+    ModelCall,
+    Proposal,
+    Selection,
+    SemanticLabels,
+    Verdict,
+    VerificationFrame,
+    View,
+)
 
 
 def direction_score(candidate: Candidate, distance_scale: float) -> float:
@@ -35,9 +44,14 @@ class GeometricReasoner:
         if not (math.isfinite(distance_scale) and distance_scale > 0.0):
             raise ValueError(f"distance_scale must be a positive finite number, got {distance_scale!r}")
         self.distance_scale = distance_scale
+        self.calls: list[ModelCall] = []
+
+    def begin_episode(self, goal: str, labels: SemanticLabels | None) -> None:
+        self.calls = []
 
     def select_direction(self, goal: str, candidates: Sequence[Candidate]) -> Selection:
         """The best-scoring candidate (``label=None`` when there is none); ``goal`` plays no part."""
+        self.calls.append(ModelCall("select_direction", 0.0, "ok"))
         if not candidates:
             return Selection(label=None, note="no candidates")
         best = max(candidates, key=self._rank)
@@ -47,3 +61,13 @@ class GeometricReasoner:
     def _rank(self, candidate: Candidate) -> tuple[float, float, int]:
         """Sort key, larger is better: score, then smaller |turn|, then smaller label."""
         return direction_score(candidate, self.distance_scale), -abs(candidate.turn), -candidate.label
+
+    def propose_prompt(self, goal: str, view: View, description: str, failed: Sequence[str]) -> Proposal:
+        """It cannot see: the goal text itself."""
+        self.calls.append(ModelCall("propose_prompt", 0.0, "ok"))
+        return Proposal(goal)
+
+    def verify(self, goal: str, frame: VerificationFrame, earlier: Sequence[VerificationFrame]) -> Verdict:
+        """It cannot see: always uncertain, so a candidate is accepted after the last verification frame."""
+        self.calls.append(ModelCall("verify", 0.0, "ok"))
+        return Verdict("uncertain")

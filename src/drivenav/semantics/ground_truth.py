@@ -28,11 +28,15 @@ class GroundTruthGrounder:
 
     name = "ground-truth"
 
-    def __init__(self, labels: SemanticLabels, min_pixels: int = 150) -> None:
+    def __init__(self, labels: SemanticLabels | None = None, min_pixels: int = 150) -> None:
         if min_pixels < 1:
             raise ValueError(f"min_pixels must be >= 1, got {min_pixels}")
         self.min_pixels = min_pixels
-        self._categories = {instance_id: category_key(label) for instance_id, label in labels.items()}
+        self.begin_episode(labels, 0)
+
+    def begin_episode(self, labels: SemanticLabels | None, seed: int) -> None:
+        """Learn what this episode's instance ids mean (``seed`` is unused: the detector is exact)."""
+        self._categories = {i: category_key(label) for i, label in (labels or {}).items()}
 
     def segment(self, observation: Observation, phrase: str) -> list[Detection]:
         """One detection per visible instance of ``phrase``'s category, largest mask first ([] without semantics)."""

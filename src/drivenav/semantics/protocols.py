@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Literal, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -68,12 +68,75 @@ class Selection:
     note: str = ""
 
 
+Judgement = Literal["sure", "uncertain", "not"]
+"""Cross-frame verification answers (Sec. IV-C): completely sure, uncertain, definitely not."""
+
+JUDGEMENTS: tuple[Judgement, ...] = ("sure", "uncertain", "not")
+
+
+@dataclass(frozen=True)
+class Proposal:
+    """A detector-oriented noun phrase proposed for prompt enrichment (Sec. IV-B)."""
+
+    phrase: str
+    fallback: bool = False
+
+
+@dataclass(frozen=True)
+class VerificationFrame:
+    """One target-approach frame: the image, the candidate's mask and its overlay (Sec. IV-C)."""
+
+    rgb: NDArray[np.uint8]
+    mask: NDArray[np.bool_]
+    overlay: NDArray[np.uint8]
+    semantic: NDArray[np.int32] | None
+    pose: Pose
+    step: int
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """The reasoner's judgement of a candidate in one frame."""
+
+    judgement: Judgement
+    fallback: bool = False
+
+
+@dataclass(frozen=True)
+class ModelCall:
+    """Bookkeeping of one model call for the episode record: its kind, latency and outcome.
+
+    ``kind`` is ``select_direction``, ``propose_prompt`` or ``verify``; ``outcome`` is ``ok``, ``repaired``
+    (a malformed answer fixed by one repair request), ``fallback`` (deterministic answer after a failure) or
+    ``replayed``.
+    """
+
+    kind: str
+    latency_ms: float
+    outcome: str
+
+
+SemanticLabels = Mapping[int, str]
+"""What the world's instance ids mean (instance id -> category), as Habitat's semantic scene annotations."""
+
+
 class Reasoner(Protocol):
-    """Chooses among candidate directions from their representative views."""
+    """The VLM's three questions (paper Sec. IV-A c, IV-B, IV-C), behind one interface.
+
+    ``calls`` grows by one :class:`ModelCall` per question asked. Nothing a model returns may raise out of these
+    methods: malformed answers are repaired once, then replaced by a deterministic fallback.
+    """
 
     name: str
+    calls: list[ModelCall]
+
+    def begin_episode(self, goal: str, labels: SemanticLabels | None) -> None: ...
 
     def select_direction(self, goal: str, candidates: Sequence[Candidate]) -> Selection: ...
+
+    def propose_prompt(self, goal: str, view: View, description: str, failed: Sequence[str]) -> Proposal: ...
+
+    def verify(self, goal: str, frame: VerificationFrame, earlier: Sequence[VerificationFrame]) -> Verdict: ...
 
 
 @dataclass(frozen=True)
@@ -90,8 +153,6 @@ class Grounder(Protocol):
 
     name: str
 
+    def begin_episode(self, labels: SemanticLabels | None, seed: int) -> None: ...
+
     def segment(self, observation: Observation, phrase: str) -> list[Detection]: ...
-
-
-SemanticLabels = Mapping[int, str]
-"""What the world's instance ids mean (instance id -> category), as Habitat's semantic scene annotations."""
