@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+import os
+
+for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # before numpy loads
+    os.environ.setdefault(_variable, "1")
+
 import subprocess
 import sys
 from pathlib import Path

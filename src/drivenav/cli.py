@@ -8,12 +8,18 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import os
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 from drivenav.errors import InputError
+
+# drivenav's numeric work is single-threaded by design (one core per worker); BLAS thread pools spinning on the
+# small matrix products of the embedded language model cost far more than they give. Set before numpy loads.
+for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_variable, "1")
 
 Handler = Callable[[argparse.Namespace], int]
 
@@ -29,7 +35,38 @@ def _add_eval(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
     parser.add_argument("--out", required=True, type=Path, help="run directory (rerun to resume)")
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--max-steps", type=int, default=500)
+    _add_model_options(parser)
     parser.set_defaults(handler=_cmd_eval)
+
+
+def _add_model_options(parser: argparse.ArgumentParser) -> None:
+    from drivenav.semantics.registry import DETECTORS, REASONERS, ModelSpec
+
+    default = ModelSpec()
+    models = parser.add_argument_group("models (reasoner = the VLM's role, detector = SAM3's role)")
+    models.add_argument("--reasoner", default=default.reasoner, help=f"one of {', '.join(REASONERS)}")
+    models.add_argument("--detector", default=default.detector, help=f"one of {', '.join(DETECTORS)}")
+    models.add_argument("--vlm-base-url", default=default.vlm_base_url, help="OpenAI-compatible endpoint")
+    models.add_argument("--vlm-model", default=default.vlm_model)
+    models.add_argument("--vlm-record", default="", help="record every reasoner request/answer to this file")
+    models.add_argument("--vlm-replay", default="", help="with --reasoner replay: answer from this recording")
+    models.add_argument("--detector-model", default="", help="local checkpoint dir or HF-cache model id")
+
+
+def _model_spec(args: argparse.Namespace) -> Any:
+    from drivenav.semantics.registry import ModelSpec, check_models
+
+    spec = ModelSpec(
+        args.reasoner,
+        args.detector,
+        args.vlm_base_url,
+        args.vlm_model,
+        str(Path(args.vlm_record).resolve()) if args.vlm_record else "",
+        str(Path(args.vlm_replay).resolve()) if args.vlm_replay else "",
+        args.detector_model,
+    )
+    check_models(spec)
+    return spec
 
 
 def _add_episodes(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -129,12 +166,13 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     make_agent(args.agent, SimConfig())  # an unknown name fails before any work
     _positive(args.workers, "--workers")
     _positive(args.max_steps, "--max-steps")
+    models = _model_spec(args)
     _, episodes = _load_or_generate(args)
     args.out.mkdir(parents=True, exist_ok=True)
     episodes_copy = args.out / "episodes.json.gz"
     if not episodes_copy.exists():
         save_episodes(episodes, episodes_copy)
-    spec = RunSpec(args.agent, args.scenes, args.seed, args.max_steps)
+    spec = RunSpec(args.agent, args.scenes, args.seed, args.max_steps, models)
     summary = evaluate(episodes, spec, args.out, workers=args.workers, sim=SimConfig(max_steps=args.max_steps))
     print(format_table(summary, f"{args.agent} on {args.scenes}"))
     print(f"results: {args.out / EPISODES_FILE}  summary: {args.out / 'summary.json'}")

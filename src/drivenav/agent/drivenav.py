@@ -326,6 +326,7 @@ class DriveNavAgent(Agent):
             travel_time=min(times) if times else math.inf,
             frontier_cells=len(direction.points),
             view=self._views.get(direction.label),
+            current=direction.label == self._selected,
         )
 
     def _decide(self, observation: Observation, ctx: StepContext, reason: str) -> Action:

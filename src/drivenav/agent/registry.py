@@ -13,6 +13,7 @@ from drivenav.agent.random_agent import RandomAgent
 from drivenav.config import DriveNavConfig
 from drivenav.envs.base import SimConfig
 from drivenav.errors import InputError
+from drivenav.semantics.registry import ModelSpec, make_grounder, make_reasoner
 
 _PAPER = DriveNavConfig()
 
@@ -38,20 +39,30 @@ DRIVE_NAV_VARIANTS: dict[str, AgentConfig] = {
 }
 """DRIVE-Nav and its baselines / ablations, composed from config switches (paper Tables II, V, VI)."""
 
-AGENTS: dict[str, Callable[[SimConfig], Agent]] = {
+SIMPLE_AGENTS: dict[str, Callable[[SimConfig], Agent]] = {
     OracleAgent.name: OracleAgent,
     RandomAgent.name: RandomAgent,
-    **{name: partial(DriveNavAgent, config=config, name=name) for name, config in DRIVE_NAV_VARIANTS.items()},
 }
 
 
 def agent_names() -> list[str]:
-    return sorted(AGENTS)
+    return sorted([*SIMPLE_AGENTS, *DRIVE_NAV_VARIANTS])
 
 
-def make_agent(name: str, sim: SimConfig) -> Agent:
-    """A fresh agent; an unknown name is an :class:`InputError` on ``--agent``."""
-    factory = AGENTS.get(name)
-    if factory is None:
+def make_agent(name: str, sim: SimConfig, models: ModelSpec | None = None) -> Agent:
+    """A fresh agent; DRIVE-Nav variants use the reasoner and grounder of ``models`` (embedded by default).
+
+    An unknown name is an :class:`InputError` on ``--agent``.
+    """
+    if name in SIMPLE_AGENTS:
+        return SIMPLE_AGENTS[name](sim)
+    if name not in DRIVE_NAV_VARIANTS:
         raise InputError("command line", "--agent", f"one of {', '.join(agent_names())}", name)
-    return factory(sim)
+    spec = models or ModelSpec()
+    return DriveNavAgent(
+        sim,
+        DRIVE_NAV_VARIANTS[name],
+        name=name,
+        reasoner_factory=partial(make_reasoner, spec),
+        grounder_factory=partial(make_grounder, spec),
+    )

@@ -168,7 +168,9 @@ class TargetSearch:
             proposal = self.reasoner.propose_prompt(self.goal, view, description, list(self.failed_phrases))
             self.enrich_rounds += 1
             phrase = proposal.phrase.strip()
-            detections = self.grounder.segment(observation, phrase) if phrase else []
+            if not phrase or phrase.lower() in (f.lower() for f in self.failed_phrases):
+                break  # the proposer has run out of new phrases
+            detections = self.grounder.segment(observation, phrase)
             grounded = [self._handle(observation, d, trace) for d in detections]
             if any(grounded):
                 self.phrase = phrase

@@ -15,7 +15,7 @@ import traceback
 import zlib
 from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
@@ -34,6 +34,7 @@ from drivenav.errors import InputError
 from drivenav.eval import metrics
 from drivenav.eval.geodesic import GeodesicField, largest_component
 from drivenav.eval.report import summarize
+from drivenav.semantics.registry import ModelSpec
 
 log = logging.getLogger(__name__)
 
@@ -51,6 +52,7 @@ class RunSpec:
     scenes: str
     seed: int
     max_steps: int
+    models: ModelSpec = field(default_factory=ModelSpec)
 
 
 def episode_seed(run_seed: int, episode_id: str) -> int:
@@ -174,7 +176,7 @@ class _Worker:
         self.spec = spec
         self.library = SceneLibrary(spec.scenes, spec.seed)
         self.env = EmbeddedEnv(self.library.load, sim)
-        self.agent = make_agent(spec.agent, sim)
+        self.agent = make_agent(spec.agent, sim, spec.models)
 
     def run(self, episode: Episode) -> tuple[dict[str, Any], dict[str, Any]]:
         return run_episode(self.env, self.agent, episode, self.spec.seed, self.spec.max_steps)
@@ -230,6 +232,7 @@ def _check_run_spec(out: Path, spec: RunSpec) -> None:
     run_file = out / RUN_FILE
     if run_file.exists():
         previous = json.loads(run_file.read_text(encoding="utf-8"))
+        previous.setdefault("models", asdict(ModelSpec()))
         for key, value in asdict(spec).items():
             if previous.get(key) != value:
                 raise InputError(run_file, key, f"{previous.get(key)!r} (this directory's run) to resume", value)

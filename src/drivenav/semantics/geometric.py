@@ -27,12 +27,16 @@ from drivenav.semantics.protocols import (
     View,
 )
 
+CONTINUATION_BONUS = 2.0  # the direction being followed counts this many times over (commitment)
+
 
 def direction_score(candidate: Candidate, distance_scale: float) -> float:
-    """Frontier extent discounted by travel distance (module docstring); 0 when unreachable."""
+    """Frontier extent discounted by travel distance (module docstring), times :data:`CONTINUATION_BONUS` for
+    the direction being followed; 0 when unreachable."""
     if not math.isfinite(candidate.travel_time):
         return 0.0
-    return candidate.frontier_cells / (1.0 + max(candidate.travel_time, 0.0) / distance_scale)
+    bonus = CONTINUATION_BONUS if candidate.current else 1.0
+    return bonus * candidate.frontier_cells / (1.0 + max(candidate.travel_time, 0.0) / distance_scale)
 
 
 class GeometricReasoner:

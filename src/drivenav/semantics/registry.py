@@ -1,0 +1,96 @@
+"""Reasoner and grounder backends by command-line name (``--reasoner``, ``--detector``).
+
+Backends are built lazily (heavy imports only when chosen) from a picklable :class:`ModelSpec`, so worker
+processes build their own.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from drivenav.errors import InputError
+from drivenav.semantics.protocols import Grounder, Reasoner
+
+REASONERS = ("embedded", "openai", "replay", "geometric")
+DETECTORS = ("embedded", "ground-truth", "sam3", "owlv2")
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """Which models an agent uses and how to reach them."""
+
+    reasoner: str = "embedded"
+    detector: str = "embedded"
+    vlm_base_url: str = "http://127.0.0.1:8000/v1"
+    vlm_model: str = "Qwen/Qwen3-VL-8B-Instruct"
+    vlm_record: str = ""
+    vlm_replay: str = ""
+    detector_model: str = ""
+
+
+def make_reasoner(spec: ModelSpec) -> Reasoner:
+    """The reasoner named by ``spec`` (wrapped in a recorder when ``vlm_record`` is set)."""
+    reasoner = _base_reasoner(spec)
+    if spec.vlm_record:
+        from drivenav.semantics.replay import RecordingReasoner
+
+        reasoner = RecordingReasoner(reasoner, Path(spec.vlm_record))
+    return reasoner
+
+
+def _base_reasoner(spec: ModelSpec) -> Reasoner:
+    if spec.reasoner == "embedded":
+        from drivenav.semantics.embedded import EmbeddedReasoner
+
+        return EmbeddedReasoner()
+    if spec.reasoner == "openai":
+        from drivenav.semantics.openai_backend import OpenAIReasoner
+
+        return OpenAIReasoner(spec.vlm_base_url, spec.vlm_model)
+    if spec.reasoner == "replay":
+        from drivenav.semantics.replay import ReplayReasoner
+
+        return ReplayReasoner(Path(spec.vlm_replay))
+    if spec.reasoner == "geometric":
+        from drivenav.semantics.geometric import GeometricReasoner
+
+        return GeometricReasoner()
+    raise InputError("command line", "--reasoner", f"one of {', '.join(REASONERS)}", spec.reasoner)
+
+
+def make_grounder(spec: ModelSpec) -> Grounder:
+    """The grounder named by ``spec``."""
+    if spec.detector == "embedded":
+        from drivenav.semantics.embedded_detector import EmbeddedGrounder
+
+        return EmbeddedGrounder()
+    if spec.detector == "ground-truth":
+        from drivenav.semantics.ground_truth import GroundTruthGrounder
+
+        return GroundTruthGrounder()
+    if spec.detector == "sam3":
+        from drivenav.semantics.sam3_grounder import Sam3Grounder
+
+        return Sam3Grounder(spec.detector_model or "facebook/sam3")
+    if spec.detector == "owlv2":
+        from drivenav.semantics.owlv2_grounder import Owlv2Grounder
+
+        return Owlv2Grounder(spec.detector_model or "google/owlv2-base-patch16-ensemble")
+    raise InputError("command line", "--detector", f"one of {', '.join(DETECTORS)}", spec.detector)
+
+
+def check_models(spec: ModelSpec) -> None:
+    """Fail fast, before any episode: unknown names, an unreachable VLM server, a missing replay file."""
+    if spec.reasoner not in REASONERS:
+        raise InputError("command line", "--reasoner", f"one of {', '.join(REASONERS)}", spec.reasoner)
+    if spec.detector not in DETECTORS:
+        raise InputError("command line", "--detector", f"one of {', '.join(DETECTORS)}", spec.detector)
+    if spec.reasoner == "replay" and not Path(spec.vlm_replay).is_file():
+        raise InputError(spec.vlm_replay or "command line", "--vlm-replay", "a file written with --vlm-record")
+    if spec.reasoner == "openai":
+        from drivenav.semantics.openai_backend import OpenAIReasoner
+
+        OpenAIReasoner(spec.vlm_base_url, spec.vlm_model).check_connection()
+    if spec.detector in ("sam3", "owlv2"):
+        make_grounder(spec)  # loads the weights now: a missing checkpoint fails before any episode

