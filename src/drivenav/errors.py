@@ -21,6 +21,10 @@ class InputError(Exception):
             message += f", got {_short(got)}"
         super().__init__(message)
 
+    def __reduce__(self) -> tuple[type[InputError], tuple[str, str, str, object]]:
+        """Rebuild as a plain :class:`InputError` (subclasses differ in their constructors) across processes."""
+        return InputError, (self.source, self.field, self.expected, self.got)
+
 
 def _short(value: object, limit: int = 80) -> str:
     text = repr(value)

@@ -87,6 +87,8 @@ def run_episode(
         try:
             action = agent.act(observation)
             observation = env.step(action)
+        except InputError:
+            raise  # a user error (e.g. a replay that does not match the run) stops the run with its message
         except Exception as exc:  # an agent or world fault ends this episode only
             log.warning("episode %s: %s", episode.episode_id, exc)
             error = "".join(traceback.format_exception_only(type(exc), exc)).strip()

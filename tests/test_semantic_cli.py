@@ -1,0 +1,152 @@
+"""The semantic loop from the command line: real HTTP reasoner on loopback, record/replay, clear model errors."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from conftest import run_cli
+
+from drivenav.semantics.fake_vlm_server import start_fake_server
+
+EPISODE_ARGS = ["--scenes", "procedural:1", "--episodes", "2", "--seed", "3", "--max-steps", "60"]
+TIMING_KEYS = {"vlm_latency_ms"}
+
+
+def _records(out: Path) -> list[dict[str, object]]:
+    rows = [json.loads(line) for line in (out / "episodes.jsonl").read_text().splitlines()]
+    return sorted(rows, key=lambda r: str(r["episode_id"]))
+
+
+def _without_timing(record: dict[str, object]) -> dict[str, object]:
+    return {k: v for k, v in record.items() if k not in TIMING_KEYS}
+
+
+def test_replay_reproduces_a_recorded_run_exactly(tmp_path: Path) -> None:
+    recording = tmp_path / "vlm.jsonl"
+    first = run_cli(
+        "eval",
+        "--agent",
+        "drive-nav",
+        *EPISODE_ARGS,
+        "--vlm-record",
+        str(recording),
+        "--out",
+        str(tmp_path / "recorded"),
+    )
+    assert first.returncode == 0, first.stderr
+    assert recording.stat().st_size > 0
+    second = run_cli(
+        "eval",
+        "--agent",
+        "drive-nav",
+        *EPISODE_ARGS,
+        "--reasoner",
+        "replay",
+        "--vlm-replay",
+        str(recording),
+        "--out",
+        str(tmp_path / "replayed"),
+    )
+    assert second.returncode == 0, second.stderr
+    recorded, replayed = _records(tmp_path / "recorded"), _records(tmp_path / "replayed")
+    assert [_without_timing(r) for r in recorded] == [_without_timing(r) for r in replayed]
+    for record in recorded:
+        trace_a = json.loads((tmp_path / "recorded" / "traces" / f"{record['episode_id']}.json").read_text())
+        trace_b = json.loads((tmp_path / "replayed" / "traces" / f"{record['episode_id']}.json").read_text())
+        assert trace_a["actions"] == trace_b["actions"]
+
+
+def test_openai_reasoner_against_a_loopback_server(tmp_path: Path) -> None:
+    url, stop = start_fake_server("ok", lifetime=120.0)
+    try:
+        result = run_cli(
+            "eval",
+            "--agent",
+            "drive-nav",
+            *EPISODE_ARGS,
+            "--reasoner",
+            "openai",
+            "--vlm-base-url",
+            url,
+            "--vlm-model",
+            "fake-vlm",
+            "--out",
+            str(tmp_path / "run"),
+        )
+    finally:
+        stop()
+    assert result.returncode == 0, result.stderr
+    records = _records(tmp_path / "run")
+    assert all(int(r["vlm_calls"]) > 0 for r in records)  # type: ignore[call-overload]
+    assert all(r["error"] == "" for r in records)
+
+
+def test_garbage_answers_fall_back_without_crashing(tmp_path: Path) -> None:
+    url, stop = start_fake_server("garbage", lifetime=120.0)
+    try:
+        result = run_cli(
+            "eval",
+            "--agent",
+            "drive-nav",
+            *EPISODE_ARGS,
+            "--reasoner",
+            "openai",
+            "--vlm-base-url",
+            url,
+            "--vlm-model",
+            "fake-vlm",
+            "--out",
+            str(tmp_path / "run"),
+        )
+    finally:
+        stop()
+    assert result.returncode == 0, result.stderr
+    records = _records(tmp_path / "run")
+    assert all(r["error"] == "" for r in records)
+    assert sum(int(r["vlm_fallbacks"]) for r in records) > 0  # type: ignore[call-overload]
+
+
+def test_unreachable_vlm_server_is_a_clear_error(tmp_path: Path) -> None:
+    url, stop = start_fake_server("ok")
+    stop()  # nothing listens there any more
+    result = run_cli(
+        "eval",
+        "--agent",
+        "drive-nav",
+        *EPISODE_ARGS,
+        "--reasoner",
+        "openai",
+        "--vlm-base-url",
+        url,
+        "--out",
+        str(tmp_path / "run"),
+    )
+    assert result.returncode == 2
+    assert "Traceback" not in result.stderr
+    assert "--vlm-base-url" in result.stderr and url in result.stderr
+
+
+def test_unknown_backend_names(tmp_path: Path) -> None:
+    for option, value in (("--reasoner", "gpt-9"), ("--detector", "x-ray")):
+        result = run_cli("eval", "--agent", "drive-nav", *EPISODE_ARGS, option, value, "--out", str(tmp_path / "r"))
+        assert result.returncode == 2 and option in result.stderr and "Traceback" not in result.stderr
+
+
+def test_replay_miss_names_the_request(tmp_path: Path) -> None:
+    recording = tmp_path / "empty.jsonl"
+    recording.write_text("")
+    result = run_cli(
+        "eval",
+        "--agent",
+        "drive-nav",
+        *EPISODE_ARGS,
+        "--reasoner",
+        "replay",
+        "--vlm-replay",
+        str(recording),
+        "--out",
+        str(tmp_path / "run"),
+    )
+    assert result.returncode == 2, result.stderr
+    assert "select_direction" in result.stderr and "Traceback" not in result.stderr
