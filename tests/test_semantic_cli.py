@@ -6,7 +6,6 @@ import json
 from pathlib import Path
 
 from conftest import run_cli
-
 from drivenav.semantics.fake_vlm_server import start_fake_server
 
 EPISODE_ARGS = ["--scenes", "procedural:1", "--episodes", "2", "--seed", "3", "--max-steps", "60"]

@@ -30,7 +30,7 @@ MODULES = {
     "directions: tracking": "directions.tracking",
     "inspection (representative views)": "inspection",
     "policy (planner, inspection events, decisions)": "policy",
-    "grounding (ground-truth detector, model)": "grounding",
+    "grounding (detector, model)": "grounding",
 }
 
 

@@ -13,7 +13,14 @@ from drivenav.eval.runner import EPISODES_FILE, RunSpec, evaluate, read_finished
 from drivenav.viz.episode import render_episode_pictures
 
 DEMO_SCENES = "procedural:2"
-DEMO_AGENTS = (("oracle", 500), ("random", 150))
+DEMO_AGENTS = (("drive-nav", 500), ("oracle", 500))
+VIDEO_AGENT = "drive-nav"  # only its first episode gets an MP4, to keep the demo short
+
+
+def _markdown_link(path: Path, out: Path) -> str:
+    """An image for pictures, a plain link for videos (Markdown viewers do not play ``![...](x.mp4)``)."""
+    target = path.relative_to(out)
+    return f"  [video: {path.name}]({target})" if path.suffix == ".mp4" else f"  ![{path.name}]({target})"
 
 
 def run_demo(out: Path, num_episodes: int, seed: int) -> Path:
@@ -31,13 +38,16 @@ def run_demo(out: Path, num_episodes: int, seed: int) -> Path:
         table = format_table(summary, f"{agent} (max {max_steps} steps)")
         print(table)
         lines += [f"## {agent}", "", "```", table, "```", ""]
-        for record in sorted(read_finished(run_dir / EPISODES_FILE), key=lambda r: int(r["episode_id"])):
-            pictures = render_episode_pictures(run_dir, record["episode_id"])
+        for number, record in enumerate(
+            sorted(read_finished(run_dir / EPISODES_FILE), key=lambda r: int(r["episode_id"]))
+        ):
+            video = agent == VIDEO_AGENT and number == 0
+            pictures = render_episode_pictures(run_dir, record["episode_id"], video=video)
             lines.append(
                 f"- episode {record['episode_id']} ({record['object_category']}): success {record['success']}, "
                 f"SPL {record['spl']:.2f}, {record['steps']} steps"
             )
-            lines += [f"  ![{p.name}]({p.relative_to(out)})" for p in pictures]
+            lines += [_markdown_link(p, out) for p in pictures]
         lines.append("")
     index = out / "index.md"
     index.write_text("\n".join(lines) + "\n", encoding="utf-8")

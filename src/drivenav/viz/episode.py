@@ -1,8 +1,14 @@
-"""Pictures of one finished episode from a run directory (``drivenav viz RUN_DIR EPISODE_ID``)."""
+"""Pictures and a video of one finished episode from a run directory (``drivenav viz RUN_DIR EPISODE_ID``).
+
+Writes ``<id>_topdown.png`` (the map with the trace, a legend and the last decisions' representative views),
+``<id>_start_view.png`` and ``<id>_end_view.png`` (RGB, depth, semantics) and ``<id>.mp4`` (needs imageio-ffmpeg).
+Everything is re-rendered from the saved trace with the default camera (:class:`SimConfig`).
+"""
 
 from __future__ import annotations
 
 import json
+import logging
 from pathlib import Path
 from typing import Any
 
@@ -11,13 +17,20 @@ from numpy.typing import NDArray
 from PIL import Image
 
 from drivenav.envs.base import Pose, SimConfig
+from drivenav.envs.episode import Episode
 from drivenav.envs.library import SceneLibrary
-from drivenav.envs.render import render_views
+from drivenav.envs.render import Renderer
 from drivenav.envs.scene import Scene
 from drivenav.errors import InputError
 from drivenav.eval.episodes import load_episodes
 from drivenav.eval.runner import EPISODES_FILE, RUN_FILE, read_finished, trace_path
-from drivenav.viz.topdown import draw_episode
+from drivenav.viz.coverage import explored_cells
+from drivenav.viz.saved_trace import SavedTrace
+from drivenav.viz.thumbnails import decision_views
+from drivenav.viz.topdown import draw_episode, save_png, stack
+from drivenav.viz.video import VIDEO_HINT, video_available, write_video
+
+log = logging.getLogger(__name__)
 
 
 def _read_json(path: Path, what: str) -> Any:
@@ -43,33 +56,44 @@ def semantic_to_rgb(semantic: NDArray[np.int32]) -> NDArray[np.uint8]:
     return rgb
 
 
-def view_strip(scene: Scene, pose: Pose, sim: SimConfig) -> Image.Image:
+def view_strip(renderer: Renderer, pose: Pose) -> Image.Image:
     """RGB, depth and semantic images side by side for a world pose."""
-    rgb, depth, semantic = render_views(scene, pose, sim)
-    panels = [rgb, depth_to_rgb(depth, sim.max_depth), semantic_to_rgb(semantic)]
+    rgb, depth, semantic = renderer.render(pose)
+    panels = [rgb, depth_to_rgb(depth, renderer.config.max_depth), semantic_to_rgb(semantic)]
     return Image.fromarray(np.concatenate(panels, axis=1))
 
 
-def render_episode_pictures(run_dir: Path, episode_id: str, out: Path | None = None) -> list[Path]:
-    """Top-down map and first/last egocentric views of an episode; returns the written paths."""
+def _load_episode(run_dir: Path, episode_id: str) -> tuple[Scene, Episode, SavedTrace, dict[str, Any] | None]:
     run = _read_json(run_dir / RUN_FILE, "run")
     episodes = {e.episode_id: e for e in load_episodes(run_dir / "episodes.json.gz")}
     if episode_id not in episodes:
         raise InputError(run_dir / "episodes.json.gz", "EPISODE_ID", "an episode id of this run", episode_id)
     episode = episodes[episode_id]
-    trace = _read_json(trace_path(run_dir, episode_id), "trace")
+    path = trace_path(run_dir, episode_id)
+    try:
+        trace = SavedTrace.from_json(_read_json(path, "trace"), episode)
+    except (KeyError, TypeError, ValueError):
+        raise InputError(path, "trace", "positions, yaws and events as written by 'drivenav eval'") from None
     records = {r["episode_id"]: r for r in read_finished(run_dir / EPISODES_FILE)}
-    library = SceneLibrary(str(run["scenes"]), int(run["seed"]))
-    scene = library.load(episode.scene_id)
+    scene = SceneLibrary(str(run["scenes"]), int(run["seed"])).load(episode.scene_id)
+    return scene, episode, trace, records.get(episode_id)
+
+
+def render_episode_pictures(run_dir: Path, episode_id: str, out: Path | None = None, video: bool = True) -> list[Path]:
+    """Top-down map (with the last decisions' views), first/last egocentric views and, when ``video`` is set and
+    imageio-ffmpeg is installed, an MP4 of the episode; returns the written paths."""
+    scene, episode, trace, record = _load_episode(run_dir, episode_id)
     folder = out or run_dir / "viz"
-    folder.mkdir(parents=True, exist_ok=True)
     stem = trace_path(folder, episode_id).stem
-    topdown = folder / f"{stem}_topdown.png"
-    draw_episode(scene, episode, trace["positions"], trace["yaws"], records.get(episode_id), topdown)
-    written = [topdown]
-    for label, index in (("start", 0), ("end", -1)):
-        x, y = trace["positions"][index]
-        path = folder / f"{stem}_{label}_view.png"
-        view_strip(scene, Pose(x, y, trace["yaws"][index]), SimConfig()).save(path)
-        written.append(path)
+    sim = SimConfig()
+    renderer = Renderer(scene, sim)
+    topdown = draw_episode(scene, episode, trace, record, explored_cells(scene, trace, sim))
+    views = decision_views(renderer, trace, topdown.width)
+    written = [save_png(stack([topdown] if views is None else [topdown, views]), folder / f"{stem}_topdown.png")]
+    for label, step in (("start", 0), ("end", len(trace) - 1)):
+        written.append(save_png(view_strip(renderer, trace.pose(step)), folder / f"{stem}_{label}_view.png"))
+    if video and video_available():
+        written.append(write_video(folder / f"{stem}.mp4", scene, episode, trace, sim))
+    elif video:
+        log.warning(VIDEO_HINT)
     return written

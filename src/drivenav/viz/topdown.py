@@ -1,35 +1,61 @@
-"""Top-down episode pictures: walls, rooms, objects, goal and view points, start, trajectory and end."""
+"""Top-down episode pictures: walls, rooms, objects, goals, the explored area, and the agent's trace on top.
+
+:class:`Canvas` maps world metres to pixels of a cropped, scaled structure grid under a one-line header. The
+trace overlay is drawn event by event (:func:`draw_event`, :func:`draw_move`), so a video can add it step by step
+to a map drawn once, and a picture draws it all at once (:func:`draw_episode`).
+"""
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from PIL import Image, ImageDraw
+from PIL import Image, ImageDraw, ImageFont
 
-from drivenav.envs.episode import Episode, habitat_to_world
+from drivenav.envs.base import Pose
+from drivenav.envs.episode import Episode
 from drivenav.envs.palette import category_color
 from drivenav.envs.scene import Material, Scene
+from drivenav.viz.directions import label_color
+from drivenav.viz.saved_trace import Point, SavedTrace
+
+RGB = tuple[int, int, int]
+Draw = ImageDraw.ImageDraw
+Marker = Callable[[Draw, float, float], None]  # draws a symbol at picture coordinates
 
 MAX_SIDE = 1000  # pixels of the longer side of the map area
 MARGIN_CELLS = 10
 HEADER = 28
+LEGEND_WIDTH = 250
+FONT = ImageFont.load_default(size=13)
+SMALL_FONT = ImageFont.load_default(size=11)
 STRUCTURE_COLORS = {
     Material.FREE: (236, 236, 230),
     Material.WALL: (45, 45, 50),
     Material.DOOR_FRAME: (140, 95, 55),
     Material.UNKNOWN: (165, 165, 170),
 }
+EXPLORED_TINT = (255, 214, 110)
+EXPLORED_ALPHA = 0.55  # weight of the tint blended into explored free cells
+START_COLOR = (30, 90, 220)
+SUCCESS_COLOR = (20, 160, 40)
+FAILURE_COLOR = (210, 30, 30)
+GOAL_OUTLINE = (220, 20, 20)
+VIEW_POINT_COLOR = (20, 120, 50)
+INSPECTION_COLOR = (150, 60, 200)
+DETECTION_COLOR = (235, 150, 0)
+SEGMENT_RAMP = ((40, 70, 200), (150, 50, 170), (215, 50, 70), (240, 140, 0))
+ARROW_LENGTH = 1.2  # metres, along a selected direction's bearing
 
 
-class _Canvas:
-    """World-to-pixel mapping of a cropped, scaled structure grid."""
+class Canvas:
+    """World-to-pixel mapping of a cropped structure grid scaled so its longer side is ``max_side`` pixels."""
 
-    def __init__(self, scene: Scene) -> None:
+    def __init__(self, scene: Scene, max_side: int = MAX_SIDE, header: int = HEADER) -> None:
         known = np.argwhere(scene.structure != Material.UNKNOWN)
         if len(known) == 0:
             known = np.array([[0, 0], [scene.grid.shape[0] - 1, scene.grid.shape[1] - 1]])
@@ -37,101 +63,318 @@ class _Canvas:
         hi = np.minimum(known.max(axis=0) + MARGIN_CELLS + 1, scene.grid.shape)
         self.rows = (int(lo[0]), int(hi[0]))
         self.cols = (int(lo[1]), int(hi[1]))
-        side = max(hi[0] - lo[0], hi[1] - lo[1])
-        self.scale = max(1, MAX_SIDE // int(side))
+        self.scale = max_side / max(self.rows[1] - self.rows[0], self.cols[1] - self.cols[0])
+        self.header = header
         self.res = scene.grid.resolution
         self.x0 = scene.grid.origin[0] + self.cols[0] * self.res
         self.y1 = scene.grid.origin[1] + self.rows[1] * self.res
 
-    def to_pixel(self, x: float, y: float) -> tuple[float, float]:
-        return (x - self.x0) / self.res * self.scale, (self.y1 - y) / self.res * self.scale + HEADER
+    @property
+    def size(self) -> tuple[int, int]:
+        """Width and height of the picture (header included)."""
+        rows, cols = self.rows[1] - self.rows[0], self.cols[1] - self.cols[0]
+        return round(cols * self.scale), round(rows * self.scale) + self.header
 
-    def base_image(self, scene: Scene) -> Image.Image:
-        window = scene.structure[self.rows[0] : self.rows[1], self.cols[0] : self.cols[1]]
-        rgb = np.zeros((*window.shape, 3), dtype=np.uint8)
+    def to_pixel(self, x: float, y: float) -> tuple[float, float]:
+        return (x - self.x0) / self.res * self.scale, (self.y1 - y) / self.res * self.scale + self.header
+
+    def length(self, metres: float) -> float:
+        return metres / self.res * self.scale
+
+    def window(self, grid: NDArray[Any]) -> NDArray[Any]:
+        return grid[self.rows[0] : self.rows[1], self.cols[0] : self.cols[1]]
+
+    def base_image(self, scene: Scene, explored: NDArray[np.bool_] | None = None) -> Image.Image:
+        """The structure (rooms tinted, explored free cells tinted) under a white header."""
+        window = self.window(scene.structure)
+        rgb = np.zeros((*window.shape, 3), dtype=np.float64)
         for material, color in STRUCTURE_COLORS.items():
             rgb[window == material] = color
-        rooms = scene.room_index[self.rows[0] : self.rows[1], self.cols[0] : self.cols[1]]
-        tinted = (rooms > 0) & (window == Material.FREE)
-        rgb[tinted & (rooms % 2 == 0)] = (226, 232, 238)
-        picture = np.repeat(np.repeat(rgb[::-1], self.scale, axis=0), self.scale, axis=1)
-        header = np.full((HEADER, picture.shape[1], 3), 255, dtype=np.uint8)
-        return Image.fromarray(np.concatenate([header, picture]))
+        free = window == Material.FREE
+        rooms = self.window(scene.room_index)
+        rgb[free & (rooms > 0) & (rooms % 2 == 0)] = (226, 232, 238)
+        if explored is not None:
+            seen = free & self.window(explored)
+            rgb[seen] = (1.0 - EXPLORED_ALPHA) * rgb[seen] + EXPLORED_ALPHA * np.array(EXPLORED_TINT)
+        width, height = self.size
+        grid = Image.fromarray(rgb[::-1].astype(np.uint8)).resize(
+            (width, height - self.header), Image.Resampling.NEAREST
+        )
+        image = Image.new("RGB", (width, height), (255, 255, 255))
+        image.paste(grid, (0, self.header))
+        return image
 
 
-def _darker(color: tuple[int, int, int], factor: float = 0.6) -> tuple[int, int, int]:
+def darker(color: RGB, factor: float = 0.6) -> RGB:
     r, g, b = color
     return int(r * factor), int(g * factor), int(b * factor)
 
 
-def _draw_rooms(draw: ImageDraw.ImageDraw, canvas: _Canvas, scene: Scene) -> None:
-    for room in scene.rooms:
-        xs, ys = zip(*room.polygon, strict=True)
-        px, py = canvas.to_pixel(sum(xs) / len(xs), sum(ys) / len(ys))
-        draw.text((px, py), room.name, fill=(120, 120, 140), anchor="mm")
+def lighter(color: RGB, white: float = 0.35) -> RGB:
+    r, g, b = (round(c + white * (255 - c)) for c in color)
+    return r, g, b
 
 
-def _draw_objects(draw: ImageDraw.ImageDraw, canvas: _Canvas, scene: Scene, goal_ids: set[int]) -> None:
-    for obj in scene.objects:
-        corners = [canvas.to_pixel(x, y) for x, y in obj.footprint()]
-        color = category_color(obj.category)
-        is_goal = obj.instance_id in goal_ids
-        draw.polygon(corners, fill=color, outline=(220, 20, 20) if is_goal else _darker(color))
-        if is_goal:
-            draw.line([*corners, corners[0]], fill=(220, 20, 20), width=3)
+def segment_color(index: int, count: int) -> RGB:
+    """Colour of trajectory segment ``index`` of ``count``: a ramp from blue (first) to orange (last)."""
+    t = index / max(count - 1, 1) * (len(SEGMENT_RAMP) - 1)
+    k = min(int(t), len(SEGMENT_RAMP) - 2)
+    a, b = np.array(SEGMENT_RAMP[k]), np.array(SEGMENT_RAMP[k + 1])
+    r, g, bl = (a + (t - k) * (b - a)).round().astype(int)
+    return int(r), int(g), int(bl)
 
 
-def _draw_pose(
-    draw: ImageDraw.ImageDraw,
-    canvas: _Canvas,
-    xy: tuple[float, float],
-    yaw: float,
-    color: tuple[int, int, int],
+# ---------------------------------------------------------------------------------------------- markers (pixels)
+
+
+def _disc(
+    draw: Draw, px: float, py: float, radius: float, fill: RGB | None, outline: RGB | None, width: int = 1
 ) -> None:
-    px, py = canvas.to_pixel(*xy)
-    radius = max(4.0, 0.18 / canvas.res * canvas.scale)
-    draw.ellipse([px - radius, py - radius, px + radius, py + radius], outline=color, width=3)
-    tip = canvas.to_pixel(xy[0] + 0.5 * math.cos(yaw), xy[1] + 0.5 * math.sin(yaw))
+    draw.ellipse([px - radius, py - radius, px + radius, py + radius], fill=fill, outline=outline, width=width)
+
+
+def _cross(draw: Draw, px: float, py: float, radius: float, color: RGB, width: int) -> None:
+    draw.line([(px - radius, py - radius), (px + radius, py + radius)], fill=color, width=width)
+    draw.line([(px - radius, py + radius), (px + radius, py - radius)], fill=color, width=width)
+
+
+def _arrow(draw: Draw, start: tuple[float, float], end: tuple[float, float], color: RGB) -> None:
+    draw.line([start, end], fill=color, width=3)
+    angle = math.atan2(end[1] - start[1], end[0] - start[0])
+    head = [(end[0] - 9 * math.cos(angle + s * 0.45), end[1] - 9 * math.sin(angle + s * 0.45)) for s in (-1.0, 1.0)]
+    draw.polygon([end, *head], fill=color)
+
+
+def mark_pose(draw: Draw, px: float, py: float, radius: float, heading: float, color: RGB) -> None:
+    """A ring with a heading tick; ``heading`` is in picture coordinates (radians, y down)."""
+    _disc(draw, px, py, radius, None, color, 3)
+    tip = (px + 2.2 * radius * math.cos(heading), py + 2.2 * radius * math.sin(heading))
     draw.line([(px, py), tip], fill=color, width=3)
 
 
-def draw_episode(
-    scene: Scene,
-    episode: Episode,
-    positions: Sequence[Sequence[float]] | NDArray[np.float64] = (),
-    yaws: Sequence[float] = (),
-    record: dict[str, Any] | None = None,
-    path: str | Path | None = None,
+def mark_decision(
+    draw: Draw, robot: tuple[float, float], tip: tuple[float, float], goal: tuple[float, float], color: RGB
+) -> None:
+    """A selected direction: a square at the robot, an arrow along the bearing, a dot at the goal."""
+    draw.rectangle([robot[0] - 4, robot[1] - 4, robot[0] + 4, robot[1] + 4], fill=color, outline=(0, 0, 0))
+    _arrow(draw, robot, tip, color)
+    _disc(draw, *goal, 6, color, (0, 0, 0), 2)
+
+
+def mark_inspection(draw: Draw, px: float, py: float) -> None:
+    _disc(draw, px, py, 11, None, INSPECTION_COLOR, 3)
+
+
+def mark_detection(draw: Draw, px: float, py: float) -> None:
+    _cross(draw, px, py, 4, DETECTION_COLOR, 2)
+
+
+def mark_accepted(draw: Draw, px: float, py: float) -> None:
+    _disc(draw, px, py, 9, None, SUCCESS_COLOR, 4)
+
+
+def mark_rejected(draw: Draw, px: float, py: float) -> None:
+    _cross(draw, px, py, 8, FAILURE_COLOR, 4)
+
+
+# ---------------------------------------------------------------------------------------------- scene and trace
+
+
+def draw_scene(
+    scene: Scene, episode: Episode, canvas: Canvas, explored: NDArray[np.bool_] | None = None
 ) -> Image.Image:
-    """Top-down picture of one episode; written to ``path`` as PNG when given."""
-    canvas = _Canvas(scene)
-    image = canvas.base_image(scene)
+    """Structure, room names, objects (goals outlined in red) and the goals' view points."""
+    image = canvas.base_image(scene, explored)
     draw = ImageDraw.Draw(image)
-    _draw_rooms(draw, canvas, scene)
-    _draw_objects(draw, canvas, scene, {g.object_id for g in episode.goals})
+    for room in scene.rooms:
+        xs, ys = zip(*room.polygon, strict=True)
+        draw.text(
+            canvas.to_pixel(sum(xs) / len(xs), sum(ys) / len(ys)),
+            room.name,
+            fill=(120, 120, 140),
+            anchor="mm",
+            font=SMALL_FONT,
+        )
+    goal_ids = {g.object_id for g in episode.goals}
+    for obj in scene.objects:
+        corners = [canvas.to_pixel(x, y) for x, y in obj.footprint()]
+        color = lighter(category_color(obj.category))
+        draw.polygon(corners, fill=color, outline=darker(color))
+        if obj.instance_id in goal_ids:
+            draw.line([*corners, corners[0]], fill=GOAL_OUTLINE, width=3)
     for x, y in episode.view_points_xy():
-        px, py = canvas.to_pixel(x, y)
-        draw.ellipse([px - 1.5, py - 1.5, px + 1.5, py + 1.5], fill=(40, 170, 60))
-    trajectory = [canvas.to_pixel(float(p[0]), float(p[1])) for p in positions]
-    if len(trajectory) > 1:
-        draw.line(trajectory, fill=(230, 120, 0), width=3, joint="curve")
-    _draw_pose(draw, canvas, habitat_to_world(episode.start_position), episode.start_yaw, (30, 90, 220))
-    if len(positions) and len(yaws):
-        success = bool(record and record.get("success"))
-        end = (float(positions[-1][0]), float(positions[-1][1]))
-        _draw_pose(draw, canvas, end, float(yaws[-1]), (20, 160, 40) if success else (210, 30, 30))
-    draw.text((6, 6), _title(episode, record), fill=(0, 0, 0))
-    if path is not None:
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-        image.save(path)
+        _disc(draw, *canvas.to_pixel(x, y), 1.5, VIEW_POINT_COLOR, None)
     return image
 
 
-def _title(episode: Episode, record: dict[str, Any] | None) -> str:
+def draw_pose(draw: Draw, canvas: Canvas, xy: Point, yaw: float, color: RGB) -> None:
+    px, py = canvas.to_pixel(*xy)
+    mark_pose(draw, px, py, max(5.0, canvas.length(0.25)), -yaw, color)
+
+
+def draw_view_cone(draw: Draw, canvas: Canvas, pose: Pose, hfov: float, color: RGB, reach: float = 2.0) -> None:
+    """The camera's horizontal field of view from ``pose`` as a wedge ``reach`` metres deep."""
+    corners = [
+        canvas.to_pixel(pose.x + reach * math.cos(edge), pose.y + reach * math.sin(edge))
+        for edge in (pose.yaw - hfov / 2, pose.yaw + hfov / 2)
+    ]
+    draw.polygon([canvas.to_pixel(pose.x, pose.y), *corners], outline=color, width=2)
+
+
+def draw_move(draw: Draw, canvas: Canvas, trace: SavedTrace, step: int, color: RGB) -> None:
+    """The move from pose ``step`` to pose ``step + 1``."""
+    draw.line([canvas.to_pixel(*trace.xy(step)), canvas.to_pixel(*trace.xy(step + 1))], fill=color, width=3)
+
+
+def draw_trajectory(draw: Draw, canvas: Canvas, trace: SavedTrace) -> None:
+    """The whole path, one polyline per segment, coloured along :func:`segment_color`."""
+    segments = trace.segments()
+    for index, (first, last) in enumerate(segments):
+        points = [canvas.to_pixel(*trace.xy(step)) for step in range(first, last + 1)]
+        draw.line(points, fill=segment_color(index, len(segments)), width=3, joint="curve")
+
+
+def _draw_decision(draw: Draw, canvas: Canvas, trace: SavedTrace, event: dict[str, Any]) -> None:
+    x, y = trace.xy(int(event["step"]))
+    bearing = trace.world_yaw(float(event["bearing"]))
+    tip = canvas.to_pixel(x + ARROW_LENGTH * math.cos(bearing), y + ARROW_LENGTH * math.sin(bearing))
+    goal = canvas.to_pixel(*trace.to_world(event["goal"]))
+    color = label_color(int(event["label"]))
+    mark_decision(draw, canvas.to_pixel(x, y), tip, goal, color)
+    draw.text(
+        (goal[0] + 8, goal[1] - 8),
+        f"D{event['label']}",
+        fill=darker(color, 0.7),
+        font=FONT,
+        stroke_width=2,
+        stroke_fill=(255, 255, 255),
+    )
+
+
+EventDrawer = Callable[[Draw, Canvas, SavedTrace, dict[str, Any]], None]
+
+
+def _at_step(mark: Marker) -> EventDrawer:
+    return lambda draw, canvas, trace, event: mark(draw, *canvas.to_pixel(*trace.xy(int(event["step"]))))
+
+
+def _at_position(mark: Marker) -> EventDrawer:
+    return lambda draw, canvas, trace, event: mark(draw, *canvas.to_pixel(*trace.to_world(event["position"])))
+
+
+EVENT_DRAWERS: dict[str, EventDrawer] = {
+    "inspection": _at_step(mark_inspection),
+    "direction_selected": _draw_decision,
+    "detection": _at_position(mark_detection),
+    "target_accepted": _at_position(mark_accepted),
+    "target_rejected": _at_position(mark_rejected),
+}
+DRAW_ORDER = ("inspection", "detection", "direction_selected", "target_rejected", "target_accepted")
+
+
+def draw_event(draw: Draw, canvas: Canvas, trace: SavedTrace, event: dict[str, Any]) -> None:
+    """The marker of one trace event (kinds without a place on the map draw nothing)."""
+    drawer = EVENT_DRAWERS.get(str(event.get("kind")))
+    if drawer is not None:
+        drawer(draw, canvas, trace, event)
+
+
+# ---------------------------------------------------------------------------------------------- legend and title
+
+
+def _legend_entries(success: bool) -> list[tuple[str, Marker]]:
+    def path(draw: Draw, px: float, py: float) -> None:
+        for k in range(4):
+            draw.line([(px - 14 + 7 * k, py), (px - 7 + 7 * k, py)], fill=segment_color(k, 4), width=4)
+
+    def explored(draw: Draw, px: float, py: float) -> None:
+        free = np.array(STRUCTURE_COLORS[Material.FREE])
+        r, g, b = ((1.0 - EXPLORED_ALPHA) * free + EXPLORED_ALPHA * np.array(EXPLORED_TINT)).astype(int)
+        draw.rectangle([px - 12, py - 7, px + 12, py + 7], fill=(int(r), int(g), int(b)), outline=(150, 150, 150))
+
+    def decision(draw: Draw, px: float, py: float) -> None:
+        mark_decision(draw, (px - 10, py + 5), (px + 6, py - 3), (px + 14, py - 6), label_color(2))
+
+    def goal(draw: Draw, px: float, py: float) -> None:
+        draw.rectangle([px - 10, py - 6, px + 10, py + 6], fill=(200, 200, 200), outline=GOAL_OUTLINE, width=3)
+
+    end_color = SUCCESS_COLOR if success else FAILURE_COLOR
+    return [
+        ("start", lambda d, x, y: mark_pose(d, x, y, 6, 0.0, START_COLOR)),
+        ("end (green: success)", lambda d, x, y: mark_pose(d, x, y, 6, 0.0, end_color)),
+        ("path, segment 1 ... last", path),
+        ("explored (approx., 5 m HFOV)", explored),
+        ("direction chosen: arrow, goal", decision),
+        ("inspection sweep", mark_inspection),
+        ("detection", mark_detection),
+        ("target accepted", mark_accepted),
+        ("target rejected", mark_rejected),
+        ("goal object", goal),
+        ("view points", lambda d, x, y: _disc(d, x, y, 2.5, VIEW_POINT_COLOR, None)),
+    ]
+
+
+def add_legend(image: Image.Image, success: bool) -> Image.Image:
+    """The picture with a legend panel on its right."""
+    entries = _legend_entries(success)
+    height = max(image.height, HEADER + 26 * (len(entries) + 1))
+    panel = Image.new("RGB", (image.width + LEGEND_WIDTH, height), (255, 255, 255))
+    panel.paste(image, (0, 0))
+    draw = ImageDraw.Draw(panel)
+    x = image.width + 12
+    draw.text((x, HEADER + 4), "legend", fill=(0, 0, 0), font=FONT)
+    for row, (text, mark) in enumerate(entries, start=1):
+        y = HEADER + 12 + 26 * row
+        mark(draw, x + 16, y)
+        draw.text((x + 40, y), text, fill=(0, 0, 0), anchor="lm", font=SMALL_FONT)
+    return panel
+
+
+def title(episode: Episode, record: dict[str, Any] | None) -> str:
     text = f"episode {episode.episode_id}  {episode.scene_id}  target: '{episode.object_category}'"
     if record:
         text += (
             f"  success={record.get('success')}  SPL={float(record.get('spl', 0.0)):.2f}"
             f"  steps={record.get('steps')}  stop={record.get('stop_reason')}"
         )
-    return text + "   (blue: start, orange: path, green dots: view points, red outline: goals)"
+    return text
+
+
+def draw_episode(
+    scene: Scene,
+    episode: Episode,
+    trace: SavedTrace,
+    record: dict[str, Any] | None = None,
+    explored: NDArray[np.bool_] | None = None,
+) -> Image.Image:
+    """Top-down picture of one episode with its trace and a legend."""
+    canvas = Canvas(scene)
+    image = draw_scene(scene, episode, canvas, explored)
+    draw = ImageDraw.Draw(image)
+    draw_trajectory(draw, canvas, trace)
+    for kind in DRAW_ORDER:
+        for event in trace.of_kind(kind):
+            draw_event(draw, canvas, trace, event)
+    success = bool(record and record.get("success"))
+    draw_pose(draw, canvas, trace.xy(0), trace.start.yaw, START_COLOR)
+    last = trace.pose(len(trace) - 1)
+    draw_pose(draw, canvas, (last.x, last.y), last.yaw, SUCCESS_COLOR if success else FAILURE_COLOR)
+    draw.text((6, 7), title(episode, record), fill=(0, 0, 0), font=FONT)
+    return add_legend(image, success)
+
+
+def stack(images: Sequence[Image.Image], background: RGB = (255, 255, 255)) -> Image.Image:
+    """Images one under the other, left-aligned."""
+    out = Image.new("RGB", (max(i.width for i in images), sum(i.height for i in images)), background)
+    y = 0
+    for image in images:
+        out.paste(image, (0, y))
+        y += image.height
+    return out
+
+
+def save_png(image: Image.Image, path: str | Path) -> Path:
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    image.save(target)
+    return target

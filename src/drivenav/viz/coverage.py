@@ -1,0 +1,54 @@
+"""The area an episode explored, approximated from its trajectory alone (no depth frames are stored).
+
+A cell counts as explored when some visited pose sees it: within ``max_range`` of the camera, inside the
+horizontal field of view, with a clear line of sight. Sight is blocked by non-free structure (walls, door
+frames, unknown space) and by objects that span the camera height; the first blocking cell is itself seen.
+Rays are cast in the plane, ``RAYS_PER_RADIAN`` of them per radian of field of view, sampled every half cell.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from drivenav.envs.base import SimConfig
+from drivenav.envs.scene import Material, Scene
+from drivenav.viz.saved_trace import SavedTrace
+
+RAYS_PER_RADIAN = 100  # at 5 m, neighbouring rays are 5 cm apart: one cell
+POSES_PER_CHUNK = 32  # bounds the memory of one vectorised batch of rays
+
+
+def opaque_cells(scene: Scene, camera_height: float) -> NDArray[np.bool_]:
+    """Cells that block a level line of sight at ``camera_height``."""
+    opaque: NDArray[np.bool_] = scene.structure != Material.FREE
+    gx, gy = scene.grid.cell_centers()
+    for obj in scene.objects:
+        if obj.elevation <= camera_height <= obj.top:
+            opaque |= obj.contains(gx, gy)
+    return opaque
+
+
+def explored_cells(scene: Scene, trace: SavedTrace, sim: SimConfig, max_range: float = 5.0) -> NDArray[np.bool_]:
+    """Boolean grid (the scene's shape) of the cells seen from the trajectory's poses."""
+    opaque = opaque_cells(scene, sim.camera_height)
+    explored = np.zeros_like(opaque)
+    poses = np.unique(np.column_stack([trace.positions, trace.yaws]).round(3), axis=0)
+    half_fov = math.radians(sim.hfov_deg) / 2.0
+    offsets = np.linspace(-half_fov, half_fov, max(2, round(2.0 * half_fov * RAYS_PER_RADIAN)))
+    ranges = np.arange(0.0, max_range, scene.grid.resolution / 2.0)
+    for begin in range(0, len(poses), POSES_PER_CHUNK):
+        chunk = poses[begin : begin + POSES_PER_CHUNK]
+        angles = chunk[:, 2, None] + offsets[None, :]  # (poses, rays)
+        xs = chunk[:, 0, None, None] + np.cos(angles)[..., None] * ranges  # (poses, rays, samples)
+        ys = chunk[:, 1, None, None] + np.sin(angles)[..., None] * ranges
+        cells = scene.grid.world_to_cell(np.stack([xs, ys], axis=-1))
+        inside = scene.grid.contains(cells)
+        rows = np.where(inside, cells[..., 0], 0)
+        cols = np.where(inside, cells[..., 1], 0)
+        blocked = ~inside | opaque[rows, cols]
+        seen = inside & (np.cumsum(blocked, axis=-1) - blocked == 0)
+        explored[rows[seen], cols[seen]] = True
+    return explored

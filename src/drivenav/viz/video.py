@@ -1,0 +1,119 @@
+"""An episode as an MP4: the egocentric RGB beside the top-down map, step by step.
+
+Frames are re-rendered from the trace poses; the map is drawn once and the trajectory and trace markers are
+added to it as the steps go by. Episodes longer than :data:`MAX_FRAMES` poses show every k-th step (and the
+last). Needs the optional ``imageio-ffmpeg`` package (``pip install -e ".[video]"``), which ships ffmpeg.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+from collections import defaultdict
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from PIL import Image, ImageDraw
+
+from drivenav.envs.base import SimConfig
+from drivenav.envs.episode import Episode
+from drivenav.envs.render import Renderer
+from drivenav.envs.scene import Scene
+from drivenav.viz.saved_trace import SavedTrace
+from drivenav.viz.topdown import (
+    FONT,
+    HEADER,
+    Canvas,
+    draw_event,
+    draw_move,
+    draw_pose,
+    draw_scene,
+    draw_view_cone,
+    segment_color,
+)
+
+FPS = 8
+MAX_FRAMES = 600
+CURRENT_COLOR = (0, 0, 0)
+VIDEO_HINT = 'MP4 videos need imageio-ffmpeg: pip install -e ".[video]"'
+
+
+def video_available() -> bool:
+    return importlib.util.find_spec("imageio_ffmpeg") is not None
+
+
+def frame_steps(num_poses: int, max_frames: int = MAX_FRAMES) -> list[int]:
+    """The steps shown: all of them, or every k-th (and the last) when there are more than ``max_frames``."""
+    stride = max(1, math.ceil(num_poses / max_frames))
+    steps = list(range(0, num_poses, stride))
+    if steps[-1] != num_poses - 1:
+        steps.append(num_poses - 1)
+    return steps
+
+
+def _even(n: int) -> int:
+    return n + n % 2
+
+
+def _frames(scene: Scene, episode: Episode, trace: SavedTrace, sim: SimConfig) -> Iterator[NDArray[np.uint8]]:
+    canvas = Canvas(scene, max_side=sim.height - HEADER)
+    layer = draw_scene(scene, episode, canvas)
+    draw = ImageDraw.Draw(layer)
+    renderer = Renderer(scene, sim)
+    events: dict[int, list[dict[str, Any]]] = defaultdict(list)
+    for event in trace.events:
+        events[int(event.get("step", -1))].append(event)
+    moves = trace.move_segments()
+    count = len(trace.segments())
+    width = _even(sim.width + layer.width)
+    shown = set(frame_steps(len(trace)))
+    for step in range(len(trace)):
+        if step > 0:
+            draw_move(draw, canvas, trace, step - 1, segment_color(int(moves[step - 1]), count))
+        for event in events[step]:
+            draw_event(draw, canvas, trace, event)
+        if step not in shown:
+            continue
+        frame = Image.new("RGB", (width, _even(sim.height)), (255, 255, 255))
+        frame.paste(Image.fromarray(renderer.render(trace.pose(step))[0]), (0, 0))
+        panel = layer.copy()
+        pose = trace.pose(step)
+        overlay = ImageDraw.Draw(panel)
+        draw_view_cone(overlay, canvas, pose, math.radians(sim.hfov_deg), CURRENT_COLOR)
+        draw_pose(overlay, canvas, (pose.x, pose.y), pose.yaw, CURRENT_COLOR)
+        overlay.text(
+            (6, 7),
+            f"episode {episode.episode_id} '{episode.object_category}'  step {step}/{len(trace) - 1}",
+            fill=(0, 0, 0),
+            font=FONT,
+        )
+        frame.paste(panel, (sim.width, 0))
+        yield np.asarray(frame)
+
+
+def write_video(path: Path, scene: Scene, episode: Episode, trace: SavedTrace, sim: SimConfig) -> Path:
+    """Write ``path`` (MP4, H.264, :data:`FPS` frames per second); raises ImportError without imageio-ffmpeg."""
+    import imageio_ffmpeg  # type: ignore[import-untyped,import-not-found,unused-ignore]
+
+    writer: Any = None
+    try:
+        for frame in _frames(scene, episode, trace, sim):
+            if writer is None:
+                height, width = frame.shape[:2]
+                writer = imageio_ffmpeg.write_frames(
+                    str(path),
+                    (width, height),
+                    fps=FPS,
+                    macro_block_size=2,
+                    ffmpeg_log_level="error",
+                    output_params=["-preset", "veryfast"],
+                )
+                writer.send(None)
+            writer.send(np.ascontiguousarray(frame))
+    finally:
+        if writer is not None:
+            writer.close()
+    return path
