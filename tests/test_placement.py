@@ -9,7 +9,7 @@ from functools import cache
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from numpy.typing import NDArray
 from scipy import ndimage
@@ -108,6 +108,7 @@ def test_every_room_stays_in_the_one_navigable_component(seed: int) -> None:
 
 @settings(max_examples=10, deadline=None)
 @given(house_seed=st.integers(0, 40), rng_seed=st.integers(0, 2**31), density=st.floats(0.5, 3.0))
+@example(house_seed=28, rng_seed=762092, density=2.0625)  # a bathroom scale (rolled over) enclosed by furniture
 def test_placement_never_splits_navigation(house_seed: int, rng_seed: int, density: float) -> None:
     scene = bare_house(house_seed, 1 + house_seed % 6)
     objects = place_objects(scene, np.random.default_rng(rng_seed), density)

@@ -258,7 +258,7 @@ class _Placer:
             return False
         if (self.room_index[window][mask] != region.index).any() or self._clashes(spec, obj, window, mask):
             return False
-        if obj.elevation < _AGENT.agent_height and not self._cut_navigable(obj):
+        if obj.blocks(_AGENT.agent_height) and not self._cut_navigable(obj):
             return False
         self._occupy(spec, obj, window, mask)
         placed = replace(obj, instance_id=len(self.objects) + 1)

@@ -51,6 +51,11 @@ class ObjectInstance:
     def top(self) -> float:
         return self.elevation + self.size[2]
 
+    def blocks(self, agent_height: float) -> bool:
+        """Whether the object blocks the agent's body: it reaches below ``agent_height`` and is taller than
+        :data:`MAX_CLIMB` (lower floor items are rolled over)."""
+        return self.elevation < agent_height and self.top > MAX_CLIMB
+
     def footprint(self) -> NDArray[np.float64]:
         """The four footprint corners ``(4, 2)`` in the world frame, counter-clockwise."""
         hx, hy = self.size[0] / 2.0, self.size[1] / 2.0
@@ -132,7 +137,7 @@ class Scene:
 
     def blocking_objects(self, agent_height: float) -> list[ObjectInstance]:
         """Objects that block the agent's body: below ``agent_height`` and taller than :data:`MAX_CLIMB`."""
-        return [o for o in self.objects if o.elevation < agent_height and o.top > MAX_CLIMB]
+        return [o for o in self.objects if o.blocks(agent_height)]
 
     def obstacle_grid(self, agent_height: float) -> NDArray[np.bool_]:
         """Cells the agent's body cannot overlap: non-free structure and blocking object footprints."""
