@@ -100,6 +100,34 @@ def _add_bench(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     agent.add_argument("--max-steps", type=int, default=150)
     agent.add_argument("--json", action="store_true", help="print one JSON object")
     agent.set_defaults(handler=_cmd_bench_agent)
+    _add_bench_ablations(sub)
+
+
+def _add_bench_ablations(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    from drivenav.eval.ablations import ALL_METHODS, BENCHMARK_V1
+
+    parser = sub.add_parser("ablations", help="the paper's Tables II, V, VI and VII on the embedded benchmark")
+    parser.add_argument("--episodes", default=str(BENCHMARK_V1.episodes), help="a number to generate, or a file")
+    parser.add_argument("--seed", type=int, default=BENCHMARK_V1.seed)
+    parser.add_argument("--out", required=True, type=Path, help="output directory (rerun to resume)")
+    parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument("--methods", default=",".join(ALL_METHODS), help="comma-separated agent names")
+    parser.add_argument("--scenes", default=BENCHMARK_V1.scenes, help="a --scenes SPEC (default: benchmark v1's)")
+    parser.add_argument("--max-steps", type=int, default=500)
+    _add_model_options(parser)
+    parser.set_defaults(handler=_cmd_bench_ablations)
+
+
+def _add_benchmark(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    from drivenav.eval.ablations import BENCHMARKS
+
+    parser = commands.add_parser("benchmark", help="the fixed, versioned embedded benchmark")
+    sub = parser.add_subparsers(dest="benchmark_command", required=True)
+    generate = sub.add_parser("generate", help="write a benchmark version's episodes (json.gz, same bytes each time)")
+    generate.add_argument("--version", default="v1", choices=sorted(BENCHMARKS))
+    generate.add_argument("--out", type=Path, required=True)
+    generate.add_argument("--episodes", type=int, default=None, help="only the first N episodes (quick checks)")
+    generate.set_defaults(handler=_cmd_benchmark_generate)
 
 
 def _add_viz(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -130,7 +158,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="drivenav", description=__doc__)
     parser.add_argument("-v", "--verbose", action="store_true")
     commands = parser.add_subparsers(dest="command", required=True)
-    for add in (_add_eval, _add_episodes, _add_bench, _add_viz, _add_compare, _add_demo):
+    for add in (_add_eval, _add_episodes, _add_benchmark, _add_bench, _add_viz, _add_compare, _add_demo):
         add(commands)
     return parser
 
@@ -225,6 +253,36 @@ def _cmd_bench_agent(args: argparse.Namespace) -> int:
 
     result = bench_agent(_positive(args.episodes, "--episodes"), _positive(args.max_steps, "--max-steps"))
     return _print_bench(result, args.json)
+
+
+def _cmd_bench_ablations(args: argparse.Namespace) -> int:
+    from drivenav.eval.ablations import parse_methods, resolve_scenes, run_ablations
+    from drivenav.eval.runner import RunSpec
+
+    methods = parse_methods(args.methods)
+    _positive(args.workers, "--workers")
+    _positive(args.max_steps, "--max-steps")
+    models = _model_spec(args)
+    args.scenes = resolve_scenes(args.scenes)
+    _, episodes = _load_or_generate(args)
+    template = RunSpec(methods[0], args.scenes, args.seed, args.max_steps, models)
+    report = run_ablations(episodes, methods, template, args.out, args.workers)
+    for name, entry in report["methods"].items():
+        print(f"{name:<20} SR {100 * entry['success_rate']:5.1f} %  SPL {100 * entry['spl']:5.1f} %")
+    print(f"tables: {args.out / 'ablations.md'}  data: {args.out / 'ablations.json'}, {args.out / 'ablations.csv'}")
+    return 0
+
+
+def _cmd_benchmark_generate(args: argparse.Namespace) -> int:
+    from drivenav.eval.ablations import BENCHMARKS, generate_benchmark
+    from drivenav.eval.episodes import save_episodes
+
+    count = None if args.episodes is None else _positive(args.episodes, "--episodes")
+    episodes = generate_benchmark(BENCHMARKS[args.version], count)
+    save_episodes(episodes, args.out)
+    scenes = len({e.scene_id for e in episodes})
+    print(f"benchmark {args.version}: {len(episodes)} episodes over {scenes} scenes written to {args.out}")
+    return 0
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:

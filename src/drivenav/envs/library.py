@@ -1,8 +1,9 @@
 """Scene sets named on the command line (``--scenes SPEC``) and loading scenes by id.
 
-SPEC is ``procedural`` (procedural houses; ``procedural:K`` picks K houses for episode generation), a scene
-directory (a ROS map YAML plus optional objects.json), or a folder of scene directories. Procedural scene ids
-(``procedural/house_00042``) carry their seed, so any of them can be rebuilt from the id alone.
+SPEC is one part or several joined by commas (``procedural:40,../shared/data/maps``). A part is ``procedural``
+(procedural houses; ``procedural:K`` picks K houses for episode generation), a scene directory (a ROS map YAML plus
+optional objects.json), or a folder of scene directories. Procedural scene ids (``procedural/house_00042``) carry
+their seed, so any of them can be rebuilt from the id alone; a map scene's id is its directory name.
 """
 
 from __future__ import annotations
@@ -42,45 +43,59 @@ class SceneLibrary:
     def __init__(self, spec: str = "procedural", seed: int = 0) -> None:
         self.spec = spec
         self._maps: dict[str, Path] = {}
-        self._procedural_ids: list[str] = []
-        if spec == "procedural" or spec.startswith("procedural:"):
-            count = _parse_house_count(spec)
-            self._procedural_ids = [procedural_scene_id(seed * 1000 + k) for k in range(count)]
+        self._procedural = False
+        self._order: list[str] = []
+        for part in spec.split(","):
+            self._add_part(part.strip(), seed)
+
+    def _add_part(self, part: str, seed: int) -> None:
+        if not part:
+            raise InputError("command line", "--scenes", "comma-separated parts, none empty", self.spec)
+        if part == "procedural" or part.startswith("procedural:"):
+            self._procedural = True
+            ids = [procedural_scene_id(seed * 1000 + k) for k in range(_parse_house_count(part))]
         else:
-            self._maps = _find_map_dirs(Path(spec))
+            maps = _find_map_dirs(part)
+            for scene_id, path in maps.items():
+                if self._maps.setdefault(scene_id, path) != path:
+                    raise InputError(path, "--scenes", "scene directories with distinct names", scene_id)
+            ids = list(maps)
+        self._order.extend(i for i in ids if i not in self._order)
 
     @property
     def scene_ids(self) -> list[str]:
-        """The scenes episodes are generated over, in a fixed order."""
-        return self._procedural_ids + sorted(self._maps)
+        """The scenes episodes are generated over: the SPEC's parts in order, each part's scenes in a fixed order."""
+        return list(self._order)
 
     def __contains__(self, scene_id: str) -> bool:
-        return scene_id in self._maps or (bool(self._procedural_ids) and PROCEDURAL_ID.match(scene_id) is not None)
+        return scene_id in self._maps or (self._procedural and PROCEDURAL_ID.match(scene_id) is not None)
 
     def load(self, scene_id: str) -> Scene:
         """The scene with this id (cached per process)."""
         if scene_id in self._maps:
             return _load_map(str(self._maps[scene_id]))
         match = PROCEDURAL_ID.match(scene_id)
-        if match is not None and self._procedural_ids:
+        if match is not None and self._procedural:
             return _load_procedural(int(match.group(1)))
         raise KeyError(scene_id)
 
 
-def _parse_house_count(spec: str) -> int:
-    if spec == "procedural":
+def _parse_house_count(part: str) -> int:
+    if part == "procedural":
         return DEFAULT_PROCEDURAL_HOUSES
-    text = spec.split(":", 1)[1]
+    text = part.split(":", 1)[1]
     if not text.isdigit() or int(text) < 1:
-        raise InputError("command line", "--scenes", "'procedural' or 'procedural:K' with K >= 1", spec)
+        raise InputError("command line", "--scenes", "'procedural' or 'procedural:K' with K >= 1", part)
     return int(text)
 
 
-def _find_map_dirs(path: Path) -> dict[str, Path]:
+def _find_map_dirs(part: str) -> dict[str, Path]:
+    """The map scenes of one SPEC part by id, in name order."""
     from drivenav.envs.rosmap import find_map_yaml, is_map_scene_dir, read_map_yaml
 
+    path = Path(part)
     if not path.exists():
-        raise InputError(path, "--scenes", "'procedural', a scene directory, or a folder of scene directories")
+        raise InputError(path, "--scenes", "'procedural', a scene directory, or a folder of scene directories", part)
     path = path.resolve()
     if path.is_file() or is_map_scene_dir(path) or any(path.glob("*.yaml")):
         read_map_yaml(find_map_yaml(path))  # a broken map names its own file and field

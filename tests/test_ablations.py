@@ -1,0 +1,146 @@
+"""``drivenav bench ablations`` and ``drivenav benchmark generate``; the confidence intervals behind the tables."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import pytest
+
+from drivenav.cli import main
+from drivenav.envs.library import SceneLibrary
+from drivenav.eval.ablations import (
+    ALL_METHODS,
+    BENCHMARK_V1,
+    BenchmarkDefinition,
+    generate_benchmark,
+    ordering_differences,
+    resolve_scenes,
+)
+from drivenav.eval.episodes import save_episodes
+from drivenav.eval.stats import bootstrap_mean_interval, wilson_interval
+
+METHOD_KEYS = {
+    "episodes",
+    "success_rate",
+    "spl",
+    "avg_steps",
+    "avg_revisits",
+    "sr_ci95",
+    "spl_ci95",
+    "vlm_calls",
+    "failure_causes",
+}
+TINY = ["--episodes", "2", "--methods", "drive-nav,nearest-frontier", "--max-steps", "20", "--scenes", "procedural:1"]
+MODELS = ["--reasoner", "geometric", "--detector", "ground-truth"]
+
+
+def test_wilson_interval_matches_hand_computed_values() -> None:
+    # 8 of 10: centre (0.8 + z^2/20) / (1 + z^2/10), half-width z sqrt(0.016 + z^2/400) / (1 + z^2/10).
+    low, high = wilson_interval(8, 10)
+    assert low == pytest.approx(0.4902, abs=1e-4)
+    assert high == pytest.approx(0.9433, abs=1e-4)
+    # 0 of 10 and 10 of 10: the interval ends at 0 (resp. 1) and reaches z^2 / (n + z^2) = 0.2775 inside.
+    assert wilson_interval(0, 10) == pytest.approx((0.0, 0.2775), abs=1e-4)
+    assert wilson_interval(10, 10) == pytest.approx((0.7225, 1.0), abs=1e-4)
+    with pytest.raises(ValueError):
+        wilson_interval(1, 0)
+
+
+def test_bootstrap_interval_matches_hand_computed_values() -> None:
+    # Two values 0 and 1: resampled means are 0, 0.5, 1 with probabilities 1/4, 1/2, 1/4, so the 2.5 % and 97.5 %
+    # quantiles are 0 and 1.
+    assert bootstrap_mean_interval([0.0, 1.0]) == (0.0, 1.0)
+    assert bootstrap_mean_interval([0.25, 0.25, 0.25]) == pytest.approx((0.25, 0.25))
+    values = [0.0, 0.1, 0.5, 0.9, 0.7, 0.0, 0.3]
+    low, high = bootstrap_mean_interval(values)
+    assert low < sum(values) / len(values) < high
+    assert bootstrap_mean_interval(values) == (low, high)  # fixed seed
+    with pytest.raises(ValueError):
+        bootstrap_mean_interval([])
+
+
+def test_ordering_differences_name_reversed_and_tied_pairs() -> None:
+    paper = {"a": 1.0, "b": 2.0, "c": 3.0}
+    assert ordering_differences(paper, {"a": 10.0, "b": 20.0, "c": 30.0}) == []
+    differences = ordering_differences(paper, {"a": 10.0, "b": 30.0, "c": 20.0})
+    assert len(differences) == 1 and differences[0].startswith("`b` is above `c`")
+    assert "ties" in ordering_differences(paper, {"a": 5.0, "b": 5.0, "c": 6.0})[0]
+
+
+def test_default_methods_cover_tables_ii_v_vi_once() -> None:
+    expected = {"frontier", "directional", "directional-enrich", "directional-verify", "drive-nav"}
+    expected |= {"no-weighted-fmm", "no-240", "direction-360", "nearest-frontier"}
+    assert set(ALL_METHODS) == expected and len(ALL_METHODS) == len(expected)
+
+
+def _line_counts(out: Path) -> dict[str, int]:
+    return {d.name: len((d / "episodes.jsonl").read_text().splitlines()) for d in (out / "runs").iterdir()}
+
+
+def test_bench_ablations_writes_tables_and_resumes(tmp_path: Path) -> None:
+    out = tmp_path / "ablations"
+    assert main(["bench", "ablations", *TINY, *MODELS, "--out", str(out)]) == 0
+    report = json.loads((out / "ablations.json").read_text())
+    assert {"methods", "table_ii", "runtime", "episodes", "seed", "commit"} <= set(report)
+    assert list(report["methods"]) == ["drive-nav", "nearest-frontier"]
+    assert report["episodes"] == 2 and report["seed"] == BENCHMARK_V1.seed
+    for entry in report["methods"].values():
+        assert set(entry) == METHOD_KEYS
+        for value, key in ((entry["success_rate"], "sr_ci95"), (entry["spl"], "spl_ci95")):
+            low, high = entry[key]
+            assert 0.0 <= low <= value <= high <= 1.0
+        assert sum(entry["failure_causes"].values()) == 2 - round(2 * entry["success_rate"])
+    assert set(report["table_ii"]["methods"]) == {"drive-nav", "nearest-frontier"}
+    assert "modules" in report["runtime"]["compute"]
+    rows = list(csv.DictReader((out / "ablations.csv").open()))
+    assert [row["method"] for row in rows] == ["drive-nav", "nearest-frontier"]
+    assert {"sr_ci95.lo", "spl_ci95.hi", "failure_causes.timeout"} <= set(rows[0])
+    markdown = (out / "ablations.md").read_text()
+    for heading in ("Table VI", "Table V:", "Table II", "Table VII", "Failure causes", "orderings differ"):
+        assert heading in markdown
+    assert "| ✓ | ✓ | ✓ | ✓ | `drive-nav` |" in markdown
+    before = {d: (out / "runs" / d / "episodes.jsonl").read_text() for d in _line_counts(out)}
+    episodes_file = str(out / "episodes.json.gz")
+    rerun = ["bench", "ablations", *TINY, *MODELS, "--out", str(out), "--episodes", episodes_file]
+    assert main(rerun) == 0  # the same episodes from the file: everything is finished already
+    assert _line_counts(out) == {"drive-nav": 2, "nearest-frontier": 2}
+    assert {d: (out / "runs" / d / "episodes.jsonl").read_text() for d in before} == before
+
+
+def test_bench_ablations_refuses_another_episode_set(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "ablations"
+    args = ["bench", "ablations", *TINY, *MODELS, "--methods", "nearest-frontier", "--out", str(out)]
+    assert main(args) == 0
+    assert main([*args, "--episodes", "3"]) == 2
+    assert "--episodes" in capsys.readouterr().err
+
+
+def test_bench_ablations_rejects_an_unknown_method(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    assert main(["bench", "ablations", *TINY, "--methods", "drive-nav,nope", "--out", str(tmp_path)]) == 2
+    assert "'--methods'" in capsys.readouterr().err and not list(tmp_path.iterdir())
+
+
+def test_benchmark_generation_is_deterministic(tmp_path: Path) -> None:
+    small = BenchmarkDefinition(scenes="procedural:2", episodes=3, seed=5)
+    first, second = tmp_path / "a.json.gz", tmp_path / "b.json.gz"
+    save_episodes(generate_benchmark(small), first)
+    save_episodes(generate_benchmark(small), second)
+    assert first.read_bytes() == second.read_bytes()
+    assert len({e.scene_id for e in generate_benchmark(small)}) == 2
+
+
+def test_benchmark_generate_command_repeats_bytes(tmp_path: Path, maps_dir: Path) -> None:
+    outputs = [tmp_path / "one.json.gz", tmp_path / "two.json.gz"]
+    for path in outputs:
+        assert main(["benchmark", "generate", "--version", "v1", "--episodes", "2", "--out", str(path)]) == 0
+    assert outputs[0].read_bytes() == outputs[1].read_bytes()
+
+
+def test_v1_covers_40_houses_and_every_floor_plan(maps_dir: Path) -> None:
+    library = SceneLibrary(resolve_scenes(BENCHMARK_V1.scenes), BENCHMARK_V1.seed)
+    houses = [s for s in library.scene_ids if s.startswith("procedural/")]
+    assert len(houses) == 40
+    assert set(library.scene_ids) - set(houses) == {d.name for d in maps_dir.iterdir() if d.is_dir()}
+    assert BENCHMARK_V1.episodes >= 200

@@ -1,0 +1,54 @@
+"""Scene sets from ``--scenes SPEC``: single parts, comma-separated mixes, and errors naming the bad part."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+
+from drivenav.envs.library import SceneLibrary, procedural_scene_id
+from drivenav.errors import InputError
+
+
+def _map_names(maps_dir: Path) -> list[str]:
+    return sorted(child.name for child in maps_dir.iterdir() if child.is_dir())
+
+
+def test_single_procedural_part_is_unchanged() -> None:
+    library = SceneLibrary("procedural:3", seed=1)
+    assert library.scene_ids == [procedural_scene_id(1000 + k) for k in range(3)]
+    assert "procedural/house_01002" in library
+    assert "ipa_office" not in library
+
+
+def test_mixed_spec_lists_every_part_in_order(maps_dir: Path) -> None:
+    houses = [procedural_scene_id(2000 + k) for k in range(2)]
+    mixed = SceneLibrary(f"procedural:2,{maps_dir}", seed=2)
+    assert mixed.scene_ids == houses + _map_names(maps_dir)
+    reversed_parts = SceneLibrary(f"{maps_dir}, procedural:2", seed=2)
+    assert reversed_parts.scene_ids == _map_names(maps_dir) + houses
+    assert houses[0] in mixed and "ipa_office" in mixed
+    assert mixed.load("mit_building_31").objects
+    assert mixed.load(houses[1]).objects
+
+
+def test_repeated_parts_add_no_duplicates(maps_dir: Path) -> None:
+    library = SceneLibrary(f"procedural:2,procedural:3,{maps_dir / 'uos_cic'},{maps_dir}", seed=0)
+    others = [name for name in _map_names(maps_dir) if name != "uos_cic"]
+    assert library.scene_ids == [procedural_scene_id(k) for k in range(3)] + ["uos_cic", *others]
+
+
+@pytest.mark.parametrize("part", ["nowhere/at/all", "procedural:0", "procedural:x", ""])
+def test_an_unknown_part_names_scenes_and_the_part(part: str) -> None:
+    with pytest.raises(InputError) as caught:
+        SceneLibrary(f"procedural:1,{part}")
+    assert caught.value.field == "--scenes"
+    assert part in str(caught.value)
+
+
+def test_two_scenes_with_one_name_are_refused(maps_dir: Path, tmp_path: Path) -> None:
+    for folder in ("a", "b"):
+        shutil.copytree(maps_dir / "mit_building_31", tmp_path / folder / "mit_building_31")
+    with pytest.raises(InputError, match="distinct names"):
+        SceneLibrary(f"{tmp_path / 'a'},{tmp_path / 'b'}")
