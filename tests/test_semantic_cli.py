@@ -56,53 +56,28 @@ def test_replay_reproduces_a_recorded_run_exactly(tmp_path: Path) -> None:
         assert trace_a["actions"] == trace_b["actions"]
 
 
-def test_openai_reasoner_against_a_loopback_server(tmp_path: Path) -> None:
-    url, stop = start_fake_server("ok", lifetime=120.0)
+def _eval_against_fake_server(tmp_path: Path, mode: str) -> list[dict[str, object]]:
+    """Run two short episodes with the ``openai`` reasoner against a loopback server in ``mode``."""
+    url, stop = start_fake_server(mode, lifetime=120.0)
     try:
-        result = run_cli(
-            "eval",
-            "--agent",
-            "drive-nav",
-            *EPISODE_ARGS,
-            "--reasoner",
-            "openai",
-            "--vlm-base-url",
-            url,
-            "--vlm-model",
-            "fake-vlm",
-            "--out",
-            str(tmp_path / "run"),
-        )
+        args = ["--reasoner", "openai", "--vlm-base-url", url, "--vlm-model", "fake-vlm"]
+        result = run_cli("eval", "--agent", "drive-nav", *EPISODE_ARGS, *args, "--out", str(tmp_path / "run"))
     finally:
         stop()
     assert result.returncode == 0, result.stderr
     records = _records(tmp_path / "run")
-    assert all(int(r["vlm_calls"]) > 0 for r in records)  # type: ignore[call-overload]
     assert all(r["error"] == "" for r in records)
+    return records
+
+
+def test_openai_reasoner_against_a_loopback_server(tmp_path: Path) -> None:
+    records = _eval_against_fake_server(tmp_path, "ok")
+    assert all(int(r["vlm_calls"]) > 0 for r in records)  # type: ignore[call-overload]
+    assert sum(int(r["vlm_fallbacks"]) for r in records) == 0  # type: ignore[call-overload]
 
 
 def test_garbage_answers_fall_back_without_crashing(tmp_path: Path) -> None:
-    url, stop = start_fake_server("garbage", lifetime=120.0)
-    try:
-        result = run_cli(
-            "eval",
-            "--agent",
-            "drive-nav",
-            *EPISODE_ARGS,
-            "--reasoner",
-            "openai",
-            "--vlm-base-url",
-            url,
-            "--vlm-model",
-            "fake-vlm",
-            "--out",
-            str(tmp_path / "run"),
-        )
-    finally:
-        stop()
-    assert result.returncode == 0, result.stderr
-    records = _records(tmp_path / "run")
-    assert all(r["error"] == "" for r in records)
+    records = _eval_against_fake_server(tmp_path, "garbage")
     assert sum(int(r["vlm_fallbacks"]) for r in records) > 0  # type: ignore[call-overload]
 
 
