@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import subprocess
 from pathlib import Path
 
 from conftest import run_cli
@@ -21,6 +22,22 @@ def _without_timing(record: dict[str, object]) -> dict[str, object]:
     return {k: v for k, v in record.items() if k not in TIMING_KEYS}
 
 
+def _replay(recording: Path, out: Path) -> subprocess.CompletedProcess[str]:
+    """``drivenav eval`` answering every reasoner question from ``recording``."""
+    return run_cli(
+        "eval",
+        "--agent",
+        "drive-nav",
+        *EPISODE_ARGS,
+        "--reasoner",
+        "replay",
+        "--vlm-replay",
+        str(recording),
+        "--out",
+        str(out),
+    )
+
+
 def test_replay_reproduces_a_recorded_run_exactly(tmp_path: Path) -> None:
     recording = tmp_path / "vlm.jsonl"
     first = run_cli(
@@ -35,18 +52,7 @@ def test_replay_reproduces_a_recorded_run_exactly(tmp_path: Path) -> None:
     )
     assert first.returncode == 0, first.stderr
     assert recording.stat().st_size > 0
-    second = run_cli(
-        "eval",
-        "--agent",
-        "drive-nav",
-        *EPISODE_ARGS,
-        "--reasoner",
-        "replay",
-        "--vlm-replay",
-        str(recording),
-        "--out",
-        str(tmp_path / "replayed"),
-    )
+    second = _replay(recording, tmp_path / "replayed")
     assert second.returncode == 0, second.stderr
     recorded, replayed = _records(tmp_path / "recorded"), _records(tmp_path / "replayed")
     assert [_without_timing(r) for r in recorded] == [_without_timing(r) for r in replayed]
@@ -110,17 +116,6 @@ def test_unknown_backend_names(tmp_path: Path) -> None:
 def test_replay_miss_names_the_request(tmp_path: Path) -> None:
     recording = tmp_path / "empty.jsonl"
     recording.write_text("")
-    result = run_cli(
-        "eval",
-        "--agent",
-        "drive-nav",
-        *EPISODE_ARGS,
-        "--reasoner",
-        "replay",
-        "--vlm-replay",
-        str(recording),
-        "--out",
-        str(tmp_path / "run"),
-    )
+    result = _replay(recording, tmp_path / "run")
     assert result.returncode == 2, result.stderr
     assert "select_direction" in result.stderr and "Traceback" not in result.stderr

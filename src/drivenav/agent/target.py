@@ -12,7 +12,6 @@ of the episode.
 
 from __future__ import annotations
 
-import math
 from collections import Counter
 from dataclasses import dataclass
 
@@ -139,7 +138,8 @@ class TargetSearch:
         detections = self.grounder.segment(observation, self.phrase) if self.grounder is not None else []
         for detection in detections:
             points = self._project(observation, detection)
-            if len(points) and math.dist(_median(points), candidate.center) <= self.objects.merge_radius:
+            match = self.objects.match(points) if len(points) else None
+            if match is not None and match.candidate_id == candidate_id:
                 self._verify(observation, detection, candidate, trace, force=True)
                 break
         if any(c.candidate_id == candidate_id and c.status == "candidate" for c in self.objects.candidates()):
@@ -194,8 +194,3 @@ class TargetSearch:
             "verifications": {k: self.verifications.get(k, 0) for k in ("accepted", "rejected", "uncertain")},
             "phrase": self.phrase,
         }
-
-
-def _median(points: NDArray[np.float64]) -> tuple[float, float]:
-    x, y = np.median(points, axis=0)
-    return float(x), float(y)

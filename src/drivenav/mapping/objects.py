@@ -132,7 +132,7 @@ class ObjectMap:
         points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
         if points.shape[0] == 0 or self.is_failed(_median(points)):
             return None
-        match = self._match(points)
+        match = self.match(points)
         if match is None:
             created = ObjectCandidate(self._next_id, phrase, self._bounded(points), score, step, step)
             self._next_id += 1
@@ -173,8 +173,8 @@ class ObjectMap:
         self._live[candidate.candidate_id] = candidate
         return candidate
 
-    def _match(self, points: Points) -> ObjectCandidate | None:
-        """The live candidate nearest to ``points`` if within ``merge_radius``."""
+    def match(self, points: Points) -> ObjectCandidate | None:
+        """The live candidate a detection with these ``points`` would join: the nearest within ``merge_radius``."""
         center = _median(points)
         best: ObjectCandidate | None = None
         best_distance = self.merge_radius
