@@ -93,7 +93,11 @@ def test_bench_ablations_writes_tables_and_resumes(tmp_path: Path) -> None:
             assert 0.0 <= low <= value <= high <= 1.0
         assert sum(entry["failure_causes"].values()) == 2 - round(2 * entry["success_rate"])
     assert set(report["table_ii"]["methods"]) == {"drive-nav", "nearest-frontier"}
-    assert "modules" in report["runtime"]["compute"]
+    compute = report["runtime"]["compute"]
+    assert compute["agent"] == "drive-nav" and compute["episodes"] == 2
+    drive_nav = [json.loads(line) for line in (out / "runs" / "drive-nav" / "episodes.jsonl").read_text().splitlines()]
+    assert compute["steps"] == sum(record["steps"] for record in drive_nav)  # every step of the run is timed
+    assert 0.0 < compute["modules"]["directions: weighted FMM"]["median_ms"] <= compute["p90_ms"]
     rows = list(csv.DictReader((out / "ablations.csv").open()))
     assert [row["method"] for row in rows] == ["drive-nav", "nearest-frontier"]
     assert {"sr_ci95.lo", "spl_ci95.hi", "failure_causes.timeout"} <= set(rows[0])

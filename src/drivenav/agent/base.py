@@ -44,6 +44,7 @@ class Agent(ABC):
         self.stop_reason: str | None = None
         self.trace = Trace()
         self.step = 0
+        self.step_timings: list[dict[str, float]] = []  # per step: module -> ms (saved in the run's traces)
 
     def reset(self, goal_text: str, seed: int, labels: SemanticLabels | None = None) -> None:
         """Start an episode looking for ``goal_text``.
@@ -56,6 +57,7 @@ class Agent(ABC):
         self.stop_reason = None
         self.trace = Trace()
         self.step = 0
+        self.step_timings = []
 
     def set_privileged(self, info: PrivilegedInfo) -> None:  # noqa: B027 (optional hook, no-op by default)
         """Receive ground truth (only called when ``uses_privileged`` is true)."""

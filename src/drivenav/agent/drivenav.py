@@ -115,7 +115,6 @@ class DriveNavAgent(Agent):
         self._reasoner_factory = reasoner_factory
         self._grounder_factory = grounder_factory
         self._turn = math.radians(sim.turn_angle_deg)
-        self.timings: list[dict[str, float]] = []
 
     # ----------------------------------------------------------------- episode set-up
 
@@ -146,7 +145,6 @@ class DriveNavAgent(Agent):
         self._selected: int | None = None
         self._goal: Point | None = None
         self._target: int | None = None
-        self.timings = []
         self.trace.add(ScanStarted(0, self._scan_turns))
 
     @property
@@ -174,7 +172,7 @@ class DriveNavAgent(Agent):
         action = self._policy(observation, ctx)
         timings["policy"] = _ms_since(mark)
         timings["total"] = _ms_since(start)
-        self.timings.append(timings)
+        self.step_timings.append(timings)
         return action
 
     def _perceive(

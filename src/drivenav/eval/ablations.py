@@ -26,8 +26,9 @@ from drivenav.errors import InputError
 from drivenav.eval.compare import compare, load_runs
 from drivenav.eval.episodes import generate_episodes, load_episodes, save_episodes
 from drivenav.eval.report import summarize
-from drivenav.eval.runner import RunSpec, evaluate
+from drivenav.eval.runner import RunSpec, evaluate, trace_path
 from drivenav.eval.stats import BOOTSTRAP_RESAMPLES, bootstrap_mean_interval, wilson_interval
+from drivenav.eval.timings import runtime_table, traced_steps
 
 # ----------------------------------------------------------------------------------------------- the benchmark
 
@@ -209,12 +210,29 @@ def model_call_latency(runs: dict[str, dict[str, dict[str, Any]]]) -> dict[str, 
     }
 
 
-def measure_runtime(runs: dict[str, dict[str, dict[str, Any]]], max_steps: int, seed: int) -> dict[str, Any]:
-    """Table VII: per-module compute from ``bench_agent`` (2 episodes), model-call latency from the runs."""
-    from drivenav.agent.bench import bench_agent
+RUNTIME_METHOD = "drive-nav"
 
-    compute = bench_agent(episodes=2, max_steps=min(max_steps, 150), seed=seed)
-    return {"compute": compute, "model_calls": model_call_latency(runs)}
+
+def measure_runtime(runs: dict[str, dict[str, dict[str, Any]]], dirs: dict[str, Path]) -> dict[str, Any]:
+    """Table VII from the runs themselves: per-step module timings saved in the traces of ``drive-nav`` (else
+    the first method whose traces have them), model-call latency over every run. ``compute`` is None when no
+    trace has timings."""
+    sim = SimConfig()
+    for method in sorted(dirs, key=lambda name: name != RUNTIME_METHOD):
+        traces = (_read_trace(trace_path(dirs[method], episode_id)) for episode_id in runs[method])
+        steps, decisions, episodes = traced_steps(traces)
+        if steps:
+            compute = runtime_table(steps, decisions, episodes, method, sim.width, sim.height)
+            return {"compute": compute, "model_calls": model_call_latency(runs)}
+    return {"compute": None, "model_calls": model_call_latency(runs)}
+
+
+def _read_trace(path: Path) -> dict[str, Any]:
+    try:
+        trace: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}  # a missing or torn trace only leaves its steps out of the timings
+    return trace
 
 
 def git_commit() -> str | None:
@@ -240,7 +258,7 @@ def build_report(dirs: dict[str, Path], template: RunSpec, episodes: int) -> dic
     return {
         "methods": {name: method_entry(list(records.values())) for name, records in runs.items()},
         "table_ii": compare({name: dirs[name] for name in table_ii_methods}),
-        "runtime": measure_runtime(runs, template.max_steps, template.seed),
+        "runtime": measure_runtime(runs, dirs),
         "episodes": episodes,
         "seed": template.seed,
         "scenes": template.scenes,
@@ -381,22 +399,7 @@ def _table_ii(table: dict[str, Any]) -> list[str]:
 
 
 def _table_vii(runtime: dict[str, Any]) -> list[str]:
-    compute = runtime["compute"]
-    lines = [
-        "## Table VII: runtime",
-        "",
-        f"Agent compute per step (models excluded), `{compute['agent']}` on {compute['episodes']} episodes "
-        f"({compute['steps']} steps, {compute['width']}x{compute['height']}): median {compute['median_ms']:.1f} ms, "
-        f"p90 {compute['p90_ms']:.1f} ms. Model calls: mean latency per call over every run above, calls per "
-        "episode over the runs of the methods that make them.",
-        "",
-        "| module | latency (median) | invocation |",
-        "|---|---|---|",
-    ]
-    for name, module in compute["modules"].items():
-        latency = f"{module['median_ms']:.2f} ms" if "median_ms" in module else "-"
-        count = f", {module['invocations']} in {compute['steps']} steps" if "invocations" in module else ""
-        lines.append(f"| {name} | {latency} | {module['invocation']}{count} |")
+    lines = ["## Table VII: runtime", "", *_compute_rows(runtime["compute"])]
     for kind, calls in runtime["model_calls"].items():
         lines.append(
             f"| model call: {kind} | {calls['mean_latency_ms']:.1f} ms (mean) |"
@@ -404,6 +407,24 @@ def _table_vii(runtime: dict[str, Any]) -> list[str]:
         )
     lines.extend(["", f"Paper (real-world workstation): {TABLE_VII_PAPER}."])
     return lines
+
+
+def _compute_rows(compute: dict[str, Any] | None) -> list[str]:
+    header = ["", "| module | latency (median) | invocation |", "|---|---|---|"]
+    if compute is None:
+        return ["No per-step timings in these runs' traces; model calls only.", *header]
+    rows = [
+        f"Agent compute per step (models excluded), `{compute['agent']}`, every step of its {compute['episodes']} "
+        f"episodes ({compute['steps']} steps, {compute['width']}x{compute['height']}): median "
+        f"{compute['median_ms']:.1f} ms, p90 {compute['p90_ms']:.1f} ms. Model calls: mean latency per call over "
+        "every run above, calls per episode over the runs of the methods that make them.",
+        *header,
+    ]
+    for name, module in compute["modules"].items():
+        latency = f"{module['median_ms']:.2f} ms" if "median_ms" in module else "-"
+        count = f", {module['invocations']} in {compute['steps']} steps" if "invocations" in module else ""
+        rows.append(f"| {name} | {latency} | {module['invocation']}{count} |")
+    return rows
 
 
 def _failures(methods: dict[str, Any]) -> list[str]:

@@ -34,6 +34,7 @@ from drivenav.errors import InputError
 from drivenav.eval import metrics
 from drivenav.eval.geodesic import GeodesicField, largest_component
 from drivenav.eval.report import summarize
+from drivenav.eval.timings import to_columns
 from drivenav.semantics.registry import ModelSpec
 
 log = logging.getLogger(__name__)
@@ -141,6 +142,7 @@ def run_episode(
         "actions": actions,
         "segment_starts": list(agent.segment_starts),
         "events": agent.trace.to_json(),
+        "step_ms": to_columns(agent.step_timings),
     }
     return record, trace
 

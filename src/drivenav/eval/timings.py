@@ -1,0 +1,88 @@
+"""Per-step module timings: how a run stores them and the paper's Table VII built from them.
+
+Every episode trace keeps the agent's per-step latencies in ``step_ms``, one column per module
+(``{"mapping": [..], "directions.fmm": [..], ...}``, milliseconds, one value per step). Table VII (paper
+Sec. V-E, runtime) is then computed from the very episodes of a benchmark run rather than a separate pass.
+
+Compute per step = mapping + directions + inspection + policy; model calls (grounding, reasoning) are reported
+separately, as latency per call and calls per episode.
+"""
+
+from __future__ import annotations
+
+import statistics
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+COMPUTE_KEYS = ("mapping", "directions.total", "inspection", "policy")
+MODULES = {
+    "mapping (depth -> maps, frontiers)": "mapping",
+    "directions: distance transforms": "directions.distance_transforms",
+    "directions: skeleton": "directions.skeleton",
+    "directions: weighted FMM": "directions.fmm",
+    "directions: backtracking + bearings": "directions.backtracking",
+    "directions: clustering": "directions.clustering",
+    "directions: tracking": "directions.tracking",
+    "inspection (representative views)": "inspection",
+    "policy (planner, inspection events, decisions)": "policy",
+    "grounding (detector, model)": "grounding",
+}
+DECISION_EVENT = "direction_selected"
+
+
+def to_columns(steps: Sequence[dict[str, float]]) -> dict[str, list[float]]:
+    """Per-step timing dicts as columns (a module missing at a step counts 0 ms), rounded to 1 us."""
+    keys = sorted({key for step in steps for key in step})
+    return {key: [round(step.get(key, 0.0), 3) for step in steps] for key in keys}
+
+
+def from_columns(columns: dict[str, list[float]]) -> list[dict[str, float]]:
+    """The inverse of :func:`to_columns`."""
+    length = max((len(values) for values in columns.values()), default=0)
+    return [{key: values[i] for key, values in columns.items() if i < len(values)} for i in range(length)]
+
+
+def summary(values: Sequence[float]) -> dict[str, float]:
+    """Median, 90th percentile (nearest rank below) and mean of a non-empty sample, in ms."""
+    ordered = sorted(values)
+    return {
+        "median_ms": round(statistics.median(ordered), 3),
+        "p90_ms": round(ordered[int(0.9 * (len(ordered) - 1))], 3),
+        "mean_ms": round(statistics.fmean(ordered), 3),
+    }
+
+
+def runtime_table(
+    steps: Sequence[dict[str, float]], decisions: int, episodes: int, agent: str, width: int, height: int
+) -> dict[str, Any]:
+    """Table VII from per-step timings: compute per step, and each module's latency and invocations."""
+    if not steps:
+        raise ValueError("runtime_table needs at least one timed step")
+    compute = [sum(step.get(key, 0.0) for key in COMPUTE_KEYS) for step in steps]
+    modules: dict[str, dict[str, Any]] = {
+        name: {**summary([s.get(key, 0.0) for s in steps]), "invocation": "every step"} for name, key in MODULES.items()
+    }
+    modules["direction selection (reasoner)"] = {"invocations": decisions, "invocation": "decision points"}
+    return {
+        "agent": agent,
+        "width": width,
+        "height": height,
+        "episodes": episodes,
+        "steps": len(steps),
+        **summary(compute),
+        "modules": modules,
+    }
+
+
+def traced_steps(traces: Iterable[dict[str, Any]]) -> tuple[list[dict[str, float]], int, int]:
+    """All timed steps, decision events and timed episodes in saved traces (traces without timings skipped)."""
+    steps: list[dict[str, float]] = []
+    decisions = episodes = 0
+    for trace in traces:
+        columns = trace.get("step_ms")
+        if not columns:
+            continue
+        steps.extend(from_columns(columns))
+        decisions += sum(event.get("kind") == DECISION_EVENT for event in trace.get("events", []))
+        episodes += 1
+    return steps, decisions, episodes
