@@ -16,7 +16,7 @@ from conftest import REPO, run_cli
 from drivenav.envs.base import SimConfig
 from drivenav.envs.library import SceneLibrary
 from drivenav.eval.episodes import generate_episodes, load_episodes, save_episodes
-from drivenav.eval.runner import RunSpec, evaluate, read_finished
+from drivenav.eval.runner import Executor, RunSpec, evaluate, read_finished
 
 RECORD_KEYS = {
     "episode_id",
@@ -87,7 +87,7 @@ def test_resume_skips_finished_and_workers_do_not_change_results(tmp_path: Path)
     evaluate(episodes, spec, serial, sim=sim, show_progress=False)  # resumes: runs only the last two
     evaluate(episodes, spec, serial, sim=sim, show_progress=False)  # nothing left to do
     parallel = tmp_path / "parallel"
-    evaluate(episodes, spec, parallel, workers=2, sim=sim, show_progress=False)
+    evaluate(episodes, spec, parallel, Executor(workers=2), sim=sim, show_progress=False)
     first = sorted(read_finished(serial / "episodes.jsonl"), key=lambda r: str(r["episode_id"]))
     second = sorted(read_finished(parallel / "episodes.jsonl"), key=lambda r: str(r["episode_id"]))
     assert [r["episode_id"] for r in first] == ["0", "1", "2", "3"]

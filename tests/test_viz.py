@@ -7,6 +7,7 @@ import itertools
 import json
 import logging
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -93,6 +94,28 @@ def test_no_video_when_not_asked(run_dir: Path, tmp_path: Path) -> None:
 def test_missing_episode_names_it(run_dir: Path, tmp_path: Path) -> None:
     with pytest.raises(InputError, match="no-such-episode"):
         render_episode_pictures(run_dir, "no-such-episode", tmp_path)
+
+
+def test_rerun_recording_has_the_streams(run_dir: Path, tmp_path: Path) -> None:
+    chunk = pytest.importorskip("rerun.chunk")
+    paths = render_episode_pictures(run_dir, "0", tmp_path, video=False, rerun=True)
+    assert [p.name for p in paths][-1] == "0.rrd"
+    rows: dict[str, int] = {}
+    for part in chunk.RrdReader(paths[-1]).stream().collect().stream():
+        rows[str(part.entity_path)] = rows.get(str(part.entity_path), 0) + part.num_rows
+    trace = _trace(run_dir)
+    for stream in ("camera/rgb", "camera/depth", "camera/semantic", "topdown"):
+        assert rows[f"/{stream}"] == len(trace)  # one image per pose (short episode: every step shown)
+    assert rows["/events"] == len(trace.events)
+    assert rows["/timings/directions.fmm"] == len(trace) - 1  # one latency per agent step
+    assert len(trace.step_ms["mapping"]) == len(trace) - 1
+
+
+def test_rerun_without_the_sdk_names_the_extra(run_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(sys.modules, "rerun", None)
+    with pytest.raises(InputError, match=r"\.\[rerun\]"):
+        render_episode_pictures(run_dir, "0", tmp_path, rerun=True)
+    assert not list(tmp_path.iterdir())  # nothing written before the error
 
 
 def test_trace_frames_agree(run_dir: Path) -> None:

@@ -12,9 +12,12 @@ import os
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from drivenav.errors import InputError
+
+if TYPE_CHECKING:
+    from drivenav.eval.runner import Executor
 
 # drivenav's numeric work is single-threaded by design (one core per worker); BLAS thread pools spinning on the
 # small matrix products of the embedded language model cost far more than they give. Set before numpy loads.
@@ -33,10 +36,26 @@ def _add_eval(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
     parser.add_argument("--episodes", required=True, help="a number of episodes to generate, or an episodes file")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", required=True, type=Path, help="run directory (rerun to resume)")
-    parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--max-steps", type=int, default=500)
+    _add_execution_options(parser)
     _add_model_options(parser)
     parser.set_defaults(handler=_cmd_eval)
+
+
+def _add_execution_options(parser: argparse.ArgumentParser) -> None:
+    from drivenav.eval.runner import EXECUTORS
+
+    parser.add_argument(
+        "--workers", type=int, default=None, help="parallel workers (default: 1 local, every CPU of a Ray cluster)"
+    )
+    parser.add_argument("--executor", default="local", choices=EXECUTORS, help="local processes or Ray tasks")
+    parser.add_argument("--ray-address", default=None, help="a Ray cluster (default: a private local instance)")
+
+
+def _executor(args: argparse.Namespace) -> Executor:
+    from drivenav.eval.runner import Executor
+
+    return Executor(args.executor, args.workers, args.ray_address)
 
 
 def _add_model_options(parser: argparse.ArgumentParser) -> None:
@@ -110,10 +129,10 @@ def _add_bench_ablations(sub: argparse._SubParsersAction[argparse.ArgumentParser
     parser.add_argument("--episodes", default=str(BENCHMARK_V1.episodes), help="a number to generate, or a file")
     parser.add_argument("--seed", type=int, default=BENCHMARK_V1.seed)
     parser.add_argument("--out", required=True, type=Path, help="output directory (rerun to resume)")
-    parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--methods", default=",".join(ALL_METHODS), help="comma-separated agent names")
     parser.add_argument("--scenes", default=BENCHMARK_V1.scenes, help="a --scenes SPEC (default: benchmark v1's)")
     parser.add_argument("--max-steps", type=int, default=500)
+    _add_execution_options(parser)
     _add_model_options(parser)
     parser.set_defaults(handler=_cmd_bench_ablations)
 
@@ -135,6 +154,7 @@ def _add_viz(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> N
     parser.add_argument("run_dir", type=Path)
     parser.add_argument("episode_id")
     parser.add_argument("--out", type=Path, default=None, help="output folder (default RUN_DIR/viz)")
+    parser.add_argument("--rerun", action="store_true", help="also a Rerun recording (.rrd) of the same streams")
     parser.set_defaults(handler=_cmd_viz)
 
 
@@ -192,7 +212,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     from drivenav.eval.runner import EPISODES_FILE, RunSpec, evaluate
 
     make_agent(args.agent, SimConfig())  # an unknown name fails before any work
-    _positive(args.workers, "--workers")
+    executor = _executor(args)
     _positive(args.max_steps, "--max-steps")
     models = _model_spec(args)
     _, episodes = _load_or_generate(args)
@@ -201,7 +221,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     if not episodes_copy.exists():
         save_episodes(episodes, episodes_copy)
     spec = RunSpec(args.agent, args.scenes, args.seed, args.max_steps, models)
-    summary = evaluate(episodes, spec, args.out, workers=args.workers, sim=SimConfig(max_steps=args.max_steps))
+    summary = evaluate(episodes, spec, args.out, executor, SimConfig(max_steps=args.max_steps))
     print(format_table(summary, f"{args.agent} on {args.scenes}"))
     print(f"results: {args.out / EPISODES_FILE}  summary: {args.out / 'summary.json'}")
     return 0
@@ -260,13 +280,13 @@ def _cmd_bench_ablations(args: argparse.Namespace) -> int:
     from drivenav.eval.runner import RunSpec
 
     methods = parse_methods(args.methods)
-    _positive(args.workers, "--workers")
+    executor = _executor(args)
     _positive(args.max_steps, "--max-steps")
     models = _model_spec(args)
     args.scenes = resolve_scenes(args.scenes)
     _, episodes = _load_or_generate(args)
     template = RunSpec(methods[0], args.scenes, args.seed, args.max_steps, models)
-    report = run_ablations(episodes, methods, template, args.out, args.workers)
+    report = run_ablations(episodes, methods, template, args.out, executor)
     for name, entry in report["methods"].items():
         print(f"{name:<20} SR {100 * entry['success_rate']:5.1f} %  SPL {100 * entry['spl']:5.1f} %")
     print(f"tables: {args.out / 'ablations.md'}  data: {args.out / 'ablations.json'}, {args.out / 'ablations.csv'}")
@@ -301,7 +321,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 def _cmd_viz(args: argparse.Namespace) -> int:
     from drivenav.viz.episode import render_episode_pictures
 
-    paths = render_episode_pictures(args.run_dir, args.episode_id, args.out)
+    paths = render_episode_pictures(args.run_dir, args.episode_id, args.out, rerun=args.rerun)
     for path in paths:
         print(path)
     return 0

@@ -26,7 +26,7 @@ from drivenav.errors import InputError
 from drivenav.eval.compare import compare, load_runs
 from drivenav.eval.episodes import generate_episodes, load_episodes, save_episodes
 from drivenav.eval.report import summarize
-from drivenav.eval.runner import RunSpec, evaluate, trace_path
+from drivenav.eval.runner import Executor, RunSpec, evaluate, trace_path
 from drivenav.eval.stats import BOOTSTRAP_RESAMPLES, bootstrap_mean_interval, wilson_interval
 from drivenav.eval.timings import runtime_table, traced_steps
 
@@ -131,7 +131,11 @@ def parse_methods(text: str) -> list[str]:
 
 
 def run_methods(
-    episodes: list[Episode], methods: Sequence[str], template: RunSpec, out: Path, workers: int = 1
+    episodes: list[Episode],
+    methods: Sequence[str],
+    template: RunSpec,
+    out: Path,
+    executor: Executor | None = None,
 ) -> dict[str, Path]:
     """Each method through :func:`evaluate` into ``out/runs/<method>/`` (finished episodes are skipped)."""
     _check_episode_set(episodes, out / EPISODES_COPY)
@@ -141,7 +145,7 @@ def run_methods(
         run_dir.mkdir(parents=True, exist_ok=True)
         if not (run_dir / EPISODES_COPY).exists():
             save_episodes(episodes, run_dir / EPISODES_COPY)  # for `drivenav viz`
-        evaluate(episodes, replace(template, agent=method), run_dir, workers=workers)
+        evaluate(episodes, replace(template, agent=method), run_dir, executor)
         dirs[method] = run_dir
     return dirs
 
@@ -269,10 +273,14 @@ def build_report(dirs: dict[str, Path], template: RunSpec, episodes: int) -> dic
 
 
 def run_ablations(
-    episodes: list[Episode], methods: Sequence[str], template: RunSpec, out: Path, workers: int = 1
+    episodes: list[Episode],
+    methods: Sequence[str],
+    template: RunSpec,
+    out: Path,
+    executor: Executor | None = None,
 ) -> dict[str, Any]:
     """Run (or resume) every method, then write ``ablations.json``, ``.md`` and ``.csv`` into ``out``."""
-    dirs = run_methods(episodes, methods, template, out, workers)
+    dirs = run_methods(episodes, methods, template, out, executor)
     report = build_report(dirs, template, len(episodes))
     (out / "ablations.json").write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
     (out / "ablations.md").write_text(format_markdown(report), encoding="utf-8")

@@ -56,6 +56,30 @@ class RunSpec:
     models: ModelSpec = field(default_factory=ModelSpec)
 
 
+@dataclass(frozen=True)
+class Executor:
+    """Where episodes run; records do not depend on it.
+
+    ``local``: in this process for one worker, else a pool of ``workers`` processes. ``ray``: ``workers`` Ray
+    actors (default: the cluster's CPUs) on a private local instance, or on the cluster at ``ray_address``.
+    """
+
+    kind: str = "local"
+    workers: int | None = None
+    ray_address: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.kind not in EXECUTORS:
+            raise InputError("command line", "--executor", " or ".join(EXECUTORS), self.kind)
+        if self.workers is not None and self.workers < 1:
+            raise InputError("command line", "--workers", "a positive integer", self.workers)
+        if self.ray_address is not None and self.kind != "ray":
+            raise InputError("command line", "--ray-address", "only with --executor ray", self.ray_address)
+
+
+EXECUTORS = ("local", "ray")
+
+
 def episode_seed(run_seed: int, episode_id: str) -> int:
     """Per-episode seed from the run seed and the episode id (stable across processes and platforms)."""
     return zlib.crc32(f"{run_seed}:{episode_id}".encode())
@@ -178,6 +202,7 @@ class _Worker:
 
     def __init__(self, spec: RunSpec, sim: SimConfig) -> None:
         self.spec = spec
+        self.sim = sim
         self.library = SceneLibrary(spec.scenes, spec.seed)
         self.env = EmbeddedEnv(self.library.load, sim)
         self.agent = make_agent(spec.agent, sim, spec.models)
@@ -197,6 +222,22 @@ def _init_worker(spec: RunSpec, sim: SimConfig) -> None:
 def _run_in_worker(episode: Episode) -> tuple[dict[str, Any], dict[str, Any]]:
     assert _WORKER is not None
     return _WORKER.run(episode)
+
+
+@dataclass(frozen=True)
+class _EpisodeTask:
+    """One episode for a process that may serve several runs (a Ray worker): the worker is rebuilt only when
+    the run changes."""
+
+    spec: RunSpec
+    sim: SimConfig
+    episode: Episode
+
+
+def _run_task(task: _EpisodeTask) -> tuple[dict[str, Any], dict[str, Any]]:
+    if _WORKER is None or (_WORKER.spec, _WORKER.sim) != (task.spec, task.sim):
+        _init_worker(task.spec, task.sim)
+    return _run_in_worker(task.episode)
 
 
 def read_finished(path: Path) -> list[dict[str, Any]]:
@@ -253,7 +294,7 @@ def evaluate(
     episodes: list[Episode],
     spec: RunSpec,
     out: Path,
-    workers: int = 1,
+    executor: Executor | None = None,
     sim: SimConfig | None = None,
     show_progress: bool = True,
 ) -> dict[str, Any]:
@@ -269,7 +310,7 @@ def evaluate(
     todo = [e for e in episodes if e.episode_id not in done]
     (out / TRACES_DIR).mkdir(exist_ok=True)
     with tqdm(total=len(todo), desc=spec.agent, unit="ep", disable=not show_progress, mininterval=1.0) as bar:
-        for record, trace in _run_all(todo, spec, sim, workers):
+        for record, trace in _run_all(todo, spec, sim, executor or Executor()):
             trace_path(out, record["episode_id"]).write_text(json.dumps(trace), encoding="utf-8")
             _append(results, record)
             bar.update(1)
@@ -279,11 +320,18 @@ def evaluate(
 
 
 def _run_all(
-    todo: list[Episode], spec: RunSpec, sim: SimConfig, workers: int
+    todo: list[Episode], spec: RunSpec, sim: SimConfig, executor: Executor
 ) -> Iterator[tuple[dict[str, Any], dict[str, Any]]]:
     if not todo:
         return
-    if workers <= 1:
+    if executor.kind == "ray":
+        from drivenav.eval.ray_executor import run_on_ray
+
+        tasks = [_EpisodeTask(spec, sim, episode) for episode in todo]
+        yield from run_on_ray(tasks, _run_task, executor.workers, executor.ray_address)
+        return
+    workers = executor.workers or 1
+    if workers == 1:
         worker = _Worker(spec, sim)
         for episode in todo:
             yield worker.run(episode)

@@ -25,6 +25,7 @@ from drivenav.errors import InputError
 from drivenav.eval.episodes import load_episodes
 from drivenav.eval.runner import EPISODES_FILE, RUN_FILE, read_finished, trace_path
 from drivenav.viz.coverage import explored_cells
+from drivenav.viz.rerun_log import import_rerun, write_rerun
 from drivenav.viz.saved_trace import SavedTrace
 from drivenav.viz.thumbnails import decision_views
 from drivenav.viz.topdown import draw_episode, save_png, stack
@@ -79,9 +80,14 @@ def _load_episode(run_dir: Path, episode_id: str) -> tuple[Scene, Episode, Saved
     return scene, episode, trace, records.get(episode_id)
 
 
-def render_episode_pictures(run_dir: Path, episode_id: str, out: Path | None = None, video: bool = True) -> list[Path]:
+def render_episode_pictures(
+    run_dir: Path, episode_id: str, out: Path | None = None, video: bool = True, rerun: bool = False
+) -> list[Path]:
     """Top-down map (with the last decisions' views), first/last egocentric views and, when ``video`` is set and
-    imageio-ffmpeg is installed, an MP4 of the episode; returns the written paths."""
+    imageio-ffmpeg is installed, an MP4 of the episode; with ``rerun``, also a Rerun recording (``.rrd``) of the
+    same streams. Returns the written paths."""
+    if rerun:
+        import_rerun()  # fail before any work without rerun-sdk
     scene, episode, trace, record = _load_episode(run_dir, episode_id)
     folder = out or run_dir / "viz"
     stem = trace_path(folder, episode_id).stem
@@ -96,4 +102,6 @@ def render_episode_pictures(run_dir: Path, episode_id: str, out: Path | None = N
         written.append(write_video(folder / f"{stem}.mp4", scene, episode, trace, sim))
     elif video:
         log.warning(VIDEO_HINT)
+    if rerun:
+        written.append(write_rerun(folder / f"{stem}.rrd", scene, episode, trace, sim))
     return written

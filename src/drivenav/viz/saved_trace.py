@@ -7,7 +7,7 @@ are in the episode frame and go to the world through the episode's start pose.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -26,6 +26,7 @@ class SavedTrace:
     yaws: NDArray[np.float64]
     segment_starts: tuple[int, ...]
     events: tuple[dict[str, Any], ...]
+    step_ms: dict[str, list[float]] = field(default_factory=dict)  # per module, one latency per step
 
     @staticmethod
     def from_json(data: dict[str, Any], episode: Episode) -> SavedTrace:
@@ -40,6 +41,7 @@ class SavedTrace:
             yaws=yaws,
             segment_starts=tuple(int(s) for s in data.get("segment_starts", ())),
             events=tuple(dict(e) for e in data.get("events", ())),
+            step_ms={str(k): [float(v) for v in values] for k, values in data.get("step_ms", {}).items()},
         )
 
     def __len__(self) -> int:

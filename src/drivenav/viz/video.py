@@ -11,6 +11,7 @@ import importlib.util
 import math
 from collections import defaultdict
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -58,7 +59,20 @@ def _even(n: int) -> int:
     return n + n % 2
 
 
-def _frames(scene: Scene, episode: Episode, trace: SavedTrace, sim: SimConfig) -> Iterator[NDArray[np.uint8]]:
+@dataclass(frozen=True)
+class StepFrame:
+    """What the episode looks like at one shown step: the egocentric images and the top-down panel."""
+
+    step: int
+    rgb: NDArray[np.uint8]
+    depth: NDArray[np.float32]
+    semantic: NDArray[np.int32]
+    panel: Image.Image
+
+
+def step_frames(scene: Scene, episode: Episode, trace: SavedTrace, sim: SimConfig) -> Iterator[StepFrame]:
+    """Every shown step (:func:`frame_steps`): views re-rendered from the trace pose, and the top-down map with
+    the trajectory and trace markers so far, the current view cone and a title line."""
     canvas = Canvas(scene, max_side=sim.height - HEADER)
     layer = draw_scene(scene, episode, canvas)
     draw = ImageDraw.Draw(layer)
@@ -68,7 +82,6 @@ def _frames(scene: Scene, episode: Episode, trace: SavedTrace, sim: SimConfig) -
         events[int(event.get("step", -1))].append(event)
     moves = trace.move_segments()
     count = len(trace.segments())
-    width = _even(sim.width + layer.width)
     shown = set(frame_steps(len(trace)))
     for step in range(len(trace)):
         if step > 0:
@@ -77,10 +90,9 @@ def _frames(scene: Scene, episode: Episode, trace: SavedTrace, sim: SimConfig) -
             draw_event(draw, canvas, trace, event)
         if step not in shown:
             continue
-        frame = Image.new("RGB", (width, _even(sim.height)), (255, 255, 255))
-        frame.paste(Image.fromarray(renderer.render(trace.pose(step))[0]), (0, 0))
-        panel = layer.copy()
         pose = trace.pose(step)
+        rgb, depth, semantic = renderer.render(pose)
+        panel = layer.copy()
         overlay = ImageDraw.Draw(panel)
         draw_view_cone(overlay, canvas, pose, math.radians(sim.hfov_deg), CURRENT_COLOR)
         draw_pose(overlay, canvas, (pose.x, pose.y), pose.yaw, CURRENT_COLOR)
@@ -90,7 +102,14 @@ def _frames(scene: Scene, episode: Episode, trace: SavedTrace, sim: SimConfig) -
             fill=(0, 0, 0),
             font=FONT,
         )
-        frame.paste(panel, (sim.width, 0))
+        yield StepFrame(step, rgb, depth, semantic, panel)
+
+
+def _frames(scene: Scene, episode: Episode, trace: SavedTrace, sim: SimConfig) -> Iterator[NDArray[np.uint8]]:
+    for shown in step_frames(scene, episode, trace, sim):
+        frame = Image.new("RGB", (_even(sim.width + shown.panel.width), _even(sim.height)), (255, 255, 255))
+        frame.paste(Image.fromarray(shown.rgb), (0, 0))
+        frame.paste(shown.panel, (sim.width, 0))
         yield np.asarray(frame)
 
 

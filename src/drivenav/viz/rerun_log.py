@@ -1,0 +1,63 @@
+"""An episode as a Rerun recording (``drivenav viz --rerun``; extra ``drivenav[rerun]``).
+
+The streams of the MP4, separately and on a ``step`` timeline: ``camera/rgb``, ``camera/depth`` (metres),
+``camera/semantic`` (instance ids), ``topdown`` (map, trajectory, trace markers, view cone), ``events`` (the
+trace's decisions, detections and stops as text) and ``timings/<module>`` (per-step module latency, ms, when the
+trace has it). The ``.rrd`` file opens in the Rerun viewer: ``rerun FILE.rrd``.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from drivenav.envs.base import SimConfig
+from drivenav.envs.episode import Episode
+from drivenav.envs.scene import Scene
+from drivenav.errors import InputError
+from drivenav.viz.saved_trace import SavedTrace
+from drivenav.viz.video import step_frames
+
+RERUN_HINT = 'Rerun logging needs rerun-sdk: pip install -e ".[rerun]"'
+EVENT_FIELDS_SKIPPED = ("kind", "step")
+
+
+def import_rerun() -> Any:
+    """The ``rerun`` module, or a clear error naming the extra to install."""
+    try:
+        import rerun
+    except ImportError:
+        raise InputError("command line", "--rerun", RERUN_HINT, "rerun-sdk (not installed)") from None
+    return rerun
+
+
+def event_text(event: dict[str, Any]) -> str:
+    """One trace event as a log line: its kind, then its fields."""
+    fields = {k: v for k, v in event.items() if k not in EVENT_FIELDS_SKIPPED}
+    return f"{event.get('kind', 'event')}: {json.dumps(fields, sort_keys=True)}"
+
+
+def write_rerun(path: Path, scene: Scene, episode: Episode, trace: SavedTrace, sim: SimConfig) -> Path:
+    """Write the episode's streams to ``path`` (an ``.rrd`` recording)."""
+    rr = import_rerun()
+    recording = rr.RecordingStream("drivenav", recording_id=f"{episode.scene_id}/{episode.episode_id}")
+    recording.save(str(path))
+    for module, values in sorted(trace.step_ms.items()):
+        for step, value in enumerate(values):
+            recording.set_time("step", sequence=step)
+            recording.log(f"timings/{module}", rr.Scalars(float(value)))
+    for event in trace.events:
+        recording.set_time("step", sequence=int(event.get("step", 0)))
+        recording.log("events", rr.TextLog(event_text(event)))
+    for frame in step_frames(scene, episode, trace, sim):
+        recording.set_time("step", sequence=frame.step)
+        recording.log("camera/rgb", rr.Image(frame.rgb))
+        recording.log("camera/depth", rr.DepthImage(frame.depth, meter=1.0))
+        recording.log("camera/semantic", rr.SegmentationImage(np.clip(frame.semantic, 0, 65535).astype(np.uint16)))
+        recording.log("topdown", rr.Image(np.asarray(frame.panel)))
+    recording.flush()
+    recording.disconnect()
+    return path
