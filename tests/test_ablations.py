@@ -105,12 +105,29 @@ def test_bench_ablations_writes_tables_and_resumes(tmp_path: Path) -> None:
     for heading in ("Table VI", "Table V:", "Table II", "Table VII", "Failure causes", "orderings differ"):
         assert heading in markdown
     assert "| ✓ | ✓ | ✓ | ✓ | `drive-nav` |" in markdown
+    pictures = report["pictures"]["episodes"]
+    assert len(pictures) == 2 and all(
+        list(by_method) == ["drive-nav", "nearest-frontier"] for by_method in pictures.values()
+    )
+    for by_method in pictures.values():
+        for path in by_method.values():
+            assert (out / path).stat().st_size > 0 and f"]({path})" in markdown
+    assert report["pictures"]["video"] == "pictures/drive-nav/0.mp4" and (out / "pictures/drive-nav/0.mp4").exists()
     before = {d: (out / "runs" / d / "episodes.jsonl").read_text() for d in _line_counts(out)}
     episodes_file = str(out / "episodes.json.gz")
     rerun = ["bench", "ablations", *TINY, *MODELS, "--out", str(out), "--episodes", episodes_file]
     assert main(rerun) == 0  # the same episodes from the file: everything is finished already
     assert _line_counts(out) == {"drive-nav": 2, "nearest-frontier": 2}
     assert {d: (out / "runs" / d / "episodes.jsonl").read_text() for d in before} == before
+
+
+def test_bench_ablations_without_pictures(tmp_path: Path) -> None:
+    out = tmp_path / "ablations"
+    args = ["bench", "ablations", *TINY, *MODELS, "--methods", "nearest-frontier", "--pictures", "0"]
+    assert main([*args, "--out", str(out)]) == 0
+    assert not (out / "pictures").exists()
+    assert "None drawn" in (out / "ablations.md").read_text()
+    assert main([*args, "--pictures", "-1", "--out", str(out)]) == 2
 
 
 def test_bench_ablations_refuses_another_episode_set(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -132,6 +132,7 @@ def _add_bench_ablations(sub: argparse._SubParsersAction[argparse.ArgumentParser
     parser.add_argument("--methods", default=",".join(ALL_METHODS), help="comma-separated agent names")
     parser.add_argument("--scenes", default=BENCHMARK_V1.scenes, help="a --scenes SPEC (default: benchmark v1's)")
     parser.add_argument("--max-steps", type=int, default=500)
+    parser.add_argument("--pictures", type=int, default=2, help="episodes drawn for the report (0: none)")
     _add_execution_options(parser)
     _add_model_options(parser)
     parser.set_defaults(handler=_cmd_bench_ablations)
@@ -286,7 +287,9 @@ def _cmd_bench_ablations(args: argparse.Namespace) -> int:
     args.scenes = resolve_scenes(args.scenes)
     _, episodes = _load_or_generate(args)
     template = RunSpec(methods[0], args.scenes, args.seed, args.max_steps, models)
-    report = run_ablations(episodes, methods, template, args.out, executor)
+    if args.pictures < 0:
+        raise InputError("command line", "--pictures", "a number of episodes >= 0", args.pictures)
+    report = run_ablations(episodes, methods, template, args.out, executor, args.pictures)
     for name, entry in report["methods"].items():
         print(f"{name:<20} SR {100 * entry['success_rate']:5.1f} %  SPL {100 * entry['spl']:5.1f} %")
     print(f"tables: {args.out / 'ablations.md'}  data: {args.out / 'ablations.json'}, {args.out / 'ablations.csv'}")

@@ -25,6 +25,7 @@ from drivenav.envs.rosmap import default_shared_maps_dir
 from drivenav.errors import InputError
 from drivenav.eval.compare import compare, load_runs
 from drivenav.eval.episodes import generate_episodes, load_episodes, save_episodes
+from drivenav.eval.pictures import render_pictures
 from drivenav.eval.report import summarize
 from drivenav.eval.runner import Executor, RunSpec, evaluate, trace_path
 from drivenav.eval.stats import BOOTSTRAP_RESAMPLES, bootstrap_mean_interval, wilson_interval
@@ -111,6 +112,7 @@ TABLE_VII_PAPER = (
     "episode; prompt enrichment ~3 s, sparse; cross-frame verification ~3 s, up to 3 frames"
 )
 
+TABLE_II_METHODS = tuple(row.method for row in TABLE_II)
 ALL_METHODS = tuple(dict.fromkeys(row.method for row in (*TABLE_VI, *TABLE_V, *TABLE_II)))
 FAILURE_CAUSES = ("false_positive_stop", "missed_target", "timeout", "no_frontier", "target_never_seen")
 RUNS_DIR = "runs"
@@ -278,10 +280,20 @@ def run_ablations(
     template: RunSpec,
     out: Path,
     executor: Executor | None = None,
+    pictures: int = 2,
 ) -> dict[str, Any]:
-    """Run (or resume) every method, then write ``ablations.json``, ``.md`` and ``.csv`` into ``out``."""
+    """Run (or resume) every method, then write ``ablations.json``, ``.md`` and ``.csv`` into ``out``, and the
+    top-down pictures of ``pictures`` episodes for the Table II methods (else the first methods)."""
     dirs = run_methods(episodes, methods, template, out, executor)
     report = build_report(dirs, template, len(episodes))
+    table_ii_first = sorted(dirs, key=lambda name: name not in TABLE_II_METHODS)
+    report["pictures"] = render_pictures(
+        {name: dirs[name] for name in table_ii_first},
+        load_runs(dirs),
+        [e.episode_id for e in episodes],
+        pictures,
+        out,
+    )
     (out / "ablations.json").write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
     (out / "ablations.md").write_text(format_markdown(report), encoding="utf-8")
     write_csv(report, out / "ablations.csv")
@@ -338,8 +350,29 @@ def format_markdown(report: dict[str, Any]) -> str:
         _table_vii(report["runtime"]),
         _failures(report["methods"]),
         _orderings(report),
+        _pictures(report.get("pictures")),
     ]
     return "\n\n".join("\n".join(lines) for lines in sections) + "\n"
+
+
+def _pictures(pictures: dict[str, Any] | None) -> list[str]:
+    lines = ["## Pictures", ""]
+    if not pictures or not pictures["episodes"]:
+        return [*lines, "None drawn (`--pictures 0`, or no episode finished by every method)."]
+    lines.append(
+        "The same episodes for each method (`drivenav viz` top-down maps: path by segment, decisions, "
+        "representative views, detections, goal); Table II episodes first."
+    )
+    for episode_id, by_method in pictures["episodes"].items():
+        lines.extend(["", f"Episode `{episode_id}`:", ""])
+        lines.append("| " + " | ".join(f"`{m}`" for m in by_method) + " |")
+        lines.append("|" + "---|" * len(by_method))
+        lines.append("| " + " | ".join(f"![{m}]({path})" for m, path in by_method.items()) + " |")
+    if pictures["video"]:
+        lines.extend(
+            ["", f"Video (egocentric view beside the map, step by step): [{pictures['video']}]({pictures['video']})"]
+        )
+    return lines
 
 
 def _pct(value: float, interval: list[float]) -> str:
