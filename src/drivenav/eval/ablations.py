@@ -141,14 +141,16 @@ def run_methods(
 ) -> dict[str, Path]:
     """Each method through :func:`evaluate` into ``out/runs/<method>/`` (finished episodes are skipped)."""
     _check_episode_set(episodes, out / EPISODES_COPY)
+    executor = executor or Executor()
     dirs = {}
-    for method in methods:
-        run_dir = out / RUNS_DIR / method
-        run_dir.mkdir(parents=True, exist_ok=True)
-        if not (run_dir / EPISODES_COPY).exists():
-            save_episodes(episodes, run_dir / EPISODES_COPY)  # for `drivenav viz`
-        evaluate(episodes, replace(template, agent=method), run_dir, executor)
-        dirs[method] = run_dir
+    with executor.session():
+        for method in methods:
+            run_dir = out / RUNS_DIR / method
+            run_dir.mkdir(parents=True, exist_ok=True)
+            if not (run_dir / EPISODES_COPY).exists():
+                save_episodes(episodes, run_dir / EPISODES_COPY)  # for `drivenav viz`
+            evaluate(episodes, replace(template, agent=method), run_dir, executor)
+            dirs[method] = run_dir
     return dirs
 
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from typing import Any, TypeVar
 
 from drivenav.errors import InputError
@@ -48,11 +49,7 @@ def run_on_ray(
     """
     if not items:
         return
-    ray = import_ray()
-    started_here = not ray.is_initialized()
-    if started_here:
-        _init(ray, workers, address)
-    try:
+    with ray_session(workers, address) as ray:
         limit = workers or max(1, int(ray.cluster_resources().get("CPU", 1)))
         task = ray.remote(num_cpus=1, max_retries=0)(function)
         queue = iter(items)
@@ -62,6 +59,18 @@ def run_on_ray(
             result: Result = ray.get(ready)
             pending.extend(task.remote(item) for item in itertools.islice(queue, 1))
             yield result
+
+
+@contextmanager
+def ray_session(workers: int | None, address: str | None) -> Iterator[Any]:
+    """The ``ray`` module, connected: Ray is started (or joined at ``address``) unless it already is, and then
+    stopped on leaving; an enclosing session makes the runs inside it share one connection."""
+    ray = import_ray()
+    started_here = not ray.is_initialized()
+    if started_here:
+        _init(ray, workers, address)
+    try:
+        yield ray
     finally:
         if started_here:
             ray.shutdown()

@@ -15,6 +15,7 @@ import traceback
 import zlib
 from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from contextlib import AbstractContextManager, nullcontext
 from dataclasses import asdict, dataclass, field
 from multiprocessing import get_context
 from pathlib import Path
@@ -75,6 +76,14 @@ class Executor:
             raise InputError("command line", "--workers", "a positive integer", self.workers)
         if self.ray_address is not None and self.kind != "ray":
             raise InputError("command line", "--ray-address", "only with --executor ray", self.ray_address)
+
+    def session(self) -> AbstractContextManager[object]:
+        """Around several runs: one Ray connection for all of them (nothing to hold for local runs)."""
+        if self.kind != "ray":
+            return nullcontext()
+        from drivenav.eval.ray_executor import ray_session
+
+        return ray_session(self.workers, self.ray_address)
 
 
 EXECUTORS = ("local", "ray")
