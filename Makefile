@@ -5,6 +5,7 @@ PYTHON ?= python3
 DEMO_OUT ?= demo-output
 ABLATIONS_OUT ?= ablations
 WORKERS ?= 2
+ABLATIONS_ARGS ?=
 
 .PHONY: demo test lint install dev clean ablations
 
@@ -28,8 +29,9 @@ demo: $(VENV)/.installed
 	$(VENV)/bin/drivenav demo --out $(DEMO_OUT)
 
 # The paper's tables on benchmark v1, all nine methods, with pictures (about 85 min on 2 cores; rerun resumes).
+# A quick look: make ablations ABLATIONS_OUT=quick ABLATIONS_ARGS="--episodes 4 --max-steps 100"
 ablations: $(VENV)/.installed
-	$(VENV)/bin/drivenav bench ablations --out $(ABLATIONS_OUT) --workers $(WORKERS)
+	$(VENV)/bin/drivenav bench ablations --out $(ABLATIONS_OUT) --workers $(WORKERS) $(ABLATIONS_ARGS)
 
 lint: $(VENV)/.dev-installed
 	$(VENV)/bin/ruff check src tests
