@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import os
+from drivenav.threads import limit_blas_threads
 
-for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # before numpy loads
-    os.environ.setdefault(_variable, "1")
+limit_blas_threads()  # before numpy loads
 
 import subprocess
 import sys

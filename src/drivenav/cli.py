@@ -8,21 +8,18 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import os
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from drivenav.errors import InputError
+from drivenav.threads import limit_blas_threads
 
 if TYPE_CHECKING:
     from drivenav.eval.runner import Executor
 
-# drivenav's numeric work is single-threaded by design (one core per worker); BLAS thread pools spinning on the
-# small matrix products of the embedded language model cost far more than they give. Set before numpy loads.
-for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_variable, "1")
+limit_blas_threads()  # before numpy loads
 
 Handler = Callable[[argparse.Namespace], int]
 

@@ -18,11 +18,10 @@ from contextlib import contextmanager
 from typing import Any, TypeVar
 
 from drivenav.errors import InputError
+from drivenav.threads import single_thread_env
 
 Item = TypeVar("Item")
 Result = TypeVar("Result")
-# Model back-ends use BLAS for small matrices: one thread per worker, as the CLI sets for local runs.
-SINGLE_THREAD_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 
 def import_ray() -> Any:
@@ -80,7 +79,7 @@ def _init(ray: Any, workers: int | None, address: str | None) -> None:
     options: dict[str, Any] = {
         "include_dashboard": False,
         "log_to_driver": False,
-        "runtime_env": {"env_vars": SINGLE_THREAD_ENV},
+        "runtime_env": {"env_vars": single_thread_env()},
     }
     if address is None:
         options["num_cpus"] = workers or None
