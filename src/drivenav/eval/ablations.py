@@ -23,7 +23,7 @@ from drivenav.envs.episode import Episode
 from drivenav.envs.library import SceneLibrary
 from drivenav.envs.rosmap import default_shared_maps_dir
 from drivenav.errors import InputError
-from drivenav.eval.compare import compare, load_runs
+from drivenav.eval.compare import compare_runs, load_runs
 from drivenav.eval.episodes import generate_episodes, load_episodes, save_episodes
 from drivenav.eval.pictures import render_pictures
 from drivenav.eval.report import summarize
@@ -259,13 +259,14 @@ def git_commit() -> str | None:
     return result.stdout.strip() or None
 
 
-def build_report(dirs: dict[str, Path], template: RunSpec, episodes: int) -> dict[str, Any]:
-    """The ``ablations.json`` payload for the finished runs in ``dirs``."""
-    runs = load_runs(dirs)
-    table_ii_methods = [row.method for row in TABLE_II if row.method in dirs]
+def build_report(
+    dirs: dict[str, Path], runs: dict[str, dict[str, dict[str, Any]]], template: RunSpec, episodes: int
+) -> dict[str, Any]:
+    """The ``ablations.json`` payload for the finished runs in ``dirs`` (their records: ``runs``)."""
+    table_ii_methods = [name for name in TABLE_II_METHODS if name in dirs]
     return {
         "methods": {name: method_entry(list(records.values())) for name, records in runs.items()},
-        "table_ii": compare({name: dirs[name] for name in table_ii_methods}),
+        "table_ii": compare_runs({name: runs[name] for name in table_ii_methods}),
         "runtime": measure_runtime(runs, dirs),
         "episodes": episodes,
         "seed": template.seed,
@@ -287,15 +288,11 @@ def run_ablations(
     """Run (or resume) every method, then write ``ablations.json``, ``.md`` and ``.csv`` into ``out``, and the
     top-down pictures of ``pictures`` episodes for the Table II methods (else the first methods)."""
     dirs = run_methods(episodes, methods, template, out, executor)
-    report = build_report(dirs, template, len(episodes))
+    runs = load_runs(dirs)
+    report = build_report(dirs, runs, template, len(episodes))
     table_ii_first = sorted(dirs, key=lambda name: name not in TABLE_II_METHODS)
-    report["pictures"] = render_pictures(
-        {name: dirs[name] for name in table_ii_first},
-        load_runs(dirs),
-        [e.episode_id for e in episodes],
-        pictures,
-        out,
-    )
+    order = [e.episode_id for e in episodes]
+    report["pictures"] = render_pictures({name: dirs[name] for name in table_ii_first}, runs, order, pictures, out)
     (out / "ablations.json").write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
     (out / "ablations.md").write_text(format_markdown(report), encoding="utf-8")
     write_csv(report, out / "ablations.csv")

@@ -29,7 +29,13 @@ def common_successes(runs: dict[str, dict[str, dict[str, Any]]], min_distance: f
 
 def compare(run_dirs: dict[str, Path], min_distance: float = TABLE_II_MIN_DISTANCE) -> dict[str, Any]:
     """Overall summaries and the common-success subset's average steps and revisits per method."""
-    runs = load_runs(run_dirs)
+    return compare_runs(load_runs(run_dirs), min_distance)
+
+
+def compare_runs(
+    runs: dict[str, dict[str, dict[str, Any]]], min_distance: float = TABLE_II_MIN_DISTANCE
+) -> dict[str, Any]:
+    """:func:`compare` on records already loaded."""
     common = common_successes(runs, min_distance)
     table = {}
     for name, records in runs.items():

@@ -61,8 +61,9 @@ class RunSpec:
 class Executor:
     """Where episodes run; records do not depend on it.
 
-    ``local``: in this process for one worker, else a pool of ``workers`` processes. ``ray``: ``workers`` Ray
-    actors (default: the cluster's CPUs) on a private local instance, or on the cluster at ``ray_address``.
+    ``local``: in this process for one worker, else a pool of ``workers`` processes. ``ray``: up to ``workers``
+    Ray tasks at a time (default: the cluster's CPUs) on a private local instance, or on the cluster at
+    ``ray_address``.
     """
 
     kind: str = "local"
@@ -211,7 +212,6 @@ class _Worker:
 
     def __init__(self, spec: RunSpec, sim: SimConfig) -> None:
         self.spec = spec
-        self.sim = sim
         self.library = SceneLibrary(spec.scenes, spec.seed)
         self.env = EmbeddedEnv(self.library.load, sim)
         self.agent = make_agent(spec.agent, sim, spec.models)
@@ -244,7 +244,7 @@ class _EpisodeTask:
 
 
 def _run_task(task: _EpisodeTask) -> tuple[dict[str, Any], dict[str, Any]]:
-    if _WORKER is None or (_WORKER.spec, _WORKER.sim) != (task.spec, task.sim):
+    if _WORKER is None or (_WORKER.spec, _WORKER.env.config) != (task.spec, task.sim):
         _init_worker(task.spec, task.sim)
     return _run_in_worker(task.episode)
 
