@@ -280,12 +280,12 @@ def _cmd_bench_ablations(args: argparse.Namespace) -> int:
     methods = parse_methods(args.methods)
     executor = _executor(args)
     _positive(args.max_steps, "--max-steps")
+    if args.pictures < 0:
+        raise InputError("command line", "--pictures", "a number of episodes >= 0", args.pictures)
     models = _model_spec(args)
     args.scenes = resolve_scenes(args.scenes)
     _, episodes = _load_or_generate(args)
     template = RunSpec(methods[0], args.scenes, args.seed, args.max_steps, models)
-    if args.pictures < 0:
-        raise InputError("command line", "--pictures", "a number of episodes >= 0", args.pictures)
     report = run_ablations(episodes, methods, template, args.out, executor, args.pictures)
     for name, entry in report["methods"].items():
         print(f"{name:<20} SR {100 * entry['success_rate']:5.1f} %  SPL {100 * entry['spl']:5.1f} %")
