@@ -6,11 +6,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from drivenav.envs.base import SimConfig
 from drivenav.envs.episode import Episode, world_to_habitat, yaw_to_quaternion
 from drivenav.envs.scene import Material, ObjectInstance, Scene
 from drivenav.eval.episodes import scene_goals
 from drivenav.grid import GridSpec
+from drivenav.types import SimConfig
 
 RES = 0.05
 Rect = tuple[float, float, float, float]  # xmin, ymin, xmax, ymax in metres

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from drivenav.envs.base import CameraIntrinsics, Observation, Pose
 from drivenav.semantics.embedded_detector import EmbeddedDetectorConfig, EmbeddedGrounder, stable_hash
 from drivenav.semantics.embedding import default_embedder
 from drivenav.semantics.protocols import Detection, Grounder
+from drivenav.types import CameraIntrinsics, Observation, Pose
 
 H, W = 120, 160
 LABELS = {1: "sofa", 2: "chair", 3: "armchair", 4: "toilet", 5: "tv"}

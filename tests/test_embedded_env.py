@@ -8,11 +8,11 @@ import pickle
 import numpy as np
 import pytest
 
-from drivenav.envs.base import Action, Pose, SimConfig
 from drivenav.envs.embedded import EmbeddedEnv
 from drivenav.envs.episode import Episode, world_to_habitat, yaw_to_quaternion
 from drivenav.envs.scene import Material, ObjectInstance, Scene
 from drivenav.grid import GridSpec
+from drivenav.types import Action, Pose, SimConfig
 
 
 def hall_scene(scene_id: str) -> Scene:

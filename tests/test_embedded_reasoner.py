@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from drivenav.envs.base import Pose
 from drivenav.semantics.embedded import EmbeddedReasoner, EmbeddedReasonerConfig, label_areas
 from drivenav.semantics.embedding import default_embedder
 from drivenav.semantics.protocols import Candidate, Reasoner, VerificationFrame, View
+from drivenav.types import Pose
 
 H, W = 480, 640
 LABELS = {1: "sofa", 2: "lamp", 3: "toilet", 4: "chair", 5: "mini fridge", 6: "pillow", 7: "couch", 8: "tv"}

@@ -13,10 +13,10 @@ from pathlib import Path
 import pytest
 
 from conftest import REPO, run_cli
-from drivenav.envs.base import SimConfig
 from drivenav.envs.library import SceneLibrary
 from drivenav.eval.episodes import generate_episodes, load_episodes, save_episodes
 from drivenav.eval.runner import Executor, RunSpec, evaluate, read_finished
+from drivenav.types import SimConfig
 
 RECORD_KEYS = {
     "episode_id",

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from drivenav.envs.base import CameraIntrinsics, Observation, Pose
 from drivenav.semantics.ground_truth import GroundTruthGrounder, category_key
 from drivenav.semantics.protocols import Grounder
+from drivenav.types import CameraIntrinsics, Observation, Pose
 
 H, W = 60, 80
 LABELS = {1: "sofa", 2: "Couch", 3: "tv", 4: "sofa", 5: "potted plant", 9: "sofa"}  # 9 is not in the image

@@ -41,12 +41,12 @@ from transformers.models.sam3.configuration_sam3 import (
     Sam3ViTConfig,
 )
 
-from drivenav.envs.base import CameraIntrinsics, Observation, Pose
 from drivenav.errors import InputError
 from drivenav.semantics.hf_common import fit_phrase, load_local, pick_device
 from drivenav.semantics.owlv2_grounder import FilledBoxSegmenter, Owlv2Grounder
 from drivenav.semantics.protocols import Detection, Grounder
 from drivenav.semantics.sam3_grounder import Sam3Grounder
+from drivenav.types import CameraIntrinsics, Observation, Pose
 
 H, W = 48, 64  # the frame; both models see a square image of SAM3_SIZE / OWL_SIZE pixels
 SAM3_SIZE = 56  # 4 x 4 patches of 14 pixels

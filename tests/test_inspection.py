@@ -11,7 +11,6 @@ from hypothesis import strategies as st
 
 from drivenav.config import InspectionConfig
 from drivenav.directions.types import Direction
-from drivenav.envs.base import Action, CameraIntrinsics, Observation, Pose
 from drivenav.grid import wrap_angle
 from drivenav.inspection import (
     RepresentativeViews,
@@ -21,6 +20,7 @@ from drivenav.inspection import (
     sweep_turns,
     turn_toward,
 )
+from drivenav.types import Action, CameraIntrinsics, Observation, Pose
 
 TURN = math.radians(30.0)
 FORWARD = InspectionConfig()

@@ -7,12 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from drivenav.envs.base import CameraIntrinsics, Pose, SimConfig
 from drivenav.grid import GridSpec
 from drivenav.mapping.config import MappingConfig
 from drivenav.mapping.frontiers import extract_frontiers, frontier_cells
 from drivenav.mapping.occupancy import OccupancyMapper
 from drivenav.mapping.synthetic import BoxWorld, room, wall
+from drivenav.types import CameraIntrinsics, Pose, SimConfig
 
 GRID = GridSpec(0.05, (0.0, 0.0), (100, 100))
 SMALL = CameraIntrinsics.from_hfov(320, 240, 79.0)

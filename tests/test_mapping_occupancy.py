@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from drivenav.envs.base import CameraIntrinsics, Pose, SimConfig
 from drivenav.mapping.config import MappingConfig
 from drivenav.mapping.occupancy import OccupancyMapper, disk_offsets
 from drivenav.mapping.synthetic import Box3, BoxWorld
 from drivenav.mapping.types import MapSnapshot
+from drivenav.types import CameraIntrinsics, Pose, SimConfig
 
 SIM = SimConfig()
 K = SIM.intrinsics  # 640 x 480, hfov 79 deg: f = 320 / tan(39.5 deg) = 388.19, cx = 319.5, cy = 239.5

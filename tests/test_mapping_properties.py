@@ -9,10 +9,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from drivenav.envs.base import CameraIntrinsics, Pose
 from drivenav.mapping.config import MappingConfig
 from drivenav.mapping.occupancy import OccupancyMapper
 from drivenav.mapping.synthetic import Box3, BoxWorld
+from drivenav.types import CameraIntrinsics, Pose
 
 K = CameraIntrinsics.from_hfov(32, 24, 79.0)
 CONFIG = MappingConfig(initial_size=6.0, growth_margin=1.0, pixel_stride=1)

@@ -7,12 +7,12 @@ import math
 import numpy as np
 from scipy import ndimage
 
-from drivenav.envs.base import Pose, SimConfig
 from drivenav.envs.render import Renderer
 from drivenav.envs.scene import Material, ObjectInstance, Scene
 from drivenav.grid import GridSpec
 from drivenav.mapping.config import MappingConfig
 from drivenav.mapping.occupancy import OccupancyMapper
+from drivenav.types import Pose, SimConfig
 
 SIM = SimConfig(width=320, height=240)
 

@@ -9,9 +9,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from drivenav.envs.base import Action, Pose, SimConfig
 from drivenav.envs.motion import apply_action, forward_step, is_navigable, turn
 from drivenav.grid import GridSpec
+from drivenav.types import Action, Pose, SimConfig
 
 RES = 0.05
 GRID = GridSpec(RES, (0.0, 0.0), (80, 80))  # 4 m x 4 m

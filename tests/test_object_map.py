@@ -8,13 +8,13 @@ import warnings
 import numpy as np
 import pytest
 
-from drivenav.envs.base import CameraIntrinsics, Observation, Pose, SimConfig
 from drivenav.envs.render import render_views
 from drivenav.envs.scene import Material, ObjectInstance, Room, Scene
 from drivenav.grid import GridSpec
 from drivenav.mapping.kernels import project_depth
 from drivenav.mapping.objects import ObjectMap, nearest_point, project_mask
 from drivenav.semantics.ground_truth import GroundTruthGrounder
+from drivenav.types import CameraIntrinsics, Observation, Pose, SimConfig
 
 # A toy pinhole: pixel (v, u) = (30, 40) is on the optical axis; one pixel is 1/40 rad-ish at unit depth.
 INTR = CameraIntrinsics(width=81, height=61, fx=40.0, fy=40.0, cx=40.0, cy=30.0)

@@ -15,7 +15,6 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from drivenav.envs.base import Pose
 from drivenav.errors import InputError
 from drivenav.semantics.answers import AnswerError, extract_json_object, parse_proposal, parse_selection, parse_verdict
 from drivenav.semantics.fake_vlm_server import fake_stats, start_fake_server
@@ -23,6 +22,7 @@ from drivenav.semantics.geometric import GeometricReasoner
 from drivenav.semantics.openai_backend import OpenAIReasoner, fallback_phrase
 from drivenav.semantics.protocols import Candidate, Reasoner, VerificationFrame, View
 from drivenav.semantics.replay import RecordingReasoner
+from drivenav.types import Pose
 
 GOAL = "chair"
 MODEL = "fake-vlm"

@@ -15,7 +15,6 @@ from drivenav.agent.planner import LocalPlanner, heading_error, reached
 from drivenav.config import DriveNavConfig
 from drivenav.directions.pipeline import DirectionPipeline
 from drivenav.directions.synthetic import extract_frontiers, make_snapshot, rect
-from drivenav.envs.base import Action, Pose, SimConfig
 from drivenav.envs.embedded import EmbeddedEnv
 from drivenav.envs.episode import Episode, world_to_habitat, yaw_to_quaternion
 from drivenav.envs.motion import turn
@@ -23,6 +22,7 @@ from drivenav.envs.procedural import generate_house
 from drivenav.mapping.config import MappingConfig
 from drivenav.mapping.occupancy import OccupancyMapper
 from drivenav.mapping.types import Frontier, MapSnapshot
+from drivenav.types import Action, Pose, SimConfig
 
 RES = 0.05
 DEG = math.pi / 180.0

@@ -10,12 +10,12 @@ from typing import Any
 import pytest
 
 from conftest import run_cli
-from drivenav.envs.base import SimConfig
 from drivenav.envs.library import SceneLibrary
 from drivenav.errors import InputError
 from drivenav.eval.episodes import generate_episodes, save_episodes
 from drivenav.eval.ray_executor import import_ray
 from drivenav.eval.runner import EPISODES_FILE, Executor, RunSpec, evaluate, read_finished
+from drivenav.types import SimConfig
 
 SEED = 11
 SPEC = RunSpec("random", "procedural:2", SEED, 40)

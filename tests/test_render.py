@@ -10,11 +10,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from drivenav.envs import palette
-from drivenav.envs.base import Pose, SimConfig
 from drivenav.envs.bench import bench_sim, demo_house
 from drivenav.envs.render import Renderer
 from drivenav.envs.scene import Material, ObjectInstance, Room, Scene
 from drivenav.grid import GridSpec
+from drivenav.types import Pose, SimConfig
 
 CFG = SimConfig()
 INTR = CFG.intrinsics

@@ -18,7 +18,6 @@ from PIL import Image
 from scipy import ndimage
 
 from drivenav.envs import placement
-from drivenav.envs.base import SimConfig
 from drivenav.envs.rosmap import (
     default_shared_maps_dir,
     find_map_yaml,
@@ -35,6 +34,7 @@ from drivenav.envs.rosmap import (
 from drivenav.envs.scene import Material, ObjectInstance, Room, Scene
 from drivenav.errors import InputError
 from drivenav.grid import GridSpec
+from drivenav.types import SimConfig
 
 F, W, U = int(Material.FREE), int(Material.WALL), int(Material.UNKNOWN)
 

@@ -6,9 +6,9 @@ import numpy as np
 
 from drivenav.agent.target import SearchConfig, TargetSearch
 from drivenav.agent.trace import Trace
-from drivenav.envs.base import CameraIntrinsics, Observation, Pose, SimConfig
 from drivenav.semantics.embedded import EmbeddedReasoner
 from drivenav.semantics.protocols import Detection, SemanticLabels, View
+from drivenav.types import CameraIntrinsics, Observation, Pose, SimConfig
 
 SIM = SimConfig()
 INTR = CameraIntrinsics.from_hfov(64, 48, 79.0)

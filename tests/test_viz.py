@@ -14,13 +14,13 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from drivenav.envs.base import SimConfig
 from drivenav.envs.library import SceneLibrary
 from drivenav.errors import InputError
 from drivenav.eval.episodes import generate_episodes, load_episodes, save_episodes
 from drivenav.eval.runner import RunSpec, evaluate, trace_path
 from drivenav.grid import wrap_angle
 from drivenav.semantics.registry import ModelSpec
+from drivenav.types import SimConfig
 from drivenav.viz import episode as viz_episode
 from drivenav.viz.coverage import explored_cells
 from drivenav.viz.episode import render_episode_pictures

@@ -188,9 +188,9 @@ def _positive(value: int, option: str) -> int:
 
 
 def _load_or_generate(args: argparse.Namespace) -> tuple[Any, list[Any]]:
-    from drivenav.envs.base import SimConfig
     from drivenav.envs.library import SceneLibrary
     from drivenav.eval.episodes import generate_episodes, load_episodes, validate_for_scenes
+    from drivenav.types import SimConfig
 
     library = SceneLibrary(args.scenes, args.seed)
     sim = SimConfig(max_steps=args.max_steps)
@@ -204,10 +204,10 @@ def _load_or_generate(args: argparse.Namespace) -> tuple[Any, list[Any]]:
 
 def _cmd_eval(args: argparse.Namespace) -> int:
     from drivenav.agent.registry import make_agent
-    from drivenav.envs.base import SimConfig
     from drivenav.eval.episodes import save_episodes
     from drivenav.eval.report import format_table
     from drivenav.eval.runner import EPISODES_FILE, RunSpec, evaluate
+    from drivenav.types import SimConfig
 
     make_agent(args.agent, SimConfig())  # an unknown name fails before any work
     executor = _executor(args)
@@ -226,9 +226,9 @@ def _cmd_eval(args: argparse.Namespace) -> int:
 
 
 def _cmd_episodes_generate(args: argparse.Namespace) -> int:
-    from drivenav.envs.base import SimConfig
     from drivenav.envs.library import SceneLibrary
     from drivenav.eval.episodes import generate_episodes, save_episodes
+    from drivenav.types import SimConfig
 
     library = SceneLibrary(args.scenes, args.seed)
     episodes = generate_episodes(library, _positive(args.num, "--num"), args.seed, SimConfig())

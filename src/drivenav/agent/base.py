@@ -15,10 +15,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivenav.agent.trace import StopEvent, Trace
-from drivenav.envs.base import Action, Observation, Pose, SimConfig
 from drivenav.envs.scene import Scene
 from drivenav.eval.geodesic import GeodesicField
 from drivenav.semantics.protocols import SemanticLabels
+from drivenav.types import Action, Observation, Pose, SimConfig
 
 
 @dataclass(frozen=True)

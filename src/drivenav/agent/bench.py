@@ -11,12 +11,12 @@ from typing import Any
 import numba
 
 from drivenav.agent.registry import make_agent
-from drivenav.envs.base import SimConfig
 from drivenav.envs.embedded import EmbeddedEnv
 from drivenav.envs.library import SceneLibrary
 from drivenav.eval.episodes import generate_episodes
 from drivenav.eval.runner import run_episode
 from drivenav.eval.timings import DECISION_EVENT, runtime_table
+from drivenav.types import SimConfig
 
 
 def bench_agent(

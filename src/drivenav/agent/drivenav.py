@@ -34,7 +34,6 @@ from drivenav.agent.target import SearchConfig, TargetSearch
 from drivenav.agent.trace import DirectionSelected, InspectionStarted, ScanStarted, ViewCaptured
 from drivenav.config import DriveNavConfig
 from drivenav.directions import Direction, DirectionPipeline, DirectionResult
-from drivenav.envs.base import Action, Observation, Pose, SimConfig
 from drivenav.grid import wrap_angle
 from drivenav.inspection import RepresentativeViews, full_scan_turns, needs_inspection, plan_sweep, turn_toward
 from drivenav.mapping.config import MappingConfig
@@ -44,6 +43,7 @@ from drivenav.mapping.types import Frontier, MapSnapshot
 from drivenav.semantics.geometric import GeometricReasoner
 from drivenav.semantics.ground_truth import GroundTruthGrounder
 from drivenav.semantics.protocols import Candidate, Grounder, Reasoner, Selection, SemanticLabels, View
+from drivenav.types import Action, Observation, Pose, SimConfig
 
 Point = tuple[float, float]
 REPLAN_SHIFT = 0.3  # metres the approach goal may move before this step's path is re-planned

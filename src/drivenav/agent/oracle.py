@@ -10,8 +10,8 @@ from __future__ import annotations
 import math
 
 from drivenav.agent.base import Agent, PrivilegedInfo
-from drivenav.envs.base import Action, Observation
 from drivenav.envs.motion import forward_step
+from drivenav.types import Action, Observation
 
 KEEP_HEADING_SLACK = 0.01  # metres: keep the heading if its step ends this close to the best step
 COLLISION_PENALTY = 0.02  # metres: prefer a clean step over sliding along a wall when both progress alike

@@ -36,8 +36,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivenav.directions.bearings import circle_crossing
-from drivenav.envs.base import Action, Pose, SimConfig
 from drivenav.grid import wrap_angle
+from drivenav.types import Action, Pose, SimConfig
 
 OWN_CELL = 0.1  # metres of a sight line ignored next to the robot (its own cell may lie in the inflation band)
 FreeSpace = Callable[[float, float], bool]

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from drivenav.agent.base import Agent
-from drivenav.envs.base import Action, Observation
 from drivenav.semantics.protocols import SemanticLabels
+from drivenav.types import Action, Observation
 
 FORWARD_PROBABILITY = 0.6
 

@@ -11,9 +11,9 @@ from drivenav.agent.drivenav import AgentConfig, DriveNavAgent
 from drivenav.agent.oracle import OracleAgent
 from drivenav.agent.random_agent import RandomAgent
 from drivenav.config import DriveNavConfig
-from drivenav.envs.base import SimConfig
 from drivenav.errors import InputError
 from drivenav.semantics.registry import ModelSpec, make_grounder, make_reasoner
+from drivenav.types import SimConfig
 
 _PAPER = DriveNavConfig()
 

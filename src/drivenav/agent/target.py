@@ -19,9 +19,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivenav.agent.trace import DetectionEvent, TargetAccepted, TargetRejected, Trace, VerificationEvent
-from drivenav.envs.base import Observation, SimConfig
 from drivenav.mapping.objects import ObjectCandidate, ObjectMap, project_mask
 from drivenav.semantics.protocols import Detection, Grounder, Reasoner, VerificationFrame, View
+from drivenav.types import Observation, SimConfig
 
 FRAME_SPACING_STEPS = 3  # steps between two verification frames of a candidate (distinct approach views)
 OVERLAY_COLOR = np.array([255, 0, 0], dtype=np.float32)

@@ -1,120 +1,85 @@
-"""The environment interface: observations, actions, and the simulator settings (Habitat ObjectNav defaults).
+"""The world protocol: what the runner needs from the embedded simulator, Habitat or a robot bridge.
 
-Frames. The *world* frame of a scene is the 2-D map frame (x east, y north, metres; yaw counter-clockwise from
-+x). The *episode* frame, in which observations report the pose, has its origin at the episode's start position,
-its +x axis along the start heading and +y to the left, yaw counter-clockwise from the start heading: Habitat's
-GPS+compass, made right-handed (Habitat's GPS reports ``(forward, right)``; an adapter negates the second
-component).
+A world is built in each worker process from a picklable :class:`EnvSpec`. It moves the agent, renders, and owns
+its measures: at the end of an episode it reports the Habitat metrics it can compute (:class:`EpisodeMeasures`;
+``None`` where it has no ground truth, never 0). Ground truth for agents (:class:`~drivenav.types.GroundTruth`)
+is opt-in: a world lists what it can provide, an agent what it needs, and the runner hands over only that.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
-from enum import IntEnum
 from typing import TYPE_CHECKING, Protocol
 
-import numpy as np
-from numpy.typing import NDArray
+from drivenav.types import Action, GroundTruth, Observation, Pose, SimConfig
 
 if TYPE_CHECKING:
     from drivenav.envs.episode import Episode
 
 
-class Action(IntEnum):
-    """Discrete actions, numbered as in Habitat's ObjectNav task."""
-
-    STOP = 0
-    MOVE_FORWARD = 1
-    TURN_LEFT = 2
-    TURN_RIGHT = 3
-
-
 @dataclass(frozen=True)
-class Pose:
-    """A planar pose: position in metres and yaw in radians (counter-clockwise)."""
+class EpisodeMeasures:
+    """The world's metrics for one finished episode (Habitat's measure names); ``None``: not measurable here.
 
-    x: float
-    y: float
-    yaw: float
-
-    def compose(self, local: Pose) -> Pose:
-        """``self * local``: the pose ``local`` (given in this pose's frame) in the parent frame."""
-        c, s = math.cos(self.yaw), math.sin(self.yaw)
-        return Pose(
-            self.x + c * local.x - s * local.y,
-            self.y + s * local.x + c * local.y,
-            self.yaw + local.yaw,
-        )
-
-    def inverse(self) -> Pose:
-        """The pose of the parent frame's origin in this pose's frame."""
-        c, s = math.cos(self.yaw), math.sin(self.yaw)
-        return Pose(-c * self.x - s * self.y, s * self.x - c * self.y, -self.yaw)
-
-
-@dataclass(frozen=True)
-class CameraIntrinsics:
-    """Pinhole intrinsics in pixels. The camera looks along the agent's heading, level with the floor."""
-
-    width: int
-    height: int
-    fx: float
-    fy: float
-    cx: float
-    cy: float
-
-    @staticmethod
-    def from_hfov(width: int, height: int, hfov_deg: float) -> CameraIntrinsics:
-        """Square pixels with the given horizontal field of view (Habitat's convention)."""
-        f = (width / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
-        return CameraIntrinsics(width, height, f, f, (width - 1) / 2.0, (height - 1) / 2.0)
-
-
-@dataclass(frozen=True)
-class SimConfig:
-    """Simulator settings; defaults follow the Habitat ObjectNav set-up the paper uses."""
-
-    width: int = 640
-    height: int = 480
-    hfov_deg: float = 79.0
-    camera_height: float = 0.88
-    min_depth: float = 0.5
-    max_depth: float = 5.0
-    agent_radius: float = 0.18
-    agent_height: float = 0.88
-    forward_step: float = 0.25
-    turn_angle_deg: float = 30.0
-    max_steps: int = 500
-    success_distance: float = 0.25
-    grid_resolution: float = 0.05
-
-    @property
-    def intrinsics(self) -> CameraIntrinsics:
-        return CameraIntrinsics.from_hfov(self.width, self.height, self.hfov_deg)
-
-
-@dataclass(frozen=True)
-class Observation:
-    """One egocentric observation.
-
-    ``rgb`` is (H, W, 3) uint8; ``depth`` is (H, W) float32 z-depth in metres clipped to
-    ``[min_depth, max_depth]``; ``semantic`` is (H, W) int32 instance ids (0 = none) or None where the world
-    has no ground truth; ``pose`` is in the episode frame.
+    ``target_seen`` says whether a goal instance was clearly in view at some step (ground truth, used only to
+    tell a missed target from a target never seen in the failure analysis).
     """
 
-    rgb: NDArray[np.uint8]
-    depth: NDArray[np.float32]
-    semantic: NDArray[np.int32] | None
-    pose: Pose
-    intrinsics: CameraIntrinsics
-    step: int
-    collided: bool
+    success: int | None = None
+    spl: float | None = None
+    distance_to_goal: float | None = None
+    path_length: float | None = None
+    geodesic_distance: float | None = None
+    collisions: int | None = None
+    target_seen: bool | None = None
 
 
 class Env(Protocol):
     """What every world implements: the embedded simulator, Habitat, a robot bridge."""
 
-    def reset(self, episode: Episode) -> Observation: ...
+    @property
+    def config(self) -> SimConfig:
+        """The sensor and body settings the world runs with."""
+        ...
 
-    def step(self, action: Action) -> Observation: ...
+    def reset(self, episode: Episode) -> Observation:
+        """Start ``episode``: place the agent and return the first observation."""
+        ...
+
+    def step(self, action: Action) -> Observation:
+        """Apply one action (STOP included: it ends the episode for the measures)."""
+        ...
+
+    def world_pose(self) -> Pose:
+        """The agent's pose in the world's own frame (scene map, Habitat's, the robot's odometry frame)."""
+        ...
+
+    def measures(self) -> EpisodeMeasures:
+        """The metrics of the episode so far (called once, after its last step)."""
+        ...
+
+    def ground_truth(self, kinds: frozenset[str]) -> GroundTruth:
+        """Privileged information of the current episode, only the ``kinds`` asked for (see ``provides``)."""
+        ...
+
+    def close(self) -> None:
+        """Release the world's resources (simulator, sockets)."""
+        ...
+
+
+class EnvSpec(Protocol):
+    """A picklable recipe for a world, sent to every worker process (or Ray task) that builds one."""
+
+    @property
+    def name(self) -> str:
+        """The world's ``--env`` name."""
+        ...
+
+    @property
+    def provides(self) -> frozenset[str]:
+        """The privileged inputs (:data:`~drivenav.types.PRIVILEGED_KINDS`) this world can give agents."""
+        ...
+
+    def build(self, sim: SimConfig) -> Env:
+        """A fresh world with these sensor and body settings."""
+        ...

@@ -10,10 +10,10 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.envs.base import Pose, SimConfig
 from drivenav.envs.render import Renderer
 from drivenav.envs.scene import Material, ObjectInstance, Room, Scene
 from drivenav.grid import GridSpec
+from drivenav.types import Pose, SimConfig
 
 Box = tuple[float, float, float, float]
 

@@ -20,12 +20,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.envs.base import Action, Observation, Pose, SimConfig
 from drivenav.envs.episode import Episode
 from drivenav.envs.motion import forward_step, is_navigable
 from drivenav.envs.render import Images, Renderer
 from drivenav.envs.scene import Scene
 from drivenav.grid import wrap_angle
+from drivenav.types import Action, Observation, Pose, SimConfig
 
 _DEFAULT_CONFIG = SimConfig()
 

@@ -14,8 +14,8 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.envs.base import Action, Pose, SimConfig
 from drivenav.grid import GridSpec, wrap_angle
+from drivenav.types import Action, Pose, SimConfig
 
 
 def is_navigable(navigable: NDArray[np.bool_], grid: GridSpec, x: float, y: float) -> bool:

@@ -23,11 +23,11 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
-from drivenav.envs.base import SimConfig
 from drivenav.envs.scene import Material, ObjectInstance, Scene
 from drivenav.envs.vocabulary import VOCABULARY, CategorySpec, PlacementStyle, Vocabulary
 from drivenav.errors import InputError
 from drivenav.grid import GridSpec, wrap_angle
+from drivenav.types import SimConfig
 
 _AGENT = SimConfig()
 _GAP = 0.5  # cells between an object and the wall it stands against

@@ -29,8 +29,8 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from drivenav.envs import palette
-from drivenav.envs.base import Pose, SimConfig
 from drivenav.envs.scene import Material, Scene
+from drivenav.types import Pose, SimConfig
 
 Images = tuple[NDArray[np.uint8], NDArray[np.float32], NDArray[np.int32]]
 

@@ -18,7 +18,6 @@ from pathlib import Path
 from typing import Any
 
 from drivenav.agent.registry import agent_names
-from drivenav.envs.base import SimConfig
 from drivenav.envs.episode import Episode
 from drivenav.envs.library import SceneLibrary
 from drivenav.envs.rosmap import default_shared_maps_dir
@@ -30,6 +29,7 @@ from drivenav.eval.report import summarize
 from drivenav.eval.runner import Executor, RunSpec, evaluate, trace_path
 from drivenav.eval.stats import BOOTSTRAP_RESAMPLES, bootstrap_mean_interval, wilson_interval
 from drivenav.eval.timings import runtime_table, traced_steps
+from drivenav.types import SimConfig
 
 # ----------------------------------------------------------------------------------------------- the benchmark
 

@@ -20,7 +20,6 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.envs.base import SimConfig
 from drivenav.envs.episode import (
     Episode,
     ObjectGoal,
@@ -35,6 +34,7 @@ from drivenav.envs.scene import Scene
 from drivenav.errors import InputError
 from drivenav.eval.geodesic import GeodesicField, largest_component
 from drivenav.eval.goals import object_goal
+from drivenav.types import SimConfig
 
 MIN_GEODESIC = 1.0  # metres, start to nearest view point
 MAX_GEODESIC = 30.0

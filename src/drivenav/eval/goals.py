@@ -13,9 +13,9 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.envs.base import SimConfig
 from drivenav.envs.episode import ObjectGoal, ViewPoint, world_to_habitat, yaw_to_quaternion
 from drivenav.envs.scene import Material, ObjectInstance, Scene
+from drivenav.types import SimConfig
 
 VIEW_POINT_RADIUS = 1.0  # metres from the object footprint (Habitat ObjectNav view points)
 VIEW_POINT_SPACING = 0.2  # metres between view points: 0.25 m discs around them cover the view region

@@ -27,7 +27,6 @@ from tqdm import tqdm
 
 from drivenav.agent.base import Agent, PrivilegedInfo
 from drivenav.agent.registry import make_agent
-from drivenav.envs.base import Action, Observation, SimConfig
 from drivenav.envs.embedded import EmbeddedEnv
 from drivenav.envs.episode import Episode
 from drivenav.envs.library import SceneLibrary
@@ -37,6 +36,7 @@ from drivenav.eval.geodesic import GeodesicField, largest_component
 from drivenav.eval.report import summarize
 from drivenav.eval.timings import to_columns
 from drivenav.semantics.registry import ModelSpec
+from drivenav.types import Action, Observation, SimConfig
 
 log = logging.getLogger(__name__)
 

@@ -21,8 +21,8 @@ import math
 from collections.abc import Sequence
 from itertools import pairwise
 
-from drivenav.envs.base import Action
 from drivenav.grid import wrap_angle
+from drivenav.types import Action
 
 ANGLE_EPS = 1e-9
 """Radians of float slack on every angular comparison (turn sums never land exactly on a tolerance)."""

@@ -13,9 +13,9 @@ from collections.abc import Iterable, Sequence
 
 from drivenav.config import InspectionConfig
 from drivenav.directions.types import Direction
-from drivenav.envs.base import Observation
 from drivenav.inspection.sweep import signed_offset, within
 from drivenav.semantics.protocols import View
+from drivenav.types import Observation
 
 
 class RepresentativeViews:

@@ -8,10 +8,10 @@ from typing import TypedDict
 
 import numpy as np
 
-from drivenav.envs.base import CameraIntrinsics, Pose, SimConfig
 from drivenav.mapping.config import MappingConfig
 from drivenav.mapping.occupancy import OccupancyMapper
 from drivenav.mapping.synthetic import Box3, BoxWorld, room, wall
+from drivenav.types import CameraIntrinsics, Pose, SimConfig
 
 
 class BenchResult(TypedDict):

@@ -7,7 +7,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from drivenav.envs.base import SimConfig
+from drivenav.types import SimConfig
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.envs.base import CameraIntrinsics, Pose
+from drivenav.types import CameraIntrinsics, Pose
 
 Points = NDArray[np.float64]
 Status = Literal["candidate", "accepted", "rejected"]

@@ -32,12 +32,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.envs.base import CameraIntrinsics, Pose
 from drivenav.grid import GridSpec
 from drivenav.mapping.config import MappingConfig
 from drivenav.mapping.frontiers import component_at, extract_frontiers, nearest_in
 from drivenav.mapping.kernels import cast_rays, project_depth, stamp
 from drivenav.mapping.types import Frontier, MapSnapshot
+from drivenav.types import CameraIntrinsics, Pose
 
 Mask = NDArray[np.bool_]
 Box = tuple[int, int, int, int]  # row0, row1, col0, col1 (half-open)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.envs.base import CameraIntrinsics, Pose
+from drivenav.types import CameraIntrinsics, Pose
 
 
 @dataclass(frozen=True)

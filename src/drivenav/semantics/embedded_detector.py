@@ -41,11 +41,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.envs.base import Observation
 from drivenav.semantics.embedded import instance_areas, normalize_phrase
 from drivenav.semantics.embedding import TextEmbedder, default_embedder
 from drivenav.semantics.ground_truth import category_key
 from drivenav.semantics.protocols import Detection, SemanticLabels
+from drivenav.types import Observation
 
 
 def _sigmoid(x: float) -> float:

@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from drivenav.envs.base import Observation
 from drivenav.envs.vocabulary import canonical_category
 from drivenav.semantics.protocols import Detection, SemanticLabels
+from drivenav.types import Observation
 
 
 def category_key(name: str) -> str:

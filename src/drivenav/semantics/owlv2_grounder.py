@@ -17,9 +17,9 @@ import numpy as np
 from numpy.typing import NDArray
 from PIL import Image
 
-from drivenav.envs.base import Observation
 from drivenav.semantics.hf_common import fit_phrase, load_pair, pick_device, ranked_detections, run_model
 from drivenav.semantics.protocols import Detection, SemanticLabels
+from drivenav.types import Observation
 
 OWLV2_EXPECTED = "a local OWLv2 checkpoint directory or a model id in the Hugging Face cache"
 

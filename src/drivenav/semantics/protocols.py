@@ -13,7 +13,7 @@ from typing import Literal, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.envs.base import Observation, Pose
+from drivenav.types import Observation, Pose
 
 
 @dataclass(frozen=True)

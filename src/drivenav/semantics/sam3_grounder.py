@@ -14,9 +14,9 @@ from typing import Any
 
 from PIL import Image
 
-from drivenav.envs.base import Observation
 from drivenav.semantics.hf_common import fit_phrase, load_pair, pick_device, ranked_detections, run_model
 from drivenav.semantics.protocols import Detection, SemanticLabels
+from drivenav.types import Observation
 
 SAM3_EXPECTED = "a local SAM3 checkpoint directory or a model id in the Hugging Face cache"
 

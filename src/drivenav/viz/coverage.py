@@ -13,8 +13,8 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.envs.base import SimConfig
 from drivenav.envs.scene import Material, Scene
+from drivenav.types import SimConfig
 from drivenav.viz.saved_trace import SavedTrace
 
 RAYS_PER_RADIAN = 100  # at 5 m, neighbouring rays are 5 cm apart: one cell

@@ -5,11 +5,11 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from drivenav.envs.base import SimConfig
 from drivenav.envs.library import SceneLibrary
 from drivenav.eval.episodes import generate_episodes, save_episodes
 from drivenav.eval.report import format_table
 from drivenav.eval.runner import EPISODES_FILE, RunSpec, evaluate, read_finished
+from drivenav.types import SimConfig
 from drivenav.viz.episode import render_episode_pictures
 
 DEMO_SCENES = "procedural:2"

@@ -16,7 +16,6 @@ import numpy as np
 from numpy.typing import NDArray
 from PIL import Image
 
-from drivenav.envs.base import Pose, SimConfig
 from drivenav.envs.episode import Episode
 from drivenav.envs.library import SceneLibrary
 from drivenav.envs.render import Renderer
@@ -24,6 +23,7 @@ from drivenav.envs.scene import Scene
 from drivenav.errors import InputError
 from drivenav.eval.episodes import load_episodes
 from drivenav.eval.runner import EPISODES_FILE, RUN_FILE, read_finished, trace_path
+from drivenav.types import Pose, SimConfig
 from drivenav.viz.coverage import explored_cells
 from drivenav.viz.rerun_log import import_rerun, write_rerun
 from drivenav.viz.saved_trace import SavedTrace

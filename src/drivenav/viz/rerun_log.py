@@ -14,10 +14,10 @@ from typing import Any
 
 import numpy as np
 
-from drivenav.envs.base import SimConfig
 from drivenav.envs.episode import Episode
 from drivenav.envs.scene import Scene
 from drivenav.errors import InputError
+from drivenav.types import SimConfig
 from drivenav.viz.saved_trace import SavedTrace
 from drivenav.viz.video import step_frames
 

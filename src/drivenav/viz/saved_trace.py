@@ -13,8 +13,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.envs.base import Pose
 from drivenav.envs.episode import Episode
+from drivenav.types import Pose
 
 Point = tuple[float, float]
 

@@ -16,10 +16,10 @@ import numpy as np
 from numpy.typing import NDArray
 from PIL import Image, ImageDraw, ImageFont
 
-from drivenav.envs.base import Pose
 from drivenav.envs.episode import Episode
 from drivenav.envs.palette import category_color
 from drivenav.envs.scene import Material, Scene
+from drivenav.types import Pose
 from drivenav.viz.directions import label_color
 from drivenav.viz.saved_trace import Point, SavedTrace
 

@@ -19,10 +19,10 @@ import numpy as np
 from numpy.typing import NDArray
 from PIL import Image, ImageDraw
 
-from drivenav.envs.base import SimConfig
 from drivenav.envs.episode import Episode
 from drivenav.envs.render import Renderer
 from drivenav.envs.scene import Scene
+from drivenav.types import SimConfig
 from drivenav.viz.saved_trace import SavedTrace
 from drivenav.viz.topdown import (
     FONT,

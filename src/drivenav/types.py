@@ -1,0 +1,161 @@
+"""The types every layer shares: actions, poses, camera intrinsics, the sensor/agent body and observations.
+
+Neutral ground between the algorithmic core (``mapping``, ``directions``, ``inspection``, ``semantics``, ``agent``)
+and the worlds (``envs``): both import these, neither imports the other.
+
+Frames. The *world* frame of a scene is the 2-D map frame (x east, y north, metres; yaw counter-clockwise from
++x). The *episode* frame, in which observations report the pose, has its origin at the episode's start position,
+its +x axis along the start heading and +y to the left, yaw counter-clockwise from the start heading: Habitat's
+GPS+compass, made right-handed (Habitat's GPS reports ``(forward, right)``; an adapter negates the second
+component).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from enum import IntEnum
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+
+class Action(IntEnum):
+    """Discrete actions, numbered as in Habitat's ObjectNav task."""
+
+    STOP = 0
+    MOVE_FORWARD = 1
+    TURN_LEFT = 2
+    TURN_RIGHT = 3
+
+
+@dataclass(frozen=True)
+class Pose:
+    """A planar pose: position in metres and yaw in radians (counter-clockwise)."""
+
+    x: float
+    y: float
+    yaw: float
+
+    def compose(self, local: Pose) -> Pose:
+        """``self * local``: the pose ``local`` (given in this pose's frame) in the parent frame."""
+        c, s = math.cos(self.yaw), math.sin(self.yaw)
+        return Pose(
+            self.x + c * local.x - s * local.y,
+            self.y + s * local.x + c * local.y,
+            self.yaw + local.yaw,
+        )
+
+    def inverse(self) -> Pose:
+        """The pose of the parent frame's origin in this pose's frame."""
+        c, s = math.cos(self.yaw), math.sin(self.yaw)
+        return Pose(-c * self.x - s * self.y, s * self.x - c * self.y, -self.yaw)
+
+
+@dataclass(frozen=True)
+class CameraIntrinsics:
+    """Pinhole intrinsics in pixels. The camera looks along the agent's heading, level with the floor."""
+
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+
+    @staticmethod
+    def from_hfov(width: int, height: int, hfov_deg: float) -> CameraIntrinsics:
+        """Square pixels with the given horizontal field of view (Habitat's convention)."""
+        f = (width / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
+        return CameraIntrinsics(width, height, f, f, (width - 1) / 2.0, (height - 1) / 2.0)
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Simulator settings; defaults follow the Habitat ObjectNav set-up the paper uses."""
+
+    width: int = 640
+    height: int = 480
+    hfov_deg: float = 79.0
+    camera_height: float = 0.88
+    min_depth: float = 0.5
+    max_depth: float = 5.0
+    agent_radius: float = 0.18
+    agent_height: float = 0.88
+    forward_step: float = 0.25
+    turn_angle_deg: float = 30.0
+    max_steps: int = 500
+    success_distance: float = 0.25
+    grid_resolution: float = 0.05
+
+    @property
+    def intrinsics(self) -> CameraIntrinsics:
+        return CameraIntrinsics.from_hfov(self.width, self.height, self.hfov_deg)
+
+
+@dataclass(frozen=True)
+class Observation:
+    """One egocentric observation.
+
+    ``rgb`` is (H, W, 3) uint8; ``depth`` is (H, W) float32 z-depth in metres clipped to
+    ``[min_depth, max_depth]``; ``semantic`` is (H, W) int32 instance ids (0 = none) or None where the world
+    has no ground truth; ``pose`` is in the episode frame.
+    """
+
+    rgb: NDArray[np.uint8]
+    depth: NDArray[np.float32]
+    semantic: NDArray[np.int32] | None
+    pose: Pose
+    intrinsics: CameraIntrinsics
+    step: int
+    collided: bool
+
+
+SEMANTIC = "semantic"  # instance ids of the visible pixels and what each instance is
+GEODESIC = "geodesic"  # the geodesic distance to the goals and the world's motion model
+PRIVILEGED_KINDS = (SEMANTIC, GEODESIC)
+
+
+class GeodesicOracle(Protocol):
+    """Ground-truth geometry of one episode (``geodesic``): what the oracle agent plans with."""
+
+    @property
+    def start_pose(self) -> Pose:
+        """The episode's start pose in the world frame."""
+        ...
+
+    def distance(self, x: float, y: float) -> float:
+        """Geodesic distance from a world-frame point to the nearest goal (the success metric's own)."""
+        ...
+
+    def forward(self, x: float, y: float, yaw: float) -> tuple[float, float, bool]:
+        """Where a forward step from ``(x, y)`` along ``yaw`` ends, and whether it collides."""
+        ...
+
+
+class CategoryVocabulary(Protocol):
+    """The world's category names (``semantic``): what a phrase names, and a category's synonyms."""
+
+    def canonical(self, name: str) -> str | None:
+        """The category a name or synonym stands for, or None where the vocabulary does not know it."""
+        ...
+
+    def synonyms(self, category: str) -> tuple[str, ...]:
+        """Other names of a category returned by :meth:`canonical`."""
+        ...
+
+
+@dataclass(frozen=True)
+class GroundTruth:
+    """Privileged information for the agents (and stand-in models) that ask for it.
+
+    ``labels`` and ``vocabulary`` (``semantic``): instance id -> category name, for the ids in
+    :attr:`Observation.semantic`, and the world's category names; ``geodesic`` (``geodesic``): the episode's
+    geometry for the oracle.
+    """
+
+    labels: Mapping[int, str] | None = None
+    vocabulary: CategoryVocabulary | None = None
+    geodesic: GeodesicOracle | None = None
