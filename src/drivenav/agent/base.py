@@ -15,8 +15,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivenav.agent.trace import StopEvent, Trace
+from drivenav.envs.geodesic import GeodesicField
 from drivenav.envs.scene import Scene
-from drivenav.eval.geodesic import GeodesicField
 from drivenav.semantics.protocols import SemanticLabels
 from drivenav.types import Action, Observation, Pose, SimConfig
 

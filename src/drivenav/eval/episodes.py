@@ -29,10 +29,10 @@ from drivenav.envs.episode import (
     world_to_habitat,
     yaw_to_quaternion,
 )
+from drivenav.envs.geodesic import GeodesicField, largest_component
 from drivenav.envs.library import SceneLibrary
 from drivenav.envs.scene import Scene
 from drivenav.errors import InputError
-from drivenav.eval.geodesic import GeodesicField, largest_component
 from drivenav.eval.goals import object_goal
 from drivenav.types import SimConfig
 

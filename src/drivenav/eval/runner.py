@@ -29,10 +29,10 @@ from drivenav.agent.base import Agent, PrivilegedInfo
 from drivenav.agent.registry import make_agent
 from drivenav.envs.embedded import EmbeddedEnv
 from drivenav.envs.episode import Episode
+from drivenav.envs.geodesic import GeodesicField, largest_component
 from drivenav.envs.library import SceneLibrary
 from drivenav.errors import InputError
 from drivenav.eval import metrics
-from drivenav.eval.geodesic import GeodesicField, largest_component
 from drivenav.eval.report import summarize
 from drivenav.eval.timings import to_columns
 from drivenav.semantics.registry import ModelSpec
