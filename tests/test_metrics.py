@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from drivenav.eval import metrics
+from drivenav import metrics
 
 
 def test_success_needs_stop_and_distance() -> None:

@@ -187,15 +187,27 @@ def _positive(value: int, option: str) -> int:
     return value
 
 
+MAX_EPISODES = 1_000_000  # more episodes than any benchmark split: a typo, not a run
+
+
+def _seed(value: int) -> int:
+    if value < 0:
+        raise InputError("command line", "--seed", "an integer >= 0", value)
+    return value
+
+
 def _load_or_generate(args: argparse.Namespace) -> tuple[Any, list[Any]]:
     from drivenav.envs.library import SceneLibrary
     from drivenav.eval.episodes import generate_episodes, load_episodes, validate_for_scenes
     from drivenav.types import SimConfig
 
-    library = SceneLibrary(args.scenes, args.seed)
+    library = SceneLibrary(args.scenes, _seed(args.seed))
     sim = SimConfig(max_steps=args.max_steps)
     if str(args.episodes).isdigit():
-        episodes = generate_episodes(library, _positive(int(args.episodes), "--episodes"), args.seed, sim)
+        count = _positive(int(args.episodes), "--episodes")
+        if count > MAX_EPISODES:
+            raise InputError("command line", "--episodes", f"a number of episodes up to {MAX_EPISODES:,}", count)
+        episodes = generate_episodes(library, count, args.seed, sim)
     else:
         episodes = load_episodes(args.episodes)
         validate_for_scenes(episodes, library, args.episodes, sim)
@@ -203,25 +215,27 @@ def _load_or_generate(args: argparse.Namespace) -> tuple[Any, list[Any]]:
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
-    from drivenav.agent.registry import make_agent
-    from drivenav.eval.episodes import save_episodes
+    from drivenav.envs.embedded import EmbeddedSpec
     from drivenav.eval.report import format_table
-    from drivenav.eval.runner import EPISODES_FILE, RunSpec, evaluate
+    from drivenav.eval.rundir import EPISODES_FILE, SUMMARY_FILE, make_directory
+    from drivenav.eval.runner import RunSpec, build_agent, check_world_supports, evaluate
     from drivenav.types import SimConfig
 
-    make_agent(args.agent, SimConfig())  # an unknown name fails before any work
     executor = _executor(args)
-    _positive(args.max_steps, "--max-steps")
-    models = _model_spec(args)
+    spec = RunSpec(
+        EmbeddedSpec(args.scenes, _seed(args.seed)),
+        args.agent,
+        args.seed,
+        _positive(args.max_steps, "--max-steps"),
+        _model_spec(args),
+        SimConfig(max_steps=args.max_steps),
+    )
+    check_world_supports(spec, build_agent(spec))  # an unknown or unsuitable agent fails before any work
+    make_directory(args.out)
     _, episodes = _load_or_generate(args)
-    args.out.mkdir(parents=True, exist_ok=True)
-    episodes_copy = args.out / "episodes.json.gz"
-    if not episodes_copy.exists():
-        save_episodes(episodes, episodes_copy)
-    spec = RunSpec(args.agent, args.scenes, args.seed, args.max_steps, models)
-    summary = evaluate(episodes, spec, args.out, executor, SimConfig(max_steps=args.max_steps))
+    summary = evaluate(episodes, spec, args.out, executor)
     print(format_table(summary, f"{args.agent} on {args.scenes}"))
-    print(f"results: {args.out / EPISODES_FILE}  summary: {args.out / 'summary.json'}")
+    print(f"results: {args.out / EPISODES_FILE}  summary: {args.out / SUMMARY_FILE}")
     return 0
 
 

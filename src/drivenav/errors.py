@@ -29,3 +29,18 @@ class InputError(Exception):
 def _short(value: object, limit: int = 80) -> str:
     text = repr(value)
     return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+class WorkerDiedError(Exception):
+    """A worker process died mid-run (killed, out of memory): the run stops; a rerun resumes it.
+
+    The command line prints the message on one line and exits with status 1.
+    """
+
+    def __init__(self, episodes: list[str], exit_codes: list[str]) -> None:
+        self.episodes = episodes
+        codes = f" (exit code {', '.join(exit_codes)})" if exit_codes else ""
+        super().__init__(
+            f"the worker running episode {', '.join(episodes) or '(unknown)'} died{codes}; "
+            "finished episodes are saved, rerun the same command to resume"
+        )

@@ -8,34 +8,33 @@ why it stopped.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
-from typing import ClassVar
-
-import numpy as np
-from numpy.typing import NDArray
+from dataclasses import dataclass, field
 
 from drivenav.agent.trace import StopEvent, Trace
-from drivenav.envs.geodesic import GeodesicField
-from drivenav.envs.scene import Scene
-from drivenav.semantics.protocols import SemanticLabels
-from drivenav.types import Action, Observation, Pose, SimConfig
+from drivenav.types import Action, GroundTruth, Observation, SimConfig
 
 
 @dataclass(frozen=True)
-class PrivilegedInfo:
-    """Ground truth handed only to agents that declare ``uses_privileged`` (the oracle)."""
+class ModelStats:
+    """What an episode cost in model calls and what the semantic loop did (Sec. IV-B, IV-C; Table VII)."""
 
-    scene: Scene
-    navigable: NDArray[np.bool_]
-    goal_field: GeodesicField
-    start_pose: Pose
+    vlm_calls_by_kind: dict[str, int] = field(default_factory=dict)
+    vlm_latency_ms: dict[str, float] = field(default_factory=dict)
+    vlm_fallbacks: int = 0
+    enrich_rounds: int = 0
+    verifications: dict[str, int] = field(default_factory=dict)
+    phrase: str = ""
 
 
 class Agent(ABC):
-    """Base class: segment bookkeeping, stop reason and model-call counting."""
+    """Base class: segment bookkeeping, stop reason and model-call counting.
+
+    ``requires`` lists the privileged inputs (:data:`~drivenav.types.PRIVILEGED_KINDS`) the agent needs; the
+    runner gives ground truth only to agents that ask, and refuses a world that cannot provide it.
+    """
 
     name: str = "agent"
-    uses_privileged: ClassVar[bool] = False
+    requires: frozenset[str] = frozenset()
 
     def __init__(self, sim: SimConfig) -> None:
         self.sim = sim
@@ -46,11 +45,10 @@ class Agent(ABC):
         self.step = 0
         self.step_timings: list[dict[str, float]] = []  # per step: module -> ms (saved in the run's traces)
 
-    def reset(self, goal_text: str, seed: int, labels: SemanticLabels | None = None) -> None:
+    def reset(self, goal_text: str, seed: int, truth: GroundTruth | None = None) -> None:
         """Start an episode looking for ``goal_text``.
 
-        ``seed`` makes any randomness reproducible; ``labels`` say what the world's semantic instance ids mean
-        (for ground-truth grounding), where the world has them.
+        ``seed`` makes any randomness reproducible; ``truth`` holds the ground truth this agent ``requires``.
         """
         self.goal_text = goal_text
         self.segment_starts = []
@@ -59,17 +57,14 @@ class Agent(ABC):
         self.step = 0
         self.step_timings = []
 
-    def set_privileged(self, info: PrivilegedInfo) -> None:  # noqa: B027 (optional hook, no-op by default)
-        """Receive ground truth (only called when ``uses_privileged`` is true)."""
-
     @property
     def model_calls(self) -> int:
         """Reasoning-model (VLM) calls made this episode."""
         return 0
 
-    def episode_stats(self) -> dict[str, object]:
-        """Agent-specific fields for the episode record (model calls by kind, enrichment, verification)."""
-        return {}
+    def episode_stats(self) -> ModelStats:
+        """Model calls by kind, enrichment and verification of this episode (none for model-free agents)."""
+        return ModelStats()
 
     def start_segment(self, step: int) -> None:
         """Mark that a new frontier-selection segment begins at ``step`` (paper Sec. V-C revisits)."""

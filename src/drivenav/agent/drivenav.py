@@ -28,7 +28,7 @@ from enum import Enum
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.agent.base import Agent
+from drivenav.agent.base import Agent, ModelStats
 from drivenav.agent.planner import LocalPlanner
 from drivenav.agent.target import SearchConfig, TargetSearch
 from drivenav.agent.trace import DirectionSelected, InspectionStarted, ScanStarted, ViewCaptured
@@ -42,8 +42,8 @@ from drivenav.mapping.occupancy import OccupancyMapper
 from drivenav.mapping.types import Frontier, MapSnapshot
 from drivenav.semantics.geometric import GeometricReasoner
 from drivenav.semantics.ground_truth import GroundTruthGrounder
-from drivenav.semantics.protocols import Candidate, Grounder, Reasoner, Selection, SemanticLabels, View
-from drivenav.types import Action, Observation, Pose, SimConfig
+from drivenav.semantics.protocols import Candidate, Grounder, Reasoner, Selection, View
+from drivenav.types import SEMANTIC, Action, GroundTruth, Observation, Pose, SimConfig
 
 Point = tuple[float, float]
 REPLAN_SHIFT = 0.3  # metres the approach goal may move before this step's path is re-planned
@@ -108,8 +108,10 @@ class DriveNavAgent(Agent):
         name: str = "drive-nav",
         reasoner_factory: Callable[[], Reasoner] = GeometricReasoner,
         grounder_factory: Callable[[], Grounder] = GroundTruthGrounder,
+        requires: frozenset[str] = frozenset({SEMANTIC}),
     ) -> None:
         super().__init__(sim)
+        self.requires = requires  # what the models read of the world's ground truth (the default grounder: labels)
         self.name = name
         self.config = config or AgentConfig()
         self._reasoner_factory = reasoner_factory
@@ -118,17 +120,17 @@ class DriveNavAgent(Agent):
 
     # ----------------------------------------------------------------- episode set-up
 
-    def reset(self, goal_text: str, seed: int, labels: SemanticLabels | None = None) -> None:
-        super().reset(goal_text, seed, labels)
+    def reset(self, goal_text: str, seed: int, truth: GroundTruth | None = None) -> None:
+        super().reset(goal_text, seed, truth)
         paper = self.config.paper
         self._mapper = OccupancyMapper(MappingConfig.from_sim(self.sim))
         self._pipeline = DirectionPipeline(paper)
         self._views = RepresentativeViews(paper.inspection.view_tolerance)
         self._planner = LocalPlanner(self.sim)
         self._reasoner = self._reasoner_factory()
-        self._reasoner.begin_episode(goal_text, labels)
+        self._reasoner.begin_episode(goal_text, truth)
         grounder = self._grounder_factory()
-        grounder.begin_episode(labels, seed)
+        grounder.begin_episode(truth, seed)
         semantics = paper.semantics
         search = SearchConfig(self.config.enrich, self.config.verify, semantics.enrich_rounds, semantics.verify_frames)
         self._search = TargetSearch(self.sim, search, grounder, self._reasoner)
@@ -209,15 +211,18 @@ class DriveNavAgent(Agent):
             self._planner.reset()
             self.start_segment(self.step)
 
-    def episode_stats(self) -> dict[str, object]:
+    def episode_stats(self) -> ModelStats:
         calls = self._reasoner.calls
         kinds = sorted({c.kind for c in calls})
-        return {
-            "vlm_calls_by_kind": {k: sum(c.kind == k for c in calls) for k in kinds},
-            "vlm_latency_ms": {k: round(sum(c.latency_ms for c in calls if c.kind == k), 2) for k in kinds},
-            "vlm_fallbacks": sum(c.outcome == "fallback" for c in calls),
-            **self._search.stats(),
-        }
+        search = self._search
+        return ModelStats(
+            vlm_calls_by_kind={k: sum(c.kind == k for c in calls) for k in kinds},
+            vlm_latency_ms={k: round(sum(c.latency_ms for c in calls if c.kind == k), 2) for k in kinds},
+            vlm_fallbacks=sum(c.outcome == "fallback" for c in calls),
+            enrich_rounds=search.enrich_rounds,
+            verifications={k: search.verifications.get(k, 0) for k in ("accepted", "rejected", "uncertain")},
+            phrase=search.phrase,
+        )
 
     # ----------------------------------------------------------------- policy
 

@@ -9,9 +9,8 @@ from __future__ import annotations
 
 import math
 
-from drivenav.agent.base import Agent, PrivilegedInfo
-from drivenav.envs.motion import forward_step
-from drivenav.types import Action, Observation
+from drivenav.agent.base import Agent
+from drivenav.types import GEODESIC, Action, GeodesicOracle, GroundTruth, Observation
 
 KEEP_HEADING_SLACK = 0.01  # metres: keep the heading if its step ends this close to the best step
 COLLISION_PENALTY = 0.02  # metres: prefer a clean step over sliding along a wall when both progress alike
@@ -23,15 +22,18 @@ class OracleAgent(Agent):
     """Privileged shortest-path follower (one segment per episode)."""
 
     name = "oracle"
-    uses_privileged = True
+    requires = frozenset({GEODESIC})
 
-    def set_privileged(self, info: PrivilegedInfo) -> None:
-        self._info = info
+    def reset(self, goal_text: str, seed: int, truth: GroundTruth | None = None) -> None:
+        super().reset(goal_text, seed, truth)
+        if truth is None or truth.geodesic is None:
+            raise ValueError("the oracle needs the world's geodesic ground truth")
+        self._geodesic: GeodesicOracle = truth.geodesic
 
     def decide(self, observation: Observation) -> Action:
-        info = self._info
-        pose = info.start_pose.compose(observation.pose)
-        here = info.goal_field.at(pose.x, pose.y)  # the metric's own distance to goal
+        geodesic = self._geodesic
+        pose = geodesic.start_pose.compose(observation.pose)
+        here = geodesic.distance(pose.x, pose.y)  # the metric's own distance to goal
         if here <= self.sim.success_distance - STOP_MARGIN:
             return self.stop("target_reached")
         turn = math.radians(self.sim.turn_angle_deg)
@@ -47,6 +49,5 @@ class OracleAgent(Agent):
 
     def _step_outcome(self, x: float, y: float, yaw: float) -> tuple[float, bool]:
         """Distance to goal after a forward step along ``yaw``, and whether that step collides."""
-        info = self._info
-        nx, ny, collided = forward_step(info.navigable, info.scene.grid, x, y, yaw, self.sim.forward_step)
-        return info.goal_field.at(nx, ny), collided
+        nx, ny, collided = self._geodesic.forward(x, y, yaw)
+        return self._geodesic.distance(nx, ny), collided

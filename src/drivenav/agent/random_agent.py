@@ -5,8 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from drivenav.agent.base import Agent
-from drivenav.semantics.protocols import SemanticLabels
-from drivenav.types import Action, Observation
+from drivenav.types import Action, GroundTruth, Observation
 
 FORWARD_PROBABILITY = 0.6
 
@@ -16,8 +15,8 @@ class RandomAgent(Agent):
 
     name = "random"
 
-    def reset(self, goal_text: str, seed: int, labels: SemanticLabels | None = None) -> None:
-        super().reset(goal_text, seed, labels)
+    def reset(self, goal_text: str, seed: int, truth: GroundTruth | None = None) -> None:
+        super().reset(goal_text, seed, truth)
         self._rng = np.random.default_rng(seed)
 
     def decide(self, observation: Observation) -> Action:

@@ -12,7 +12,7 @@ from drivenav.agent.oracle import OracleAgent
 from drivenav.agent.random_agent import RandomAgent
 from drivenav.config import DriveNavConfig
 from drivenav.errors import InputError
-from drivenav.semantics.registry import ModelSpec, make_grounder, make_reasoner
+from drivenav.semantics.registry import ModelSpec, make_grounder, make_reasoner, model_requirements
 from drivenav.types import SimConfig
 
 _PAPER = DriveNavConfig()
@@ -65,4 +65,5 @@ def make_agent(name: str, sim: SimConfig, models: ModelSpec | None = None) -> Ag
         name=name,
         reasoner_factory=partial(make_reasoner, spec),
         grounder_factory=partial(make_grounder, spec),
+        requires=model_requirements(spec),
     )

@@ -187,10 +187,3 @@ class TargetSearch:
             return accepted[0]
         pending = [c for c in self.objects.candidates() if c.status == "candidate"]
         return min(pending, key=lambda c: c.first_step) if pending else None
-
-    def stats(self) -> dict[str, object]:
-        return {
-            "enrich_rounds": self.enrich_rounds,
-            "verifications": {k: self.verifications.get(k, 0) for k in ("accepted", "rejected", "uncertain")},
-            "phrase": self.phrase,
-        }

@@ -4,9 +4,10 @@ It provides what the paper's problem formulation (Sec. III) gives the agent -- a
 observation and a pose relative to the start ``p_0`` at every step -- with the Habitat set-up of the
 experiments (Sec. V-A: 79 degree RGB-D camera, 0.25 m steps, 30 degree turns), plus ground-truth instance ids.
 
-The env only moves the agent and renders; success, SPL and step limits belong to the evaluator. It is cheap to
-construct and pickles without its scene cache (scenes are reloaded through ``scene_loader`` on demand), so it
-can be shipped to worker processes.
+The env moves the agent, renders, and keeps the Habitat measures (:class:`~drivenav.envs.measures.EmbeddedMeasures`);
+step limits belong to the evaluator. It gives the ground truth it has (instance labels, the goal's geodesic
+field and its own motion model) to the agents that ask. It is cheap to construct and pickles without its scene
+cache (scenes are reloaded through ``scene_loader`` on demand); :class:`EmbeddedSpec` builds one per worker.
 """
 
 from __future__ import annotations
@@ -15,17 +16,21 @@ import math
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
 
+from drivenav.envs.base import EpisodeMeasures
 from drivenav.envs.episode import Episode
+from drivenav.envs.geodesic import GeodesicField, largest_component
+from drivenav.envs.measures import EmbeddedMeasures
 from drivenav.envs.motion import forward_step, is_navigable
 from drivenav.envs.render import Images, Renderer
 from drivenav.envs.scene import Scene
+from drivenav.envs.vocabulary import VOCABULARY
 from drivenav.grid import wrap_angle
-from drivenav.types import Action, Observation, Pose, SimConfig
+from drivenav.types import GEODESIC, SEMANTIC, Action, GroundTruth, Observation, Pose, SimConfig
 
 _DEFAULT_CONFIG = SimConfig()
 
@@ -36,7 +41,39 @@ class _World:
 
     scene: Scene
     navigable: NDArray[np.bool_]
+    reachable: NDArray[np.bool_]  # the largest navigable component: where episodes start and goals are measured
     renderer: Renderer
+
+
+@dataclass(frozen=True)
+class EmbeddedSpec:
+    """Builds :class:`EmbeddedEnv` over a ``--scenes`` SPEC in each worker (picklable)."""
+
+    scenes: str = "procedural"
+    seed: int = 0
+    name: ClassVar[str] = "embedded"
+    provides: ClassVar[frozenset[str]] = frozenset({SEMANTIC, GEODESIC})
+
+    def build(self, sim: SimConfig) -> EmbeddedEnv:
+        from drivenav.envs.library import SceneLibrary
+
+        return EmbeddedEnv(SceneLibrary(self.scenes, self.seed).load, sim)
+
+
+@dataclass(frozen=True)
+class _Geodesic:
+    """The embedded world's :class:`~drivenav.types.GeodesicOracle` for one episode."""
+
+    world: _World
+    field: GeodesicField
+    start_pose: Pose
+    step: float
+
+    def distance(self, x: float, y: float) -> float:
+        return float(self.field.at(x, y))
+
+    def forward(self, x: float, y: float, yaw: float) -> tuple[float, float, bool]:
+        return forward_step(self.world.navigable, self.world.scene.grid, x, y, yaw, self.step)
 
 
 class EmbeddedEnv:
@@ -59,6 +96,7 @@ class EmbeddedEnv:
         self._xy = (0.0, 0.0)
         self._turns = 0
         self._steps = 0
+        self._measures = EmbeddedMeasures(config)
 
     # -- pickling: drop the scene cache ---------------------------------------------------------------
     def __getstate__(self) -> dict[str, Any]:
@@ -106,7 +144,10 @@ class EmbeddedEnv:
         self._xy = (x, y)
         self._turns = 0
         self._steps = 0
-        return self._observe(collided=False)
+        self._measures.reset(episode, world.reachable, world.scene.grid, self._start)
+        observation = self._observe(collided=False)
+        self._measures.update(None, self.state, observation)
+        return observation
 
     def step(self, action: Action) -> Observation:
         """Apply one action (Habitat semantics: 0.25 m forward, 30 degree turns, STOP does not move)."""
@@ -127,7 +168,29 @@ class EmbeddedEnv:
         elif action == Action.TURN_RIGHT:
             self._turns = self._wrap_turns(self._turns - 1)
         self._steps += 1
-        return self._observe(collided)
+        observation = self._observe(collided)
+        self._measures.update(action, self.state, observation)
+        return observation
+
+    def world_pose(self) -> Pose:
+        return self.state
+
+    def measures(self) -> EpisodeMeasures:
+        return self._measures.result()
+
+    def ground_truth(self, kinds: frozenset[str]) -> GroundTruth:
+        """Instance labels and the vocabulary (``semantic``); the goal field and motion model (``geodesic``)."""
+        world = self._world()
+        semantic = SEMANTIC in kinds
+        labels = {obj.instance_id: obj.category for obj in world.scene.objects} if semantic else None
+        geodesic = None
+        if GEODESIC in kinds:
+            geodesic = _Geodesic(world, self._measures.goal_field, self._start, self._config.forward_step)
+        return GroundTruth(labels, VOCABULARY if semantic else None, geodesic)
+
+    def close(self) -> None:
+        """Drop the loaded scenes."""
+        self._worlds.clear()
 
     def render(self, pose_world: Pose) -> Images:
         """RGB, depth and semantic images from a world-frame pose of the current scene."""
@@ -142,7 +205,7 @@ class EmbeddedEnv:
             scene = self._loader(self._scene_id)
             cfg = self._config
             navigable = scene.navigable_grid(cfg.agent_radius, cfg.agent_height)
-            world = _World(scene, navigable, Renderer(scene, cfg))
+            world = _World(scene, navigable, largest_component(navigable), Renderer(scene, cfg))
             self._worlds[self._scene_id] = world
             while len(self._worlds) > self._cache_size:
                 self._worlds.popitem(last=False)

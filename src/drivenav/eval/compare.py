@@ -5,25 +5,24 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from drivenav.eval.report import summarize
-from drivenav.eval.runner import EPISODES_FILE, read_finished
+from drivenav.eval.records import EpisodeRecord, read_records
+from drivenav.eval.report import shown, summarize
+from drivenav.eval.rundir import EPISODES_FILE
 
 TABLE_II_MIN_DISTANCE = 10.0  # metres, start-to-goal geodesic distance (paper Sec. V-C)
 
 
-def load_runs(run_dirs: dict[str, Path]) -> dict[str, dict[str, dict[str, Any]]]:
+def load_runs(run_dirs: dict[str, Path]) -> dict[str, dict[str, EpisodeRecord]]:
     """Per method, its finished episode records by episode id."""
-    return {name: {r["episode_id"]: r for r in read_finished(d / EPISODES_FILE)} for name, d in run_dirs.items()}
+    return {name: {r.episode_id: r for r in read_records(d / EPISODES_FILE)} for name, d in run_dirs.items()}
 
 
-def common_successes(runs: dict[str, dict[str, dict[str, Any]]], min_distance: float) -> list[str]:
+def common_successes(runs: dict[str, dict[str, EpisodeRecord]], min_distance: float) -> list[str]:
     """Episode ids that every method solved and whose geodesic distance exceeds ``min_distance``."""
     ids = set.intersection(*(set(records) for records in runs.values())) if runs else set()
     first = next(iter(runs.values()), {})
     return sorted(
-        i
-        for i in ids
-        if all(runs[m][i]["success"] for m in runs) and float(first[i]["geodesic_distance"]) > min_distance
+        i for i in ids if all(runs[m][i].success for m in runs) and (first[i].geodesic_distance or 0.0) > min_distance
     )
 
 
@@ -33,7 +32,7 @@ def compare(run_dirs: dict[str, Path], min_distance: float = TABLE_II_MIN_DISTAN
 
 
 def compare_runs(
-    runs: dict[str, dict[str, dict[str, Any]]], min_distance: float = TABLE_II_MIN_DISTANCE
+    runs: dict[str, dict[str, EpisodeRecord]], min_distance: float = TABLE_II_MIN_DISTANCE
 ) -> dict[str, Any]:
     """:func:`compare` on records already loaded."""
     common = common_successes(runs, min_distance)
@@ -41,8 +40,8 @@ def compare_runs(
     for name, records in runs.items():
         subset = [records[i] for i in common]
         table[name] = {
-            "overall": summarize(list(records.values())),
-            "common": summarize(subset) if subset else None,
+            "overall": summarize(list(records.values())).to_json(),
+            "common": summarize(subset).to_json() if subset else None,
         }
     return {"min_distance": min_distance, "common_episodes": len(common), "methods": table}
 
@@ -50,15 +49,17 @@ def compare_runs(
 def format_comparison(result: dict[str, Any]) -> str:
     """The comparison as a plain-text table."""
     header = (
-        f"{'method':<20} {'episodes':>8} {'SR %':>6} {'SPL %':>6} {'steps':>7} {'revisits':>8}"
+        f"{'method':<20} {'episodes':>8} {'errors':>6} {'SR %':>6} {'SPL %':>6} {'steps':>7} {'revisits':>8}"
         f" | common (n={result['common_episodes']}, d0 > {result['min_distance']:g} m): {'steps':>7} {'revisits':>8}"
     )
     lines = [header, "-" * len(header)]
     for name, row in result["methods"].items():
         overall, common = row["overall"], row["common"]
         tail = f"{common['avg_steps']:>7.1f} {common['avg_revisits']:>8.3f}" if common else f"{'-':>7} {'-':>8}"
+        rates = [shown(overall[k], "{:>6.1f}", 100.0).rjust(6) for k in ("success_rate", "spl")]
         lines.append(
-            f"{name:<20} {overall['episodes']:>8} {100 * overall['success_rate']:>6.1f} {100 * overall['spl']:>6.1f}"
-            f" {overall['avg_steps']:>7.1f} {overall['avg_revisits']:>8.3f} | {'':>38}{tail}"
+            f"{name:<20} {overall['episodes']:>8} {overall['errors']:>6} {' '.join(rates)}"
+            f" {shown(overall['avg_steps'], '{:>7.1f}'):>7} {shown(overall['avg_revisits'], '{:>8.3f}'):>8}"
+            f" | {'':>38}{tail}"
         )
     return "\n".join(lines)

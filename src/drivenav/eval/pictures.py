@@ -14,6 +14,7 @@ from typing import Any
 
 from drivenav.errors import InputError
 from drivenav.eval.compare import TABLE_II_MIN_DISTANCE, common_successes
+from drivenav.eval.records import EpisodeRecord
 
 log = logging.getLogger(__name__)
 
@@ -21,7 +22,7 @@ PICTURES_DIR = "pictures"
 MAX_METHODS = 3
 
 
-def choose_episodes(runs: dict[str, dict[str, dict[str, Any]]], order: Sequence[str], count: int) -> list[str]:
+def choose_episodes(runs: dict[str, dict[str, EpisodeRecord]], order: Sequence[str], count: int) -> list[str]:
     """Up to ``count`` episode ids finished by every method: Table II subset first, then in ``order``."""
     if not runs or count <= 0:
         return []
@@ -32,7 +33,7 @@ def choose_episodes(runs: dict[str, dict[str, dict[str, Any]]], order: Sequence[
 
 
 def render_pictures(
-    dirs: dict[str, Path], runs: dict[str, dict[str, dict[str, Any]]], order: Sequence[str], count: int, out: Path
+    dirs: dict[str, Path], runs: dict[str, dict[str, EpisodeRecord]], order: Sequence[str], count: int, out: Path
 ) -> dict[str, Any]:
     """Top-down pictures of ``count`` episodes for up to three methods under ``out/pictures/<method>/``.
 

@@ -1,47 +1,92 @@
-"""Run summaries and the readable table printed after an evaluation."""
+"""Run summaries (``summary.json``) and the readable table printed after an evaluation.
+
+Rates and averages over no episode (or over a measure the world could not take) are ``null`` in JSON and
+``n/a`` in the table. Episodes that an exception ended are counted in ``errors`` and left out of nothing else:
+they are failures of the run, reported as such, never navigation failures.
+"""
 
 from __future__ import annotations
 
 from collections import Counter
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
-
-def _mean(records: list[dict[str, Any]], key: str) -> float:
-    values = [float(r[key]) for r in records if r.get(key) is not None]
-    return sum(values) / len(values) if values else 0.0
+from drivenav.eval.records import EpisodeRecord
 
 
-def summarize(records: list[dict[str, Any]]) -> dict[str, Any]:
-    """Aggregate episode records into the ``summary.json`` fields."""
-    return {
-        "episodes": len(records),
-        "success_rate": round(_mean(records, "success"), 6),
-        "spl": round(_mean(records, "spl"), 6),
-        "avg_steps": round(_mean(records, "steps"), 3),
-        "avg_revisits": round(_mean(records, "revisits"), 4),
-        "avg_path_length": round(_mean(records, "path_length"), 3),
-        "avg_geodesic_distance": round(_mean(records, "geodesic_distance"), 3),
-        "avg_distance_to_goal": round(_mean(records, "distance_to_goal"), 3),
-        "avg_collisions": round(_mean(records, "collisions"), 3),
-        "avg_vlm_calls": round(_mean(records, "vlm_calls"), 3),
-        "stop_reasons": dict(sorted(Counter(str(r.get("stop_reason")) for r in records).items())),
-    }
+def mean(records: Sequence[EpisodeRecord], value: Callable[[EpisodeRecord], float | None]) -> float | None:
+    """The mean of a per-episode value over the episodes that have it (None when none has)."""
+    values = [float(v) for v in map(value, records) if v is not None]
+    return sum(values) / len(values) if values else None
 
 
-def format_table(summary: dict[str, Any], title: str = "") -> str:
+def _rounded(value: float | None, digits: int) -> float | None:
+    return None if value is None else round(value, digits)
+
+
+@dataclass(frozen=True)
+class Summary:
+    """The ``summary.json`` fields."""
+
+    episodes: int
+    success_rate: float | None
+    spl: float | None
+    avg_steps: float | None
+    avg_revisits: float | None
+    avg_path_length: float | None
+    avg_geodesic_distance: float | None
+    avg_distance_to_goal: float | None
+    avg_collisions: float | None
+    avg_vlm_calls: float | None
+    vlm_fallbacks: int
+    errors: int
+    stop_reasons: dict[str, int] = field(default_factory=dict)
+
+    def to_json(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def summarize(records: Sequence[EpisodeRecord]) -> Summary:
+    """Aggregate episode records into a :class:`Summary`."""
+    return Summary(
+        episodes=len(records),
+        success_rate=_rounded(mean(records, lambda r: r.success), 6),
+        spl=_rounded(mean(records, lambda r: r.spl), 6),
+        avg_steps=_rounded(mean(records, lambda r: r.steps), 3),
+        avg_revisits=_rounded(mean(records, lambda r: r.revisits), 4),
+        avg_path_length=_rounded(mean(records, lambda r: r.path_length), 3),
+        avg_geodesic_distance=_rounded(mean(records, lambda r: r.geodesic_distance), 3),
+        avg_distance_to_goal=_rounded(mean(records, lambda r: r.distance_to_goal), 3),
+        avg_collisions=_rounded(mean(records, lambda r: r.collisions), 3),
+        avg_vlm_calls=_rounded(mean(records, lambda r: r.vlm_calls), 3),
+        vlm_fallbacks=sum(r.stats.vlm_fallbacks for r in records),
+        errors=sum(r.is_error for r in records),
+        stop_reasons=dict(sorted(Counter(r.stop_reason for r in records).items())),
+    )
+
+
+def shown(value: float | None, template: str, scale: float = 1.0) -> str:
+    """A value through ``template`` (e.g. ``"{:.1f} %"``), or ``n/a`` where there is none."""
+    return "n/a" if value is None else template.format(scale * value)
+
+
+def format_table(summary: Summary, title: str = "") -> str:
     """A plain-text table of a summary, for the terminal."""
     rows = [
-        ("episodes", f"{summary['episodes']}"),
-        ("success rate", f"{100.0 * summary['success_rate']:.1f} %"),
-        ("SPL", f"{100.0 * summary['spl']:.1f} %"),
-        ("avg steps", f"{summary['avg_steps']:.1f}"),
-        ("avg path length", f"{summary['avg_path_length']:.2f} m"),
-        ("avg geodesic distance", f"{summary['avg_geodesic_distance']:.2f} m"),
-        ("avg distance to goal", f"{summary['avg_distance_to_goal']:.2f} m"),
-        ("avg revisits", f"{summary['avg_revisits']:.3f}"),
-        ("avg collisions", f"{summary['avg_collisions']:.2f}"),
-        ("avg VLM calls", f"{summary['avg_vlm_calls']:.2f}"),
-        ("stop reasons", ", ".join(f"{k}: {v}" for k, v in summary["stop_reasons"].items()) or "-"),
+        ("episodes", f"{summary.episodes}"),
+        ("success rate", shown(summary.success_rate, "{:.1f} %", 100.0)),
+        ("SPL", shown(summary.spl, "{:.1f} %", 100.0)),
+        ("avg steps", shown(summary.avg_steps, "{:.1f}")),
+        ("avg path length", shown(summary.avg_path_length, "{:.2f} m")),
+        ("avg geodesic distance", shown(summary.avg_geodesic_distance, "{:.2f} m")),
+        ("avg distance to goal", shown(summary.avg_distance_to_goal, "{:.2f} m")),
+        ("avg revisits", shown(summary.avg_revisits, "{:.3f}")),
+        ("avg collisions", shown(summary.avg_collisions, "{:.2f}")),
+        ("avg VLM calls", shown(summary.avg_vlm_calls, "{:.2f}")),
+        ("VLM fallbacks", f"{summary.vlm_fallbacks}"),
+        ("errors", f"{summary.errors}"),
+        ("stop reasons", ", ".join(f"{k}: {v}" for k, v in summary.stop_reasons.items()) or "-"),
     ]
     width = max(len(name) for name, _ in rows)
     lines = [title] if title else []

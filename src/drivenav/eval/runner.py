@@ -1,60 +1,81 @@
-"""The evaluation runner: episodes through an environment and an agent, results appended kill-safely.
+"""The evaluation runner: episodes through any world and an agent, results appended kill-safely.
 
-Each finished episode is one JSON line in ``DIR/episodes.jsonl``, appended, flushed and fsync'ed before the next
-is written, so an interrupted run (even ``kill -9``) loses no finished episode; a rerun with the same ``--out``
-skips finished episodes and never duplicates one. Results do not depend on the number of workers: each
-episode's randomness is seeded from the run seed and the episode id alone.
+Each finished episode is one :class:`~drivenav.eval.records.EpisodeRecord` line in ``DIR/episodes.jsonl``,
+appended, flushed and fsync'ed before the next is written, so an interrupted run (even ``kill -9``) loses no
+finished episode; a rerun with the same ``--out`` skips finished episodes and never duplicates one. Results do
+not depend on the number of workers: each episode's randomness is seeded from the run seed and the episode id.
+
+The world is built in each worker from a picklable :class:`~drivenav.envs.base.EnvSpec`; its measures give the
+Habitat metrics, the trajectory gives steps and revisits. Ground truth reaches only the agents that ask for it.
 """
 
 from __future__ import annotations
 
-import json
 import logging
-import os
 import traceback
 import zlib
-from collections.abc import Iterator
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from collections.abc import Iterator, Sequence
 from contextlib import AbstractContextManager, nullcontext
-from dataclasses import asdict, dataclass, field
-from multiprocessing import get_context
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 from tqdm import tqdm
+from tqdm.contrib.logging import logging_redirect_tqdm
 
-from drivenav.agent.base import Agent, PrivilegedInfo
+from drivenav import metrics
+from drivenav.agent.base import Agent, ModelStats
 from drivenav.agent.registry import make_agent
-from drivenav.envs.embedded import EmbeddedEnv
+from drivenav.envs.base import Env, EnvSpec
 from drivenav.envs.episode import Episode
-from drivenav.envs.geodesic import GeodesicField, largest_component
-from drivenav.envs.library import SceneLibrary
 from drivenav.errors import InputError
-from drivenav.eval import metrics
-from drivenav.eval.report import summarize
+from drivenav.eval.records import ERROR, EpisodeRecord, failure_cause
+from drivenav.eval.report import Summary, summarize
+from drivenav.eval.rundir import RunDirectory
 from drivenav.eval.timings import to_columns
 from drivenav.semantics.registry import ModelSpec
-from drivenav.types import Action, Observation, SimConfig
+from drivenav.types import SEMANTIC, Observation, SimConfig
 
 log = logging.getLogger(__name__)
 
-EPISODES_FILE = "episodes.jsonl"
-SUMMARY_FILE = "summary.json"
-RUN_FILE = "run.json"
-TRACES_DIR = "traces"
+Trace = dict[str, Any]
 
 
 @dataclass(frozen=True)
 class RunSpec:
-    """What a run directory was started with; a rerun must match it."""
+    """What a run is: the world, the agent and its models, seeds and budgets (a rerun must match it)."""
 
+    env: EnvSpec
     agent: str
-    scenes: str
     seed: int
     max_steps: int
     models: ModelSpec = field(default_factory=ModelSpec)
+    sim: SimConfig = field(default_factory=SimConfig)
+
+    def to_config(self) -> dict[str, Any]:
+        """The run's settings as a JSON tree (recorded in ``run.json``)."""
+        config = asdict(self)  # the env spec is a dataclass too
+        config["env"] = {"name": self.env.name, **config["env"]}
+        return config
+
+
+def build_agent(spec: RunSpec) -> Agent:
+    """The run's agent (an unknown name is an :class:`InputError` on ``--agent``)."""
+    return make_agent(spec.agent, spec.sim, spec.models)
+
+
+def check_world_supports(spec: RunSpec, agent: Agent) -> None:
+    """Refuse, before any episode, an agent that needs ground truth the world cannot give."""
+    missing = sorted(agent.requires - spec.env.provides)
+    if missing:
+        offered = ", ".join(sorted(spec.env.provides)) or "no ground truth"
+        raise InputError(
+            "command line",
+            "--agent",
+            f"an agent the {spec.env.name} world can run (it provides {offered})",
+            f"{spec.agent}, which needs {', '.join(missing)}",
+        )
 
 
 @dataclass(frozen=True)
@@ -95,258 +116,206 @@ def episode_seed(run_seed: int, episode_id: str) -> int:
     return zlib.crc32(f"{run_seed}:{episode_id}".encode())
 
 
-def run_episode(
-    env: EmbeddedEnv, agent: Agent, episode: Episode, run_seed: int, max_steps: int
-) -> tuple[dict[str, Any], dict[str, Any]]:
+@dataclass
+class _Trajectory:
+    """What the runner sees of an episode: world-frame poses and the actions taken."""
+
+    positions: list[tuple[float, float]] = field(default_factory=list)
+    yaws: list[float] = field(default_factory=list)
+    actions: list[int] = field(default_factory=list)
+
+    def add(self, env: Env) -> None:
+        pose = env.world_pose()
+        self.positions.append((pose.x, pose.y))
+        self.yaws.append(pose.yaw)
+
+
+def _observed(observation: Observation, agent: Agent) -> Observation:
+    """The observation as the agent may see it: ground-truth instance ids only for agents that ask."""
+    if SEMANTIC in agent.requires or observation.semantic is None:
+        return observation
+    return replace(observation, semantic=None)
+
+
+def _drive(env: Env, agent: Agent, episode: Episode, run_seed: int, max_steps: int, path: _Trajectory) -> bool:
+    """Reset and step the episode to STOP or the step budget; whether the agent called STOP."""
+    observation = env.reset(episode)
+    truth = env.ground_truth(agent.requires) if agent.requires else None
+    agent.reset(episode.object_category, episode_seed(run_seed, episode.episode_id), truth)
+    path.add(env)
+    while len(path.actions) < max_steps:
+        action = agent.act(_observed(observation, agent))
+        observation = env.step(action)
+        path.actions.append(int(action))
+        path.add(env)
+        if action == 0:  # Action.STOP
+            return True
+    return False
+
+
+def run_episode(env: Env, agent: Agent, episode: Episode, run_seed: int, max_steps: int) -> tuple[EpisodeRecord, Trace]:
     """Run one episode to STOP or the step budget; returns its record and its trace.
 
-    An exception inside the episode ends it with ``stop_reason`` ``"error"`` (logged); it never escapes.
+    An exception from the agent, its models or the world ends this episode with ``stop_reason`` ``"error"``
+    and the traceback in the trace; it never escapes (a user error, :class:`InputError`, stops the run).
     """
-    sim = env.config
-    observation = env.reset(episode)
-    navigable = largest_component(env.scene.navigable_grid(sim.agent_radius, sim.agent_height))
-    goal_field = GeodesicField(navigable, env.scene.grid, episode.view_points_xy())
-    labels = {obj.instance_id: obj.category for obj in env.scene.objects}
-    agent.reset(episode.object_category, episode_seed(run_seed, episode.episode_id), labels)
-    if agent.uses_privileged:
-        agent.set_privileged(PrivilegedInfo(env.scene, navigable, goal_field, env.start_pose))
-    goal_ids = np.array([goal.object_id for goal in episode.goals])
-    target_seen = _shows(observation, goal_ids)
-    positions = [(env.state.x, env.state.y)]
-    yaws = [env.state.yaw]
-    actions: list[int] = []
-    collisions = 0
+    path = _Trajectory()
+    error: dict[str, str] = {}
     called_stop = False
-    error = ""
-    while env.steps < max_steps and not called_stop:
-        try:
-            action = agent.act(observation)
-            observation = env.step(action)
-        except InputError:
-            raise  # a user error (e.g. a replay that does not match the run) stops the run with its message
-        except Exception as exc:  # an agent or world fault ends this episode only
-            log.warning("episode %s: %s", episode.episode_id, exc)
-            error = "".join(traceback.format_exception_only(type(exc), exc)).strip()
-            break
-        actions.append(int(action))
-        target_seen = target_seen or _shows(observation, goal_ids)
-        collisions += int(observation.collided)
-        positions.append((env.state.x, env.state.y))
-        yaws.append(env.state.yaw)
-        called_stop = action == Action.STOP
+    try:
+        called_stop = _drive(env, agent, episode, run_seed, max_steps, path)
+    except InputError:
+        raise  # e.g. a replay that does not match the run: the run stops with its message
+    except Exception as exc:
+        error = {
+            "type": type(exc).__name__,
+            "message": str(exc),
+            "traceback": "".join(traceback.format_exception(type(exc), exc, exc.__traceback__)),
+        }
     if error:
-        stop_reason = "error"
+        stop_reason = ERROR
     elif called_stop:
         stop_reason = agent.stop_reason or "agent_stop"
     else:
         stop_reason = "timeout"
-    path = np.asarray(positions)
-    distance_to_goal = goal_field.at(*positions[-1])
-    geodesic = episode.geodesic_distance
-    if not np.isfinite(geodesic):
-        geodesic = goal_field.at(*positions[0])
-    is_success = metrics.success(called_stop, distance_to_goal, sim.success_distance)
-    path_length = metrics.path_length(path)
-    record = {
+    measures = env.measures() if path.positions else None
+    calls, stats = _model_use(agent, started=bool(path.positions))
+    record = EpisodeRecord(
+        episode_id=episode.episode_id,
+        scene_id=episode.scene_id,
+        object_category=episode.object_category,
+        canonical_category=str(episode.info.get("canonical_category", episode.object_category)),
+        synonym=bool(episode.info.get("synonym", False)),
+        agent=agent.name,
+        success=measures.success if measures else None,
+        spl=measures.spl if measures else None,
+        steps=len(path.actions),
+        path_length=measures.path_length if measures else None,
+        geodesic_distance=measures.geodesic_distance if measures else None,
+        distance_to_goal=measures.distance_to_goal if measures else None,
+        revisits=metrics.count_revisits(np.asarray(path.positions).reshape(-1, 2), agent.segment_starts),
+        collisions=measures.collisions if measures else None,
+        stop_reason=stop_reason,
+        vlm_calls=calls,
+        error=f"{error['type']}: {error['message']}" if error else "",
+        failure_cause=failure_cause(
+            measures.success if measures else None, stop_reason, measures.target_seen if measures else None
+        ),
+        privileged=tuple(sorted(agent.requires)),
+        stats=stats,
+    )
+    trace: Trace = {
         "episode_id": episode.episode_id,
         "scene_id": episode.scene_id,
-        "object_category": episode.object_category,
-        "canonical_category": episode.info.get("canonical_category", episode.object_category),
-        "synonym": bool(episode.info.get("synonym", False)),
-        "agent": agent.name,
-        "success": int(is_success),
-        "spl": round(metrics.spl(is_success, geodesic, path_length), 6),
-        "steps": len(actions),
-        "path_length": round(path_length, 4),
-        "geodesic_distance": round(geodesic, 4),
-        "distance_to_goal": round(distance_to_goal, 4) if np.isfinite(distance_to_goal) else None,
-        "revisits": metrics.count_revisits(path, agent.segment_starts),
-        "collisions": collisions,
-        "stop_reason": stop_reason,
-        "vlm_calls": agent.model_calls,
-        "error": error,
-        "failure_cause": failure_cause(is_success, stop_reason, target_seen),
-        **agent.episode_stats(),
-    }
-    trace = {
-        "episode_id": episode.episode_id,
-        "scene_id": episode.scene_id,
-        "positions": np.round(path, 4).tolist(),
-        "yaws": np.round(yaws, 4).tolist(),
-        "actions": actions,
+        "positions": np.round(np.asarray(path.positions).reshape(-1, 2), 4).tolist(),
+        "yaws": np.round(path.yaws, 4).tolist(),
+        "actions": path.actions,
         "segment_starts": list(agent.segment_starts),
         "events": agent.trace.to_json(),
         "step_ms": to_columns(agent.step_timings),
     }
+    if error:
+        trace["error"] = error
     return record, trace
 
 
-TARGET_SEEN_PIXELS = 150  # goal-instance pixels in one frame for the target to count as seen
-
-
-def _shows(observation: Observation, goal_ids: NDArray[np.int64]) -> bool:
-    """Whether the frame shows a goal instance clearly (ground truth, for the failure analysis only)."""
-    if observation.semantic is None:
-        return False
-    return int(np.count_nonzero(np.isin(observation.semantic, goal_ids))) >= TARGET_SEEN_PIXELS
-
-
-def failure_cause(success: bool, stop_reason: str, target_seen: bool) -> str:
-    """Why an episode failed ("" for successes).
-
-    ``false_positive_stop``: STOP away from every goal; ``missed_target``: a goal was in view at some step but
-    not reached; otherwise the target was never in view and the cause is the stop reason: ``timeout``,
-    ``no_frontier``, or ``target_never_seen`` (e.g. stuck or an error).
-    """
-    if success:
-        return ""
-    if stop_reason == "target_reached":
-        return "false_positive_stop"
-    if target_seen:
-        return "missed_target"
-    return stop_reason if stop_reason in ("timeout", "no_frontier") else "target_never_seen"
+def _model_use(agent: Agent, started: bool) -> tuple[int, ModelStats]:
+    """The episode's model calls and statistics (none for an episode that failed before the agent started)."""
+    if not started:
+        return 0, ModelStats()
+    return agent.model_calls, agent.episode_stats()
 
 
 class _Worker:
-    """Per-process state: the scene library, the environment and the agent, built once."""
+    """Per-process state: the world and the agent, built once."""
 
-    def __init__(self, spec: RunSpec, sim: SimConfig) -> None:
+    def __init__(self, spec: RunSpec) -> None:
         self.spec = spec
-        self.library = SceneLibrary(spec.scenes, spec.seed)
-        self.env = EmbeddedEnv(self.library.load, sim)
-        self.agent = make_agent(spec.agent, sim, spec.models)
+        self.env = spec.env.build(spec.sim)
+        self.agent = build_agent(spec)
 
-    def run(self, episode: Episode) -> tuple[dict[str, Any], dict[str, Any]]:
+    def run(self, episode: Episode) -> tuple[EpisodeRecord, Trace]:
         return run_episode(self.env, self.agent, episode, self.spec.seed, self.spec.max_steps)
 
 
 _WORKER: _Worker | None = None
 
 
-def _init_worker(spec: RunSpec, sim: SimConfig) -> None:
+def _worker_for(spec: RunSpec) -> _Worker:
+    """This process's worker for ``spec`` (rebuilt when a process, e.g. a Ray worker, serves another run)."""
     global _WORKER
-    _WORKER = _Worker(spec, sim)
-
-
-def _run_in_worker(episode: Episode) -> tuple[dict[str, Any], dict[str, Any]]:
-    assert _WORKER is not None
-    return _WORKER.run(episode)
+    if _WORKER is None or _WORKER.spec != spec:
+        if _WORKER is not None:
+            _WORKER.env.close()
+        _WORKER = _Worker(spec)
+    return _WORKER
 
 
 @dataclass(frozen=True)
-class _EpisodeTask:
-    """One episode for a process that may serve several runs (a Ray worker): the worker is rebuilt only when
-    the run changes."""
+class EpisodeTask:
+    """One episode of one run, as sent to a pool process or a Ray task."""
 
     spec: RunSpec
-    sim: SimConfig
     episode: Episode
 
 
-def _run_task(task: _EpisodeTask) -> tuple[dict[str, Any], dict[str, Any]]:
-    if _WORKER is None or (_WORKER.spec, _WORKER.env.config) != (task.spec, task.sim):
-        _init_worker(task.spec, task.sim)
-    return _run_in_worker(task.episode)
-
-
-def read_finished(path: Path) -> list[dict[str, Any]]:
-    """Records already in ``episodes.jsonl``; a torn last line (from a kill) is cut off the file."""
-    if not path.exists():
-        return []
-    data = path.read_bytes()
-    keep = data.rfind(b"\n") + 1
-    if keep < len(data):
-        with path.open("r+b") as handle:
-            handle.truncate(keep)
-    records = []
-    for number, line in enumerate(data[:keep].splitlines(), start=1):
-        if not line.strip():
-            continue
-        try:
-            records.append(json.loads(line))
-        except ValueError:
-            raise InputError(path, f"line {number}", "one JSON object per line") from None
-    return records
-
-
-def _append(path: Path, record: dict[str, Any]) -> None:
-    with path.open("a", encoding="utf-8") as handle:
-        handle.write(json.dumps(record, sort_keys=True) + "\n")
-        handle.flush()
-        os.fsync(handle.fileno())
-
-
-def _write_json_atomic(path: Path, payload: Any) -> None:
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps(payload, indent=2, sort_keys=True) + "\n", encoding="utf-8")
-    os.replace(tmp, path)
-
-
-def _check_run_spec(out: Path, spec: RunSpec) -> None:
-    run_file = out / RUN_FILE
-    if run_file.exists():
-        previous = json.loads(run_file.read_text(encoding="utf-8"))
-        previous.setdefault("models", asdict(ModelSpec()))
-        for key, value in asdict(spec).items():
-            if previous.get(key) != value:
-                raise InputError(run_file, key, f"{previous.get(key)!r} (this directory's run) to resume", value)
-    else:
-        _write_json_atomic(run_file, asdict(spec))
-
-
-def trace_path(out: Path, episode_id: str) -> Path:
-    safe = "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in episode_id)
-    return out / TRACES_DIR / f"{safe}.json"
+def run_task(task: EpisodeTask) -> tuple[EpisodeRecord, Trace]:
+    """Run one episode in this process, building the world and the agent on first use."""
+    return _worker_for(task.spec).run(task.episode)
 
 
 def evaluate(
-    episodes: list[Episode],
+    episodes: Sequence[Episode],
     spec: RunSpec,
     out: Path,
     executor: Executor | None = None,
-    sim: SimConfig | None = None,
     show_progress: bool = True,
-) -> dict[str, Any]:
+) -> Summary:
     """Run every unfinished episode, append its record, and write ``summary.json``; returns the summary.
 
+    The run directory is locked for the run (a second evaluation into it is refused) and must have been
+    started with the same settings and episodes (else an :class:`InputError` names the first difference).
     A progress bar goes to standard error.
     """
-    sim = sim or SimConfig(max_steps=spec.max_steps)
-    out.mkdir(parents=True, exist_ok=True)
-    _check_run_spec(out, spec)
-    results = out / EPISODES_FILE
-    done = {r["episode_id"] for r in read_finished(results)}
-    todo = [e for e in episodes if e.episode_id not in done]
-    (out / TRACES_DIR).mkdir(exist_ok=True)
-    with tqdm(total=len(todo), desc=spec.agent, unit="ep", disable=not show_progress, mininterval=1.0) as bar:
-        for record, trace in _run_all(todo, spec, sim, executor or Executor()):
-            trace_path(out, record["episode_id"]).write_text(json.dumps(trace), encoding="utf-8")
-            _append(results, record)
-            bar.update(1)
-    summary = summarize(read_finished(results))
-    _write_json_atomic(out / SUMMARY_FILE, summary)
+    check_world_supports(spec, build_agent(spec))
+    with RunDirectory.open(out, spec.to_config(), episodes) as run:
+        done = {r.episode_id for r in run.records()}
+        todo = [e for e in episodes if e.episode_id not in done]
+        label = f"{spec.agent} (resuming)" if done else spec.agent
+        bar = tqdm(
+            total=len(episodes), initial=len(done), desc=label, unit="ep", disable=not show_progress, mininterval=1.0
+        )
+        with bar, logging_redirect_tqdm():
+            for record, trace in run_all(todo, spec, executor or Executor()):
+                run.save(record, trace)
+                bar.update(1)
+        summary = summarize(run.records())
+        run.write_summary(summary)
+    if summary.errors:
+        log.warning(
+            "%d of %d episodes ended in an error; tracebacks are under 'error' in %s",
+            summary.errors,
+            summary.episodes,
+            out / "traces",
+        )
     return summary
 
 
-def _run_all(
-    todo: list[Episode], spec: RunSpec, sim: SimConfig, executor: Executor
-) -> Iterator[tuple[dict[str, Any], dict[str, Any]]]:
+def run_all(todo: Sequence[Episode], spec: RunSpec, executor: Executor) -> Iterator[tuple[EpisodeRecord, Trace]]:
+    """Every episode's record and trace, in completion order, on ``executor``."""
     if not todo:
         return
+    tasks = [EpisodeTask(spec, episode) for episode in todo]
     if executor.kind == "ray":
         from drivenav.eval.ray_executor import run_on_ray
 
-        tasks = [_EpisodeTask(spec, sim, episode) for episode in todo]
-        yield from run_on_ray(tasks, _run_task, executor.workers, executor.ray_address)
+        yield from run_on_ray(tasks, run_task, executor.workers, executor.ray_address)
         return
-    workers = executor.workers or 1
+    workers = min(executor.workers or 1, len(tasks))
     if workers == 1:
-        worker = _Worker(spec, sim)
-        for episode in todo:
-            yield worker.run(episode)
+        for task in tasks:
+            yield run_task(task)
         return
-    context = get_context("spawn")
-    with ProcessPoolExecutor(workers, mp_context=context, initializer=_init_worker, initargs=(spec, sim)) as pool:
-        futures = [pool.submit(_run_in_worker, episode) for episode in todo]
-        for future in as_completed(futures):
-            yield future.result()
+    from drivenav.eval.pool import run_in_pool
+
+    yield from run_in_pool(tasks, run_task, workers, lambda task: task.episode.episode_id)

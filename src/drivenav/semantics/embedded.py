@@ -2,12 +2,13 @@
 
 It stands in for the vision-language model in the embedded world. What it "recognises" in an image is exactly
 the set of instances visible in that image's ``semantic`` channel, named through the episode's
-:data:`~drivenav.semantics.protocols.SemanticLabels` (given to :meth:`EmbeddedReasoner.begin_episode`), with
-their pixel areas; it uses no other scene knowledge. Meaning comes from a real sentence-embedding model
+ground truth's instance labels (:class:`~drivenav.types.GroundTruth`, given to
+:meth:`EmbeddedReasoner.begin_episode` because it asks for ``semantic``), with their pixel areas; it uses no
+other scene knowledge. Meaning comes from a real sentence-embedding model
 (:class:`~drivenav.semantics.embedding.TextEmbedder`, all-MiniLM-L6-v2).
 
-Relatedness of a label to the goal: 1 when both resolve to the same vocabulary category
-(:func:`~drivenav.semantics.ground_truth.category_key`, so "couch" is the goal "sofa"), else the cosine
+Relatedness of a label to the goal: 1 when both resolve to the same category of the world's vocabulary
+(:func:`~drivenav.semantics.protocols.category_key`, so "couch" is the goal "sofa"), else the cosine
 similarity of their embeddings. With the :class:`EmbeddedReasonerConfig` parameters:
 
 * a label is *visible* in an image when its instances cover at least ``min_pixels`` pixels together;
@@ -46,21 +47,20 @@ from typing import TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.envs.vocabulary import canonical_category, synonyms
 from drivenav.semantics.embedding import TextEmbedder, default_embedder
 from drivenav.semantics.geometric import direction_score
-from drivenav.semantics.ground_truth import category_key
 from drivenav.semantics.protocols import (
     Candidate,
     Judgement,
     ModelCall,
     Proposal,
     Selection,
-    SemanticLabels,
     Verdict,
     VerificationFrame,
     View,
+    category_key,
 )
+from drivenav.types import GroundTruth
 
 _T = TypeVar("_T")
 
@@ -135,6 +135,7 @@ class EmbeddedReasoner:
         self.config = config or EmbeddedReasonerConfig()
         self.calls: list[ModelCall] = []
         self._labels: dict[int, str] = {}
+        self._truth: GroundTruth | None = None
 
     @property
     def embedder(self) -> TextEmbedder:
@@ -143,13 +144,14 @@ class EmbeddedReasoner:
             self._embedder = default_embedder()
         return self._embedder
 
-    def begin_episode(self, goal: str, labels: SemanticLabels | None) -> None:
+    def begin_episode(self, goal: str, truth: GroundTruth | None) -> None:
         self.calls = []
-        self._labels = dict(labels or {})
+        self._truth = truth
+        self._labels = dict(truth.labels or {}) if truth is not None else {}
 
     def relatedness(self, label: str, goal: str) -> float:
         """1 for the goal's own category, else the cosine similarity of the two texts."""
-        if category_key(label) == category_key(goal):
+        if category_key(label, self._truth) == category_key(goal, self._truth):
             return 1.0
         return self.embedder.similarity(normalize_phrase(label), normalize_phrase(goal))
 
@@ -239,7 +241,7 @@ class EmbeddedReasoner:
         good = [(r, label) for r, label in scored if r >= self.config.uncertain_similarity]
         if good:
             return max(good, key=lambda item: item[0])[1]  # max keeps the first (largest) of equals
-        return next((p for p in goal_phrases(goal) if normalize_phrase(p) not in tried), goal)
+        return next((p for p in goal_phrases(goal, self._truth) if normalize_phrase(p) not in tried), goal)
 
     def _judge(self, goal: str, frame: VerificationFrame) -> Judgement:
         if frame.semantic is None:
@@ -257,8 +259,9 @@ class EmbeddedReasoner:
         return "uncertain" if relatedness >= self.config.uncertain_similarity else "not"
 
 
-def goal_phrases(goal: str) -> list[str]:
-    """The goal's category name and its synonyms (just the goal text outside the vocabulary), no repeats."""
-    category = canonical_category(goal)
-    names = [category, *synonyms(category)] if category is not None else [goal]
+def goal_phrases(goal: str, truth: GroundTruth | None) -> list[str]:
+    """The goal's category name and its synonyms in the world's vocabulary (just the goal text outside it)."""
+    vocabulary = truth.vocabulary if truth is not None else None
+    category = vocabulary.canonical(goal) if vocabulary is not None else None
+    names = [category, *vocabulary.synonyms(category)] if vocabulary is not None and category is not None else [goal]
     return list(dict.fromkeys(names))

@@ -3,9 +3,9 @@
 Unlike :class:`~drivenav.semantics.ground_truth.GroundTruthGrounder`, which is exact, this grounder misses small,
 distant and rarely-phrased objects and sometimes returns a related category, so that prompt enrichment
 (Sec. IV-B) and cross-frame verification (Sec. IV-C) have something to fix. It reads the instance image and the
-episode's :data:`~drivenav.semantics.protocols.SemanticLabels`; meaning comes from all-MiniLM-L6-v2
-(:class:`~drivenav.semantics.embedding.TextEmbedder`). These are the embedded benchmark's detector settings,
-the fields of :class:`EmbeddedDetectorConfig`:
+episode's ground-truth instance labels (:class:`~drivenav.types.GroundTruth`, ``semantic``); meaning comes
+from all-MiniLM-L6-v2 (:class:`~drivenav.semantics.embedding.TextEmbedder`). These are the embedded benchmark's
+detector settings, the fields of :class:`EmbeddedDetectorConfig`:
 
 For a phrase and one visible instance with label ``label``, ``pixels`` pixels and median depth ``depth``
 (metres), let ``s`` be the cosine similarity of the phrase and the label. The instance is returned with
@@ -43,9 +43,8 @@ from numpy.typing import NDArray
 
 from drivenav.semantics.embedded import instance_areas, normalize_phrase
 from drivenav.semantics.embedding import TextEmbedder, default_embedder
-from drivenav.semantics.ground_truth import category_key
-from drivenav.semantics.protocols import Detection, SemanticLabels
-from drivenav.types import Observation
+from drivenav.semantics.protocols import Detection, category_key
+from drivenav.types import GroundTruth, Observation
 
 
 def _sigmoid(x: float) -> float:
@@ -107,12 +106,12 @@ class EmbeddedGrounder:
         self,
         embedder: TextEmbedder | None = None,
         seed: int = 0,
-        labels: SemanticLabels | None = None,
+        truth: GroundTruth | None = None,
         config: EmbeddedDetectorConfig | None = None,
     ) -> None:
         self._embedder = embedder
         self.config = config or EmbeddedDetectorConfig()
-        self.begin_episode(labels, seed)
+        self.begin_episode(truth, seed)
 
     @property
     def embedder(self) -> TextEmbedder:
@@ -121,16 +120,17 @@ class EmbeddedGrounder:
             self._embedder = default_embedder()
         return self._embedder
 
-    def begin_episode(self, labels: SemanticLabels | None, seed: int) -> None:
+    def begin_episode(self, truth: GroundTruth | None, seed: int) -> None:
         """Learn this episode's instance labels and draw its detections from ``seed``."""
-        self._labels = dict(labels or {})
+        self._truth = truth
+        self._labels = dict(truth.labels or {}) if truth is not None else {}
         self._seed = seed % 2**64
         self._draws: dict[tuple[str, int], float] = {}
 
     def semantic_probability(self, phrase: str, label: str) -> float:
         """``p_semantic`` of the module docstring: how readily ``phrase`` fires on an instance labelled ``label``."""
         similarity = self.embedder.similarity(normalize_phrase(phrase), normalize_phrase(label))
-        same = category_key(phrase) == category_key(label)
+        same = category_key(phrase, self._truth) == category_key(label, self._truth)
         return self.config.semantic_probability(similarity, same)
 
     def segment(self, observation: Observation, phrase: str) -> list[Detection]:

@@ -21,11 +21,11 @@ from drivenav.semantics.protocols import (
     ModelCall,
     Proposal,
     Selection,
-    SemanticLabels,
     Verdict,
     VerificationFrame,
     View,
 )
+from drivenav.types import GroundTruth
 
 CONTINUATION_BONUS = 2.0  # the direction being followed counts this many times over (commitment)
 
@@ -50,7 +50,7 @@ class GeometricReasoner:
         self.distance_scale = distance_scale
         self.calls: list[ModelCall] = []
 
-    def begin_episode(self, goal: str, labels: SemanticLabels | None) -> None:
+    def begin_episode(self, goal: str, truth: GroundTruth | None) -> None:
         self.calls = []
 
     def select_direction(self, goal: str, candidates: Sequence[Candidate]) -> Selection:

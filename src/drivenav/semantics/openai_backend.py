@@ -35,7 +35,6 @@ import numpy as np
 from numpy.typing import NDArray
 from PIL import Image
 
-from drivenav.envs.vocabulary import canonical_category, normalize_term, synonyms
 from drivenav.errors import InputError
 from drivenav.semantics.answers import AnswerError, parse_proposal, parse_selection, parse_verdict
 from drivenav.semantics.geometric import GeometricReasoner
@@ -55,11 +54,11 @@ from drivenav.semantics.protocols import (
     ModelCall,
     Proposal,
     Selection,
-    SemanticLabels,
     Verdict,
     VerificationFrame,
     View,
 )
+from drivenav.types import GroundTruth
 
 logger = logging.getLogger(__name__)
 
@@ -93,11 +92,17 @@ def nearest_candidates(candidates: Sequence[Candidate], limit: int) -> list[Cand
 
 
 def fallback_phrase(goal: str, failed: Sequence[str]) -> str:
-    """The goal text, else its vocabulary category or a synonym, whichever has not failed yet (else the goal)."""
-    category = canonical_category(goal)
-    options = [goal] if category is None else [goal, category, *synonyms(category)]
-    tried = {normalize_term(phrase) for phrase in failed}
-    return next((option for option in options if normalize_term(option) not in tried), goal)
+    """The goal text, else its head noun (its last word: "kitchen cabinet" -> "cabinet"), whichever has not failed
+    yet (else the goal). Nothing here knows a world's vocabulary: any benchmark's category names work."""
+    words = goal.split()
+    options = [goal, words[-1]] if len(words) > 1 else [goal]
+    tried = {_phrase_key(phrase) for phrase in failed}
+    return next((option for option in options if _phrase_key(option) not in tried), goal)
+
+
+def _phrase_key(phrase: str) -> str:
+    """Phrases compared without case, spaces, hyphens or underscores."""
+    return "".join(phrase.lower().replace("-", " ").replace("_", " ").split())
 
 
 def _last(frames: Sequence[VerificationFrame], count: int) -> Sequence[VerificationFrame]:
@@ -171,10 +176,10 @@ class OpenAIReasoner:
         self.calls: list[ModelCall] = []
         self._geometric = GeometricReasoner()
 
-    def begin_episode(self, goal: str, labels: SemanticLabels | None) -> None:
-        """Start a fresh call record (the model never sees ground-truth ``labels``)."""
+    def begin_episode(self, goal: str, truth: GroundTruth | None) -> None:
+        """Start a fresh call record (the model never sees ground truth)."""
         self.calls = []
-        self._geometric.begin_episode(goal, labels)
+        self._geometric.begin_episode(goal, None)
 
     def check_connection(self, timeout: float = 5.0) -> None:
         """``GET {base_url}/models``; :class:`InputError` when unreachable or when it does not serve the model."""

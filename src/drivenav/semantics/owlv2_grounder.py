@@ -18,8 +18,8 @@ from numpy.typing import NDArray
 from PIL import Image
 
 from drivenav.semantics.hf_common import fit_phrase, load_pair, pick_device, ranked_detections, run_model
-from drivenav.semantics.protocols import Detection, SemanticLabels
-from drivenav.types import Observation
+from drivenav.semantics.protocols import Detection
+from drivenav.types import GroundTruth, Observation
 
 OWLV2_EXPECTED = "a local OWLv2 checkpoint directory or a model id in the Hugging Face cache"
 
@@ -82,7 +82,7 @@ class Owlv2Grounder:
         self.score_threshold = score_threshold
         self.segmenter: BoxSegmenter = segmenter if segmenter is not None else FilledBoxSegmenter()
 
-    def begin_episode(self, labels: SemanticLabels | None, seed: int) -> None:
+    def begin_episode(self, truth: GroundTruth | None, seed: int) -> None:
         """Nothing to reset: OWLv2 grounds every frame independently and deterministically."""
 
     def segment(self, observation: Observation, phrase: str) -> list[Detection]:

@@ -13,7 +13,7 @@ from typing import Literal, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.types import Observation, Pose
+from drivenav.types import GroundTruth, Observation, Pose
 
 
 @dataclass(frozen=True)
@@ -118,8 +118,11 @@ class ModelCall:
     outcome: str
 
 
-SemanticLabels = Mapping[int, str]
-"""What the world's instance ids mean (instance id -> category), as Habitat's semantic scene annotations."""
+def category_key(name: str, truth: GroundTruth | None) -> str:
+    """The world's category for a name or synonym (ground truth), else the name itself lower-cased and stripped."""
+    vocabulary = truth.vocabulary if truth is not None else None
+    canonical = vocabulary.canonical(name) if vocabulary is not None else None
+    return canonical or name.strip().lower()
 
 
 class Reasoner(Protocol):
@@ -132,7 +135,9 @@ class Reasoner(Protocol):
     name: str
     calls: list[ModelCall]
 
-    def begin_episode(self, goal: str, labels: SemanticLabels | None) -> None: ...
+    def begin_episode(self, goal: str, truth: GroundTruth | None) -> None:
+        """Start an episode; ``truth`` is the world's ground truth, given only to stand-ins that need it."""
+        ...
 
     def select_direction(self, goal: str, candidates: Sequence[Candidate]) -> Selection: ...
 
@@ -155,6 +160,8 @@ class Grounder(Protocol):
 
     name: str
 
-    def begin_episode(self, labels: SemanticLabels | None, seed: int) -> None: ...
+    def begin_episode(self, truth: GroundTruth | None, seed: int) -> None:
+        """Start an episode (``truth``: ground truth for stand-ins only; ``seed``: any randomness)."""
+        ...
 
     def segment(self, observation: Observation, phrase: str) -> list[Detection]: ...

@@ -11,9 +11,11 @@ from pathlib import Path
 
 from drivenav.errors import InputError
 from drivenav.semantics.protocols import Grounder, Reasoner
+from drivenav.types import SEMANTIC
 
 REASONERS = ("embedded", "openai", "replay", "geometric")
 DETECTORS = ("embedded", "ground-truth", "sam3", "owlv2")
+_STAND_INS = {"embedded", "ground-truth"}  # read the world's instance labels: ground truth (``semantic``)
 
 
 @dataclass(frozen=True)
@@ -27,6 +29,11 @@ class ModelSpec:
     vlm_record: str = ""
     vlm_replay: str = ""
     detector_model: str = ""
+
+
+def model_requirements(spec: ModelSpec) -> frozenset[str]:
+    """The privileged inputs the chosen models need: the embedded stand-ins read ground-truth labels."""
+    return frozenset({SEMANTIC}) if {spec.reasoner, spec.detector} & _STAND_INS else frozenset()
 
 
 def make_reasoner(spec: ModelSpec) -> Reasoner:

@@ -34,11 +34,11 @@ from drivenav.semantics.protocols import (
     Proposal,
     Reasoner,
     Selection,
-    SemanticLabels,
     Verdict,
     VerificationFrame,
     View,
 )
+from drivenav.types import GroundTruth
 
 Answer = Selection | Proposal | Verdict
 A = TypeVar("A", Selection, Proposal, Verdict)
@@ -171,8 +171,8 @@ class RecordingReasoner:
     def calls(self, value: list[ModelCall]) -> None:
         self.inner.calls = value
 
-    def begin_episode(self, goal: str, labels: SemanticLabels | None) -> None:
-        self.inner.begin_episode(goal, labels)
+    def begin_episode(self, goal: str, truth: GroundTruth | None) -> None:
+        self.inner.begin_episode(goal, truth)
 
     def select_direction(self, goal: str, candidates: Sequence[Candidate]) -> Selection:
         return self._record(select_request(goal, candidates), self.inner.select_direction(goal, candidates))
@@ -233,7 +233,7 @@ class ReplayReasoner:
             raise InputError(self.path, f"line {number}", expected, line) from err
         self._per_goal[kind, goal] += 1
 
-    def begin_episode(self, goal: str, labels: SemanticLabels | None) -> None:
+    def begin_episode(self, goal: str, truth: GroundTruth | None) -> None:
         self.calls = []
 
     def select_direction(self, goal: str, candidates: Sequence[Candidate]) -> Selection:

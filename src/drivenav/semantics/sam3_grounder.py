@@ -15,8 +15,8 @@ from typing import Any
 from PIL import Image
 
 from drivenav.semantics.hf_common import fit_phrase, load_pair, pick_device, ranked_detections, run_model
-from drivenav.semantics.protocols import Detection, SemanticLabels
-from drivenav.types import Observation
+from drivenav.semantics.protocols import Detection
+from drivenav.types import GroundTruth, Observation
 
 SAM3_EXPECTED = "a local SAM3 checkpoint directory or a model id in the Hugging Face cache"
 
@@ -50,7 +50,7 @@ class Sam3Grounder:
         self.score_threshold = score_threshold
         self.mask_threshold = mask_threshold
 
-    def begin_episode(self, labels: SemanticLabels | None, seed: int) -> None:
+    def begin_episode(self, truth: GroundTruth | None, seed: int) -> None:
         """Nothing to reset: SAM3 grounds every frame independently and deterministically."""
 
     def segment(self, observation: Observation, phrase: str) -> list[Detection]:

@@ -5,10 +5,13 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from drivenav.envs.embedded import EmbeddedSpec
 from drivenav.envs.library import SceneLibrary
-from drivenav.eval.episodes import generate_episodes, save_episodes
-from drivenav.eval.report import format_table
-from drivenav.eval.runner import EPISODES_FILE, RunSpec, evaluate, read_finished
+from drivenav.eval.episodes import generate_episodes
+from drivenav.eval.records import read_records
+from drivenav.eval.report import format_table, shown
+from drivenav.eval.rundir import EPISODES_FILE
+from drivenav.eval.runner import RunSpec, evaluate
 from drivenav.types import SimConfig
 from drivenav.viz.episode import render_episode_pictures
 
@@ -31,21 +34,17 @@ def run_demo(out: Path, num_episodes: int, seed: int) -> Path:
     lines = ["# drivenav demo", "", f"{len(episodes)} episodes on `{DEMO_SCENES}` (seed {seed}).", ""]
     for agent, max_steps in DEMO_AGENTS:
         run_dir = out / agent
-        run_dir.mkdir(parents=True, exist_ok=True)
-        save_episodes(episodes, run_dir / "episodes.json.gz")
-        spec = RunSpec(agent, DEMO_SCENES, seed, max_steps)
-        summary = evaluate(episodes, spec, run_dir, sim=SimConfig(max_steps=max_steps))
+        spec = RunSpec(EmbeddedSpec(DEMO_SCENES, seed), agent, seed, max_steps, sim=SimConfig(max_steps=max_steps))
+        summary = evaluate(episodes, spec, run_dir)
         table = format_table(summary, f"{agent} (max {max_steps} steps)")
         print(table)
         lines += [f"## {agent}", "", "```", table, "```", ""]
-        for number, record in enumerate(
-            sorted(read_finished(run_dir / EPISODES_FILE), key=lambda r: int(r["episode_id"]))
-        ):
+        for number, record in enumerate(sorted(read_records(run_dir / EPISODES_FILE), key=lambda r: int(r.episode_id))):
             video = agent == VIDEO_AGENT and number == 0
-            pictures = render_episode_pictures(run_dir, record["episode_id"], video=video)
+            pictures = render_episode_pictures(run_dir, record.episode_id, video=video)
             lines.append(
-                f"- episode {record['episode_id']} ({record['object_category']}): success {record['success']}, "
-                f"SPL {record['spl']:.2f}, {record['steps']} steps"
+                f"- episode {record.episode_id} ({record.object_category}): success {record.success}, "
+                f"SPL {shown(record.spl, '{:.2f}')}, {record.steps} steps"
             )
             lines += [_markdown_link(p, out) for p in pictures]
         lines.append("")

@@ -22,7 +22,8 @@ from drivenav.envs.render import Renderer
 from drivenav.envs.scene import Scene
 from drivenav.errors import InputError
 from drivenav.eval.episodes import load_episodes
-from drivenav.eval.runner import EPISODES_FILE, RUN_FILE, read_finished, trace_path
+from drivenav.eval.records import EpisodeRecord, read_records
+from drivenav.eval.rundir import EPISODES_FILE, RUN_FILE, trace_path
 from drivenav.types import Pose, SimConfig
 from drivenav.viz.coverage import explored_cells
 from drivenav.viz.rerun_log import import_rerun, write_rerun
@@ -64,7 +65,7 @@ def view_strip(renderer: Renderer, pose: Pose) -> Image.Image:
     return Image.fromarray(np.concatenate(panels, axis=1))
 
 
-def _load_episode(run_dir: Path, episode_id: str) -> tuple[Scene, Episode, SavedTrace, dict[str, Any] | None]:
+def _load_episode(run_dir: Path, episode_id: str) -> tuple[Scene, Episode, SavedTrace, EpisodeRecord | None]:
     run = _read_json(run_dir / RUN_FILE, "run")
     episodes = {e.episode_id: e for e in load_episodes(run_dir / "episodes.json.gz")}
     if episode_id not in episodes:
@@ -75,8 +76,11 @@ def _load_episode(run_dir: Path, episode_id: str) -> tuple[Scene, Episode, Saved
         trace = SavedTrace.from_json(_read_json(path, "trace"), episode)
     except (KeyError, TypeError, ValueError):
         raise InputError(path, "trace", "positions, yaws and events as written by 'drivenav eval'") from None
-    records = {r["episode_id"]: r for r in read_finished(run_dir / EPISODES_FILE)}
-    scene = SceneLibrary(str(run["scenes"]), int(run["seed"])).load(episode.scene_id)
+    records = {r.episode_id: r for r in read_records(run_dir / EPISODES_FILE)}
+    world = run.get("config", {}).get("env", {})
+    if world.get("name") != "embedded":
+        raise InputError(run_dir / RUN_FILE, "config.env.name", "a run in the embedded world", world.get("name"))
+    scene = SceneLibrary(str(world["scenes"]), int(world["seed"])).load(episode.scene_id)
     return scene, episode, trace, records.get(episode_id)
 
 

@@ -19,6 +19,8 @@ from PIL import Image, ImageDraw, ImageFont
 from drivenav.envs.episode import Episode
 from drivenav.envs.palette import category_color
 from drivenav.envs.scene import Material, Scene
+from drivenav.eval.records import EpisodeRecord
+from drivenav.eval.report import shown
 from drivenav.types import Pose
 from drivenav.viz.directions import label_color
 from drivenav.viz.saved_trace import Point, SavedTrace
@@ -330,12 +332,12 @@ def add_legend(image: Image.Image, success: bool) -> Image.Image:
     return panel
 
 
-def title(episode: Episode, record: dict[str, Any] | None) -> str:
+def title(episode: Episode, record: EpisodeRecord | None) -> str:
     text = f"episode {episode.episode_id}  {episode.scene_id}  target: '{episode.object_category}'"
     if record:
         text += (
-            f"  success={record.get('success')}  SPL={float(record.get('spl', 0.0)):.2f}"
-            f"  steps={record.get('steps')}  stop={record.get('stop_reason')}"
+            f"  success={record.success}  SPL={shown(record.spl, '{:.2f}')}"
+            f"  steps={record.steps}  stop={record.stop_reason}"
         )
     return text
 
@@ -344,7 +346,7 @@ def draw_episode(
     scene: Scene,
     episode: Episode,
     trace: SavedTrace,
-    record: dict[str, Any] | None = None,
+    record: EpisodeRecord | None = None,
     explored: NDArray[np.bool_] | None = None,
 ) -> Image.Image:
     """Top-down picture of one episode with its trace and a legend."""
@@ -355,7 +357,7 @@ def draw_episode(
     for kind in DRAW_ORDER:
         for event in trace.of_kind(kind):
             draw_event(draw, canvas, trace, event)
-    success = bool(record and record.get("success"))
+    success = bool(record and record.success)
     draw_pose(draw, canvas, trace.xy(0), trace.start.yaw, START_COLOR)
     last = trace.pose(len(trace) - 1)
     draw_pose(draw, canvas, (last.x, last.y), last.yaw, SUCCESS_COLOR if success else FAILURE_COLOR)

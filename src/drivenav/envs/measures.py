@@ -1,0 +1,81 @@
+"""The embedded world's measures: Habitat's ObjectNav metrics from the world's own ground truth.
+
+Like habitat-lab's ``Success``, ``SPL``, ``DistanceToGoal`` and ``Collisions`` measures, they follow the agent
+from ``reset`` to the end of the episode: geodesic distances come from one Fast-Marching solve to the goal view
+points on the world's navigable grid (its largest component, where every episode starts), SPL's d0 is the
+world's own start distance (as habitat-lab computes it, never the episode file's), and path length is the
+executed translation.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from drivenav import metrics
+from drivenav.envs.base import EpisodeMeasures
+from drivenav.envs.episode import Episode
+from drivenav.envs.geodesic import GeodesicField
+from drivenav.grid import GridSpec
+from drivenav.types import Action, Observation, Pose, SimConfig
+
+TARGET_SEEN_PIXELS = 150  # goal-instance pixels in one frame for the target to count as seen
+
+
+class EmbeddedMeasures:
+    """Success, SPL, distance to goal, path length, collisions and target visibility of one episode."""
+
+    def __init__(self, config: SimConfig) -> None:
+        self._config = config
+        self._goal_field: GeodesicField | None = None
+        self._goal_ids: NDArray[np.int64] = np.zeros(0, dtype=np.int64)
+        self._positions: list[tuple[float, float]] = []
+        self._collisions = 0
+        self._called_stop = False
+        self._target_seen = False
+
+    @property
+    def goal_field(self) -> GeodesicField:
+        """The episode's geodesic distance field to its goal view points."""
+        if self._goal_field is None:
+            raise RuntimeError("EmbeddedMeasures: reset() first")
+        return self._goal_field
+
+    def reset(self, episode: Episode, navigable: NDArray[np.bool_], grid: GridSpec, start: Pose) -> None:
+        """Start measuring ``episode`` from ``start`` (world frame) on the world's reachable cells."""
+        self._goal_field = GeodesicField(navigable, grid, episode.view_points_xy())
+        self._goal_ids = np.array([goal.object_id for goal in episode.goals], dtype=np.int64)
+        self._positions = [(start.x, start.y)]
+        self._collisions = 0
+        self._called_stop = False
+        self._target_seen = False
+
+    def update(self, action: Action | None, pose: Pose, observation: Observation) -> None:
+        """After ``action`` (None at reset) the agent is at ``pose`` (world frame) and sees ``observation``."""
+        if action is not None:
+            self._positions.append((pose.x, pose.y))
+            self._collisions += int(observation.collided)
+            self._called_stop = self._called_stop or action == Action.STOP
+        self._target_seen = self._target_seen or self._shows_goal(observation)
+
+    def _shows_goal(self, observation: Observation) -> bool:
+        if observation.semantic is None:
+            return False
+        return int(np.count_nonzero(np.isin(observation.semantic, self._goal_ids))) >= TARGET_SEEN_PIXELS
+
+    def result(self) -> EpisodeMeasures:
+        """The metrics of the episode so far."""
+        field = self.goal_field
+        distance = field.at(*self._positions[-1])
+        geodesic = field.at(*self._positions[0])
+        path_length = metrics.path_length(np.asarray(self._positions))
+        is_success = metrics.success(self._called_stop, distance, self._config.success_distance)
+        return EpisodeMeasures(
+            success=int(is_success),
+            spl=round(metrics.spl(is_success, geodesic, path_length), 6),
+            distance_to_goal=round(distance, 4) if np.isfinite(distance) else None,
+            path_length=round(path_length, 4),
+            geodesic_distance=round(geodesic, 4) if np.isfinite(geodesic) else None,
+            collisions=self._collisions,
+            target_seen=self._target_seen,
+        )

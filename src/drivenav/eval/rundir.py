@@ -1,0 +1,165 @@
+"""The run directory: a lock, what the run was started with (``run.json``), records, traces and the summary.
+
+``DIR/.lock`` is held (``flock``) by the one process writing the directory: a second evaluation into it is
+refused at once, and a lock left by a dead process is free again (the kernel drops it with the process).
+``DIR/run.json`` records the resolved settings, the episodes' sha256, the package version, and the git commit
+and whether its tree was dirty; resuming with other settings or other episodes is refused, naming the first
+differing key (or ``episodes``).
+"""
+
+from __future__ import annotations
+
+import fcntl
+import hashlib
+import json
+import os
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO, Any
+
+from drivenav.envs.episode import Episode
+from drivenav.errors import InputError
+from drivenav.eval.episodes import episode_to_dict, save_episodes
+from drivenav.eval.provenance import package_version, source_state
+from drivenav.eval.records import EpisodeRecord, read_records
+from drivenav.eval.report import Summary
+
+EPISODES_FILE = "episodes.jsonl"
+SUMMARY_FILE = "summary.json"
+RUN_FILE = "run.json"
+TRACES_DIR = "traces"
+LOCK_FILE = ".lock"
+EPISODES_COPY = "episodes.json.gz"  # the run's episodes, for pictures and reruns
+
+
+def episodes_sha256(episodes: Sequence[Episode]) -> str:
+    """A digest of the episodes as written to an episodes file (order included)."""
+    text = json.dumps([episode_to_dict(e) for e in episodes], sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def first_difference(old: Any, new: Any, prefix: str = "") -> str | None:
+    """The first dotted key whose value differs between two JSON-like trees (None when they are equal)."""
+    if isinstance(old, Mapping) and isinstance(new, Mapping):
+        for key in sorted(set(old) | set(new), key=str):
+            found = first_difference(old.get(key), new.get(key), f"{prefix}{key}.")
+            if found is not None:
+                return found
+        return None
+    return None if old == new else prefix.rstrip(".") or "(root)"
+
+
+def trace_path(out: Path, episode_id: str) -> Path:
+    safe = "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in episode_id)
+    return out / TRACES_DIR / f"{safe}.json"
+
+
+def write_json_atomic(path: Path, payload: Any) -> None:
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(json.dumps(payload, indent=2, sort_keys=True) + "\n", encoding="utf-8")
+    os.replace(tmp, path)
+
+
+@dataclass(frozen=True)
+class RunInfo:
+    """``run.json``: what the run was started with."""
+
+    config: dict[str, Any]
+    episodes_sha256: str
+    version: str
+    git_commit: str | None
+    git_dirty: bool | None
+
+    def check_resume(self, previous: Mapping[str, Any], source: Path) -> None:
+        """Refuse to resume a run started with other settings or episodes."""
+        key = first_difference(previous.get("config"), self.config)
+        if key is not None:
+            raise InputError(
+                source, f"config.{key}", "the settings this run directory was started with, to resume it", "others"
+            )
+        if previous.get("episodes_sha256") != self.episodes_sha256:
+            raise InputError(source, "episodes", "the episodes this run directory was started with, to resume it")
+
+
+def make_directory(out: Path) -> None:
+    """Create ``out`` (and its parents) as a writable directory, or an :class:`InputError` on ``--out``."""
+    if out.exists() and not out.is_dir():
+        raise InputError(out, "--out", "a directory (a run directory, rerun to resume)", "an existing file")
+    try:
+        (out / TRACES_DIR).mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise InputError(out, "--out", "a directory drivenav can create", error.strerror) from None
+    if not os.access(out, os.W_OK | os.X_OK) or not os.access(out / TRACES_DIR, os.W_OK | os.X_OK):
+        raise InputError(out, "--out", "a writable directory", "no write permission")
+
+
+class RunDirectory:
+    """An open, locked run directory (see the module docstring); records are appended kill-safely."""
+
+    def __init__(self, out: Path) -> None:
+        self.out = out
+        self.results = out / EPISODES_FILE
+
+    @staticmethod
+    @contextmanager
+    def open(out: Path, config: dict[str, Any], episodes: Sequence[Episode]) -> Iterator[RunDirectory]:
+        """Create or resume ``out`` for a run with ``config`` over ``episodes``; held locked until left."""
+        make_directory(out)
+        with _locked(out / LOCK_FILE):
+            commit, dirty = source_state()
+            info = RunInfo(config, episodes_sha256(episodes), package_version(), commit, dirty)
+            run_file = out / RUN_FILE
+            if run_file.exists():
+                info.check_resume(_read_json(run_file), run_file)
+            else:
+                save_episodes(list(episodes), out / EPISODES_COPY)
+                write_json_atomic(run_file, info.__dict__)
+            yield RunDirectory(out)
+
+    def records(self) -> list[EpisodeRecord]:
+        return read_records(self.results)
+
+    def save(self, record: EpisodeRecord, trace: Mapping[str, Any]) -> None:
+        """The trace first, then the record appended, flushed and fsync'ed (the record marks it finished)."""
+        trace_path(self.out, record.episode_id).write_text(json.dumps(trace), encoding="utf-8")
+        with self.results.open("a", encoding="utf-8") as handle:
+            handle.write(json.dumps(record.to_json(), sort_keys=True) + "\n")
+            handle.flush()
+            os.fsync(handle.fileno())
+
+    def write_summary(self, summary: Summary) -> None:
+        write_json_atomic(self.out / SUMMARY_FILE, summary.to_json())
+
+
+def _read_json(path: Path) -> dict[str, Any]:
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as error:
+        raise InputError(path, "<file>", "the JSON object drivenav wrote", str(error)) from None
+    if not isinstance(data, dict):
+        raise InputError(path, "<file>", "a JSON object", type(data).__name__)
+    return data
+
+
+@contextmanager
+def _locked(path: Path) -> Iterator[IO[str]]:
+    """Hold an exclusive ``flock`` on ``path``; refuse at once when a live process holds it."""
+    handle = path.open("a+", encoding="utf-8")
+    try:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            handle.seek(0)
+            holder = handle.read().strip() or "another process"
+            raise InputError(
+                path.parent, "--out", "a run directory no other drivenav run is writing", f"locked by pid {holder}"
+            ) from None
+        handle.seek(0)
+        handle.truncate()
+        handle.write(str(os.getpid()))
+        handle.flush()
+        yield handle
+    finally:
+        handle.close()
