@@ -10,9 +10,9 @@ import pytest
 
 from drivenav.envs.embedded import EmbeddedSpec
 from drivenav.eval.episodes import load_episodes
+from drivenav.eval.records import read_records
 from drivenav.eval.rundir import trace_path
 from drivenav.eval.runner import RunSpec, evaluate
-from drivenav.eval.records import read_records
 from drivenav.types import SimConfig
 
 GOLDEN = Path(__file__).parent / "data" / "golden"

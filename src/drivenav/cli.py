@@ -8,12 +8,13 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import signal
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from drivenav.errors import InputError
+from drivenav.errors import InputError, WorkerDiedError
 from drivenav.threads import limit_blas_threads
 
 if TYPE_CHECKING:
@@ -281,7 +282,7 @@ def _cmd_bench_mapping(args: argparse.Namespace) -> int:
 
 
 def _cmd_bench_agent(args: argparse.Namespace) -> int:
-    from drivenav.agent.bench import bench_agent
+    from drivenav.eval.agent_bench import bench_agent
 
     result = bench_agent(_positive(args.episodes, "--episodes"), _positive(args.max_steps, "--max-steps"))
     return _print_bench(result, args.json)
@@ -349,16 +350,29 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _interrupt_on_sigterm() -> None:
+    """SIGTERM (a scheduler's or ``kill``'s stop) behaves like Ctrl-C: finished episodes stay saved."""
+
+    def interrupt(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, interrupt)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
     handler: Handler = args.handler
+    _interrupt_on_sigterm()
     try:
         return handler(args)
     except InputError as error:
         print(f"drivenav: error: {error}", file=sys.stderr)
         return 2
+    except WorkerDiedError as error:
+        print(f"drivenav: error: {error}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print("drivenav: interrupted (finished episodes are saved; rerun to resume)", file=sys.stderr)
         return 130
