@@ -23,6 +23,7 @@ from drivenav.eval.stats import bootstrap_mean_interval, wilson_interval
 
 METHOD_KEYS = {
     "episodes",
+    "errors",
     "success_rate",
     "spl",
     "avg_steps",

@@ -289,8 +289,11 @@ def _cmd_bench_agent(args: argparse.Namespace) -> int:
 
 
 def _cmd_bench_ablations(args: argparse.Namespace) -> int:
+    from drivenav.envs.embedded import EmbeddedSpec
     from drivenav.eval.ablations import parse_methods, resolve_scenes, run_ablations
+    from drivenav.eval.report import shown
     from drivenav.eval.runner import RunSpec
+    from drivenav.types import SimConfig
 
     methods = parse_methods(args.methods)
     executor = _executor(args)
@@ -300,10 +303,12 @@ def _cmd_bench_ablations(args: argparse.Namespace) -> int:
     models = _model_spec(args)
     args.scenes = resolve_scenes(args.scenes)
     _, episodes = _load_or_generate(args)
-    template = RunSpec(methods[0], args.scenes, args.seed, args.max_steps, models)
+    world = EmbeddedSpec(args.scenes, _seed(args.seed))
+    template = RunSpec(world, methods[0], args.seed, args.max_steps, models, SimConfig(max_steps=args.max_steps))
     report = run_ablations(episodes, methods, template, args.out, executor, args.pictures)
     for name, entry in report["methods"].items():
-        print(f"{name:<20} SR {100 * entry['success_rate']:5.1f} %  SPL {100 * entry['spl']:5.1f} %")
+        sr, spl = (shown(entry[key], "{:5.1f} %", 100.0) for key in ("success_rate", "spl"))
+        print(f"{name:<20} SR {sr}  SPL {spl}  errors {entry['errors']}")
     print(f"tables: {args.out / 'ablations.md'}  data: {args.out / 'ablations.json'}, {args.out / 'ablations.csv'}")
     return 0
 

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import csv
 import json
-import subprocess
 from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
@@ -25,8 +24,11 @@ from drivenav.errors import InputError
 from drivenav.eval.compare import compare_runs, load_runs
 from drivenav.eval.episodes import generate_episodes, load_episodes, save_episodes
 from drivenav.eval.pictures import render_pictures
+from drivenav.eval.provenance import git_commit
+from drivenav.eval.records import ERROR, EpisodeRecord
 from drivenav.eval.report import summarize
-from drivenav.eval.runner import Executor, RunSpec, evaluate, trace_path
+from drivenav.eval.rundir import trace_path
+from drivenav.eval.runner import Executor, RunSpec, evaluate
 from drivenav.eval.stats import BOOTSTRAP_RESAMPLES, bootstrap_mean_interval, wilson_interval
 from drivenav.eval.timings import runtime_table, traced_steps
 from drivenav.types import SimConfig
@@ -146,9 +148,6 @@ def run_methods(
     with executor.session():
         for method in methods:
             run_dir = out / RUNS_DIR / method
-            run_dir.mkdir(parents=True, exist_ok=True)
-            if not (run_dir / EPISODES_COPY).exists():
-                save_episodes(episodes, run_dir / EPISODES_COPY)  # for `drivenav viz`
             evaluate(episodes, replace(template, agent=method), run_dir, executor)
             dirs[method] = run_dir
     return dirs
@@ -168,19 +167,22 @@ def _check_episode_set(episodes: list[Episode], copy: Path) -> None:
 # ----------------------------------------------------------------------------------------------- aggregation
 
 
-def method_entry(records: list[dict[str, Any]]) -> dict[str, Any]:
-    """One method's ``ablations.json`` entry: SR / SPL with 95 % intervals, steps, revisits, calls, failures."""
+def method_entry(records: list[EpisodeRecord]) -> dict[str, Any]:
+    """One method's ``ablations.json`` entry: SR / SPL with 95 % intervals, steps, revisits, calls, failures and
+    errors (episodes an exception ended: counted apart, never as navigation failures)."""
     summary = summarize(records)
-    successes = sum(int(r["success"]) for r in records)
+    measured = [r for r in records if r.success is not None]
+    successes = sum(int(r.success or 0) for r in measured)
     return {
-        "episodes": summary["episodes"],
-        "success_rate": summary["success_rate"],
-        "spl": summary["spl"],
-        "avg_steps": summary["avg_steps"],
-        "avg_revisits": summary["avg_revisits"],
-        "sr_ci95": _rounded(wilson_interval(successes, len(records))),
-        "spl_ci95": _rounded(bootstrap_mean_interval([float(r["spl"]) for r in records])),
-        "vlm_calls": summary["avg_vlm_calls"],
+        "episodes": summary.episodes,
+        "errors": summary.errors,
+        "success_rate": summary.success_rate,
+        "spl": summary.spl,
+        "avg_steps": summary.avg_steps,
+        "avg_revisits": summary.avg_revisits,
+        "sr_ci95": _rounded(wilson_interval(successes, len(measured))) if measured else None,
+        "spl_ci95": _rounded(bootstrap_mean_interval([float(r.spl or 0.0) for r in measured])) if measured else None,
+        "vlm_calls": summary.avg_vlm_calls,
         "failure_causes": failure_counts(records),
     }
 
@@ -189,13 +191,13 @@ def _rounded(interval: tuple[float, float]) -> list[float]:
     return [round(interval[0], 6), round(interval[1], 6)]
 
 
-def failure_counts(records: list[dict[str, Any]]) -> dict[str, int]:
+def failure_counts(records: list[EpisodeRecord]) -> dict[str, int]:
     """Failed episodes by cause (every known cause listed, then any other cause found)."""
-    counts = Counter(str(r.get("failure_cause") or "unknown") for r in records if not r["success"])
+    counts = Counter(r.failure_cause or "unknown" for r in records if not r.success and r.failure_cause != ERROR)
     return {cause: counts.pop(cause, 0) for cause in FAILURE_CAUSES} | dict(sorted(counts.items()))
 
 
-def model_call_latency(runs: dict[str, dict[str, dict[str, Any]]]) -> dict[str, dict[str, float]]:
+def model_call_latency(runs: dict[str, dict[str, EpisodeRecord]]) -> dict[str, dict[str, float]]:
     """Per model-call kind: mean latency per call, and calls per episode over the runs that make such calls."""
     calls: Counter[str] = Counter()
     latency: Counter[str] = Counter()
@@ -203,8 +205,8 @@ def model_call_latency(runs: dict[str, dict[str, dict[str, Any]]]) -> dict[str, 
     for records in runs.values():
         run_calls: Counter[str] = Counter()
         for record in records.values():
-            run_calls.update(record.get("vlm_calls_by_kind", {}))
-            latency.update(record.get("vlm_latency_ms", {}))
+            run_calls.update(record.stats.vlm_calls_by_kind)
+            latency.update(record.stats.vlm_latency_ms)
         calls.update(run_calls)
         episodes.update({kind: len(records) for kind, count in run_calls.items() if count})
     return {
@@ -221,7 +223,7 @@ def model_call_latency(runs: dict[str, dict[str, dict[str, Any]]]) -> dict[str, 
 RUNTIME_METHOD = "drive-nav"
 
 
-def measure_runtime(runs: dict[str, dict[str, dict[str, Any]]], dirs: dict[str, Path]) -> dict[str, Any]:
+def measure_runtime(runs: dict[str, dict[str, EpisodeRecord]], dirs: dict[str, Path]) -> dict[str, Any]:
     """Table VII from the runs themselves: per-step module timings saved in the traces of ``drive-nav`` (else
     the first method whose traces have them), model-call latency over every run. ``compute`` is None when no
     trace has timings."""
@@ -243,24 +245,8 @@ def _read_trace(path: Path) -> dict[str, Any]:
     return trace
 
 
-def git_commit() -> str | None:
-    """The short hash of the checkout drivenav runs from, if it is a git checkout."""
-    try:
-        result = subprocess.run(
-            ["git", "rev-parse", "--short", "HEAD"],
-            cwd=Path(__file__).parent,
-            capture_output=True,
-            text=True,
-            check=False,
-            timeout=10,
-        )
-    except (OSError, subprocess.SubprocessError):
-        return None
-    return result.stdout.strip() or None
-
-
 def build_report(
-    dirs: dict[str, Path], runs: dict[str, dict[str, dict[str, Any]]], template: RunSpec, episodes: int
+    dirs: dict[str, Path], runs: dict[str, dict[str, EpisodeRecord]], template: RunSpec, episodes: int
 ) -> dict[str, Any]:
     """The ``ablations.json`` payload for the finished runs in ``dirs`` (their records: ``runs``)."""
     table_ii_methods = [name for name in TABLE_II_METHODS if name in dirs]
@@ -270,7 +256,7 @@ def build_report(
         "runtime": measure_runtime(runs, dirs),
         "episodes": episodes,
         "seed": template.seed,
-        "scenes": template.scenes,
+        "scenes": template.to_config()["env"].get("scenes"),
         "max_steps": template.max_steps,
         "models": {"reasoner": template.models.reasoner, "detector": template.models.detector},
         "commit": git_commit(),
@@ -374,12 +360,16 @@ def _pictures(pictures: dict[str, Any] | None) -> list[str]:
     return lines
 
 
-def _pct(value: float, interval: list[float]) -> str:
+def _pct(value: float | None, interval: list[float] | None) -> str:
+    if value is None or interval is None:
+        return "n/a"
     return f"{100 * value:.1f} [{100 * interval[0]:.1f}, {100 * interval[1]:.1f}]"
 
 
 def _sr_spl(entry: dict[str, Any]) -> str:
-    return f"{_pct(entry['success_rate'], entry['sr_ci95'])} | {_pct(entry['spl'], entry['spl_ci95'])}"
+    """SR and SPL with their intervals, then the episodes an exception ended."""
+    sr, spl = _pct(entry["success_rate"], entry["sr_ci95"]), _pct(entry["spl"], entry["spl_ci95"])
+    return f"{sr} | {spl} | {entry.get('errors', 0)}"
 
 
 def _rows_present(rows: Sequence[PaperRow], methods: dict[str, Any]) -> list[PaperRow]:
@@ -395,8 +385,8 @@ def _table_vi(methods: dict[str, Any]) -> list[str]:
     lines = [
         "## Table VI: module ablation",
         "",
-        f"| {' | '.join(TABLE_VI_MODULES)} | method | SR % | SPL % | paper SR / SPL |",
-        "|---|---|---|---|---|---|---|---|",
+        f"| {' | '.join(TABLE_VI_MODULES)} | method | SR % | SPL % | errors | paper SR / SPL |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for row in rows:
         marks = " | ".join("✓" if on else "" for on in row.modules)
@@ -410,8 +400,8 @@ def _table_v(methods: dict[str, Any]) -> list[str]:
     lines = [
         "## Table V: directional-reasoning components",
         "",
-        "| method | ours | SR % | SPL % | paper SR / SPL |",
-        "|---|---|---|---|---|",
+        "| method | ours | SR % | SPL % | errors | paper SR / SPL |",
+        "|---|---|---|---|---|---|",
     ]
     for row in rows:
         paper = f"{row.paper[0]:.1f} / {row.paper[1]:.1f}"

@@ -288,7 +288,7 @@ def evaluate(
         with bar, logging_redirect_tqdm():
             for record, trace in run_all(todo, spec, executor or Executor()):
                 run.save(record, trace)
-                bar.update(1)
+                _advance(bar)
         summary = summarize(run.records())
         run.write_summary(summary)
     if summary.errors:
@@ -299,6 +299,14 @@ def evaluate(
             out / "traces",
         )
     return summary
+
+
+def _advance(bar: tqdm[Any]) -> None:
+    """One more episode on the bar; the last one is drawn by closing the bar only (else its line prints twice)."""
+    if bar.total is not None and bar.n + 1 >= bar.total:
+        bar.n += 1
+    else:
+        bar.update(1)
 
 
 def run_all(todo: Sequence[Episode], spec: RunSpec, executor: Executor) -> Iterator[tuple[EpisodeRecord, Trace]]:
