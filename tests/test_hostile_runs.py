@@ -17,6 +17,7 @@ from typing import ClassVar
 
 import pytest
 
+from conftest import run_cli
 from drivenav.agent.base import Agent
 from drivenav.cli import main
 from drivenav.envs.embedded import EmbeddedEnv, EmbeddedSpec
@@ -27,6 +28,7 @@ from drivenav.eval.episodes import generate_episodes
 from drivenav.eval.records import read_records
 from drivenav.eval.rundir import LOCK_FILE, RUN_FILE, RunDirectory
 from drivenav.eval.runner import RunSpec, evaluate
+from drivenav.semantics.fake_vlm_server import start_fake_server
 from drivenav.types import Action, Observation, SimConfig
 
 SCENES = "procedural:2"
@@ -298,3 +300,19 @@ def test_a_resumed_run_says_so_and_its_bar_starts_where_it_stopped(
     assert "random (resuming)" in err and "2/3" in err and "0/3" not in err
     assert err.count("3/3") == 1  # the last bar line is drawn once
     assert len(_finished_ids(tmp_path)) == 3
+
+
+def test_worker_warnings_reach_the_driver_and_stay_out_of_the_bar(tmp_path: Path) -> None:
+    url, stop = start_fake_server("garbage", lifetime=300.0)
+    try:
+        models = ["--reasoner", "openai", "--vlm-base-url", url, "--vlm-model", "fake-vlm"]
+        run = ["--scenes", "procedural:1", "--episodes", "2", "--seed", "3", "--max-steps", "40", "--workers", "2"]
+        result = run_cli("eval", "--agent", "drive-nav", *run, *models, "--out", str(tmp_path / "run"))
+    finally:
+        stop()
+    assert result.returncode == 0, result.stderr
+    warnings = [line for line in result.stderr.splitlines() if "using the fallback answer" in line]
+    assert warnings, result.stderr  # logged in the worker processes, printed by the driver
+    assert all(line.split("\r")[-1].startswith("WARNING ") for line in warnings)
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["vlm_fallbacks"] > 0 and summary["errors"] == 0
