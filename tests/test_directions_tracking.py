@@ -63,7 +63,7 @@ def test_unmatched_directions_are_dropped_and_far_jumps_get_fresh_labels() -> No
     tracker.update([cluster(10, (1.0, 0.0)), cluster(100, (0.0, 1.0))])
     result = tracker.update([cluster(195, (-1.0, 0.0))])  # 95 deg from label 1: beyond the 90 deg gate
     assert [d.label for d in result] == [2]
-    wide = DirectionTracker(DirectionConfig(association_gate=math.pi))
+    wide = DirectionTracker(DirectionConfig(association_gate_deg=180.0))
     wide.update([cluster(10, (1.0, 0.0)), cluster(100, (0.0, 1.0))])
     assert [d.label for d in wide.update([cluster(195, (-1.0, 0.0))])] == [1]
 

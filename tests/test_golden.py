@@ -13,7 +13,7 @@ from drivenav.eval.episodes import load_episodes
 from drivenav.eval.records import read_records
 from drivenav.eval.rundir import trace_path
 from drivenav.eval.runner import RunSpec, evaluate
-from drivenav.types import SimConfig
+from drivenav.settings import load_settings
 
 GOLDEN = Path(__file__).parent / "data" / "golden"
 RECORDS = json.loads((GOLDEN / "golden_records.json").read_text(encoding="utf-8"))
@@ -23,7 +23,8 @@ EXACT = ("success", "steps", "stop_reason", "failure_cause", "collisions", "revi
 @pytest.mark.parametrize("agent", sorted(RECORDS))
 def test_same_records_as_before(agent: str, tmp_path: Path) -> None:
     episodes = load_episodes(GOLDEN / "episodes.json.gz")
-    spec = RunSpec(EmbeddedSpec("procedural", 7), agent, 7, 120, sim=SimConfig(max_steps=120))
+    settings = load_settings(agent, options={"run.seed": 7, "sim.max_steps": 120})
+    spec = RunSpec(EmbeddedSpec("procedural", 7), settings)
     evaluate(episodes, spec, tmp_path, show_progress=False)
     for record in read_records(tmp_path / "episodes.jsonl"):
         expected = RECORDS[agent][record.episode_id]

@@ -29,6 +29,7 @@ from drivenav.eval.records import read_records
 from drivenav.eval.rundir import LOCK_FILE, RUN_FILE, RunDirectory
 from drivenav.eval.runner import RunSpec, evaluate
 from drivenav.semantics.fake_vlm_server import start_fake_server
+from drivenav.settings import load_settings
 from drivenav.types import Action, Observation, SimConfig
 
 SCENES = "procedural:2"
@@ -36,7 +37,7 @@ SLOW_RUN = ["--agent", "random", "--episodes", "6", "--seed", "1", "--max-steps"
 
 
 def _spec(agent: str = "random", max_steps: int = 20) -> RunSpec:
-    return RunSpec(EmbeddedSpec(SCENES, 0), agent, 0, max_steps, sim=SimConfig(max_steps=max_steps))
+    return RunSpec(EmbeddedSpec(SCENES, 0), load_settings(agent, options={"sim.max_steps": max_steps}))
 
 
 def _episodes(count: int = 2) -> list:  # type: ignore[type-arg]
@@ -74,7 +75,7 @@ def test_a_stale_lock_of_a_dead_process_is_taken_over(tmp_path: Path) -> None:
 
 def test_resuming_with_other_settings_names_the_first_differing_key(tmp_path: Path) -> None:
     evaluate(_episodes(1), _spec(max_steps=20), tmp_path, show_progress=False)
-    with pytest.raises(InputError, match=r"config\.max_steps"):
+    with pytest.raises(InputError, match=r"config\.sim\.max_steps"):
         evaluate(_episodes(1), _spec(max_steps=30), tmp_path, show_progress=False)
     with pytest.raises(InputError, match="'episodes'"):
         evaluate(_episodes(2), _spec(max_steps=20), tmp_path, show_progress=False)
@@ -85,7 +86,8 @@ def test_run_json_records_configuration_episodes_and_provenance(tmp_path: Path) 
     evaluate(_episodes(1), _spec(), tmp_path, show_progress=False)
     run = json.loads((tmp_path / RUN_FILE).read_text())
     assert run["config"]["env"] == {"name": "embedded", "scenes": SCENES, "seed": 0}
-    assert run["config"]["agent"] == "random" and run["config"]["sim"]["hfov_deg"] == 79.0
+    assert run["config"]["run"]["agent"] == "random" and run["config"]["sim"]["hfov_deg"] == 79.0
+    assert run["config"]["paper"]["speed"]["lam"] == 0.65 and run["config"]["mapping"]["pixel_stride"] == 2
     assert len(run["episodes_sha256"]) == 64 and run["version"]
     assert set(run) >= {"git_commit", "git_dirty"}
 
@@ -124,7 +126,7 @@ class _BlindSpec(EmbeddedSpec):
 
 
 def test_an_agent_needing_ground_truth_the_world_lacks_is_refused_before_any_episode(tmp_path: Path) -> None:
-    spec = RunSpec(_BlindSpec(SCENES, 0), "oracle", 0, 20)
+    spec = RunSpec(_BlindSpec(SCENES, 0), load_settings("oracle"))
     with pytest.raises(InputError, match=r"blind world.*oracle, which needs geodesic"):
         evaluate(_episodes(), spec, tmp_path, show_progress=False)
     assert not (tmp_path / "episodes.jsonl").exists()
@@ -167,10 +169,11 @@ def test_an_agent_exception_is_an_error_record_never_a_navigation_failure(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
 ) -> None:
     real: Callable[[RunSpec], Agent] = runner.build_agent
+    monkeypatch.setattr(runner, "_WORKER", None)  # no worker of an earlier run in this process
     monkeypatch.setattr(
-        runner, "build_agent", lambda spec: _Crashing(spec.sim) if spec.agent == "crash" else real(spec)
+        runner, "build_agent", lambda spec: _Crashing(spec.settings.sim) if spec.agent == "random" else real(spec)
     )
-    summary = evaluate(_episodes(), _spec("crash"), tmp_path, show_progress=False)
+    summary = evaluate(_episodes(), _spec("random"), tmp_path, show_progress=False)
     records = read_records(tmp_path / "episodes.jsonl")
     assert [(r.stop_reason, r.failure_cause, r.steps) for r in records] == [("error", "error", 2)] * 2
     assert records[0].error == "ZeroDivisionError: model exploded"

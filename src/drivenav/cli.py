@@ -18,7 +18,9 @@ from drivenav.errors import InputError, WorkerDiedError
 from drivenav.threads import limit_blas_threads
 
 if TYPE_CHECKING:
-    from drivenav.eval.runner import Executor
+    from drivenav.envs.episode import Episode
+    from drivenav.eval.runner import Executor, RunSpec
+    from drivenav.settings import Settings
 
 limit_blas_threads()  # before numpy loads
 
@@ -26,18 +28,66 @@ Handler = Callable[[argparse.Namespace], int]
 
 
 def _add_eval(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    from drivenav.agent.registry import agent_names
+    from drivenav.settings import agent_names
 
     parser = commands.add_parser("eval", help="run an agent on episodes and write metrics")
     parser.add_argument("--agent", required=True, help=f"agent name ({', '.join(agent_names())})")
     parser.add_argument("--scenes", default="procedural", help="procedural[:K], a scene dir, or a folder of them")
     parser.add_argument("--episodes", required=True, help="a number of episodes to generate, or an episodes file")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=None, help="run seed (default 0; sets run.seed)")
     parser.add_argument("--out", required=True, type=Path, help="run directory (rerun to resume)")
-    parser.add_argument("--max-steps", type=int, default=500)
+    parser.add_argument("--max-steps", type=int, default=None, help="step budget (default 500; sets sim.max_steps)")
     _add_execution_options(parser)
     _add_model_options(parser)
+    _add_config_options(parser)
     parser.set_defaults(handler=_cmd_eval)
+
+
+def _add_config_options(parser: argparse.ArgumentParser) -> None:
+    from drivenav.settings import preset_names
+
+    group = parser.add_argument_group("configuration (see 'drivenav config show')")
+    group.add_argument(
+        "--config",
+        action="append",
+        default=[],
+        metavar="NAME_OR_FILE",
+        help=f"a preset ({', '.join(preset_names())}) or a YAML file; repeatable, later ones win",
+    )
+    group.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        dest="overrides",
+        metavar="KEY=VALUE",
+        help="a dotted override, e.g. paper.speed.lam=0.5; repeatable, applied last",
+    )
+
+
+_OPTION_KEYS = {
+    "seed": "run.seed",
+    "max_steps": "sim.max_steps",
+    "reasoner": "models.reasoner",
+    "detector": "models.detector",
+    "vlm_base_url": "models.vlm_base_url",
+    "vlm_model": "models.vlm_model",
+    "vlm_record": "models.vlm_record",
+    "vlm_replay": "models.vlm_replay",
+    "detector_model": "models.detector_model",
+}
+
+
+def _settings(args: argparse.Namespace, agent: str | None) -> Settings:
+    """The resolved configuration: defaults, ``agent``'s preset, ``--config``, the options given, ``--set``."""
+    from drivenav.settings import load_settings
+
+    given = {key: getattr(args, name) for name, key in _OPTION_KEYS.items() if getattr(args, name, None) is not None}
+    for key in ("models.vlm_record", "models.vlm_replay"):
+        if given.get(key):
+            given[key] = str(Path(str(given[key])).resolve())
+    if "run.seed" in given:
+        _seed(int(str(given["run.seed"])))
+    return load_settings(agent, args.config, args.overrides, given)
 
 
 def _add_execution_options(parser: argparse.ArgumentParser) -> None:
@@ -60,30 +110,14 @@ def _add_model_options(parser: argparse.ArgumentParser) -> None:
     from drivenav.semantics.registry import DETECTORS, REASONERS, ModelSpec
 
     default = ModelSpec()
-    models = parser.add_argument_group("models (reasoner = the VLM's role, detector = SAM3's role)")
-    models.add_argument("--reasoner", default=default.reasoner, help=f"one of {', '.join(REASONERS)}")
-    models.add_argument("--detector", default=default.detector, help=f"one of {', '.join(DETECTORS)}")
-    models.add_argument("--vlm-base-url", default=default.vlm_base_url, help="OpenAI-compatible endpoint")
-    models.add_argument("--vlm-model", default=default.vlm_model)
-    models.add_argument("--vlm-record", default="", help="record every reasoner request/answer to this file")
-    models.add_argument("--vlm-replay", default="", help="with --reasoner replay: answer from this recording")
-    models.add_argument("--detector-model", default="", help="local checkpoint dir or HF-cache model id")
-
-
-def _model_spec(args: argparse.Namespace) -> Any:
-    from drivenav.semantics.registry import ModelSpec, check_models
-
-    spec = ModelSpec(
-        args.reasoner,
-        args.detector,
-        args.vlm_base_url,
-        args.vlm_model,
-        str(Path(args.vlm_record).resolve()) if args.vlm_record else "",
-        str(Path(args.vlm_replay).resolve()) if args.vlm_replay else "",
-        args.detector_model,
-    )
-    check_models(spec)
-    return spec
+    models = parser.add_argument_group("models (reasoner = the VLM's role, detector = SAM3's role; sets models.*)")
+    models.add_argument("--reasoner", help=f"one of {', '.join(REASONERS)} (default {default.reasoner})")
+    models.add_argument("--detector", help=f"one of {', '.join(DETECTORS)} (default {default.detector})")
+    models.add_argument("--vlm-base-url", help=f"OpenAI-compatible endpoint (default {default.vlm_base_url})")
+    models.add_argument("--vlm-model", help=f"default {default.vlm_model}")
+    models.add_argument("--vlm-record", help="record every reasoner request/answer to this file")
+    models.add_argument("--vlm-replay", help="with --reasoner replay: answer from this recording")
+    models.add_argument("--detector-model", help="local checkpoint dir or HF-cache model id")
 
 
 def _add_episodes(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -129,10 +163,11 @@ def _add_bench_ablations(sub: argparse._SubParsersAction[argparse.ArgumentParser
     parser.add_argument("--out", required=True, type=Path, help="output directory (rerun to resume)")
     parser.add_argument("--methods", default=",".join(ALL_METHODS), help="comma-separated agent names")
     parser.add_argument("--scenes", default=BENCHMARK_V1.scenes, help="a --scenes SPEC (default: benchmark v1's)")
-    parser.add_argument("--max-steps", type=int, default=500)
+    parser.add_argument("--max-steps", type=int, default=None, help="step budget (default 500; sets sim.max_steps)")
     parser.add_argument("--pictures", type=int, default=2, help="episodes drawn for the report (0: none)")
     _add_execution_options(parser)
     _add_model_options(parser)
+    _add_config_options(parser)
     parser.set_defaults(handler=_cmd_bench_ablations)
 
 
@@ -173,11 +208,29 @@ def _add_demo(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
     parser.set_defaults(handler=_cmd_demo)
 
 
+def _add_config(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    from drivenav.settings import agent_names
+
+    parser = commands.add_parser("config", help="the configuration tree")
+    sub = parser.add_subparsers(dest="config_command", required=True)
+    show = sub.add_parser("show", help="print the resolved configuration as YAML (loads back with --config)")
+    show.add_argument("--agent", default=None, help=f"apply this method's preset ({', '.join(agent_names())})")
+    _add_config_options(show)
+    show.set_defaults(handler=_cmd_config_show)
+
+
+def _cmd_config_show(args: argparse.Namespace) -> int:
+    from drivenav.settings import load_settings, settings_to_yaml
+
+    print(settings_to_yaml(load_settings(args.agent, args.config, args.overrides)), end="")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="drivenav", description=__doc__)
     parser.add_argument("-v", "--verbose", action="store_true")
     commands = parser.add_subparsers(dest="command", required=True)
-    for add in (_add_eval, _add_episodes, _add_benchmark, _add_bench, _add_viz, _add_compare, _add_demo):
+    for add in (_add_eval, _add_config, _add_episodes, _add_benchmark, _add_bench, _add_viz, _add_compare, _add_demo):
         add(commands)
     return parser
 
@@ -197,43 +250,45 @@ def _seed(value: int) -> int:
     return value
 
 
-def _load_or_generate(args: argparse.Namespace) -> tuple[Any, list[Any]]:
+def _load_or_generate(args: argparse.Namespace, settings: Settings) -> list[Episode]:
+    """The run's episodes: ``--episodes N`` generated with the run seed, or an episodes file checked against the
+    scenes."""
     from drivenav.envs.library import SceneLibrary
     from drivenav.eval.episodes import generate_episodes, load_episodes, validate_for_scenes
-    from drivenav.types import SimConfig
 
-    library = SceneLibrary(args.scenes, _seed(args.seed))
-    sim = SimConfig(max_steps=args.max_steps)
+    seed = settings.run.seed
+    library = SceneLibrary(args.scenes, seed)
     if str(args.episodes).isdigit():
         count = _positive(int(args.episodes), "--episodes")
         if count > MAX_EPISODES:
             raise InputError("command line", "--episodes", f"a number of episodes up to {MAX_EPISODES:,}", count)
-        episodes = generate_episodes(library, count, args.seed, sim)
-    else:
-        episodes = load_episodes(args.episodes)
-        validate_for_scenes(episodes, library, args.episodes, sim)
-    return library, episodes
+        return generate_episodes(library, count, seed, settings.sim)
+    episodes = load_episodes(args.episodes)
+    validate_for_scenes(episodes, library, args.episodes, settings.sim)
+    return episodes
+
+
+def _run_spec(args: argparse.Namespace, agent: str) -> RunSpec:
+    """The world of ``--scenes`` and the resolved settings for ``agent``; models are checked before any work."""
+    from drivenav.envs.embedded import EmbeddedSpec
+    from drivenav.eval.runner import RunSpec
+    from drivenav.semantics.registry import check_models
+
+    settings = _settings(args, agent)
+    check_models(settings.models)
+    return RunSpec(EmbeddedSpec(args.scenes, settings.run.seed), settings)
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
-    from drivenav.envs.embedded import EmbeddedSpec
     from drivenav.eval.report import format_table
     from drivenav.eval.rundir import EPISODES_FILE, SUMMARY_FILE, make_directory
-    from drivenav.eval.runner import RunSpec, build_agent, check_world_supports, evaluate
-    from drivenav.types import SimConfig
+    from drivenav.eval.runner import build_agent, check_world_supports, evaluate
 
     executor = _executor(args)
-    spec = RunSpec(
-        EmbeddedSpec(args.scenes, _seed(args.seed)),
-        args.agent,
-        args.seed,
-        _positive(args.max_steps, "--max-steps"),
-        _model_spec(args),
-        SimConfig(max_steps=args.max_steps),
-    )
+    spec = _run_spec(args, args.agent)
     check_world_supports(spec, build_agent(spec))  # an unknown or unsuitable agent fails before any work
     make_directory(args.out)
-    _, episodes = _load_or_generate(args)
+    episodes = _load_or_generate(args, spec.settings)
     summary = evaluate(episodes, spec, args.out, executor)
     print(format_table(summary, f"{args.agent} on {args.scenes}"))
     print(f"results: {args.out / EPISODES_FILE}  summary: {args.out / SUMMARY_FILE}")
@@ -289,23 +344,17 @@ def _cmd_bench_agent(args: argparse.Namespace) -> int:
 
 
 def _cmd_bench_ablations(args: argparse.Namespace) -> int:
-    from drivenav.envs.embedded import EmbeddedSpec
     from drivenav.eval.ablations import parse_methods, resolve_scenes, run_ablations
     from drivenav.eval.report import shown
-    from drivenav.eval.runner import RunSpec
-    from drivenav.types import SimConfig
 
     methods = parse_methods(args.methods)
     executor = _executor(args)
-    _positive(args.max_steps, "--max-steps")
     if args.pictures < 0:
         raise InputError("command line", "--pictures", "a number of episodes >= 0", args.pictures)
-    models = _model_spec(args)
     args.scenes = resolve_scenes(args.scenes)
-    _, episodes = _load_or_generate(args)
-    world = EmbeddedSpec(args.scenes, _seed(args.seed))
-    template = RunSpec(world, methods[0], args.seed, args.max_steps, models, SimConfig(max_steps=args.max_steps))
-    report = run_ablations(episodes, methods, template, args.out, executor, args.pictures)
+    specs = [_run_spec(args, method) for method in methods]
+    episodes = _load_or_generate(args, specs[0].settings)
+    report = run_ablations(episodes, specs, args.out, executor, args.pictures)
     for name, entry in report["methods"].items():
         sr, spl = (shown(entry[key], "{:5.1f} %", 100.0) for key in ("success_rate", "spl"))
         print(f"{name:<20} SR {sr}  SPL {spl}  errors {entry['errors']}")

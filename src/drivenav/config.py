@@ -1,4 +1,8 @@
-"""The paper's constants in one typed config (DRIVE-Nav, Sec. IV). Every default is the paper's value."""
+"""The paper's constants in one typed config (DRIVE-Nav, Sec. IV). Every default is the paper's value.
+
+Angles are set in degrees (``*_deg`` fields, what a reader of the paper and of a YAML file expects) and read in
+radians through the properties of the same name without the suffix.
+"""
 
 from __future__ import annotations
 
@@ -22,19 +26,39 @@ class DirectionConfig:
     """Path-induced bearings, clustering and tracking (Sec. IV-A b)."""
 
     bearing_radius: float = 0.8  # R_e, metres
-    cluster_span: float = math.radians(45.0)  # tau_theta
+    cluster_span_deg: float = 45.0  # tau_theta
     path_bearings: bool = True  # False: straight-line bearing to the frontier (ablation)
     merge_tolerance: float = 0.25  # metres: frontier points "at the same world-frame location"
-    association_gate: float = math.radians(90.0)  # not in the paper: max Delta for an angular match
+    association_gate_deg: float = 90.0  # not in the paper: max Delta for an angular match
+
+    @property
+    def cluster_span(self) -> float:
+        """tau_theta in radians."""
+        return math.radians(self.cluster_span_deg)
+
+    @property
+    def association_gate(self) -> float:
+        """The association gate in radians."""
+        return math.radians(self.association_gate_deg)
 
 
 @dataclass(frozen=True)
 class InspectionConfig:
     """Representative views and the forward inspection range (Sec. IV-A c)."""
 
-    forward_range: float = math.radians(240.0)  # directions with |alpha| <= 120 deg are inspectable
-    view_tolerance: float = math.radians(15.0)  # a view is recorded once |yaw - bearing| < 15 deg
+    forward_range_deg: float = 240.0  # directions with |alpha| <= 120 deg are inspectable
+    view_tolerance_deg: float = 15.0  # a view is recorded once |yaw - bearing| < 15 deg
     restrict_forward: bool = True  # False: ablation "w/o 240 inspection view"
+
+    @property
+    def forward_range(self) -> float:
+        """The forward inspection range in radians."""
+        return math.radians(self.forward_range_deg)
+
+    @property
+    def view_tolerance(self) -> float:
+        """The view tolerance in radians."""
+        return math.radians(self.view_tolerance_deg)
 
 
 @dataclass(frozen=True)

@@ -36,7 +36,7 @@ from drivenav.config import DriveNavConfig
 from drivenav.directions import Direction, DirectionPipeline, DirectionResult
 from drivenav.grid import wrap_angle
 from drivenav.inspection import RepresentativeViews, full_scan_turns, needs_inspection, plan_sweep, turn_toward
-from drivenav.mapping.config import MappingConfig
+from drivenav.mapping.config import MappingConfig, MapTuning
 from drivenav.mapping.objects import nearest_point
 from drivenav.mapping.occupancy import OccupancyMapper
 from drivenav.mapping.types import Frontier, MapSnapshot
@@ -59,9 +59,9 @@ class Mode(Enum):
 
 @dataclass(frozen=True)
 class AgentConfig:
-    """Switches composing DRIVE-Nav and its baselines (paper Tables II, V, VI)."""
+    """Switches composing DRIVE-Nav and its baselines (paper Tables II, V, VI); the paper's constants are a
+    :class:`~drivenav.config.DriveNavConfig` beside them."""
 
-    paper: DriveNavConfig = field(default_factory=DriveNavConfig)
     use_reasoner: bool = True  # False: greedy nearest frontier, no views, no reasoner
     enrich: bool = True  # prompt enrichment (Sec. IV-B)
     verify: bool = True  # cross-frame verification (Sec. IV-C)
@@ -105,6 +105,8 @@ class DriveNavAgent(Agent):
         self,
         sim: SimConfig,
         config: AgentConfig | None = None,
+        paper: DriveNavConfig | None = None,
+        mapping: MapTuning | None = None,
         name: str = "drive-nav",
         reasoner_factory: Callable[[], Reasoner] = GeometricReasoner,
         grounder_factory: Callable[[], Grounder] = GroundTruthGrounder,
@@ -114,6 +116,8 @@ class DriveNavAgent(Agent):
         self.requires = requires  # what the models read of the world's ground truth (the default grounder: labels)
         self.name = name
         self.config = config or AgentConfig()
+        self.paper = paper or DriveNavConfig()
+        self.mapping = mapping or MapTuning()
         self._reasoner_factory = reasoner_factory
         self._grounder_factory = grounder_factory
         self._turn = math.radians(sim.turn_angle_deg)
@@ -122,8 +126,8 @@ class DriveNavAgent(Agent):
 
     def reset(self, goal_text: str, seed: int, truth: GroundTruth | None = None) -> None:
         super().reset(goal_text, seed, truth)
-        paper = self.config.paper
-        self._mapper = OccupancyMapper(MappingConfig.from_sim(self.sim))
+        paper = self.paper
+        self._mapper = OccupancyMapper(MappingConfig.from_sim(self.sim, self.mapping))
         self._pipeline = DirectionPipeline(paper)
         self._views = RepresentativeViews(paper.inspection.view_tolerance)
         self._planner = LocalPlanner(self.sim)
@@ -287,7 +291,7 @@ class DriveNavAgent(Agent):
         """An inspection event (Sec. IV-A c): new forward directions lack views; True if rotation starts."""
         fresh = [
             d
-            for d in needs_inspection(ctx.result.directions, self._views, ctx.pose.yaw, self.config.paper.inspection)
+            for d in needs_inspection(ctx.result.directions, self._views, ctx.pose.yaw, self.paper.inspection)
             if d.label not in self._inspected
         ]
         if not fresh:
@@ -394,7 +398,7 @@ class DriveNavAgent(Agent):
         ]
         if not paths:
             return self.stop("no_frontier")
-        tolerance = self.config.paper.directions.merge_tolerance
+        tolerance = self.paper.directions.merge_tolerance
         current = [p for p in paths if self._goal is not None and math.dist(p.target, self._goal) <= tolerance]
         if current:
             chosen = min(current, key=lambda p: math.dist(p.target, self._goal or p.target))

@@ -11,12 +11,11 @@ import csv
 import json
 from collections import Counter
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from itertools import pairwise
 from pathlib import Path
 from typing import Any
 
-from drivenav.agent.registry import agent_names
 from drivenav.envs.episode import Episode
 from drivenav.envs.library import SceneLibrary
 from drivenav.envs.rosmap import default_shared_maps_dir
@@ -31,6 +30,8 @@ from drivenav.eval.rundir import trace_path
 from drivenav.eval.runner import Executor, RunSpec, evaluate
 from drivenav.eval.stats import BOOTSTRAP_RESAMPLES, bootstrap_mean_interval, wilson_interval
 from drivenav.eval.timings import runtime_table, traced_steps
+from drivenav.methods import METHODS
+from drivenav.settings import agent_names
 from drivenav.types import SimConfig
 
 # ----------------------------------------------------------------------------------------------- the benchmark
@@ -115,7 +116,7 @@ TABLE_VII_PAPER = (
 )
 
 TABLE_II_METHODS = tuple(row.method for row in TABLE_II)
-ALL_METHODS = tuple(dict.fromkeys(row.method for row in (*TABLE_VI, *TABLE_V, *TABLE_II)))
+ALL_METHODS = tuple(method.name for method in METHODS)
 FAILURE_CAUSES = ("false_positive_stop", "missed_target", "timeout", "no_frontier", "target_never_seen")
 RUNS_DIR = "runs"
 EPISODES_COPY = "episodes.json.gz"
@@ -135,21 +136,17 @@ def parse_methods(text: str) -> list[str]:
 
 
 def run_methods(
-    episodes: list[Episode],
-    methods: Sequence[str],
-    template: RunSpec,
-    out: Path,
-    executor: Executor | None = None,
+    episodes: list[Episode], specs: Sequence[RunSpec], out: Path, executor: Executor | None = None
 ) -> dict[str, Path]:
-    """Each method through :func:`evaluate` into ``out/runs/<method>/`` (finished episodes are skipped)."""
+    """Each method's run through :func:`evaluate` into ``out/runs/<method>/`` (finished episodes are skipped)."""
     _check_episode_set(episodes, out / EPISODES_COPY)
     executor = executor or Executor()
     dirs = {}
     with executor.session():
-        for method in methods:
-            run_dir = out / RUNS_DIR / method
-            evaluate(episodes, replace(template, agent=method), run_dir, executor)
-            dirs[method] = run_dir
+        for spec in specs:
+            run_dir = out / RUNS_DIR / spec.agent
+            evaluate(episodes, spec, run_dir, executor)
+            dirs[spec.agent] = run_dir
     return dirs
 
 
@@ -246,7 +243,7 @@ def _read_trace(path: Path) -> dict[str, Any]:
 
 
 def build_report(
-    dirs: dict[str, Path], runs: dict[str, dict[str, EpisodeRecord]], template: RunSpec, episodes: int
+    dirs: dict[str, Path], runs: dict[str, dict[str, EpisodeRecord]], first: RunSpec, episodes: int
 ) -> dict[str, Any]:
     """The ``ablations.json`` payload for the finished runs in ``dirs`` (their records: ``runs``)."""
     table_ii_methods = [name for name in TABLE_II_METHODS if name in dirs]
@@ -255,27 +252,26 @@ def build_report(
         "table_ii": compare_runs({name: runs[name] for name in table_ii_methods}),
         "runtime": measure_runtime(runs, dirs),
         "episodes": episodes,
-        "seed": template.seed,
-        "scenes": template.to_config()["env"].get("scenes"),
-        "max_steps": template.max_steps,
-        "models": {"reasoner": template.models.reasoner, "detector": template.models.detector},
+        "seed": first.seed,
+        "scenes": first.to_config()["env"].get("scenes"),
+        "max_steps": first.max_steps,
+        "models": {"reasoner": first.settings.models.reasoner, "detector": first.settings.models.detector},
         "commit": git_commit(),
     }
 
 
 def run_ablations(
     episodes: list[Episode],
-    methods: Sequence[str],
-    template: RunSpec,
+    specs: Sequence[RunSpec],
     out: Path,
     executor: Executor | None = None,
     pictures: int = 2,
 ) -> dict[str, Any]:
     """Run (or resume) every method, then write ``ablations.json``, ``.md`` and ``.csv`` into ``out``, and the
     top-down pictures of ``pictures`` episodes for the Table II methods (else the first methods)."""
-    dirs = run_methods(episodes, methods, template, out, executor)
+    dirs = run_methods(episodes, specs, out, executor)
     runs = load_runs(dirs)
-    report = build_report(dirs, runs, template, len(episodes))
+    report = build_report(dirs, runs, specs[0], len(episodes))
     table_ii_first = sorted(dirs, key=lambda name: name not in TABLE_II_METHODS)
     order = [e.episode_id for e in episodes]
     report["pictures"] = render_pictures({name: dirs[name] for name in table_ii_first}, runs, order, pictures, out)

@@ -16,7 +16,7 @@ from drivenav.envs.library import SceneLibrary
 from drivenav.eval.episodes import generate_episodes
 from drivenav.eval.runner import run_episode
 from drivenav.eval.timings import DECISION_EVENT, runtime_table
-from drivenav.types import SimConfig
+from drivenav.settings import load_settings
 
 
 def bench_agent(
@@ -24,10 +24,11 @@ def bench_agent(
 ) -> dict[str, Any]:
     """Run a few embedded episodes and report per-step compute and the per-module breakdown."""
     numba.set_num_threads(1)
-    sim = SimConfig()
+    settings = load_settings(agent_name)
+    sim = settings.sim
     library = SceneLibrary(f"procedural:{episodes}", seed)
     env = EmbeddedEnv(library.load, sim)
-    agent = make_agent(agent_name, sim)
+    agent = make_agent(settings)
     warm = generate_episodes(library, 1, seed + 1)
     run_episode(env, agent, warm[0], seed, 20)  # compile numba kernels outside the measurement
     steps: list[dict[str, float]] = []

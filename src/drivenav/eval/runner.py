@@ -34,8 +34,8 @@ from drivenav.eval.records import ERROR, EpisodeRecord, failure_cause
 from drivenav.eval.report import Summary, summarize
 from drivenav.eval.rundir import RunDirectory
 from drivenav.eval.timings import to_columns
-from drivenav.semantics.registry import ModelSpec
-from drivenav.types import SEMANTIC, Observation, SimConfig
+from drivenav.settings import Settings, settings_to_dict
+from drivenav.types import SEMANTIC, Observation
 
 log = logging.getLogger(__name__)
 
@@ -44,25 +44,31 @@ Trace = dict[str, Any]
 
 @dataclass(frozen=True)
 class RunSpec:
-    """What a run is: the world, the agent and its models, seeds and budgets (a rerun must match it)."""
+    """What a run is: the world and the resolved settings (agent, models, seed, budgets); a rerun must match."""
 
     env: EnvSpec
-    agent: str
-    seed: int
-    max_steps: int
-    models: ModelSpec = field(default_factory=ModelSpec)
-    sim: SimConfig = field(default_factory=SimConfig)
+    settings: Settings = field(default_factory=Settings)
+
+    @property
+    def agent(self) -> str:
+        return self.settings.run.agent
+
+    @property
+    def seed(self) -> int:
+        return self.settings.run.seed
+
+    @property
+    def max_steps(self) -> int:
+        return self.settings.sim.max_steps
 
     def to_config(self) -> dict[str, Any]:
-        """The run's settings as a JSON tree (recorded in ``run.json``)."""
-        config = asdict(self)  # the env spec is a dataclass too
-        config["env"] = {"name": self.env.name, **config["env"]}
-        return config
+        """The world and the settings as one JSON tree (recorded in ``run.json``)."""
+        return {"env": {"name": self.env.name, **asdict(self.env)}, **settings_to_dict(self.settings)}  # type: ignore[call-overload]
 
 
 def build_agent(spec: RunSpec) -> Agent:
     """The run's agent (an unknown name is an :class:`InputError` on ``--agent``)."""
-    return make_agent(spec.agent, spec.sim, spec.models)
+    return make_agent(spec.settings)
 
 
 def check_world_supports(spec: RunSpec, agent: Agent) -> None:
@@ -231,7 +237,7 @@ class _Worker:
 
     def __init__(self, spec: RunSpec) -> None:
         self.spec = spec
-        self.env = spec.env.build(spec.sim)
+        self.env = spec.env.build(spec.settings.sim)
         self.agent = build_agent(spec)
 
     def run(self, episode: Episode) -> tuple[EpisodeRecord, Trace]:

@@ -68,7 +68,7 @@ class MappingConfig:
             raise ValueError(f"MappingConfig.pixel_stride must be >= 1, got {self.pixel_stride}")
 
     @staticmethod
-    def from_sim(sim: SimConfig, **overrides: Any) -> MappingConfig:
+    def from_sim(sim: SimConfig, tuning: MapTuning | None = None, **overrides: Any) -> MappingConfig:
         """The mapping settings matching a simulator set-up (depth range, camera height, agent, grid)."""
         base = MappingConfig(
             resolution=sim.grid_resolution,
@@ -79,4 +79,19 @@ class MappingConfig:
             inflation_margin=sim.grid_resolution,
             max_obstacle_height=sim.agent_height,
         )
-        return dataclasses.replace(base, **overrides)
+        return dataclasses.replace(base, **dataclasses.asdict(tuning or MapTuning()), **overrides)
+
+
+@dataclass(frozen=True)
+class MapTuning:
+    """The mapper settings a user sets (the ``mapping`` section of the configuration); the rest of
+    :class:`MappingConfig` follows from the sensor and body (:meth:`MappingConfig.from_sim`)."""
+
+    min_obstacle_height: float = 0.15
+    clip_epsilon: float = 0.01
+    min_frontier_area: float = 1.5
+    pocket_window: float = 2.0
+    initial_size: float = 20.0
+    growth_margin: float = 5.0
+    max_size: float = 200.0
+    pixel_stride: int = 2

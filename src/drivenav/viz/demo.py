@@ -12,6 +12,7 @@ from drivenav.eval.records import read_records
 from drivenav.eval.report import format_table, shown
 from drivenav.eval.rundir import EPISODES_FILE
 from drivenav.eval.runner import RunSpec, evaluate
+from drivenav.settings import load_settings
 from drivenav.types import SimConfig
 from drivenav.viz.episode import render_episode_pictures
 
@@ -34,7 +35,8 @@ def run_demo(out: Path, num_episodes: int, seed: int) -> Path:
     lines = ["# drivenav demo", "", f"{len(episodes)} episodes on `{DEMO_SCENES}` (seed {seed}).", ""]
     for agent, max_steps in DEMO_AGENTS:
         run_dir = out / agent
-        spec = RunSpec(EmbeddedSpec(DEMO_SCENES, seed), agent, seed, max_steps, sim=SimConfig(max_steps=max_steps))
+        settings = load_settings(agent, options={"run.seed": seed, "sim.max_steps": max_steps})
+        spec = RunSpec(EmbeddedSpec(DEMO_SCENES, seed), settings)
         summary = evaluate(episodes, spec, run_dir)
         table = format_table(summary, f"{agent} (max {max_steps} steps)")
         print(table)

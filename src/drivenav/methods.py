@@ -1,0 +1,72 @@
+"""The methods of the paper's tables as presets over the configuration tree: one list, used by the agent registry,
+``bench ablations`` and the docs.
+
+Each method is a set of dotted overrides of :class:`~drivenav.settings.Settings` on top of the paper's defaults
+(``drive-nav`` is the defaults themselves). "Full Directional Reasoning Pipeline" (Tables V, VI) is DRIVE-Nav
+without prompt enrichment and cross-frame verification.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+_DIRECTIONAL = ("agent.enrich=false", "agent.verify=false")
+
+
+@dataclass(frozen=True)
+class Method:
+    """One agent variant: its ``--agent`` name, the paper's tables it appears in, what it is, its overrides."""
+
+    name: str
+    tables: tuple[str, ...]
+    description: str
+    overrides: tuple[str, ...] = ()
+
+
+METHODS: tuple[Method, ...] = (
+    Method(
+        "frontier",
+        ("VI",),
+        "raw frontiers as candidates (no clustering), a 360 deg scan at every decision",
+        (*_DIRECTIONAL, "paper.directions.cluster_span_deg=0.0", "agent.decision_scan=true"),
+    ),
+    Method(
+        "directional",
+        ("V", "VI"),
+        "the full directional reasoning pipeline (no enrichment, no verification)",
+        _DIRECTIONAL,
+    ),
+    Method("directional-enrich", ("VI",), "directional + prompt enrichment (Sec. IV-B)", ("agent.verify=false",)),
+    Method(
+        "directional-verify", ("VI",), "directional + cross-frame verification (Sec. IV-C)", ("agent.enrich=false",)
+    ),
+    Method("drive-nav", ("II", "VI"), "DRIVE-Nav: everything on, the paper's constants"),
+    Method(
+        "no-weighted-fmm",
+        ("V",),
+        "directional, uniform FMM speed instead of the weighted field (Eqs. 1-3)",
+        (*_DIRECTIONAL, "paper.speed.weighted=false"),
+    ),
+    Method(
+        "no-240",
+        ("V",),
+        "directional, inspection over the full 360 deg instead of the forward 240 deg",
+        (*_DIRECTIONAL, "paper.inspection.restrict_forward=false"),
+    ),
+    Method(
+        "direction-360", ("II",), "DRIVE-Nav with a full 360 deg scan at every decision", ("agent.decision_scan=true",)
+    ),
+    Method(
+        "nearest-frontier",
+        ("II",),
+        "greedy nearest frontier: no views, no reasoner",
+        ("agent.use_reasoner=false", "agent.enrich=false", "agent.verify=false"),
+    ),
+)
+"""DRIVE-Nav and its baselines / ablations (paper Tables II, V, VI), in the order of the ablation report."""
+
+REFERENCE_AGENTS = ("oracle", "random")  # not DRIVE-Nav variants: the ground-truth path follower and a random walk
+
+
+def method_named(name: str) -> Method | None:
+    return next((m for m in METHODS if m.name == name), None)
