@@ -8,13 +8,15 @@ import pytest
 
 from agent_scenes import carved_scene, episode_for, t_junction
 from drivenav.agent.drivenav import DriveNavAgent
-from drivenav.agent.registry import DRIVE_NAV_VARIANTS, make_agent
+from drivenav.agent.registry import make_agent
 from drivenav.envs.embedded import EmbeddedEnv
 from drivenav.envs.library import SceneLibrary
 from drivenav.envs.scene import ObjectInstance, Scene
 from drivenav.eval.episodes import generate_episodes
 from drivenav.eval.runner import run_episode
 from drivenav.inspection import sweep_turns
+from drivenav.methods import METHODS
+from drivenav.settings import load_settings
 from drivenav.types import Action, SimConfig
 
 SIM = SimConfig()
@@ -22,7 +24,7 @@ SIM = SimConfig()
 
 def _run(scene: Scene, agent_name: str, start: tuple[float, float], yaw: float, category: str, text: str = ""):  # type: ignore[no-untyped-def]
     env = EmbeddedEnv(lambda _: scene, SIM)
-    agent = make_agent(agent_name, SIM)
+    agent = make_agent(load_settings(agent_name))
     return run_episode(env, agent, episode_for(scene, start, yaw, category, text), 0, SIM.max_steps)
 
 
@@ -32,16 +34,16 @@ def _events(trace: dict[str, object], kind: str) -> list[dict[str, object]]:
 
 def test_target_down_one_branch_is_reached_and_stop_issued() -> None:
     record, _ = _run(t_junction(target_on_left=True), "drive-nav", (12.0, 2.5), math.pi / 2, "plant")
-    assert record["success"] == 1, record
-    assert record["stop_reason"] == "target_reached"
-    assert record["distance_to_goal"] <= SIM.success_distance
+    assert record.success == 1, record
+    assert record.stop_reason == "target_reached"
+    assert record.distance_to_goal is not None and record.distance_to_goal <= SIM.success_distance
 
 
 def test_no_360_scan_after_the_start() -> None:
     record, trace = _run(t_junction(target_on_left=False), "drive-nav", (12.0, 2.5), math.pi / 2, "plant")
     scans = _events(trace, "scan")
     assert [e["step"] for e in scans] == [0]
-    assert record["success"] == 1
+    assert record.success == 1
 
 
 def test_junction_inspection_turns_only_toward_new_directions() -> None:
@@ -69,7 +71,7 @@ def test_direction_360_turns_more_than_drive_nav() -> None:
     drive, _ = _run(scene, "drive-nav", (12.0, 2.5), math.pi / 2, "plant")
     full, full_trace = _run(scene, "direction-360", (12.0, 2.5), math.pi / 2, "plant")
     assert len(_events(full_trace, "scan")) >= 2
-    assert drive["steps"] < full["steps"]
+    assert drive.steps < full.steps
 
 
 def test_dead_end_triggers_reselection() -> None:
@@ -81,7 +83,7 @@ def test_dead_end_triggers_reselection() -> None:
     )
     record, trace = _run(scene, "drive-nav", (12.0, 2.0), math.pi / 2, "plant")
     assert len(_events(trace, "direction_selected")) >= 2
-    assert record["success"] == 1
+    assert record.success == 1
 
 
 def test_blocked_doorway_does_not_loop_forever() -> None:
@@ -96,18 +98,18 @@ def test_blocked_doorway_does_not_loop_forever() -> None:
         ],
     )
     record, _ = _run(scene, "drive-nav", (6.0, 7.0), 0.0, "plant", text="unicorn")
-    assert record["stop_reason"] == "no_frontier"
-    assert record["steps"] < 250
+    assert record.stop_reason == "no_frontier"
+    assert record.steps < 250
 
 
-@pytest.mark.parametrize("name", sorted(DRIVE_NAV_VARIANTS))
+@pytest.mark.parametrize("name", sorted(m.name for m in METHODS))
 def test_every_variant_runs_an_episode_to_the_end(name: str) -> None:
     library = SceneLibrary("procedural:1", 4)
     [episode] = generate_episodes(library, 1, seed=4)
     env = EmbeddedEnv(library.load, SIM)
-    agent = make_agent(name, SIM)
+    agent = make_agent(load_settings(name))
     assert isinstance(agent, DriveNavAgent)
     record, trace = run_episode(env, agent, episode, 0, 80)
-    assert record["error"] == ""
-    assert record["stop_reason"] in {"timeout", "target_reached", "no_frontier"}
+    assert record.error == ""
+    assert record.stop_reason in {"timeout", "target_reached", "no_frontier"}
     assert trace["segment_starts"] and trace["segment_starts"][0] == 0

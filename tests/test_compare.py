@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 from drivenav.eval.compare import compare, format_comparison
+from drivenav.eval.records import EpisodeRecord
 
 
 def _run_dir(root: Path, name: str, rows: list[tuple[str, int, float, int, int]]) -> Path:
@@ -13,10 +15,10 @@ def _run_dir(root: Path, name: str, rows: list[tuple[str, int, float, int, int]]
     out.mkdir()
     with (out / "episodes.jsonl").open("w") as handle:
         for episode_id, success, d0, steps, revisits in rows:
-            record = {"episode_id": episode_id, "success": success, "spl": 0.5 * success, "geodesic_distance": d0}
-            record.update(steps=steps, revisits=revisits, path_length=d0, distance_to_goal=0.1, collisions=0)
-            record.update(vlm_calls=0, stop_reason="target_reached" if success else "timeout")
-            handle.write(json.dumps(record) + "\n")
+            stop = "target_reached" if success else "timeout"
+            record = EpisodeRecord(episode_id, "s", "chair", name, steps, revisits, stop, "" if success else stop)
+            record = replace(record, success=success, spl=0.5 * success, geodesic_distance=d0, path_length=d0)
+            handle.write(json.dumps(record.to_json()) + "\n")
     return out
 
 

@@ -6,13 +6,15 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
+from drivenav.envs.vocabulary import VOCABULARY
 from drivenav.semantics.embedded_detector import EmbeddedDetectorConfig, EmbeddedGrounder, stable_hash
 from drivenav.semantics.embedding import default_embedder
 from drivenav.semantics.protocols import Detection, Grounder
-from drivenav.types import CameraIntrinsics, Observation, Pose
+from drivenav.types import CameraIntrinsics, GroundTruth, Observation, Pose
 
 H, W = 120, 160
 LABELS = {1: "sofa", 2: "chair", 3: "armchair", 4: "toilet", 5: "tv"}
+TRUTH = GroundTruth(LABELS, VOCABULARY)
 SEEDS = range(300)
 
 Box = tuple[int, int, int, int, int, float]  # instance id, row0, row1, col0, col1, depth (m)
@@ -36,7 +38,7 @@ def observation(*boxes: Box, with_semantic: bool = True) -> Observation:
 
 
 def grounder(seed: int = 0) -> EmbeddedGrounder:
-    return EmbeddedGrounder(default_embedder(), seed=seed, labels=LABELS)
+    return EmbeddedGrounder(default_embedder(), seed=seed, truth=TRUTH)
 
 
 def instance_mask(obs: Observation, instance: int) -> NDArray[np.bool_]:
@@ -54,7 +56,7 @@ def rate(obs: Observation, phrase: str, instance: int) -> float:
     g = grounder()
     hits = 0
     for seed in SEEDS:
-        g.begin_episode(LABELS, seed)
+        g.begin_episode(TRUTH, seed)
         hits += instance in found_ids(obs, g.segment(obs, phrase))
     return hits / len(SEEDS)
 
@@ -109,7 +111,7 @@ def test_unrelated_labels_are_never_returned() -> None:
     obs = observation(SOFA, TOILET, (5, 60, 120, 60, 100, 1.0))
     g = grounder()
     for seed in SEEDS:
-        g.begin_episode(LABELS, seed)
+        g.begin_episode(TRUTH, seed)
         assert found_ids(obs, g.segment(obs, "sofa")) <= {1}
         assert found_ids(obs, g.segment(obs, "toilet")) <= {4}
 
@@ -125,7 +127,7 @@ def test_same_seed_frame_and_phrase_give_the_same_detections() -> None:
     other_order.segment(obs, "chair")  # earlier questions do not shift the draws
     assert run(other_order) == first
     g = grounder(3)
-    g.begin_episode(LABELS, 7)
+    g.begin_episode(TRUTH, 7)
     assert run(g) == first
 
 

@@ -8,13 +8,15 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
+from drivenav.envs.vocabulary import VOCABULARY
 from drivenav.semantics.embedded import EmbeddedReasoner, EmbeddedReasonerConfig, label_areas
 from drivenav.semantics.embedding import default_embedder
 from drivenav.semantics.protocols import Candidate, Reasoner, VerificationFrame, View
-from drivenav.types import Pose
+from drivenav.types import GroundTruth, Pose
 
 H, W = 480, 640
 LABELS = {1: "sofa", 2: "lamp", 3: "toilet", 4: "chair", 5: "mini fridge", 6: "pillow", 7: "couch", 8: "tv"}
+TRUTH = GroundTruth(LABELS, VOCABULARY)
 
 Box = tuple[int, int, int, int, int]  # instance id, row0, row1, col0, col1
 
@@ -47,7 +49,7 @@ def cand(
 
 def reasoner(goal: str = "sofa") -> EmbeddedReasoner:
     r = EmbeddedReasoner(default_embedder())
-    r.begin_episode(goal, LABELS)
+    r.begin_episode(goal, TRUTH)
     return r
 
 
@@ -158,7 +160,7 @@ def test_one_model_call_per_question() -> None:
         ("verify", "ok"),
     ]
     assert all(c.latency_ms >= 0.0 for c in r.calls)
-    r.begin_episode("tv", LABELS)
+    r.begin_episode("tv", TRUTH)
     assert r.calls == []
 
 

@@ -13,10 +13,12 @@ from pathlib import Path
 import pytest
 
 from conftest import REPO, run_cli
+from drivenav.envs.embedded import EmbeddedSpec
 from drivenav.envs.library import SceneLibrary
 from drivenav.eval.episodes import generate_episodes, load_episodes, save_episodes
-from drivenav.eval.runner import Executor, RunSpec, evaluate, read_finished
-from drivenav.types import SimConfig
+from drivenav.eval.records import read_records
+from drivenav.eval.runner import Executor, RunSpec, evaluate
+from drivenav.settings import load_settings
 
 RECORD_KEYS = {
     "episode_id",
@@ -33,7 +35,7 @@ RECORD_KEYS = {
     "stop_reason",
     "vlm_calls",
 }
-SUMMARY_KEYS = {"episodes", "success_rate", "spl", "avg_steps", "avg_revisits"}
+SUMMARY_KEYS = {"episodes", "success_rate", "spl", "avg_steps", "avg_revisits", "errors", "vlm_fallbacks"}
 
 
 def _records(out: Path) -> list[dict[str, object]]:
@@ -73,24 +75,28 @@ def test_oracle_on_every_real_floor_plan(tmp_path: Path, maps_dir: Path) -> None
     assert len(library.scene_ids) >= 9
     episodes = generate_episodes(library, len(library.scene_ids), seed=1)
     assert {e.scene_id for e in episodes} == set(library.scene_ids)
-    summary = evaluate(episodes, RunSpec("oracle", str(maps_dir), 1, 500), tmp_path / "maps", show_progress=False)
-    assert summary["success_rate"] == 1.0
-    assert summary["spl"] >= 0.95
+    spec = RunSpec(EmbeddedSpec(str(maps_dir), 1), load_settings("oracle", options={"run.seed": 1}))
+    summary = evaluate(episodes, spec, tmp_path / "maps", show_progress=False)
+    assert summary.success_rate == 1.0
+    assert summary.spl is not None and summary.spl >= 0.95
 
 
 def test_resume_skips_finished_and_workers_do_not_change_results(tmp_path: Path) -> None:
     episodes = generate_episodes(SceneLibrary("procedural:2", 5), 4, seed=5)
-    spec = RunSpec("random", "procedural:2", 5, 40)
-    sim = SimConfig(max_steps=40)
+    spec = RunSpec(
+        EmbeddedSpec("procedural:2", 5), load_settings("random", options={"run.seed": 5, "sim.max_steps": 40})
+    )
     serial = tmp_path / "serial"
-    evaluate(episodes[:2], spec, serial, sim=sim, show_progress=False)
-    evaluate(episodes, spec, serial, sim=sim, show_progress=False)  # resumes: runs only the last two
-    evaluate(episodes, spec, serial, sim=sim, show_progress=False)  # nothing left to do
+    evaluate(episodes, spec, serial, show_progress=False)
+    lines = (serial / "episodes.jsonl").read_text().splitlines()
+    (serial / "episodes.jsonl").write_text("\n".join(lines[:2]) + "\n")  # as if stopped after two episodes
+    evaluate(episodes, spec, serial, show_progress=False)  # resumes: runs only the last two
+    evaluate(episodes, spec, serial, show_progress=False)  # nothing left to do
     parallel = tmp_path / "parallel"
-    evaluate(episodes, spec, parallel, Executor(workers=2), sim=sim, show_progress=False)
-    first = sorted(read_finished(serial / "episodes.jsonl"), key=lambda r: str(r["episode_id"]))
-    second = sorted(read_finished(parallel / "episodes.jsonl"), key=lambda r: str(r["episode_id"]))
-    assert [r["episode_id"] for r in first] == ["0", "1", "2", "3"]
+    evaluate(episodes, spec, parallel, Executor(workers=2), show_progress=False)
+    first = sorted(read_records(serial / "episodes.jsonl"), key=lambda r: r.episode_id)
+    second = sorted(read_records(parallel / "episodes.jsonl"), key=lambda r: r.episode_id)
+    assert [r.episode_id for r in first] == ["0", "1", "2", "3"]
     assert first == second
 
 
@@ -126,14 +132,14 @@ def test_kill_minus_nine_loses_nothing_and_duplicates_nothing(tmp_path: Path) ->
     if process.poll() is None:
         os.kill(process.pid, signal.SIGKILL)
     process.wait()
-    before = read_finished(results)
+    before = read_records(results)
     assert before, "the run wrote nothing before it was killed"
     with results.open("a") as handle:  # a torn line, as a kill during a write would leave
         handle.write('{"episode_id": "tor')
     result = run_cli(*[str(a) for a in args[3:]])
     assert result.returncode == 0, result.stderr
-    after = read_finished(results)
-    ids = [r["episode_id"] for r in after]
+    after = read_records(results)
+    ids = [r.episode_id for r in after]
     assert sorted(ids) == sorted({e.episode_id for e in load_episodes(episodes_file)})
     assert len(ids) == len(set(ids))
     assert all(r in after for r in before)

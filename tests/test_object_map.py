@@ -10,11 +10,12 @@ import pytest
 
 from drivenav.envs.render import render_views
 from drivenav.envs.scene import Material, ObjectInstance, Room, Scene
+from drivenav.envs.vocabulary import VOCABULARY
 from drivenav.grid import GridSpec
 from drivenav.mapping.kernels import project_depth
 from drivenav.mapping.objects import ObjectMap, nearest_point, project_mask
 from drivenav.semantics.ground_truth import GroundTruthGrounder
-from drivenav.types import CameraIntrinsics, Observation, Pose, SimConfig
+from drivenav.types import CameraIntrinsics, GroundTruth, Observation, Pose, SimConfig
 
 # A toy pinhole: pixel (v, u) = (30, 40) is on the optical axis; one pixel is 1/40 rad-ish at unit depth.
 INTR = CameraIntrinsics(width=81, height=61, fx=40.0, fy=40.0, cx=40.0, cy=30.0)
@@ -211,7 +212,7 @@ def test_rendered_object_projects_onto_its_footprint() -> None:
     pose = Pose(0.0, 0.0, 0.1)
     rgb, depth, semantic = render_views(scene, pose, sim)
     obs = Observation(rgb, depth, semantic, pose, sim.intrinsics, step=0, collided=False)
-    grounder = GroundTruthGrounder({o.instance_id: o.category for o in scene.objects})
+    grounder = GroundTruthGrounder(GroundTruth({o.instance_id: o.category for o in scene.objects}, VOCABULARY))
     (detection,) = grounder.segment(obs, "couch")
     xy = project_mask(
         detection.mask,

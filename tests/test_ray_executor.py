@@ -5,21 +5,23 @@ from __future__ import annotations
 import sys
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
 
 import pytest
 
 from conftest import run_cli
+from drivenav.envs.embedded import EmbeddedSpec
 from drivenav.envs.library import SceneLibrary
 from drivenav.errors import InputError
 from drivenav.eval.episodes import generate_episodes, save_episodes
 from drivenav.eval.ray_executor import import_ray
-from drivenav.eval.runner import EPISODES_FILE, Executor, RunSpec, evaluate, read_finished
-from drivenav.types import SimConfig
+from drivenav.eval.records import EpisodeRecord, read_records
+from drivenav.eval.rundir import EPISODES_FILE
+from drivenav.eval.runner import Executor, RunSpec, evaluate
+from drivenav.settings import load_settings
 
 SEED = 11
-SPEC = RunSpec("random", "procedural:2", SEED, 40)
-SIM = SimConfig(max_steps=40)
+SCENES = "procedural:2"
+SPEC = RunSpec(EmbeddedSpec(SCENES, SEED), load_settings("random", options={"run.seed": SEED, "sim.max_steps": 40}))
 
 
 def _episodes_file(tmp_path: Path) -> Path:
@@ -28,22 +30,22 @@ def _episodes_file(tmp_path: Path) -> Path:
     return path
 
 
-def _sorted_records(run_dir: Path) -> list[dict[str, Any]]:
-    return sorted(read_finished(run_dir / EPISODES_FILE), key=lambda r: str(r["episode_id"]))
+def _sorted_records(run_dir: Path) -> list[EpisodeRecord]:
+    return sorted(read_records(run_dir / EPISODES_FILE), key=lambda r: r.episode_id)
 
 
-def _serial_reference(tmp_path: Path) -> list[dict[str, Any]]:
+def _serial_reference(tmp_path: Path) -> list[EpisodeRecord]:
     from drivenav.eval.episodes import load_episodes
 
     out = tmp_path / "serial"
-    evaluate(load_episodes(_episodes_file(tmp_path)), SPEC, out, sim=SIM, show_progress=False)
+    evaluate(load_episodes(_episodes_file(tmp_path)), SPEC, out, show_progress=False)
     return _sorted_records(out)
 
 
 def _eval_args(episodes: Path, out: Path) -> list[str]:
     return [
         "eval",
-        *("--agent", SPEC.agent, "--scenes", SPEC.scenes, "--seed", str(SEED), "--max-steps", str(SPEC.max_steps)),
+        *("--agent", SPEC.agent, "--scenes", SCENES, "--seed", str(SEED), "--max-steps", str(SPEC.max_steps)),
         *("--episodes", str(episodes), "--out", str(out)),
     ]
 
@@ -77,13 +79,15 @@ def test_resume_on_a_ray_cluster_runs_only_the_rest(tmp_path: Path, ray_cluster:
     reference = _serial_reference(tmp_path)
     episodes = load_episodes(tmp_path / "episodes.json.gz")
     out = tmp_path / "resumed"
-    evaluate(episodes[:2], SPEC, out, sim=SIM, show_progress=False)  # a run that stopped half way, locally
+    evaluate(episodes, SPEC, out, show_progress=False)
+    lines = (out / EPISODES_FILE).read_text().splitlines()
+    (out / EPISODES_FILE).write_text("\n".join(lines[:2]) + "\n")  # a run that stopped half way, locally
     result = run_cli(*_eval_args(tmp_path / "episodes.json.gz", out), "--executor", "ray", "--ray-address", ray_cluster)
     assert result.returncode == 0, result.stderr
     lines = (out / EPISODES_FILE).read_text().splitlines()
     assert len(lines) == 4  # nothing duplicated
     assert _sorted_records(out) == reference
-    evaluate(episodes, SPEC, out, Executor("ray", workers=2), SIM, show_progress=False)  # in-process, nothing left
+    evaluate(episodes, SPEC, out, Executor("ray", workers=2), show_progress=False)  # in-process, nothing left
     assert len((out / EPISODES_FILE).read_text().splitlines()) == 4
 
 
@@ -92,7 +96,7 @@ def test_ray_actors_in_this_process_give_the_serial_records(tmp_path: Path, ray_
 
     reference = _serial_reference(tmp_path)
     out = tmp_path / "in-process"
-    evaluate(load_episodes(tmp_path / "episodes.json.gz"), SPEC, out, Executor("ray", 3), SIM, show_progress=False)
+    evaluate(load_episodes(tmp_path / "episodes.json.gz"), SPEC, out, Executor("ray", 3), show_progress=False)
     assert _sorted_records(out) == reference
 
 

@@ -7,10 +7,14 @@ from typing import Any
 
 import pytest
 
+from drivenav.envs.embedded import EmbeddedSpec
 from drivenav.envs.library import SceneLibrary
 from drivenav.eval.ablations import run_methods
 from drivenav.eval.episodes import generate_episodes
-from drivenav.eval.runner import EPISODES_FILE, Executor, RunSpec, read_finished
+from drivenav.eval.records import read_records
+from drivenav.eval.rundir import EPISODES_FILE
+from drivenav.eval.runner import Executor, RunSpec
+from drivenav.settings import load_settings
 
 
 def test_one_ray_session_for_all_methods(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -26,11 +30,13 @@ def test_one_ray_session_for_all_methods(tmp_path: Path, monkeypatch: pytest.Mon
 
     monkeypatch.setattr(ray, "init", counting_init)
     episodes = generate_episodes(SceneLibrary("procedural:1", 4), 2, seed=4)
-    template = RunSpec("random", "procedural:1", 4, 20)
-    dirs = run_methods(episodes, ["random", "nearest-frontier"], template, tmp_path, Executor("ray", workers=2))
+    world = EmbeddedSpec("procedural:1", 4)
+    options = {"run.seed": 4, "sim.max_steps": 20}
+    specs = [RunSpec(world, load_settings(name, options=options)) for name in ("random", "nearest-frontier")]
+    dirs = run_methods(episodes, specs, tmp_path, Executor("ray", workers=2))
     assert len(starts) == 1 and starts[0]["num_cpus"] == 2
     assert not ray.is_initialized()
-    assert {name: len(read_finished(d / EPISODES_FILE)) for name, d in dirs.items()} == {
+    assert {name: len(read_records(d / EPISODES_FILE)) for name, d in dirs.items()} == {
         "random": 2,
         "nearest-frontier": 2,
     }

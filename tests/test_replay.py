@@ -18,12 +18,12 @@ from drivenav.semantics.protocols import (
     ModelCall,
     Proposal,
     Selection,
-    SemanticLabels,
     Verdict,
     VerificationFrame,
     View,
 )
 from drivenav.semantics.replay import RecordingReasoner, ReplayMissError, ReplayReasoner, select_request
+from drivenav.types import GroundTruth
 from test_openai_backend import GOAL, ask_all, candidates, frame, reasoner, view
 
 
@@ -36,8 +36,8 @@ class ScriptedReasoner(GeometricReasoner):
         super().__init__()
         self.judgements = list(judgements)
 
-    def begin_episode(self, goal: str, labels: SemanticLabels | None) -> None:
-        super().begin_episode(goal, labels)
+    def begin_episode(self, goal: str, truth: GroundTruth | None) -> None:
+        super().begin_episode(goal, truth)
         self.calls.append(ModelCall("begin", 0.0, "ok"))
 
     def verify(self, goal: str, frame: VerificationFrame, earlier: Sequence[VerificationFrame]) -> Verdict:

@@ -6,13 +6,15 @@ import numpy as np
 
 from drivenav.agent.target import SearchConfig, TargetSearch
 from drivenav.agent.trace import Trace
+from drivenav.envs.vocabulary import VOCABULARY
 from drivenav.semantics.embedded import EmbeddedReasoner
-from drivenav.semantics.protocols import Detection, SemanticLabels, View
-from drivenav.types import CameraIntrinsics, Observation, Pose, SimConfig
+from drivenav.semantics.protocols import Detection, View
+from drivenav.types import CameraIntrinsics, GroundTruth, Observation, Pose, SimConfig
 
 SIM = SimConfig()
 INTR = CameraIntrinsics.from_hfov(64, 48, 79.0)
-LABELS: SemanticLabels = {1: "toilet", 2: "sofa"}
+LABELS = {1: "toilet", 2: "sofa"}
+TRUTH = GroundTruth(LABELS, VOCABULARY)
 
 
 class PhraseGrounder:
@@ -24,7 +26,7 @@ class PhraseGrounder:
         self.instance, self.accepts = instance, accepts
         self.asked: list[str] = []
 
-    def begin_episode(self, labels: SemanticLabels | None, seed: int) -> None:
+    def begin_episode(self, truth: GroundTruth | None, seed: int) -> None:
         pass
 
     def segment(self, observation: Observation, phrase: str) -> list[Detection]:
@@ -45,7 +47,7 @@ def _frame(step: int, instance: int) -> Observation:
 
 def _search(grounder: PhraseGrounder, goal: str, verify: bool, enrich: bool = True) -> TargetSearch:
     reasoner = EmbeddedReasoner()
-    reasoner.begin_episode(goal, LABELS)
+    reasoner.begin_episode(goal, TRUTH)
     search = TargetSearch(SIM, SearchConfig(enrich=enrich, verify=verify), grounder, reasoner)
     search.begin(goal)
     return search

@@ -14,12 +14,14 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from drivenav.envs.embedded import EmbeddedSpec
 from drivenav.envs.library import SceneLibrary
 from drivenav.errors import InputError
-from drivenav.eval.episodes import generate_episodes, load_episodes, save_episodes
-from drivenav.eval.runner import RunSpec, evaluate, trace_path
+from drivenav.eval.episodes import generate_episodes, load_episodes
+from drivenav.eval.rundir import trace_path
+from drivenav.eval.runner import RunSpec, evaluate
 from drivenav.grid import wrap_angle
-from drivenav.semantics.registry import ModelSpec
+from drivenav.settings import load_settings
 from drivenav.types import SimConfig
 from drivenav.viz import episode as viz_episode
 from drivenav.viz.coverage import explored_cells
@@ -37,9 +39,9 @@ def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("run")
     library = SceneLibrary("procedural:1", 0)
     episodes = generate_episodes(library, 1, seed=0)
-    save_episodes(episodes, out / "episodes.json.gz")
-    spec = RunSpec("drive-nav", "procedural:1", 0, MAX_STEPS, ModelSpec(reasoner="geometric", detector="ground-truth"))
-    evaluate(episodes, spec, out, sim=SimConfig(max_steps=MAX_STEPS), show_progress=False)
+    models = {"models.reasoner": "geometric", "models.detector": "ground-truth", "sim.max_steps": MAX_STEPS}
+    spec = RunSpec(EmbeddedSpec("procedural:1", 0), load_settings("drive-nav", options=models))
+    evaluate(episodes, spec, out, show_progress=False)
     return out
 
 

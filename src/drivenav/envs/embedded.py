@@ -102,6 +102,7 @@ class EmbeddedEnv:
     def __getstate__(self) -> dict[str, Any]:
         state = dict(self.__dict__)
         state["_worlds"] = OrderedDict()
+        state["_measures"] = EmbeddedMeasures(self._config)
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:

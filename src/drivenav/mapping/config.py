@@ -79,7 +79,7 @@ class MappingConfig:
             inflation_margin=sim.grid_resolution,
             max_obstacle_height=sim.agent_height,
         )
-        return dataclasses.replace(base, **dataclasses.asdict(tuning or MapTuning()), **overrides)
+        return dataclasses.replace(base, **{**dataclasses.asdict(tuning or MapTuning()), **overrides})
 
 
 @dataclass(frozen=True)
