@@ -10,7 +10,6 @@ def test_bench_reports_timings_and_the_map() -> None:
     assert result["frames"] == 16 and (result["width"], result["height"]) == (160, 120)
     assert 0.0 < result["median_ms"] <= result["p90_ms"]
     assert 0.0 < result["frontier_ms"] <= result["frontier_p90_ms"]
-    assert result["median_ms"] < 100.0  # loose: the goal is 10 ms at 640 x 480 on a quiet core
     rows, cols = result["map_shape"]
     assert rows * 0.05 >= 13.0 and cols * 0.05 >= 13.0
     assert result["frontiers"] >= 1  # the walk east leaves the second room partly unexplored

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import base64
 import io
+import logging
 import re
 import subprocess
 import sys
-import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -198,23 +198,22 @@ def test_flaky_server_succeeds_after_retries(server: StartServer) -> None:
     assert fake_stats(url)["chat_requests"] == 3
 
 
-def test_retry_backoff_is_exponential(server: StartServer) -> None:
+def test_retry_backoff_is_exponential(server: StartServer, caplog: pytest.LogCaptureFixture) -> None:
     url = server("error")
     r = reasoner(url, retries=2, backoff=0.1)
-    start = time.perf_counter()
-    r.verify(GOAL, frame(1, 1), [])
-    assert 0.3 <= time.perf_counter() - start < 2.0  # waits of 0.1 s and 0.2 s
+    with caplog.at_level(logging.INFO, logger="drivenav.semantics.openai_backend"):
+        r.verify(GOAL, frame(1, 1), [])
+    waits = [m.rsplit("retrying in ", 1)[1] for m in caplog.messages if "retrying in" in m]
+    assert waits == ["0.10 s", "0.20 s"]  # doubling waits between the three tries
+    assert fake_stats(url)["chat_requests"] == 3
 
 
 def test_stall_times_out_then_falls_back_without_retrying(server: StartServer) -> None:
     url = server("stall", stall_s=20.0)
     r = reasoner(url, timeout=0.3, retries=3)
-    start = time.perf_counter()
     verdict = r.verify(GOAL, frame(1, 1), [])
-    elapsed = time.perf_counter() - start
     assert verdict.judgement == "uncertain" and verdict.fallback
-    assert 0.3 <= elapsed < 1.5
-    assert fake_stats(url)["chat_requests"] == 1
+    assert fake_stats(url)["chat_requests"] == 1  # a timeout is not retried
 
 
 def test_empty_choices_fall_back(server: StartServer) -> None:

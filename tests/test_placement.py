@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import replace
 from functools import cache
 
@@ -282,13 +281,8 @@ def test_rooms_of_unknown_type_use_the_generic_prior() -> None:
     assert all(category_spec(o.category).prior(None) > 0 for o in objects)
 
 
-def test_large_house_and_building_are_fast() -> None:
-    """Loose bounds (the targets are 2 s and 5 s; the machine is shared)."""
-    start = time.perf_counter()
-    generate_house(5, num_rooms=15)
-    assert time.perf_counter() - start < 4.0
-    scene = building(1300, 1700)
-    start = time.perf_counter()
-    objects = place_objects(scene, np.random.default_rng(0))
-    assert time.perf_counter() - start < 10.0
+def test_large_house_and_building_are_furnished() -> None:
+    """Speed is measured by ``drivenav bench``, not here: this checks the large cases work."""
+    assert sum(r.name != "hallway" for r in generate_house(5, num_rooms=15).rooms) == 15  # corridors on top
+    objects = place_objects(building(1300, 1700), np.random.default_rng(0))
     assert len(objects) >= 100

@@ -192,7 +192,8 @@ def test_palette_is_stable_and_separated() -> None:
     for name in ("", "kitchen", "bathroom", "bedroom", "living room", "hallway", "office", "attic", "gym"):
         floor = palette.floor_color(name)
         assert sum(abs(a - b) for a, b in zip(floor, palette.WALL_COLOR, strict=True)) > 90, name
-    assert palette.floor_pattern("zen garden") == palette.floor_pattern("zen garden")
+    assert palette.floor_pattern(" Zen Garden ") == palette.floor_pattern("zen garden")  # unknown rooms: by name
+    assert palette.floor_pattern("bathroom") != palette.floor_pattern("bedroom")  # tiles in wet rooms, planks else
 
 
 def test_demo_house_semantics_match_instances() -> None:

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import math
-import time
 import zlib
 from pathlib import Path
 from typing import Any
@@ -564,9 +563,7 @@ def shared_map(request: pytest.FixtureRequest) -> Path:
 def test_shared_map_loads_with_sensible_navigable_space(shared_map: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     no_placement(monkeypatch)
     assert is_map_scene_dir(shared_map)
-    start = time.perf_counter()
     scene = load_map_scene(shared_map)
-    assert time.perf_counter() - start < 5.0  # about 0.1 s on a loaded 2-core machine
     assert scene.scene_id == shared_map.name and scene.grid.resolution == 0.05
     meta = read_map_yaml(find_map_yaml(shared_map))
     assert scene.grid.origin == meta.origin
