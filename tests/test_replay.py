@@ -133,8 +133,24 @@ def test_unusable_replay_files_are_input_errors(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="readable replay file"):
         ReplayReasoner(tmp_path / "missing.jsonl")
     path = tmp_path / "bad.jsonl"
-    good = {"key": "k", "kind": "verify", "goal": GOAL, "summary": "", "answer": {"judgement": "not", "fallback": 0}}
+    good = {
+        "key": "k",
+        "kind": "verify",
+        "goal": GOAL,
+        "summary": "",
+        "answer": {"judgement": "not", "fallback": False},
+    }
     bad = good | {"answer": {"judgement": "maybe", "fallback": False}}
     path.write_text(json.dumps(good) + "\n\n" + json.dumps(bad) + "\n")
-    with pytest.raises(InputError, match="field 'line 3'"):
+    with pytest.raises(InputError, match=r"field 'line 3: answer\.judgement': expected sure or uncertain or not"):
+        ReplayReasoner(path)
+    selection = {"label": "two", "target_visible": False, "target_label": None, "descriptions": {}, "note": ""}
+    wrong = good | {"kind": "select_direction", "answer": selection | {"fallback": False}}
+    path.write_text(json.dumps(wrong) + "\n")
+    with pytest.raises(
+        InputError, match=r"field 'line 1: answer\.label': expected a direction label or null, got 'two'"
+    ):
+        ReplayReasoner(path)
+    path.write_bytes(b"\xff\xfe not text")
+    with pytest.raises(InputError, match="expected a UTF-8 text file written with --vlm-record"):
         ReplayReasoner(path)

@@ -76,15 +76,40 @@ def make_grounder(spec: ModelSpec) -> Grounder:
         from drivenav.semantics.ground_truth import GroundTruthGrounder
 
         return GroundTruthGrounder()
-    if spec.detector == "sam3":
-        from drivenav.semantics.sam3_grounder import Sam3Grounder
+    if spec.detector in ("sam3", "owlv2"):
+        return _hf_grounder(spec)
+    raise InputError("command line", "--detector", f"one of {', '.join(DETECTORS)}", spec.detector)
 
-        return Sam3Grounder(spec.detector_model or "facebook/sam3")
-    if spec.detector == "owlv2":
+
+def _hf_grounder(spec: ModelSpec) -> Grounder:
+    """SAM3 or OWLv2 through transformers; without the ``models`` extra, one line naming it."""
+    try:
+        if spec.detector == "sam3":
+            from drivenav.semantics.sam3_grounder import Sam3Grounder
+
+            return Sam3Grounder(spec.detector_model or "facebook/sam3")
         from drivenav.semantics.owlv2_grounder import Owlv2Grounder
 
         return Owlv2Grounder(spec.detector_model or "google/owlv2-base-patch16-ensemble")
-    raise InputError("command line", "--detector", f"one of {', '.join(DETECTORS)}", spec.detector)
+    except ImportError as error:
+        missing = error.name or "a dependency"
+        raise InputError(
+            "command line",
+            "--detector",
+            f"the models extra for {spec.detector} (pip install 'drivenav[models]')",
+            f"{missing} not installed",
+        ) from None
+
+
+def _check_record_path(path: Path) -> None:
+    """``--vlm-record`` names a file this process can append to (not a directory, in a writable folder)."""
+    if path.is_dir():
+        raise InputError(path, "--vlm-record", "a file to append the reasoner's records to", "a directory")
+    try:
+        with path.open("a", encoding="utf-8"):
+            pass
+    except OSError as error:
+        raise InputError(path, "--vlm-record", "a writable file path", error.strerror or str(error)) from None
 
 
 def check_models(spec: ModelSpec) -> None:
@@ -95,6 +120,10 @@ def check_models(spec: ModelSpec) -> None:
         raise InputError("command line", "--detector", f"one of {', '.join(DETECTORS)}", spec.detector)
     if spec.reasoner == "replay" and not Path(spec.vlm_replay).is_file():
         raise InputError(spec.vlm_replay or "command line", "--vlm-replay", "a file written with --vlm-record")
+    if spec.reasoner == "replay":
+        make_reasoner(spec)  # reads the recording now: a malformed one fails before any episode
+    if spec.vlm_record:
+        _check_record_path(Path(spec.vlm_record))
     if spec.reasoner == "openai":
         from drivenav.semantics.openai_backend import OpenAIReasoner
 

@@ -132,24 +132,55 @@ def answer_to_json(answer: Answer) -> dict[str, Any]:
     return {"judgement": answer.judgement, "fallback": answer.fallback}
 
 
-def answer_from_json(kind: str, data: dict[str, Any]) -> Answer:
-    """The inverse of :func:`answer_to_json` (``KeyError``/``ValueError``/``TypeError`` on a bad record)."""
+class AnswerFieldError(ValueError):
+    """A recorded answer's field is missing or of the wrong kind: which field, what was expected, what was there."""
+
+    def __init__(self, name: str, expected: str, value: object) -> None:
+        self.name, self.expected, self.value = name, expected, value
+        super().__init__(f"answer.{name}: expected {expected}, got {value!r}")
+
+
+_MISSING = object()
+
+
+def _field(data: dict[str, Any], name: str, kind: type, expected: str, optional: bool = False) -> Any:
+    value = data.get(name, _MISSING)
+    if optional and value is None:
+        return None
+    if value is _MISSING or not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
+        raise AnswerFieldError(name, expected, None if value is _MISSING else value)
+    return value
+
+
+def _descriptions(data: dict[str, Any]) -> dict[int, str]:
+    descriptions = _field(data, "descriptions", dict, "an object mapping direction labels to texts")
+    if not all(str(k).isdecimal() and isinstance(v, str) for k, v in descriptions.items()):
+        raise AnswerFieldError("descriptions", "an object mapping direction labels to texts", descriptions)
+    return {int(label): text for label, text in descriptions.items()}
+
+
+def answer_from_json(kind: str, data: Any) -> Answer:
+    """The inverse of :func:`answer_to_json`; a bad field raises :class:`AnswerFieldError` naming it."""
+    if not isinstance(data, dict):
+        raise AnswerFieldError("", "an object", data)
+    fallback = _field(data, "fallback", bool, "true or false")
     if kind == "select_direction":
-        descriptions = {int(label): str(text) for label, text in data["descriptions"].items()}
         return Selection(
-            label=None if data["label"] is None else int(data["label"]),
-            target_visible=bool(data["target_visible"]),
-            target_label=None if data["target_label"] is None else int(data["target_label"]),
-            descriptions=descriptions,
-            fallback=bool(data["fallback"]),
-            note=str(data["note"]),
+            label=_field(data, "label", int, "a direction label or null", optional=True),
+            target_visible=_field(data, "target_visible", bool, "true or false"),
+            target_label=_field(data, "target_label", int, "a direction label or null", optional=True),
+            descriptions=_descriptions(data),
+            fallback=fallback,
+            note=_field(data, "note", str, "a text"),
         )
     if kind == "propose_prompt":
-        return Proposal(str(data["phrase"]), fallback=bool(data["fallback"]))
-    judgement = next((j for j in JUDGEMENTS if j == data["judgement"]), None)
-    if kind != "verify" or judgement is None:
-        raise ValueError(f"unknown kind {kind!r} or judgement {data.get('judgement')!r}")
-    return Verdict(judgement, fallback=bool(data["fallback"]))
+        return Proposal(_field(data, "phrase", str, "a text"), fallback=fallback)
+    if kind != "verify":
+        raise AnswerFieldError("kind", "select_direction, propose_prompt or verify", kind)
+    judgement = next((j for j in JUDGEMENTS if j == data.get("judgement")), None)
+    if judgement is None:
+        raise AnswerFieldError("judgement", " or ".join(JUDGEMENTS), data.get("judgement"))
+    return Verdict(judgement, fallback=fallback)
 
 
 class RecordingReasoner:
@@ -219,6 +250,13 @@ class ReplayReasoner:
             lines = self.path.read_text(encoding="utf-8").splitlines()
         except OSError as err:
             raise InputError(self.path, "file", "a readable replay file written by a recording run", str(err)) from err
+        except UnicodeDecodeError as err:
+            raise InputError(
+                self.path,
+                "file",
+                "a UTF-8 text file written with --vlm-record",
+                f"a byte that is not UTF-8 at {err.start}",
+            ) from None
         for number, line in enumerate(lines, start=1):
             if line.strip():
                 self._add(line, number)
@@ -227,10 +265,14 @@ class ReplayReasoner:
         try:
             record = json.loads(line)
             kind, goal = str(record["kind"]), str(record["goal"])
-            self._answers[str(record["key"])].append(answer_from_json(kind, record["answer"]))
-        except (ValueError, KeyError, TypeError, AttributeError) as err:
+            answer = answer_from_json(kind, record["answer"])
+        except AnswerFieldError as err:
+            field = f"line {number}: {'kind' if err.name == 'kind' else 'answer.' + err.name}".rstrip(".")
+            raise InputError(self.path, field, err.expected, err.value) from None
+        except (ValueError, KeyError, TypeError) as err:
             expected = "a JSON record with key, kind, goal and answer"
             raise InputError(self.path, f"line {number}", expected, line) from err
+        self._answers[str(record["key"])].append(answer)
         self._per_goal[kind, goal] += 1
 
     def begin_episode(self, goal: str, truth: GroundTruth | None) -> None:
