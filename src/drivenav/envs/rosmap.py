@@ -275,12 +275,26 @@ def _close_border(structure: NDArray[np.uint8]) -> None:
         edge[edge == Material.FREE] = Material.UNKNOWN
 
 
+MAX_GRID_BYTES = 2 * 1024**3  # a scene's grids together: about eight bytes per cell
+
+
+def _check_grid_size(meta: MapYaml, shape: tuple[int, ...], resolution: float) -> None:
+    """Refuse, before allocating, a map whose grid at ``resolution`` would need more than 2 GiB."""
+    height_m, width_m = shape[0] * meta.resolution, shape[1] * meta.resolution
+    cells = math.ceil(height_m / resolution) * math.ceil(width_m / resolution)
+    if cells * 8 > MAX_GRID_BYTES:
+        extent = f"{width_m:.4g} x {height_m:.4g} m, {cells * 8 / 1024**3:.1f} GiB at {resolution} m per cell"
+        raise InputError(meta.path, "resolution", "a map whose grid fits in 2 GiB (metres per pixel)", extent)
+
+
 def load_structure(path: str | Path, resolution: float = 0.05) -> tuple[GridSpec, NDArray[np.uint8]]:
     """A scene's map (directory or YAML) as a grid and its materials at ``resolution`` metres per cell."""
     if not (math.isfinite(resolution) and resolution > 0.0):
         raise ValueError(f"resolution must be a positive number of metres, got {resolution!r}")
     meta = read_map_yaml(find_map_yaml(path))
-    structure = resample_structure(read_map_image(meta), meta.resolution, resolution)
+    image = read_map_image(meta)
+    _check_grid_size(meta, image.shape, resolution)
+    structure = resample_structure(image, meta.resolution, resolution)
     _close_border(structure)
     return GridSpec(resolution, meta.origin, (structure.shape[0], structure.shape[1])), structure
 

@@ -58,13 +58,24 @@ class SceneGoals:
 
 
 def scene_goals(scene: Scene, sim: SimConfig) -> SceneGoals:
-    """Goals of every object that has at least one reachable view point, grouped by category."""
+    """Goals of every object that has at least one reachable view point, grouped by category.
+
+    A scene without free space the agent fits in, or without an object it can reach, is an :class:`InputError`
+    naming the scene's file (never a scene silently left out of the episodes).
+    """
+    source = scene.source if scene.source != "procedural" else f"procedural house {scene.scene_id}"
     reachable = largest_component(scene.navigable_grid(sim.agent_radius, sim.agent_height))
+    if not reachable.any():
+        expected = f"free space an agent of radius {sim.agent_radius} m fits in"
+        raise InputError(source, "image", expected, "only walls, unknown or too narrow space")
     goals: dict[str, list[ObjectGoal]] = {}
     for obj in scene.objects:
         goal = object_goal(scene, obj, reachable, sim)
         if goal.view_points:
             goals.setdefault(obj.category, []).append(goal)
+    if not goals:
+        expected = "objects seen from where the agent can go (objects.json, or free space to place them in)"
+        raise InputError(source, "objects", expected, f"{len(scene.objects)} objects, none reachable")
     return SceneGoals(scene, reachable, goals)
 
 
@@ -93,23 +104,24 @@ def _sample_start(
 def generate_episodes(library: SceneLibrary, num: int, seed: int, sim: SimConfig | None = None) -> list[Episode]:
     """``num`` episodes spread round-robin over the library's scenes and across categories.
 
-    Deterministic in ``seed``. Scenes without any valid start/goal pair are skipped.
+    Deterministic in ``seed``. A scene without any start 1-30 m from an object it holds is an :class:`InputError`.
     """
     sim = sim or SimConfig()
     rng = np.random.default_rng(seed)
     contexts: dict[str, SceneGoals] = {}
     used: Counter[str] = Counter()
     episodes: list[Episode] = []
-    usable = list(library.scene_ids)
+    scene_ids = library.scene_ids
     turn = 0
-    while len(episodes) < num and usable:
-        scene_id = usable[turn % len(usable)]
+    while len(episodes) < num and scene_ids:
+        scene_id = scene_ids[turn % len(scene_ids)]
         if scene_id not in contexts:
             contexts[scene_id] = scene_goals(library.load(scene_id), sim)
         episode = _make_episode(str(len(episodes)), scene_id, contexts[scene_id], used, rng)
         if episode is None:
-            usable.remove(scene_id)
-            continue
+            source = contexts[scene_id].scene.source or scene_id
+            expected = f"a start {MIN_GEODESIC:g}-{MAX_GEODESIC:g} m by geodesic distance from one of its objects"
+            raise InputError(source, "objects", expected, "none")
         episodes.append(episode)
         used[episode.info["canonical_category"]] += 1
         turn += 1
@@ -199,7 +211,38 @@ def load_episodes(path: str | Path) -> list[Episode]:
         raise InputError(source, "<file>", "gzip-compressed JSON (json.gz) or JSON", str(exc)) from None
     if not isinstance(data, dict) or not isinstance(data.get("episodes"), list):
         raise InputError(source, "episodes", "a top-level object with an 'episodes' list")
-    return [_parse_episode(source, f"episodes[{i}]", item) for i, item in enumerate(data["episodes"])]
+    _refuse_habitat_layout(source, data)
+    if not data["episodes"]:
+        raise InputError(source, "episodes", "a non-empty list of episodes", "[]")
+    episodes = [_parse_episode(source, f"episodes[{i}]", item) for i, item in enumerate(data["episodes"])]
+    _refuse_duplicates(source, episodes)
+    return episodes
+
+
+def _refuse_habitat_layout(source: Path, data: dict[str, Any]) -> None:
+    """Habitat's ObjectNav v1 / HM3D-OVON datasets keep goals per category (``goals_by_category``) and, in a split
+    file, the episodes in ``content/<scene>.json.gz`` beside it: the embedded world reads neither."""
+    split_file = not data["episodes"] and (source.parent / "content").is_dir()
+    if "goals_by_category" in data or split_file:
+        field = "episodes" if split_file else "goals_by_category"
+        got = "[] with content/ files beside it" if split_file else "goals by category, not in episodes"
+        expected = (
+            "the embedded world's layout; this is a Habitat ObjectNav / HM3D-OVON file: run it with --env habitat"
+        )
+        raise InputError(source, field, expected, got)
+
+
+def _refuse_duplicates(source: Path, episodes: list[Episode]) -> None:
+    first: dict[str, int] = {}
+    for i, episode in enumerate(episodes):
+        j = first.setdefault(episode.episode_id, i)
+        if j != i:
+            raise InputError(
+                source,
+                f"episodes[{i}].episode_id",
+                f"an id no other episode has (episodes[{j}] has it)",
+                episode.episode_id,
+            )
 
 
 def _numbers(source: Path, name: str, value: Any, count: int) -> list[float]:
@@ -273,18 +316,44 @@ def _parse_goal(source: Path, name: str, item: Any) -> ObjectGoal:
     )
 
 
+GEODESIC_TOLERANCE = 0.10  # an episode's info.geodesic_distance may differ this much from the world's own
+
+
 def validate_for_scenes(episodes: list[Episode], library: SceneLibrary, source: str | Path, sim: SimConfig) -> None:
-    """Every episode's scene is in ``library`` and its start is navigable there; else an :class:`InputError`."""
+    """Every episode fits the world: its scene is in ``library``, its start and view points are navigable, a goal
+    is reachable from the start, and ``info.geodesic_distance`` (if given) is the world's within 10 %."""
+    contexts: dict[str, SceneGoals] = {}
     for i, episode in enumerate(episodes):
         if episode.scene_id not in library:
             raise InputError(source, f"episodes[{i}].scene_id", f"a scene of --scenes {library.spec}", episode.scene_id)
-        scene = library.load(episode.scene_id)
-        navigable = scene.navigable_grid(sim.agent_radius, sim.agent_height)
-        row, col = scene.grid.world_to_cell(episode.start_xy)
-        if not (scene.grid.contains((row, col)) and navigable[row, col]):
-            raise InputError(
-                source,
-                f"episodes[{i}].start_position",
-                f"a navigable position in {episode.scene_id}",
-                list(episode.start_position),
-            )
+        if episode.scene_id not in contexts:
+            scene = library.load(episode.scene_id)
+            reachable = largest_component(scene.navigable_grid(sim.agent_radius, sim.agent_height))
+            contexts[episode.scene_id] = SceneGoals(scene, reachable, {})
+        _validate_episode(episode, f"episodes[{i}]", contexts[episode.scene_id], source)
+
+
+def _validate_episode(episode: Episode, name: str, context: SceneGoals, source: str | Path) -> None:
+    grid, reachable = context.scene.grid, context.reachable
+    where = f"a navigable position the agent can reach in {episode.scene_id}"
+
+    def on_reachable(xy: tuple[float, float]) -> bool:
+        cell = grid.world_to_cell(xy)
+        return bool(grid.contains(cell) and reachable[cell[0], cell[1]])
+
+    if not on_reachable(episode.start_xy):
+        raise InputError(source, f"{name}.start_position", where, list(episode.start_position))
+    for k, goal in enumerate(episode.goals):
+        for m, point in enumerate(goal.view_points):
+            if not on_reachable(point.xy):
+                field = f"{name}.goals[{k}].view_points[{m}].agent_state.position"
+                raise InputError(source, field, where, list(point.position))
+    key = repr([point.position for goal in episode.goals for point in goal.view_points])  # episodes share goals
+    context.goals.setdefault(key, list(episode.goals))
+    distance = float(context.field_for(key).at(*episode.start_xy))
+    if not math.isfinite(distance):
+        raise InputError(source, f"{name}.goals", "a goal reachable from the start", "no view point reachable")
+    given = episode.info.get("geodesic_distance")
+    if isinstance(given, (int, float)) and abs(given - distance) > GEODESIC_TOLERANCE * distance:
+        expected = f"the world's start-to-goal distance {distance:.2f} m within {GEODESIC_TOLERANCE:.0%}"
+        raise InputError(source, f"{name}.info.geodesic_distance", expected, given)

@@ -1,0 +1,128 @@
+"""Hostile episode files and scenes: each answered with one line naming the file and the field, exit 2, before any
+episode runs (never a silently dropped scene, a null distance or a negative SPL)."""
+
+from __future__ import annotations
+
+import gzip
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from drivenav.cli import main
+from drivenav.envs.library import SceneLibrary
+from drivenav.eval.episodes import episode_to_dict, generate_episodes
+from test_rosmap import write_map
+
+SCENES = "procedural:1"
+
+
+def _write(path: Path, payload: dict[str, Any]) -> Path:
+    path.write_bytes(gzip.compress(json.dumps(payload).encode()))
+    return path
+
+
+def _episodes(count: int = 2) -> list[dict[str, Any]]:
+    return [episode_to_dict(e) for e in generate_episodes(SceneLibrary(SCENES, 0), count, 0)]
+
+
+def _refused(capsys: pytest.CaptureFixture[str], tmp_path: Path, episodes: str, scenes: str, *words: str) -> None:
+    out = tmp_path / "run"
+    args = ["eval", "--agent", "random", "--scenes", scenes, "--episodes", episodes, "--out", str(out)]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    for word in words:
+        assert word in err, err
+    assert not (out / "episodes.jsonl").exists()
+
+
+def _refused_file(capsys: pytest.CaptureFixture[str], tmp_path: Path, payload: dict[str, Any], *words: str) -> None:
+    path = _write(tmp_path / "eps.json.gz", payload)
+    _refused(capsys, tmp_path, str(path), SCENES, str(path), *words)
+
+
+# ------------------------------------------------------------------------------------------------ episode files
+
+
+def test_an_empty_episode_list(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    _refused_file(capsys, tmp_path, {"episodes": []}, "'episodes'", "a non-empty list of episodes")
+
+
+def test_duplicate_episode_ids(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    first, second = _episodes()
+    second["episode_id"] = first["episode_id"]
+    words = ("'episodes[1].episode_id'", "episodes[0] has it", repr(first["episode_id"]))
+    _refused_file(capsys, tmp_path, {"episodes": [first, second]}, *words)
+
+
+def test_a_habitat_content_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    episode = {k: v for k, v in _episodes(1)[0].items() if k != "goals"}
+    payload = {"episodes": [episode], "goals_by_category": {"scene.basis.glb_chair": []}}
+    _refused_file(capsys, tmp_path, payload, "goals_by_category", "--env habitat")
+
+
+def test_a_habitat_split_file_with_content_files(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "content").mkdir()
+    _write(tmp_path / "content" / "scene.json.gz", {"episodes": _episodes(1), "goals_by_category": {}})
+    payload = {"episodes": [], "category_to_task_category_id": {"chair": 0}}
+    _refused_file(capsys, tmp_path, payload, "content/", "--env habitat")
+
+
+def test_a_view_point_off_the_navigable_area(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    episode = _episodes(1)[0]
+    episode["goals"][0]["view_points"][0]["agent_state"]["position"] = [-50.0, 0.0, 50.0]
+    words = ("'episodes[0].goals[0].view_points[0].agent_state.position'", "navigable", "[-50.0, 0.0, 50.0]")
+    _refused_file(capsys, tmp_path, {"episodes": [episode]}, *words)
+
+
+def test_a_geodesic_distance_the_world_disagrees_with(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    episode = _episodes(1)[0]
+    true = episode["info"]["geodesic_distance"]
+    episode["info"]["geodesic_distance"] = round(1.2 * true, 4)  # today's SPL would have trusted it
+    words = ("'episodes[0].info.geodesic_distance'", f"{true:.2f} m within 10%")
+    _refused_file(capsys, tmp_path, {"episodes": [episode]}, *words)
+
+
+def test_a_geodesic_distance_within_tolerance_is_accepted(tmp_path: Path) -> None:
+    episode = _episodes(1)[0]
+    episode["info"]["geodesic_distance"] = round(1.05 * episode["info"]["geodesic_distance"], 4)
+    path = _write(tmp_path / "eps.json.gz", {"episodes": [episode]})
+    args = ["eval", "--agent", "oracle", "--scenes", SCENES, "--episodes", str(path), "--out", str(tmp_path / "r")]
+    assert main(args) == 0
+    record = json.loads((tmp_path / "r" / "episodes.jsonl").read_text())
+    assert record["geodesic_distance"] == pytest.approx(episode["info"]["geodesic_distance"] / 1.05, abs=0.01)
+    assert 0.0 < record["spl"] <= 1.0  # the world's own start distance, as habitat-lab
+
+
+# ------------------------------------------------------------------------------------------------ scenes
+
+FREE, WALL, UNKNOWN = 254, 0, 205
+
+
+@pytest.mark.parametrize(
+    ("image", "case"),
+    [
+        (np.full((1, 1), FREE), "a 1x1 image"),
+        (np.full((40, 40), WALL), "all occupied"),
+        (np.full((40, 40), UNKNOWN), "all unknown"),
+    ],
+)
+def test_a_map_the_agent_fits_nowhere_in(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], image: np.ndarray, case: str
+) -> None:
+    scene = write_map(tmp_path / "tiny", image, resolution=0.05, origin=[0.0, 0.0, 0.0])
+    _refused(capsys, tmp_path, "2", str(scene), str(scene / "map.yaml"), "'image'", "free space an agent")
+
+
+def test_a_map_whose_objects_list_is_empty(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    scene = write_map(tmp_path / "empty", np.full((80, 80), FREE), resolution=0.05, origin=[0.0, 0.0, 0.0])
+    (scene / "objects.json").write_text(json.dumps({"objects": [], "rooms": []}))
+    _refused(capsys, tmp_path, "2", str(scene), str(scene / "map.yaml"), "'objects'", "0 objects, none reachable")
+
+
+def test_a_map_whose_grid_would_need_more_than_2_gib(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    scene = write_map(tmp_path / "huge", np.full((20, 20), FREE), resolution=1e6, origin=[0.0, 0.0, 0.0])
+    _refused(capsys, tmp_path, "2", str(scene), str(scene / "map.yaml"), "'resolution'", "fits in 2 GiB")
