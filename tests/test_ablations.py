@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import hashlib
 import json
 from pathlib import Path
 
@@ -18,8 +19,9 @@ from drivenav.eval.ablations import (
     ordering_differences,
     resolve_scenes,
 )
-from drivenav.eval.episodes import save_episodes
+from drivenav.eval.episodes import save_episodes, validate_for_scenes
 from drivenav.eval.stats import bootstrap_mean_interval, wilson_interval
+from drivenav.types import SimConfig
 
 METHOD_KEYS = {
     "episodes",
@@ -166,3 +168,13 @@ def test_v1_covers_40_houses_and_every_floor_plan(maps_dir: Path) -> None:
     assert len(houses) == 40
     assert set(library.scene_ids) - set(houses) == {d.name for d in maps_dir.iterdir() if d.is_dir()}
     assert BENCHMARK_V1.episodes >= 200
+
+
+def test_benchmark_v1_is_frozen_as_published(tmp_path: Path) -> None:
+    path = tmp_path / "v1.json.gz"
+    save_episodes(generate_benchmark(BENCHMARK_V1), path)
+    assert hashlib.sha256(path.read_bytes()).hexdigest().startswith("3de8fb637e73")  # docs/benchmarks.md
+    first = generate_benchmark(BENCHMARK_V1, 12)
+    assert [e.episode_id for e in first] == [str(i) for i in range(12)]
+    library = SceneLibrary(resolve_scenes(BENCHMARK_V1.scenes), BENCHMARK_V1.seed)
+    validate_for_scenes(first, library, path, SimConfig())  # still valid in today's worlds

@@ -61,3 +61,13 @@ def test_largest_component() -> None:
     mask[5:9, 5:9] = True
     big = largest_component(mask)
     assert big.sum() == 16 and big[6, 6] and not big[0, 0]
+
+
+def test_largest_component_connects_through_sides_not_corners() -> None:
+    mask = np.zeros((5, 5), dtype=bool)
+    mask[0:2, 0:2] = True  # 4 cells
+    mask[2:5, 2:5] = True  # 9 cells touching the first block only at a corner
+    assert largest_component(mask).sum() == 9
+    mask[2, 1] = True  # a side contact joins them
+    assert largest_component(mask).sum() == 14
+    assert not largest_component(np.zeros((3, 3), dtype=bool)).any()

@@ -158,7 +158,11 @@ def _add_bench_ablations(sub: argparse._SubParsersAction[argparse.ArgumentParser
     from drivenav.eval.ablations import ALL_METHODS, BENCHMARK_V1
 
     parser = sub.add_parser("ablations", help="the paper's Tables II, V, VI and VII on the embedded benchmark")
-    parser.add_argument("--episodes", default=str(BENCHMARK_V1.episodes), help="a number to generate, or a file")
+    parser.add_argument(
+        "--episodes",
+        default=str(BENCHMARK_V1.episodes),
+        help="a number (with the default --scenes and --seed: the first N of benchmark v1), or a file",
+    )
     parser.add_argument("--seed", type=int, default=BENCHMARK_V1.seed)
     parser.add_argument("--out", required=True, type=Path, help="output directory (rerun to resume)")
     parser.add_argument("--methods", default=",".join(ALL_METHODS), help="comma-separated agent names")
@@ -344,16 +348,20 @@ def _cmd_bench_agent(args: argparse.Namespace) -> int:
 
 
 def _cmd_bench_ablations(args: argparse.Namespace) -> int:
-    from drivenav.eval.ablations import parse_methods, resolve_scenes, run_ablations
+    from drivenav.eval.ablations import BENCHMARK_V1, generate_benchmark, parse_methods, resolve_scenes, run_ablations
     from drivenav.eval.report import shown
 
     methods = parse_methods(args.methods)
     executor = _executor(args)
     if args.pictures < 0:
         raise InputError("command line", "--pictures", "a number of episodes >= 0", args.pictures)
+    benchmark_v1 = (args.scenes, args.seed) == (BENCHMARK_V1.scenes, BENCHMARK_V1.seed)
     args.scenes = resolve_scenes(args.scenes)
     specs = [_run_spec(args, method) for method in methods]
-    episodes = _load_or_generate(args, specs[0].settings)
+    if benchmark_v1 and str(args.episodes).isdigit():  # v1's frozen episodes, not today's generator's
+        episodes = generate_benchmark(BENCHMARK_V1, _positive(int(args.episodes), "--episodes"))
+    else:
+        episodes = _load_or_generate(args, specs[0].settings)
     report = run_ablations(episodes, specs, args.out, executor, args.pictures)
     for name, entry in report["methods"].items():
         sr, spl = (shown(entry[key], "{:5.1f} %", 100.0) for key in ("success_rate", "spl"))

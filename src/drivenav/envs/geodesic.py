@@ -19,8 +19,14 @@ from drivenav.grid import GridSpec
 
 
 def largest_component(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
-    """The largest 8-connected component of ``mask`` (all False if ``mask`` is empty)."""
-    labels, count = ndimage.label(mask, structure=np.ones((3, 3), dtype=bool))
+    """The largest 4-connected component of ``mask`` (all False if ``mask`` is empty).
+
+    The one connectivity rule of the embedded world: cells that touch only at a corner are not connected, because
+    the agent cannot pass there (a forward step crosses the cells its segment passes through, and a segment
+    through a shared corner enters one of the two blocked cells) and the Fast-Marching solve of the geodesic
+    field, whose stencil is the four axis neighbours, does not reach across either.
+    """
+    labels, count = ndimage.label(mask)
     if count == 0:
         return np.zeros_like(mask)
     sizes = np.bincount(labels.ravel())

@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
+from drivenav.envs.geodesic import largest_component
 from drivenav.envs.scene import Material, ObjectInstance, Scene
 from drivenav.envs.vocabulary import VOCABULARY, CategorySpec, PlacementStyle, Vocabulary
 from drivenav.errors import InputError
@@ -96,7 +97,7 @@ class _Placer:
 
     def _reachable(self) -> NDArray[np.bool_]:
         """Free cells near the main navigable component and in the same piece of free space (no sealed rooms)."""
-        main = _largest_component(self.nav)
+        main = largest_component(self.nav)
         pieces, _ = ndimage.label(self.free)
         connected = np.isin(pieces, np.unique(pieces[main]))
         return connected & _near(main, _REACH, self.res)
@@ -344,13 +345,6 @@ def _near(mask: NDArray[np.bool_], radius: float, res: float) -> NDArray[np.bool
     if not mask.any():
         return np.zeros_like(mask)
     result: NDArray[np.bool_] = ndimage.distance_transform_edt(~mask) * res <= radius
-    return result
-
-
-def _largest_component(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
-    labels, count = ndimage.label(mask)
-    sizes = np.bincount(np.ravel(labels), minlength=2)[1:]
-    result: NDArray[np.bool_] = (labels == 1 + int(np.argmax(sizes))) & (count > 0)
     return result
 
 

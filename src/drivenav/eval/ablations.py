@@ -12,6 +12,7 @@ import json
 from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass
+from importlib import resources
 from itertools import pairwise
 from pathlib import Path
 from typing import Any
@@ -41,17 +42,21 @@ SHARED_MAPS = "{shared_maps}"  # stands for drivenav.envs.rosmap.default_shared_
 
 @dataclass(frozen=True)
 class BenchmarkDefinition:
-    """A fixed episode set: a ``--scenes`` SPEC (may name ``{shared_maps}``), an episode count and a seed."""
+    """A fixed episode set: a ``--scenes`` SPEC (may name ``{shared_maps}``), an episode count and a seed; once
+    published, its episodes are frozen as a file shipped with drivenav (``frozen``, under ``drivenav/data``), so
+    that no later change to the generator changes them."""
 
     scenes: str
     episodes: int
     seed: int
+    frozen: str | None = None
 
 
-BENCHMARK_V1 = BenchmarkDefinition(scenes=f"procedural:40,{SHARED_MAPS}", episodes=200, seed=2026)
-"""v1: 200 episodes round-robin over 40 procedural houses and every shared real floor plan (a quarter by synonym).
-
-Never change a published version; add a new one.
+BENCHMARK_V1 = BenchmarkDefinition(
+    scenes=f"procedural:40,{SHARED_MAPS}", episodes=200, seed=2026, frozen="benchmarks/v1.json.gz"
+)
+"""v1: 200 episodes round-robin over 40 procedural houses and every shared real floor plan (a quarter by synonym),
+as generated at its publication (sha256 3de8fb63...4955d8). Never change a published version; add a new one.
 """
 
 BENCHMARKS: dict[str, BenchmarkDefinition] = {"v1": BENCHMARK_V1}
@@ -68,9 +73,14 @@ def resolve_scenes(spec: str) -> str:
 
 
 def generate_benchmark(definition: BenchmarkDefinition, episodes: int | None = None) -> list[Episode]:
-    """The definition's episodes (the first ``episodes`` of them if given: generation is sequential)."""
+    """The definition's episodes, the first ``episodes`` of them if given: its frozen file where it has one, else
+    generated (generation is sequential, so a prefix is the same episodes)."""
+    count = episodes or definition.episodes
+    if definition.frozen is not None:
+        with resources.as_file(resources.files("drivenav").joinpath(f"data/{definition.frozen}")) as path:
+            return load_episodes(path)[:count]
     library = SceneLibrary(resolve_scenes(definition.scenes), definition.seed)
-    return generate_episodes(library, episodes or definition.episodes, definition.seed, SimConfig())
+    return generate_episodes(library, count, definition.seed, SimConfig())
 
 
 # ----------------------------------------------------------------------------------------------- the tables
