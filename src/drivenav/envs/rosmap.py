@@ -33,7 +33,6 @@ import json
 import math
 import os
 import zlib
-from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -47,6 +46,7 @@ from drivenav.envs import placement
 from drivenav.envs.scene import Material, ObjectInstance, Room, Scene
 from drivenav.errors import InputError
 from drivenav.grid import GridSpec
+from drivenav.validation import Fields
 
 OBJECTS_FILE = "objects.json"
 MAP_MODES = ("trinary", "scale", "raw")
@@ -161,10 +161,11 @@ def read_map_yaml(path: str | Path) -> MapYaml:
     image = doc["image"]
     if not isinstance(image, str) or not image.strip():
         raise InputError(path, "image", "an image file name (string)", image)
-    resolution = _number(doc["resolution"], path, "resolution")
+    fields = Fields(path)
+    resolution = fields.number(doc["resolution"], "resolution")
     if resolution <= 0.0:
         raise InputError(path, "resolution", "a positive number of metres per pixel", doc["resolution"])
-    origin = _numbers(doc["origin"], 3, path, "origin", "a list of 3 numbers [x, y, yaw]")
+    origin = fields.numbers(doc["origin"], "origin", 3, "a list of 3 numbers [x, y, yaw]")
     negate = doc["negate"]
     if negate not in (0, 1):  # also admits True / False
         raise InputError(path, "negate", "0 or 1", negate)
@@ -179,7 +180,7 @@ def read_map_yaml(path: str | Path) -> MapYaml:
 
 
 def _threshold(doc: dict[str, Any], key: str, path: Path) -> float:
-    value = _number(doc[key], path, key)
+    value = Fields(path).number(doc[key], key)
     if not 0.0 <= value <= 1.0:
         raise InputError(path, key, "a number in [0, 1]", doc[key])
     return value
@@ -303,45 +304,6 @@ def load_structure(path: str | Path, resolution: float = 0.05) -> tuple[GridSpec
 # objects.json
 
 
-def _number(value: Any, source: Path, field: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise InputError(source, field, "a finite number", value)
-    return float(value)
-
-
-def _numbers(value: Any, count: int, source: Path, field: str, expected: str) -> tuple[float, ...]:
-    if not isinstance(value, list) or len(value) != count:
-        raise InputError(source, field, expected, value)
-    return tuple(_number(v, source, f"{field}[{k}]") for k, v in enumerate(value))
-
-
-def _entry(value: Any, keys: frozenset[str], required: Sequence[str], source: Path, field: str) -> dict[str, Any]:
-    """A JSON object with only ``keys`` and every ``required`` key; ``field`` names it ("" = the document)."""
-    if not isinstance(value, dict):
-        raise InputError(source, field or "<document>", "a JSON object", value)
-    prefix = f"{field}." if field else ""
-    unknown = sorted(set(value) - keys)
-    if unknown:
-        raise InputError(source, prefix + unknown[0], f"only the keys {', '.join(sorted(keys))}", "unknown key")
-    for key in required:
-        if key not in value:
-            raise InputError(source, prefix + key, "a value", "missing")
-    return value
-
-
-def _name(value: Any, source: Path, field: str) -> str:
-    if not isinstance(value, str) or not value.strip():
-        raise InputError(source, field, "a non-empty string", value)
-    return value
-
-
-def _list(doc: dict[str, Any], key: str, source: Path) -> list[Any]:
-    value = doc.get(key, [])
-    if not isinstance(value, list):
-        raise InputError(source, key, "a JSON array", value)
-    return value
-
-
 def _inside(grid: GridSpec, x: float, y: float) -> bool:
     xmin, xmax, ymin, ymax = grid.extent
     return xmin - _EPS <= x <= xmax + _EPS and ymin - _EPS <= y <= ymax + _EPS
@@ -352,22 +314,24 @@ def _extent_text(grid: GridSpec) -> str:
     return f"x in [{xmin:g}, {xmax:g}], y in [{ymin:g}, {ymax:g}]"
 
 
-def _read_object(value: Any, index: int, source: Path, grid: GridSpec, structure: NDArray[np.uint8]) -> ObjectInstance:
-    field = f"objects[{index}]"
-    entry = _entry(value, _OBJECT_KEYS, ("category", "center", "size"), source, field)
-    center = _numbers(entry["center"], 2, source, f"{field}.center", "a list of 2 numbers [x, y]")
-    size = _numbers(entry["size"], 3, source, f"{field}.size", "a list of 3 positive numbers [sx, sy, sz]")
+def _read_object(
+    value: Any, index: int, fields: Fields, grid: GridSpec, structure: NDArray[np.uint8]
+) -> ObjectInstance:
+    source, field = fields.source, f"objects[{index}]"
+    entry = fields.mapping(value, field, _OBJECT_KEYS, ("category", "center", "size"))
+    center = fields.numbers(entry["center"], f"{field}.center", 2, "a list of 2 numbers [x, y]")
+    size = fields.numbers(entry["size"], f"{field}.size", 3, "a list of 3 positive numbers [sx, sy, sz]")
     if min(size) <= 0.0:
         raise InputError(source, f"{field}.size", "a list of 3 positive numbers [sx, sy, sz]", entry["size"])
-    elevation = _number(entry.get("elevation", 0.0), source, f"{field}.elevation")
+    elevation = fields.number(entry.get("elevation", 0.0), f"{field}.elevation")
     if elevation < 0.0:
         raise InputError(source, f"{field}.elevation", "a height >= 0 above the floor", elevation)
     obj = ObjectInstance(
         instance_id=index + 1,
-        category=_name(entry["category"], source, f"{field}.category"),
+        category=fields.text(entry["category"], f"{field}.category"),
         center=(center[0], center[1]),
         size=(size[0], size[1], size[2]),
-        yaw=_number(entry.get("yaw", 0.0), source, f"{field}.yaw"),
+        yaw=fields.number(entry.get("yaw", 0.0), f"{field}.yaw"),
         elevation=elevation,
     )
     cell = grid.world_to_cell(obj.center)
@@ -383,16 +347,16 @@ def _read_object(value: Any, index: int, source: Path, grid: GridSpec, structure
     return obj
 
 
-def _read_room(value: Any, index: int, source: Path, grid: GridSpec) -> Room:
-    field = f"rooms[{index}]"
-    entry = _entry(value, _ROOM_KEYS, ("name", "polygon"), source, field)
-    name = _name(entry["name"], source, f"{field}.name")
+def _read_room(value: Any, index: int, fields: Fields, grid: GridSpec) -> Room:
+    source, field = fields.source, f"rooms[{index}]"
+    entry = fields.mapping(value, field, _ROOM_KEYS, ("name", "polygon"))
+    name = fields.text(entry["name"], f"{field}.name")
     polygon = entry["polygon"]
     if not isinstance(polygon, list) or len(polygon) < 3:
         raise InputError(source, f"{field}.polygon", "a list of at least 3 points [x, y]", polygon)
     points: list[tuple[float, float]] = []
     for k, point in enumerate(polygon):
-        x, y = _numbers(point, 2, source, f"{field}.polygon[{k}]", "a point [x, y]")
+        x, y = fields.numbers(point, f"{field}.polygon[{k}]", 2, "a point [x, y]")
         if not _inside(grid, x, y):
             raise InputError(source, f"{field}.polygon[{k}]", f"a point on the map ({_extent_text(grid)})", point)
         points.append((x, y))
@@ -416,11 +380,13 @@ def read_objects_json(
         ) from exc
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(path, "<document>", "a readable UTF-8 text file", str(exc)) from exc
-    doc = _entry(doc, _TOP_KEYS, (), path, "")
-    rooms = [_read_room(v, k, path, grid) for k, v in enumerate(_list(doc, "rooms", path))]
+    fields = Fields(path)
+    doc = fields.mapping(doc, "", _TOP_KEYS)
+    rooms = [_read_room(v, k, fields, grid) for k, v in enumerate(fields.sequence(doc.get("rooms", []), "rooms"))]
     if "objects" not in doc:
         return None, rooms
-    return [_read_object(v, k, path, grid, structure) for k, v in enumerate(_list(doc, "objects", path))], rooms
+    objects = fields.sequence(doc["objects"], "objects")
+    return [_read_object(v, k, fields, grid, structure) for k, v in enumerate(objects)], rooms
 
 
 def write_objects_json(scene: Scene, path: str | Path) -> Path:

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from drivenav.errors import InputError
+from drivenav.validation import Fields
 
 Vec3 = tuple[float, float, float]
 
@@ -144,60 +145,59 @@ def load_vocabulary(path: str | Path | None = None) -> Vocabulary:
 
 
 def _parse(raw: Any, source: str | Path) -> Vocabulary:
-    if not isinstance(raw, dict):
-        raise InputError(source, "<file>", "a JSON object", type(raw).__name__)
-    room_types = tuple(_str_list(raw.get("room_types"), source, "room_types"))
+    fields = Fields(source)
+    raw = fields.mapping(raw, "")
+    room_types = tuple(fields.texts(raw.get("room_types"), "room_types"))
     specs = tuple(
-        _parse_spec(entry, source, f"categories[{k}]", room_types)
-        for k, entry in enumerate(_list(raw.get("categories"), source, "categories"))
+        _parse_spec(entry, fields, f"categories[{k}]", room_types)
+        for k, entry in enumerate(fields.sequence(raw.get("categories"), "categories"))
     )
     vocab = Vocabulary(
         room_types=room_types,
         specs=specs,
         anchors={
-            room: tuple(_str_list(names, source, f"anchors.{room}"))
-            for room, names in _dict(raw.get("anchors"), source, "anchors").items()
+            room: tuple(fields.texts(names, f"anchors.{room}"))
+            for room, names in fields.mapping(raw.get("anchors"), "anchors").items()
         },
         density={
-            room: _nonneg(value, source, f"density.{room}")
-            for room, value in _dict(raw.get("density"), source, "density").items()
+            room: fields.number(value, f"density.{room}", minimum=0.0)
+            for room, value in fields.mapping(raw.get("density"), "density").items()
         },
-        generic_density=_nonneg(raw.get("generic_density"), source, "generic_density"),
+        generic_density=fields.number(raw.get("generic_density"), "generic_density", minimum=0.0),
     )
     _check_references(vocab, source)
     return vocab
 
 
-def _parse_spec(entry: Any, source: str | Path, where: str, room_types: tuple[str, ...]) -> CategorySpec:
-    item = _dict(entry, source, where)
-    size_min = _vec3(item.get("size_min"), source, f"{where}.size_min")
-    size_max = _vec3(item.get("size_max"), source, f"{where}.size_max")
+def _parse_spec(entry: Any, fields: Fields, where: str, room_types: tuple[str, ...]) -> CategorySpec:
+    source = fields.source
+    item = fields.mapping(entry, where)
+    size_min = _size(fields, item.get("size_min"), f"{where}.size_min")
+    size_max = _size(fields, item.get("size_max"), f"{where}.size_max")
     if any(lo > hi for lo, hi in zip(size_min, size_max, strict=True)):
         raise InputError(source, f"{where}.size_max", "size_max >= size_min per axis", size_max)
     style_name = item.get("style")
     if style_name not in {s.value for s in PlacementStyle}:
         raise InputError(source, f"{where}.style", f"one of {[s.value for s in PlacementStyle]}", style_name)
-    priors = _dict(item.get("priors", {}), source, f"{where}.priors")
+    priors = fields.mapping(item.get("priors", {}), f"{where}.priors")
     for room in priors:
         if room not in room_types:
             raise InputError(source, f"{where}.priors", f"room types from {list(room_types)}", room)
-    elevation = _list(item.get("elevation", [0.0, 0.0]), source, f"{where}.elevation")
-    if len(elevation) != 2 or not 0.0 <= _nonneg(elevation[0], source, f"{where}.elevation") <= elevation[1]:
-        raise InputError(source, f"{where}.elevation", "[low, high] with 0 <= low <= high", elevation)
-    max_per_room = item.get("max_per_room", 2)
-    if not isinstance(max_per_room, int) or max_per_room < 1:
-        raise InputError(source, f"{where}.max_per_room", "a positive integer", max_per_room)
+    low, high = fields.numbers(item.get("elevation", [0.0, 0.0]), f"{where}.elevation", 2, "[low, high] metres")
+    if not 0.0 <= low <= high:
+        raise InputError(source, f"{where}.elevation", "[low, high] with 0 <= low <= high", [low, high])
+    max_per_room = fields.integer(item.get("max_per_room", 2), f"{where}.max_per_room", minimum=1)
     return CategorySpec(
-        name=_str(item.get("name"), source, f"{where}.name"),
-        synonyms=tuple(_str_list(item.get("synonyms", []), source, f"{where}.synonyms")),
+        name=fields.text(item.get("name"), f"{where}.name"),
+        synonyms=tuple(fields.texts(item.get("synonyms", []), f"{where}.synonyms")),
         size_min=size_min,
         size_max=size_max,
         style=PlacementStyle(style_name),
-        priors=tuple((room, _nonneg(w, source, f"{where}.priors.{room}")) for room, w in priors.items()),
-        generic_prior=_nonneg(item.get("generic", 0.0), source, f"{where}.generic"),
-        elevation=(float(elevation[0]), float(elevation[1])),
+        priors=tuple((room, fields.number(w, f"{where}.priors.{room}", minimum=0.0)) for room, w in priors.items()),
+        generic_prior=fields.number(item.get("generic", 0.0), f"{where}.generic", minimum=0.0),
+        elevation=(low, high),
         max_per_room=max_per_room,
-        hosts=tuple(_str_list(item.get("hosts", []), source, f"{where}.hosts")),
+        hosts=tuple(fields.texts(item.get("hosts", []), f"{where}.hosts")),
     )
 
 
@@ -223,39 +223,12 @@ def _check_references(vocab: Vocabulary, source: str | Path) -> None:
             raise InputError(source, f"density.{room}", f"room types from {list(vocab.room_types)}", room)
 
 
-def _dict(value: Any, source: str | Path, where: str) -> dict[str, Any]:
-    if not isinstance(value, dict):
-        raise InputError(source, where, "a JSON object", value)
-    return value
-
-
-def _list(value: Any, source: str | Path, where: str) -> list[Any]:
-    if not isinstance(value, list):
-        raise InputError(source, where, "a JSON list", value)
-    return value
-
-
-def _str(value: Any, source: str | Path, where: str) -> str:
-    if not isinstance(value, str) or not value.strip():
-        raise InputError(source, where, "a non-empty string", value)
-    return value
-
-
-def _str_list(value: Any, source: str | Path, where: str) -> list[str]:
-    return [_str(v, source, where) for v in _list(value, source, where)]
-
-
-def _nonneg(value: Any, source: str | Path, where: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not value >= 0.0:
-        raise InputError(source, where, "a non-negative number", value)
-    return float(value)
-
-
-def _vec3(value: Any, source: str | Path, where: str) -> Vec3:
-    items = _list(value, source, where)
-    if len(items) != 3 or any(_nonneg(v, source, where) <= 0.0 for v in items):
-        raise InputError(source, where, "three positive numbers (metres)", value)
-    return float(items[0]), float(items[1]), float(items[2])
+def _size(fields: Fields, value: Any, where: str) -> Vec3:
+    """Three positive numbers (metres)."""
+    sx, sy, sz = fields.numbers(value, where, 3, "three positive numbers (metres)")
+    if min(sx, sy, sz) <= 0.0:
+        raise fields.error(where, "three positive numbers (metres)", value)
+    return sx, sy, sz
 
 
 VOCABULARY: Vocabulary = load_vocabulary()

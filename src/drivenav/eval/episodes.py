@@ -35,6 +35,7 @@ from drivenav.envs.scene import Scene
 from drivenav.errors import InputError
 from drivenav.eval.goals import object_goal
 from drivenav.types import SimConfig
+from drivenav.validation import Fields
 
 MIN_GEODESIC = 1.0  # metres, start to nearest view point
 MAX_GEODESIC = 30.0
@@ -214,7 +215,8 @@ def load_episodes(path: str | Path) -> list[Episode]:
     _refuse_habitat_layout(source, data)
     if not data["episodes"]:
         raise InputError(source, "episodes", "a non-empty list of episodes", "[]")
-    episodes = [_parse_episode(source, f"episodes[{i}]", item) for i, item in enumerate(data["episodes"])]
+    fields = Fields(source)
+    episodes = [_parse_episode(fields, f"episodes[{i}]", item) for i, item in enumerate(data["episodes"])]
     _refuse_duplicates(source, episodes)
     return episodes
 
@@ -245,73 +247,50 @@ def _refuse_duplicates(source: Path, episodes: list[Episode]) -> None:
             )
 
 
-def _numbers(source: Path, name: str, value: Any, count: int) -> list[float]:
-    ok = isinstance(value, list) and len(value) == count
-    ok = ok and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)
-    if not ok:
-        raise InputError(source, name, f"a list of {count} finite numbers", value)
-    return [float(v) for v in value]
-
-
-def _vec3(source: Path, name: str, value: Any) -> Vec3:
-    x, y, z = _numbers(source, name, value, 3)
+def _vec3(fields: Fields, name: str, value: Any) -> Vec3:
+    x, y, z = fields.numbers(value, name, 3)
     return (x, y, z)
 
 
-def _quat(source: Path, name: str, value: Any) -> Quat:
-    x, y, z, w = _numbers(source, name, value, 4)
+def _quat(fields: Fields, name: str, value: Any) -> Quat:
+    x, y, z, w = fields.numbers(value, name, 4)
     return (x, y, z, w)
 
 
-def _string(source: Path, name: str, value: Any) -> str:
+def _identifier(fields: Fields, name: str, value: Any) -> str:
+    """A non-empty string; integer ids (as some datasets write them) become strings."""
     if isinstance(value, int) and not isinstance(value, bool):
         return str(value)
-    if not isinstance(value, str) or not value:
-        raise InputError(source, name, "a non-empty string", value)
-    return value
+    return fields.text(value, name)
 
 
-def _parse_episode(source: Path, name: str, item: Any) -> Episode:
-    if not isinstance(item, dict):
-        raise InputError(source, name, "an object", type(item).__name__)
-    goals = item.get("goals")
-    if not isinstance(goals, list) or not goals:
-        raise InputError(source, f"{name}.goals", "a non-empty list of goals", goals)
-    info = item.get("info", {})
-    if not isinstance(info, dict):
-        raise InputError(source, f"{name}.info", "an object", info)
+def _parse_episode(fields: Fields, name: str, item: Any) -> Episode:
+    item = fields.mapping(item, name)
+    goals = fields.sequence(item.get("goals"), f"{name}.goals", nonempty=True)
     return Episode(
-        episode_id=_string(source, f"{name}.episode_id", item.get("episode_id")),
-        scene_id=_string(source, f"{name}.scene_id", item.get("scene_id")),
-        start_position=_vec3(source, f"{name}.start_position", item.get("start_position")),
-        start_rotation=_quat(source, f"{name}.start_rotation", item.get("start_rotation")),
-        object_category=_string(source, f"{name}.object_category", item.get("object_category")),
-        goals=tuple(_parse_goal(source, f"{name}.goals[{k}]", g) for k, g in enumerate(goals)),
-        info=info,
+        episode_id=_identifier(fields, f"{name}.episode_id", item.get("episode_id")),
+        scene_id=_identifier(fields, f"{name}.scene_id", item.get("scene_id")),
+        start_position=_vec3(fields, f"{name}.start_position", item.get("start_position")),
+        start_rotation=_quat(fields, f"{name}.start_rotation", item.get("start_rotation")),
+        object_category=_identifier(fields, f"{name}.object_category", item.get("object_category")),
+        goals=tuple(_parse_goal(fields, f"{name}.goals[{k}]", g) for k, g in enumerate(goals)),
+        info=fields.mapping(item.get("info", {}), f"{name}.info"),
     )
 
 
-def _parse_goal(source: Path, name: str, item: Any) -> ObjectGoal:
-    if not isinstance(item, dict):
-        raise InputError(source, name, "an object", type(item).__name__)
-    points = item.get("view_points")
-    if not isinstance(points, list) or not points:
-        raise InputError(source, f"{name}.view_points", "a non-empty list", points)
+def _parse_goal(fields: Fields, name: str, item: Any) -> ObjectGoal:
+    item = fields.mapping(item, name)
     view_points = []
-    for k, vp in enumerate(points):
-        state = vp.get("agent_state") if isinstance(vp, dict) else None
-        if not isinstance(state, dict):
-            raise InputError(source, f"{name}.view_points[{k}].agent_state", "an object with position and rotation")
-        position = _vec3(source, f"{name}.view_points[{k}].agent_state.position", state.get("position"))
-        rotation = _quat(source, f"{name}.view_points[{k}].agent_state.rotation", state.get("rotation"))
-        view_points.append(ViewPoint(position, rotation, float(vp.get("iou", 1.0))))
-    object_id = item.get("object_id", -1)
-    if not isinstance(object_id, int) or isinstance(object_id, bool):
-        raise InputError(source, f"{name}.object_id", "an integer", object_id)
+    for k, point in enumerate(fields.sequence(item.get("view_points"), f"{name}.view_points", nonempty=True)):
+        where = f"{name}.view_points[{k}]"
+        state = fields.mapping(fields.mapping(point, where).get("agent_state"), f"{where}.agent_state")
+        position = _vec3(fields, f"{where}.agent_state.position", state.get("position"))
+        rotation = _quat(fields, f"{where}.agent_state.rotation", state.get("rotation"))
+        view_points.append(ViewPoint(position, rotation, fields.number(point.get("iou", 1.0), f"{where}.iou")))
     return ObjectGoal(
-        object_id=object_id,
-        object_category=_string(source, f"{name}.object_category", item.get("object_category", "object")),
-        position=_vec3(source, f"{name}.position", item.get("position")),
+        object_id=fields.integer(item.get("object_id", -1), f"{name}.object_id"),
+        object_category=_identifier(fields, f"{name}.object_category", item.get("object_category", "object")),
+        position=_vec3(fields, f"{name}.position", item.get("position")),
         view_points=tuple(view_points),
     )
 
