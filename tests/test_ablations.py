@@ -11,14 +11,9 @@ import pytest
 
 from drivenav.cli import main
 from drivenav.envs.library import SceneLibrary
-from drivenav.eval.ablations import (
-    ALL_METHODS,
-    BENCHMARK_V1,
-    BenchmarkDefinition,
-    generate_benchmark,
-    ordering_differences,
-    resolve_scenes,
-)
+from drivenav.eval.ablation_report import ordering_differences
+from drivenav.eval.ablations import ALL_METHODS
+from drivenav.eval.benchmark import BENCHMARK_V1, BenchmarkDefinition, generate_benchmark, resolve_scenes
 from drivenav.eval.episodes import save_episodes, validate_for_scenes
 from drivenav.eval.stats import bootstrap_mean_interval, wilson_interval
 from drivenav.types import SimConfig

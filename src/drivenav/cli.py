@@ -155,7 +155,8 @@ def _add_bench(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 
 
 def _add_bench_ablations(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    from drivenav.eval.ablations import ALL_METHODS, BENCHMARK_V1
+    from drivenav.eval.ablations import ALL_METHODS
+    from drivenav.eval.benchmark import BENCHMARK_V1
 
     parser = sub.add_parser("ablations", help="the paper's Tables II, V, VI and VII on the embedded benchmark")
     parser.add_argument(
@@ -176,7 +177,7 @@ def _add_bench_ablations(sub: argparse._SubParsersAction[argparse.ArgumentParser
 
 
 def _add_benchmark(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    from drivenav.eval.ablations import BENCHMARKS
+    from drivenav.eval.benchmark import BENCHMARKS
 
     parser = commands.add_parser("benchmark", help="the fixed, versioned embedded benchmark")
     sub = parser.add_subparsers(dest="benchmark_command", required=True)
@@ -348,7 +349,8 @@ def _cmd_bench_agent(args: argparse.Namespace) -> int:
 
 
 def _cmd_bench_ablations(args: argparse.Namespace) -> int:
-    from drivenav.eval.ablations import BENCHMARK_V1, generate_benchmark, parse_methods, resolve_scenes, run_ablations
+    from drivenav.eval.ablations import parse_methods, run_ablations
+    from drivenav.eval.benchmark import BENCHMARK_V1, generate_benchmark, resolve_scenes
     from drivenav.eval.report import shown
 
     methods = parse_methods(args.methods)
@@ -371,7 +373,7 @@ def _cmd_bench_ablations(args: argparse.Namespace) -> int:
 
 
 def _cmd_benchmark_generate(args: argparse.Namespace) -> int:
-    from drivenav.eval.ablations import BENCHMARKS, generate_benchmark
+    from drivenav.eval.benchmark import BENCHMARKS, generate_benchmark
     from drivenav.eval.episodes import save_episodes
 
     count = None if args.episodes is None else _positive(args.episodes, "--episodes")
