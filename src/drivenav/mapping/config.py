@@ -11,7 +11,22 @@ from drivenav.types import SimConfig
 
 
 @dataclass(frozen=True)
-class MappingConfig:
+class MapTuning:
+    """The mapper settings a user sets (the ``mapping`` section of the configuration); the rest of
+    :class:`MappingConfig` follows from the sensor and body (:meth:`MappingConfig.from_sim`)."""
+
+    min_obstacle_height: float = 0.15
+    clip_epsilon: float = 0.01
+    min_frontier_area: float = 1.5
+    pocket_window: float = 2.0
+    initial_size: float = 20.0
+    growth_margin: float = 5.0
+    max_size: float = 200.0
+    pixel_stride: int = 2
+
+
+@dataclass(frozen=True)
+class MappingConfig(MapTuning):
     """Geometry and thresholds of the obstacle / explored / navigable maps and of frontier filtering.
 
     Heights are measured above the floor. A depth point whose height lies in
@@ -32,20 +47,12 @@ class MappingConfig:
     """
 
     resolution: float = 0.05
-    min_obstacle_height: float = 0.15
     max_obstacle_height: float = 0.88
     min_depth: float = 0.5
     max_depth: float = 5.0
-    clip_epsilon: float = 0.01
     camera_height: float = 0.88
     agent_radius: float = 0.18
     inflation_margin: float = 0.0
-    min_frontier_area: float = 1.5
-    pocket_window: float = 2.0
-    initial_size: float = 20.0
-    growth_margin: float = 5.0
-    max_size: float = 200.0
-    pixel_stride: int = 2
 
     def __post_init__(self) -> None:
         positive = {
@@ -80,18 +87,3 @@ class MappingConfig:
             max_obstacle_height=sim.agent_height,
         )
         return dataclasses.replace(base, **{**dataclasses.asdict(tuning or MapTuning()), **overrides})
-
-
-@dataclass(frozen=True)
-class MapTuning:
-    """The mapper settings a user sets (the ``mapping`` section of the configuration); the rest of
-    :class:`MappingConfig` follows from the sensor and body (:meth:`MappingConfig.from_sim`)."""
-
-    min_obstacle_height: float = 0.15
-    clip_epsilon: float = 0.01
-    min_frontier_area: float = 1.5
-    pocket_window: float = 2.0
-    initial_size: float = 20.0
-    growth_margin: float = 5.0
-    max_size: float = 200.0
-    pixel_stride: int = 2
