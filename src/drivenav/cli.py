@@ -287,11 +287,10 @@ def _run_spec(args: argparse.Namespace, agent: str) -> RunSpec:
 def _cmd_eval(args: argparse.Namespace) -> int:
     from drivenav.eval.report import format_table
     from drivenav.eval.rundir import EPISODES_FILE, SUMMARY_FILE, make_directory
-    from drivenav.eval.runner import build_agent, check_world_supports, evaluate
+    from drivenav.eval.runner import evaluate
 
     executor = _executor(args)
-    spec = _run_spec(args, args.agent)
-    check_world_supports(spec, build_agent(spec))  # an unknown or unsuitable agent fails before any work
+    spec = _run_spec(args, args.agent)  # an unknown agent or setting fails before any work
     make_directory(args.out)
     episodes = _load_or_generate(args, spec.settings)
     summary = evaluate(episodes, spec, args.out, executor)

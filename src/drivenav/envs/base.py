@@ -8,8 +8,8 @@ is opt-in: a world lists what it can provide, an agent what it needs, and the ru
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Protocol
+from dataclasses import Field, dataclass
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 from drivenav.types import Action, GroundTruth, Observation, Pose, SimConfig
 
@@ -68,7 +68,10 @@ class Env(Protocol):
 
 
 class EnvSpec(Protocol):
-    """A picklable recipe for a world, sent to every worker process (or Ray task) that builds one."""
+    """A picklable recipe for a world, sent to every worker process (or Ray task) that builds one: a frozen
+    dataclass, whose fields ``run.json`` records under ``config.env``."""
+
+    __dataclass_fields__: ClassVar[dict[str, Field[Any]]]
 
     @property
     def name(self) -> str:

@@ -35,7 +35,7 @@ from drivenav.eval.report import Summary, summarize
 from drivenav.eval.rundir import RunDirectory
 from drivenav.eval.timings import to_columns
 from drivenav.settings import Settings, settings_to_dict
-from drivenav.types import SEMANTIC, Observation
+from drivenav.types import SEMANTIC, Action, Observation
 
 log = logging.getLogger(__name__)
 
@@ -63,7 +63,7 @@ class RunSpec:
 
     def to_config(self) -> dict[str, Any]:
         """The world and the settings as one JSON tree (recorded in ``run.json``)."""
-        return {"env": {"name": self.env.name, **asdict(self.env)}, **settings_to_dict(self.settings)}  # type: ignore[call-overload]
+        return {"env": {"name": self.env.name, **asdict(self.env)}, **settings_to_dict(self.settings)}
 
 
 def build_agent(spec: RunSpec) -> Agent:
@@ -154,7 +154,7 @@ def _drive(env: Env, agent: Agent, episode: Episode, run_seed: int, max_steps: i
         observation = env.step(action)
         path.actions.append(int(action))
         path.add(env)
-        if action == 0:  # Action.STOP
+        if action == Action.STOP:
             return True
     return False
 
