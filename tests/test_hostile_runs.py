@@ -20,12 +20,14 @@ import pytest
 from conftest import run_cli
 from drivenav.agent.base import Agent
 from drivenav.cli import main
+from drivenav.envs.base import EpisodeMeasures
 from drivenav.envs.embedded import EmbeddedEnv, EmbeddedSpec
 from drivenav.envs.library import SceneLibrary
 from drivenav.errors import InputError
 from drivenav.eval import runner
 from drivenav.eval.episodes import generate_episodes
 from drivenav.eval.records import read_records
+from drivenav.eval.report import format_table, summarize
 from drivenav.eval.rundir import LOCK_FILE, RUN_FILE, RunDirectory
 from drivenav.eval.runner import RunSpec, evaluate
 from drivenav.semantics.fake_vlm_server import start_fake_server
@@ -319,3 +321,18 @@ def test_worker_warnings_reach_the_driver_and_stay_out_of_the_bar(tmp_path: Path
     assert all(line.split("\r")[-1].startswith("WARNING ") for line in warnings)
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert summary["vlm_fallbacks"] > 0 and summary["errors"] == 0
+
+
+def test_a_world_without_ground_truth_reports_null_never_zero(tmp_path: Path) -> None:
+    class Unmeasured(EmbeddedEnv):
+        def measures(self) -> EpisodeMeasures:
+            return EpisodeMeasures()  # a robot: no geodesics, no goal positions
+
+    env = Unmeasured(SceneLibrary(SCENES, 0).load)
+    record, _ = runner.run_episode(env, runner.build_agent(_spec("random")), _episodes(1)[0], 0, 10)
+    data = record.to_json()
+    assert [data[k] for k in ("success", "spl", "distance_to_goal", "path_length", "collisions")] == [None] * 5
+    assert record.steps == 10 and record.failure_cause == "" and record.revisits == 0
+    summary = summarize([record])
+    assert summary.success_rate is None and summary.spl is None and summary.avg_steps == 10
+    assert "n/a" in format_table(summary)
