@@ -27,7 +27,7 @@ from tqdm.contrib.logging import logging_redirect_tqdm
 from drivenav import metrics
 from drivenav.agent.base import Agent, ModelStats
 from drivenav.agent.registry import make_agent
-from drivenav.envs.base import Env, EnvSpec
+from drivenav.envs.base import Env, EnvSpec, EpisodeMeasures
 from drivenav.envs.episode import Episode
 from drivenav.errors import InputError
 from drivenav.eval.records import ERROR, EpisodeRecord, failure_cause
@@ -184,7 +184,7 @@ def run_episode(env: Env, agent: Agent, episode: Episode, run_seed: int, max_ste
         stop_reason = agent.stop_reason or "agent_stop"
     else:
         stop_reason = "timeout"
-    measures = env.measures() if path.positions else None
+    measures = env.measures() if path.positions else EpisodeMeasures()  # a failed reset measured nothing
     calls, stats = _model_use(agent, started=bool(path.positions))
     record = EpisodeRecord(
         episode_id=episode.episode_id,
@@ -193,20 +193,18 @@ def run_episode(env: Env, agent: Agent, episode: Episode, run_seed: int, max_ste
         canonical_category=str(episode.info.get("canonical_category", episode.object_category)),
         synonym=bool(episode.info.get("synonym", False)),
         agent=agent.name,
-        success=measures.success if measures else None,
-        spl=measures.spl if measures else None,
+        success=measures.success,
+        spl=measures.spl,
         steps=len(path.actions),
-        path_length=measures.path_length if measures else None,
-        geodesic_distance=measures.geodesic_distance if measures else None,
-        distance_to_goal=measures.distance_to_goal if measures else None,
+        path_length=measures.path_length,
+        geodesic_distance=measures.geodesic_distance,
+        distance_to_goal=measures.distance_to_goal,
         revisits=metrics.count_revisits(np.asarray(path.positions).reshape(-1, 2), agent.segment_starts),
-        collisions=measures.collisions if measures else None,
+        collisions=measures.collisions,
         stop_reason=stop_reason,
         vlm_calls=calls,
         error=f"{error['type']}: {error['message']}" if error else "",
-        failure_cause=failure_cause(
-            measures.success if measures else None, stop_reason, measures.target_seen if measures else None
-        ),
+        failure_cause=failure_cause(measures.success, stop_reason, measures.target_seen),
         privileged=tuple(sorted(agent.requires)),
         stats=stats,
     )
