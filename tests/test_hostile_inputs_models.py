@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from types import ModuleType
 
 import pytest
 
@@ -53,3 +54,11 @@ def test_replay_record_with_an_invalid_answer_field(tmp_path: Path, capsys: pyte
     replay.write_text('{"key": "k", "kind": "verify", "goal": "chair", "summary": "", "answer": ' + answer + "}\n")
     args = [*RUN, "--out", str(tmp_path / "run"), "--reasoner", "replay", "--vlm-replay", str(replay)]
     _refused(capsys, args, "line 1: answer.fallback", "true or false", "'no'")
+
+
+def test_detector_with_an_outdated_transformers_says_what_is_missing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setitem(sys.modules, "transformers", ModuleType("transformers"))  # installed, but without SAM3
+    args = [*RUN, "--out", str(tmp_path / "run"), "--detector", "sam3"]
+    _refused(capsys, args, "--detector", "pip install 'drivenav[models]'", "cannot import name 'Sam3Model'")

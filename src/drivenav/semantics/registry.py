@@ -92,13 +92,19 @@ def _hf_grounder(spec: ModelSpec) -> Grounder:
 
         return Owlv2Grounder(spec.detector_model or "google/owlv2-base-patch16-ensemble")
     except ImportError as error:
-        missing = error.name or "a dependency"
         raise InputError(
             "command line",
             "--detector",
             f"the models extra for {spec.detector} (pip install 'drivenav[models]')",
-            f"{missing} not installed",
+            _import_problem(error),
         ) from None
+
+
+def _import_problem(error: ImportError) -> str:
+    """What failed to import: a missing package by name, else the first line of the error (an outdated package)."""
+    if isinstance(error, ModuleNotFoundError):
+        return f"{error.name or 'a dependency'} not installed"
+    return str(error).splitlines()[0]
 
 
 def _check_record_path(path: Path) -> None:
