@@ -61,8 +61,15 @@ def _valid() -> dict[str, object]:
         (lambda e: e.update(start_position=[1.0, 2.0]), "episodes[0].start_position"),
         (lambda e: e.update(start_rotation="north"), "episodes[0].start_rotation"),
         (lambda e: e.update(goals=[]), "episodes[0].goals"),
-        (lambda e: e["goals"][0].update(view_points=[{"agent_state": {"position": [0, 0]}}]), "position"),
+        (
+            lambda e: e["goals"][0].update(view_points=[{"agent_state": {"position": [0, 0]}}]),
+            "episodes[0].goals[0].view_points[0].agent_state.position",
+        ),
         (lambda e: e.update(object_category=""), "episodes[0].object_category"),
+        (lambda e: e["info"].update(geodesic_distance="far"), "episodes[0].info.geodesic_distance"),
+        (lambda e: e["info"].update(geodesic_distance=-1.0), "episodes[0].info.geodesic_distance"),
+        (lambda e: e["info"].update(canonical_category=7), "episodes[0].info.canonical_category"),
+        (lambda e: e["info"].update(synonym="yes"), "episodes[0].info.synonym"),
     ],
 )
 def test_bad_fields_are_named(tmp_path: Path, mutate, field: str) -> None:  # type: ignore[no-untyped-def]
@@ -72,7 +79,7 @@ def test_bad_fields_are_named(tmp_path: Path, mutate, field: str) -> None:  # ty
     with pytest.raises(InputError) as info:
         load_episodes(path)
     assert str(path) in str(info.value)
-    assert field in str(info.value)
+    assert f"'{field}'" in str(info.value)
 
 
 def test_not_gzip_json(tmp_path: Path) -> None:
@@ -83,8 +90,14 @@ def test_not_gzip_json(tmp_path: Path) -> None:
 
 
 def test_missing_episodes_list(tmp_path: Path) -> None:
-    with pytest.raises(InputError, match="'episodes' list"):
+    with pytest.raises(InputError, match="field 'episodes': expected the keys episodes, got 'missing'"):
         load_episodes(_write(tmp_path, {"eps": []}))
+
+
+def test_plain_json_is_read_too(tmp_path: Path) -> None:
+    path = tmp_path / "eps.json"
+    path.write_text(json.dumps({"episodes": [_valid()]}))
+    assert [e.episode_id for e in load_episodes(path)] == ["0"]
 
 
 def test_missing_file(tmp_path: Path) -> None:

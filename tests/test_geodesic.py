@@ -71,3 +71,12 @@ def test_largest_component_connects_through_sides_not_corners() -> None:
     mask[2, 1] = True  # a side contact joins them
     assert largest_component(mask).sum() == 14
     assert not largest_component(np.zeros((3, 3), dtype=bool)).any()
+
+
+def test_goals_filling_their_area_are_at_zero() -> None:
+    """No free cell beside a goal leaves Fast Marching no front: goal cells are 0, the rest unreachable."""
+    nav = np.zeros((5, 5), dtype=bool)
+    nav[2, 2] = nav[0, 4] = True  # a one-cell room with the goal in it, and a cell elsewhere
+    field = GeodesicField(nav, GridSpec(RES, (0.0, 0.0), (5, 5)), [(0.125, 0.125)])
+    assert field.distances[2, 2] == 0.0 and field.at(0.125, 0.125) == 0.0
+    assert np.isinf(np.delete(field.distances.ravel(), 12)).all()

@@ -12,8 +12,11 @@ import numpy as np
 import pytest
 
 from drivenav.cli import main
+from drivenav.envs.episode import world_to_habitat
+from drivenav.envs.geodesic import largest_component
 from drivenav.envs.library import SceneLibrary
 from drivenav.eval.episodes import episode_to_dict, generate_episodes
+from drivenav.types import SimConfig
 from test_rosmap import write_map
 
 SCENES = "procedural:1"
@@ -67,8 +70,12 @@ def test_a_habitat_content_file(tmp_path: Path, capsys: pytest.CaptureFixture[st
 def test_a_habitat_split_file_with_content_files(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     (tmp_path / "content").mkdir()
     _write(tmp_path / "content" / "scene.json.gz", {"episodes": _episodes(1), "goals_by_category": {}})
+    _refused_file(capsys, tmp_path, {"episodes": []}, "'episodes'", "split file", "content/", "--env habitat")
+
+
+def test_a_habitat_split_file_copied_alone(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     payload = {"episodes": [], "category_to_task_category_id": {"chair": 0}}
-    _refused_file(capsys, tmp_path, payload, "content/", "--env habitat")
+    _refused_file(capsys, tmp_path, payload, "'episodes'", "split file", "--env habitat")
 
 
 def test_a_view_point_off_the_navigable_area(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -76,6 +83,42 @@ def test_a_view_point_off_the_navigable_area(tmp_path: Path, capsys: pytest.Capt
     episode["goals"][0]["view_points"][0]["agent_state"]["position"] = [-50.0, 0.0, 50.0]
     words = ("'episodes[0].goals[0].view_points[0].agent_state.position'", "navigable", "[-50.0, 0.0, 50.0]")
     _refused_file(capsys, tmp_path, {"episodes": [episode]}, *words)
+
+
+def _two_rooms(directory: Path) -> Path:
+    """An 8 m x 4 m map split by a wall: a large room (x < 5.5 m) with a chair, a small one with a plant."""
+    image = np.full((80, 160), FREE)
+    image[[0, -1], :] = image[:, [0, 110, -1]] = WALL
+    scene = write_map(directory, image, resolution=0.05, origin=[0.0, 0.0, 0.0])
+    objects = [
+        {"category": "chair", "center": [1.0, 2.0], "size": [0.5, 0.5, 0.9]},
+        {"category": "plant", "center": [7.0, 2.0], "size": [0.3, 0.3, 0.8]},
+    ]
+    (scene / "objects.json").write_text(json.dumps({"objects": objects}))
+    return scene
+
+
+@pytest.mark.parametrize(
+    ("move", "field"),
+    [
+        (lambda e, p: e["goals"][0]["view_points"][0]["agent_state"].update(position=p), "goals[0].view_points[0]"),
+        (lambda e, p: e.update(start_position=p), "start_position"),
+    ],
+)
+def test_a_goal_the_start_cannot_reach(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], move: Any, field: str
+) -> None:
+    scene = _two_rooms(tmp_path / "rooms")
+    library, sim = SceneLibrary(str(scene)), SimConfig()
+    navigable = library.load("rooms").navigable_grid(sim.agent_radius, sim.agent_height)
+    row, col = library.load("rooms").grid.world_to_cell((7.0, 1.0))
+    assert navigable[row, col] and not largest_component(navigable)[row, col]  # navigable, in the small room
+    (episode,) = [episode_to_dict(e) for e in generate_episodes(library, 1, 0)]
+    assert episode["info"]["canonical_category"] == "chair"  # the plant's room is closed off: no episode for it
+    move(episode, list(world_to_habitat(7.0, 1.0)))
+    path = _write(tmp_path / "eps.json.gz", {"episodes": [episode]})
+    words = (f"'episodes[0].{field}", "a navigable position the agent can reach in rooms")
+    _refused(capsys, tmp_path, str(path), str(scene), str(path), *words)
 
 
 def test_a_geodesic_distance_the_world_disagrees_with(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -117,10 +160,27 @@ def test_a_map_the_agent_fits_nowhere_in(
     _refused(capsys, tmp_path, "2", str(scene), str(scene / "map.yaml"), "'image'", "free space an agent")
 
 
+def test_a_map_at_a_micrometre_per_pixel(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    scene = write_map(tmp_path / "tiny", np.full((20, 20), FREE), resolution=1e-6, origin=[0.0, 0.0, 0.0])
+    assert "resolution: 1e-06\n" in (scene / "map.yaml").read_text()  # a number in YAML 1.2 and ROS, text in 1.1
+    _refused(capsys, tmp_path, "2", str(scene), str(scene / "map.yaml"), "'image'", "free space an agent")
+
+
 def test_a_map_whose_objects_list_is_empty(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     scene = write_map(tmp_path / "empty", np.full((80, 80), FREE), resolution=0.05, origin=[0.0, 0.0, 0.0])
     (scene / "objects.json").write_text(json.dumps({"objects": [], "rooms": []}))
-    _refused(capsys, tmp_path, "2", str(scene), str(scene / "map.yaml"), "'objects'", "0 objects, none reachable")
+    words = ("'objects'", "0 objects, none reachable")
+    _refused(capsys, tmp_path, "2", str(scene), str(scene / "objects.json"), *words)
+
+
+def test_a_room_with_one_cell_to_stand_on(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    image = np.full((17, 17), WALL)
+    image[4:13, 4:13] = FREE  # 0.45 m square: one cell is 0.18 m clear of the walls, and it sees the picture
+    scene = write_map(tmp_path / "closet", image, resolution=0.05, origin=[0.0, 0.0, 0.0])
+    picture = {"category": "picture", "center": [0.575, 0.425], "size": [0.05, 0.05, 0.2], "elevation": 0.95}
+    (scene / "objects.json").write_text(json.dumps({"objects": [picture]}))
+    words = ("'objects'", "a start 1-30 m by geodesic distance")
+    _refused(capsys, tmp_path, "1", str(scene), str(scene / "objects.json"), *words)
 
 
 def test_a_map_whose_grid_would_need_more_than_2_gib(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

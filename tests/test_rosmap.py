@@ -329,6 +329,14 @@ def test_bad_yaml(tmp_path: Path, text: str, field: str) -> None:
         assert str(error).startswith(str(tmp_path / "map.yaml")) and f"'{field}'" in str(error)
 
 
+@pytest.mark.parametrize("spelling", ["5e-2", "5.0E-2", "0.5e-1", "+.05"])
+def test_yaml_12_floats_are_numbers(tmp_path: Path, spelling: str) -> None:
+    """``5e-2`` is a number for yaml-cpp (ROS) and YAML 1.2, though text for YAML 1.1 (PyYAML's safe loader)."""
+    write_map(tmp_path, GREY)
+    (tmp_path / "map.yaml").write_text(yaml_text().replace("resolution: 0.05", f"resolution: {spelling}"))
+    assert read_map_yaml(tmp_path / "map.yaml").resolution == 0.05
+
+
 def test_yaml_that_is_not_a_mapping(tmp_path: Path) -> None:
     write_map(tmp_path, GREY)
     (tmp_path / "map.yaml").write_text("- a\n- b\n")

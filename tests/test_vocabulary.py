@@ -24,6 +24,7 @@ from drivenav.envs.vocabulary import (
 from drivenav.errors import InputError
 
 PACKAGED = Path(__file__).resolve().parents[1] / "src" / "drivenav" / "data" / "vocabulary.json"
+SOFA = categories().index("sofa")
 
 
 def test_at_least_100_unique_categories() -> None:
@@ -174,20 +175,28 @@ def _first(raw: dict[str, Any]) -> dict[str, Any]:
 @pytest.mark.parametrize(
     ("edit", "field"),
     [
-        (lambda raw: _first(raw).update(synonyms=["couch"]), "sofa.synonyms"),  # the second owner
+        # the second owner of a term is named, by its place in the file
+        (lambda raw: _first(raw).update(synonyms=["couch"]), f"categories[{SOFA}].synonyms[0]"),
+        (lambda raw: _first(raw).update(synonyms=["--"]), "categories[0].synonyms[0]"),
         (lambda raw: _first(raw).update(size_min=[1.0, -1.0, 0.5]), "categories[0].size_min"),
         (lambda raw: _first(raw).update(size_max=[0.5, 0.5, 0.5]), "categories[0].size_max"),
-        (lambda raw: _first(raw).update(priors={"attic": 1.0}), "categories[0].priors"),
+        (lambda raw: _first(raw).update(priors={"attic": 1.0}), "categories[0].priors.attic"),
         (lambda raw: _first(raw).update(style="floating"), "categories[0].style"),
         (lambda raw: _first(raw).update(elevation=[1.0, 0.5]), "categories[0].elevation"),
-        (lambda raw: raw["anchors"].update(bedroom=["unicorn"]), "anchors.bedroom"),
+        (lambda raw: _first(raw).update(style="surface", hosts=[]), "categories[0].hosts"),
+        (lambda raw: _first(raw).update(hosts=["bed", "cloud"]), "categories[0].hosts[1]"),
+        (lambda raw: raw["anchors"].update(bedroom=["bed", "unicorn"]), "anchors.bedroom[1]"),
+        (lambda raw: raw["anchors"].update(attic=["bed"]), "anchors.attic"),
+        (lambda raw: raw["density"].update(attic=0.1), "density.attic"),
         (lambda raw: raw.update(generic_density=-1), "generic_density"),
     ],
 )
 def test_bad_files_name_the_field(tmp_path: Path, edit: Any, field: str) -> None:
+    path = _edited(tmp_path, edit)
     with pytest.raises(InputError) as info:
-        load_vocabulary(_edited(tmp_path, edit))
+        load_vocabulary(path)
     assert info.value.field == field
+    assert str(info.value).startswith(f"{path}: field '{field}': expected ")
 
 
 def test_invalid_json_is_an_input_error(tmp_path: Path) -> None:
@@ -195,3 +204,8 @@ def test_invalid_json_is_an_input_error(tmp_path: Path) -> None:
     path.write_text("{not json", encoding="utf-8")
     with pytest.raises(InputError, match="valid JSON"):
         load_vocabulary(path)
+
+
+def test_a_missing_file_is_an_input_error(tmp_path: Path) -> None:
+    with pytest.raises(InputError, match="'<document>': expected a readable file"):
+        load_vocabulary(tmp_path / "nowhere.json")

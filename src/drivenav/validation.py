@@ -1,25 +1,93 @@
-"""Typed readers for the fields of user documents (episode files, objects.json, the vocabulary).
+"""Reading user documents (episode files, objects.json, the vocabulary, map YAML) and typed readers of their fields.
 
-One approach for every JSON / YAML document drivenav reads: a :class:`Fields` bound to the document's source
-reads each value as the type the schema wants and, when it is not, raises one
-:class:`~drivenav.errors.InputError` naming the file, the dotted field path (``episodes[3].goals[0].position``)
-and what was expected. Rules beyond a field's type (cross-references, ranges between fields) stay with the
-reader of each schema.
+One approach for every JSON / YAML document drivenav reads: :func:`read_json` / :func:`read_yaml` turn a file into
+plain values (an unreadable or malformed file is one :class:`~drivenav.errors.InputError` on the field
+``<document>``), and a :class:`Fields` bound to the document's source reads each value as the type the schema
+wants and, when it is not, raises one :class:`~drivenav.errors.InputError` naming the file, the dotted field path
+(``episodes[3].goals[0].position``) and what was expected. Rules beyond a field's type (cross-references, ranges
+between fields) stay with the reader of each schema, and raise through :meth:`Fields.error`.
 """
 
 from __future__ import annotations
 
+import gzip
+import json
 import math
+import re
+import zlib
 from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import yaml
+
 from drivenav.errors import InputError
+
+DOCUMENT = "<document>"  # the field of errors about a whole file
+_GZIP_MAGIC = b"\x1f\x8b"
+
+
+def read_json(path: Path) -> Any:
+    """The JSON content of a file, plain or gzip-compressed (recognised by its first bytes)."""
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise InputError(path, DOCUMENT, "a readable file", exc.strerror or str(exc)) from None
+    if raw[:2] == _GZIP_MAGIC:
+        try:
+            raw = gzip.decompress(raw)
+        except (OSError, EOFError, zlib.error) as exc:
+            raise InputError(path, DOCUMENT, "gzip-compressed JSON (a complete gzip stream)", str(exc)) from None
+    try:
+        return json.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise InputError(path, DOCUMENT, "UTF-8 text", str(exc)) from None
+    except json.JSONDecodeError as exc:
+        raise InputError(path, DOCUMENT, "valid JSON", f"{exc.msg} at line {exc.lineno}, column {exc.colno}") from None
+
+
+class _Yaml12Loader(yaml.SafeLoader):
+    """PyYAML's safe loader with YAML 1.2 floats: ``1e-6`` is a number (as for yaml-cpp, ROS's parser), not text."""
+
+
+_Yaml12Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(
+        r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+        |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+        |[-+]?\.[0-9_]+(?:[eE][-+]?[0-9]+)?
+        |[-+]?\.(?:inf|Inf|INF)
+        |\.(?:nan|NaN|NAN))$""",
+        re.X,
+    ),
+    list("-+0123456789."),
+)
+
+
+def read_yaml(path: Path) -> Any:
+    """The YAML content of a file (safe loading, YAML 1.2 floats)."""
+    try:
+        return yaml.load(path.read_text(encoding="utf-8"), Loader=_Yaml12Loader)  # a SafeLoader
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        problem = getattr(exc, "problem", None) or type(exc).__name__
+        raise InputError(path, DOCUMENT, "well-formed YAML", f"{problem}{where}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(path, DOCUMENT, "a readable UTF-8 text file", str(exc)) from None
 
 
 def _is_number(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _bounds_text(minimum: float | None, maximum: float | None, positive: bool) -> str:
+    if positive:
+        return "a number > 0"
+    if minimum is not None and maximum is not None:
+        return f"a number in [{minimum:g}, {maximum:g}]"
+    return f"a number >= {minimum:g}" if minimum is not None else f"a number <= {maximum:g}"
 
 
 @dataclass(frozen=True)
@@ -29,7 +97,8 @@ class Fields:
     source: str | Path
 
     def error(self, field: str, expected: str, got: object = None) -> InputError:
-        return InputError(self.source, field or "<document>", expected, got)
+        """The error for ``field`` (the whole document if empty)."""
+        return InputError(self.source, field or DOCUMENT, expected, got)
 
     def mapping(
         self, value: Any, field: str, keys: Collection[str] | None = None, required: Sequence[str] = ()
@@ -43,13 +112,16 @@ class Fields:
             raise self.error(prefix + unknown[0], f"only the keys {', '.join(sorted(keys or ()))}", "unknown key")
         missing = [key for key in required if key not in value]
         if missing:
-            raise self.error(prefix + missing[0], "a value", "missing")
+            raise self.error(prefix + missing[0], f"the keys {', '.join(required)}", "missing")
         return value
 
-    def sequence(self, value: Any, field: str, nonempty: bool = False) -> list[Any]:
-        """A JSON array (non-empty if asked)."""
-        if not isinstance(value, list) or (nonempty and not value):
-            raise self.error(field, "a non-empty JSON array" if nonempty else "a JSON array", value)
+    def sequence(self, value: Any, field: str, min_items: int = 0, expected: str | None = None) -> list[Any]:
+        """A JSON array of at least ``min_items`` items."""
+        if not isinstance(value, list) or len(value) < min_items:
+            default = {0: "a JSON array", 1: "a non-empty JSON array"}.get(
+                min_items, f"a JSON array of at least {min_items} items"
+            )
+            raise self.error(field, expected or default, value)
         return value
 
     def text(self, value: Any, field: str) -> str:
@@ -62,19 +134,40 @@ class Fields:
         """A JSON array of non-empty strings."""
         return [self.text(item, f"{field}[{k}]") for k, item in enumerate(self.sequence(value, field))]
 
-    def number(self, value: Any, field: str, minimum: float | None = None) -> float:
-        """A finite number (``>= minimum`` if given)."""
+    def choice(self, value: Any, field: str, options: Sequence[object], expected: str | None = None) -> Any:
+        """One of ``options`` (compared with ``==``, so ``1`` also matches ``True``)."""
+        if value not in options:
+            raise self.error(field, expected or f"one of {', '.join(map(str, options))}", value)
+        return value
+
+    def number(
+        self,
+        value: Any,
+        field: str,
+        minimum: float | None = None,
+        maximum: float | None = None,
+        positive: bool = False,
+    ) -> float:
+        """A finite number, ``> 0`` if ``positive``, within ``[minimum, maximum]`` where given."""
         if not _is_number(value):
             raise self.error(field, "a finite number", value)
-        if minimum is not None and value < minimum:
-            raise self.error(field, f"a number >= {minimum:g}", value)
+        below = (positive and value <= 0) or (minimum is not None and value < minimum)
+        if below or (maximum is not None and value > maximum):
+            raise self.error(field, _bounds_text(minimum, maximum, positive), value)
         return float(value)
 
-    def numbers(self, value: Any, field: str, count: int, expected: str | None = None) -> tuple[float, ...]:
-        """A JSON array of ``count`` finite numbers."""
+    def numbers(
+        self, value: Any, field: str, count: int, expected: str | None = None, positive: bool = False
+    ) -> tuple[float, ...]:
+        """A JSON array of ``count`` finite numbers (each ``> 0`` if ``positive``)."""
+        kind = "positive numbers" if positive else "finite numbers"
+        wanted = expected or f"a list of {count} {kind}"
         if not isinstance(value, list) or len(value) != count:
-            raise self.error(field, expected or f"a list of {count} finite numbers", value)
-        return tuple(self.number(item, f"{field}[{k}]") for k, item in enumerate(value))
+            raise self.error(field, wanted, value)
+        numbers = tuple(self.number(item, f"{field}[{k}]") for k, item in enumerate(value))
+        if positive and min(numbers, default=1.0) <= 0.0:
+            raise self.error(field, wanted, value)
+        return numbers
 
     def integer(self, value: Any, field: str, minimum: int | None = None) -> int:
         """An integer (``>= minimum`` if given)."""

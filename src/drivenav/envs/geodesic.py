@@ -21,10 +21,15 @@ from drivenav.grid import GridSpec
 def largest_component(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
     """The largest 4-connected component of ``mask`` (all False if ``mask`` is empty).
 
-    The one connectivity rule of the embedded world: cells that touch only at a corner are not connected, because
-    the agent cannot pass there (a forward step crosses the cells its segment passes through, and a segment
-    through a shared corner enters one of the two blocked cells) and the Fast-Marching solve of the geodesic
-    field, whose stencil is the four axis neighbours, does not reach across either.
+    The one connectivity rule of the embedded world (object placement, episode starts and view points, the
+    measures): cells that touch only at a corner are not connected. That is the connectivity of the world's
+    distances: the Fast-Marching solve of :class:`GeodesicField` steps between the four axis neighbours only, so
+    every cell of a 4-connected component has a finite distance to every goal in it, and a start and goal in it
+    never yield a null distance to goal or SPL. A body moving through a corner contact would have to cross one of
+    the two blocked cells beside it; :func:`drivenav.envs.motion.forward_step` checks its segment at samples half
+    a cell apart, so a step nearly along the diagonal can still slip through (pockets joined only by a corner are
+    at most a few square metres of the shared maps). 8-connectivity would add those pockets, with infinite
+    distances. The golden episodes (procedural houses) are the same under either rule; map episodes are not.
     """
     labels, count = ndimage.label(mask)
     if count == 0:
@@ -38,7 +43,8 @@ def largest_component(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
 class GeodesicField:
     """Shortest-path distance (metres) over ``navigable`` to the nearest of ``goals`` (world points).
 
-    Cells that cannot reach a goal hold ``inf``. Goal points off the navigable grid are ignored; if none is
+    Cells that cannot reach a goal hold ``inf`` and goal cells 0 (also where goals fill every cell they reach,
+    which leaves Fast Marching no front to start from). Goal points off the navigable grid are ignored; if none is
     left every distance is ``inf``.
     """
 
@@ -55,8 +61,12 @@ class GeodesicField:
         r0, r1 = max(rows.min() - 1, 0), min(rows.max() + 2, grid.shape[0])
         c0, c1 = max(cols.min() - 1, 0), min(cols.max() + 2, grid.shape[1])
         window = navigable[r0:r1, c0:c1]
-        phi = np.ones(window.shape)
-        phi[cells[:, 0] - r0, cells[:, 1] - c0] = -1.0
+        goal = np.zeros(window.shape, dtype=bool)
+        goal[cells[:, 0] - r0, cells[:, 1] - c0] = True
+        if not (ndimage.binary_dilation(goal) & window & ~goal).any():  # no free cell beside a goal: none to solve
+            self.distances[cells[:, 0], cells[:, 1]] = 0.0
+            return
+        phi = np.where(goal, -1.0, 1.0)
         solved = skfmm.distance(np.ma.MaskedArray(phi, ~window), dx=grid.resolution)
         values = np.ma.filled(solved, np.inf) + 0.5 * grid.resolution
         self.distances[r0:r1, c0:c1] = np.maximum(values, 0.0)

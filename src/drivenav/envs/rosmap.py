@@ -38,7 +38,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 from numpy.typing import NDArray
 from PIL import Image
 
@@ -46,7 +45,7 @@ from drivenav.envs import placement
 from drivenav.envs.scene import Material, ObjectInstance, Room, Scene
 from drivenav.errors import InputError
 from drivenav.grid import GridSpec
-from drivenav.validation import Fields
+from drivenav.validation import Fields, read_json, read_yaml
 
 OBJECTS_FILE = "objects.json"
 MAP_MODES = ("trinary", "scale", "raw")
@@ -124,7 +123,7 @@ def _map_yamls(directory: Path) -> tuple[list[Path], list[InputError]]:
     broken: list[InputError] = []
     for candidate in sorted(p for p in directory.iterdir() if p.suffix.lower() in _YAML_SUFFIXES):
         try:
-            document = _parse_yaml(candidate)
+            document = read_yaml(candidate)
         except InputError as error:
             broken.append(error)
             continue
@@ -137,53 +136,24 @@ def _map_yamls(directory: Path) -> tuple[list[Path], list[InputError]]:
 # The map YAML
 
 
-def _parse_yaml(path: Path) -> Any:
-    try:
-        return yaml.safe_load(path.read_text(encoding="utf-8"))
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        problem = getattr(exc, "problem", None) or type(exc).__name__
-        raise InputError(path, "<document>", "well-formed YAML", f"{problem}{where}") from exc
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(path, "<document>", "a readable UTF-8 text file", str(exc)) from exc
-
-
 def read_map_yaml(path: str | Path) -> MapYaml:
     """Read and validate a map_server YAML (keys as in ROS map_server; ``mode`` optional, default trinary)."""
     path = Path(path)
-    doc = _parse_yaml(path)
-    if not isinstance(doc, dict):
-        raise InputError(path, "<document>", "a YAML mapping of map_server keys", type(doc).__name__)
-    missing = [key for key in _MAP_KEYS if key not in doc]
-    if missing:
-        raise InputError(path, missing[0], f"the map_server keys {', '.join(_MAP_KEYS)}", "missing")
-    image = doc["image"]
-    if not isinstance(image, str) or not image.strip():
-        raise InputError(path, "image", "an image file name (string)", image)
     fields = Fields(path)
-    resolution = fields.number(doc["resolution"], "resolution")
-    if resolution <= 0.0:
-        raise InputError(path, "resolution", "a positive number of metres per pixel", doc["resolution"])
+    doc = read_yaml(path)
+    if not isinstance(doc, dict):
+        raise fields.error("", "a YAML mapping of map_server keys", type(doc).__name__)
+    fields.mapping(doc, "", required=_MAP_KEYS)
+    image = fields.text(doc["image"], "image")
+    resolution = fields.number(doc["resolution"], "resolution", positive=True)
     origin = fields.numbers(doc["origin"], "origin", 3, "a list of 3 numbers [x, y, yaw]")
-    negate = doc["negate"]
-    if negate not in (0, 1):  # also admits True / False
-        raise InputError(path, "negate", "0 or 1", negate)
-    occupied = _threshold(doc, "occupied_thresh", path)
-    free = _threshold(doc, "free_thresh", path)
+    negate = fields.choice(doc["negate"], "negate", (0, 1))  # also admits True / False
+    occupied = fields.number(doc["occupied_thresh"], "occupied_thresh", minimum=0.0, maximum=1.0)
+    free = fields.number(doc["free_thresh"], "free_thresh", minimum=0.0, maximum=1.0)
     if free >= occupied:
-        raise InputError(path, "free_thresh", f"a value below occupied_thresh ({occupied})", free)
-    mode = doc.get("mode", "trinary")
-    if mode not in MAP_MODES:
-        raise InputError(path, "mode", f"one of {', '.join(MAP_MODES)}", mode)
+        raise fields.error("free_thresh", f"a value below occupied_thresh ({occupied})", free)
+    mode = fields.choice(doc.get("mode", "trinary"), "mode", MAP_MODES)
     return MapYaml(path, path.parent / image, resolution, (origin[0], origin[1]), bool(negate), occupied, free, mode)
-
-
-def _threshold(doc: dict[str, Any], key: str, path: Path) -> float:
-    value = Fields(path).number(doc[key], key)
-    if not 0.0 <= value <= 1.0:
-        raise InputError(path, key, "a number in [0, 1]", doc[key])
-    return value
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -317,15 +287,11 @@ def _extent_text(grid: GridSpec) -> str:
 def _read_object(
     value: Any, index: int, fields: Fields, grid: GridSpec, structure: NDArray[np.uint8]
 ) -> ObjectInstance:
-    source, field = fields.source, f"objects[{index}]"
+    field = f"objects[{index}]"
     entry = fields.mapping(value, field, _OBJECT_KEYS, ("category", "center", "size"))
     center = fields.numbers(entry["center"], f"{field}.center", 2, "a list of 2 numbers [x, y]")
-    size = fields.numbers(entry["size"], f"{field}.size", 3, "a list of 3 positive numbers [sx, sy, sz]")
-    if min(size) <= 0.0:
-        raise InputError(source, f"{field}.size", "a list of 3 positive numbers [sx, sy, sz]", entry["size"])
-    elevation = fields.number(entry.get("elevation", 0.0), f"{field}.elevation")
-    if elevation < 0.0:
-        raise InputError(source, f"{field}.elevation", "a height >= 0 above the floor", elevation)
+    size = fields.numbers(entry["size"], f"{field}.size", 3, "a list of 3 positive numbers [sx, sy, sz]", positive=True)
+    elevation = fields.number(entry.get("elevation", 0.0), f"{field}.elevation", minimum=0.0)
     obj = ObjectInstance(
         instance_id=index + 1,
         category=fields.text(entry["category"], f"{field}.category"),
@@ -336,29 +302,27 @@ def _read_object(
     )
     cell = grid.world_to_cell(obj.center)
     if not grid.contains(cell):
-        raise InputError(source, f"{field}.center", f"a point on the map ({_extent_text(grid)})", entry["center"])
+        raise fields.error(f"{field}.center", f"a point on the map ({_extent_text(grid)})", entry["center"])
     material = Material(int(structure[cell[0], cell[1]]))
     if material != Material.FREE:
         name = material.name.lower()
         got = f"{list(obj.center)} inside {'an' if name[0] in 'aeiou' else 'a'} {name} cell"
-        raise InputError(source, f"{field}.center", "a point in free space, not inside a wall or unknown cell", got)
+        raise fields.error(f"{field}.center", "a point in free space, not inside a wall or unknown cell", got)
     if not all(_inside(grid, x, y) for x, y in obj.footprint()):
-        raise InputError(source, field, f"a footprint within the map ({_extent_text(grid)})", "footprint off the map")
+        raise fields.error(field, f"a footprint within the map ({_extent_text(grid)})", "footprint off the map")
     return obj
 
 
 def _read_room(value: Any, index: int, fields: Fields, grid: GridSpec) -> Room:
-    source, field = fields.source, f"rooms[{index}]"
+    field = f"rooms[{index}]"
     entry = fields.mapping(value, field, _ROOM_KEYS, ("name", "polygon"))
     name = fields.text(entry["name"], f"{field}.name")
-    polygon = entry["polygon"]
-    if not isinstance(polygon, list) or len(polygon) < 3:
-        raise InputError(source, f"{field}.polygon", "a list of at least 3 points [x, y]", polygon)
+    polygon = fields.sequence(entry["polygon"], f"{field}.polygon", 3, "a list of at least 3 points [x, y]")
     points: list[tuple[float, float]] = []
     for k, point in enumerate(polygon):
         x, y = fields.numbers(point, f"{field}.polygon[{k}]", 2, "a point [x, y]")
         if not _inside(grid, x, y):
-            raise InputError(source, f"{field}.polygon[{k}]", f"a point on the map ({_extent_text(grid)})", point)
+            raise fields.error(f"{field}.polygon[{k}]", f"a point on the map ({_extent_text(grid)})", point)
         points.append((x, y))
     return Room(name, tuple(points))
 
@@ -372,16 +336,8 @@ def read_objects_json(
     within the map's extent.
     """
     path = Path(path)
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise InputError(
-            path, "<document>", "valid JSON", f"{exc.msg} at line {exc.lineno}, column {exc.colno}"
-        ) from exc
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(path, "<document>", "a readable UTF-8 text file", str(exc)) from exc
     fields = Fields(path)
-    doc = fields.mapping(doc, "", _TOP_KEYS)
+    doc = fields.mapping(read_json(path), "", _TOP_KEYS)
     rooms = [_read_room(v, k, fields, grid) for k, v in enumerate(fields.sequence(doc.get("rooms", []), "rooms"))]
     if "objects" not in doc:
         return None, rooms

@@ -22,8 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from drivenav.errors import InputError
-from drivenav.validation import Fields
+from drivenav.validation import Fields, read_json
 
 Vec3 = tuple[float, float, float]
 
@@ -133,15 +132,8 @@ def load_vocabulary(path: str | Path | None = None) -> Vocabulary:
     """Read and validate a vocabulary JSON file (default: the packaged ``data/vocabulary.json``)."""
     if path is None:
         text = resources.files("drivenav").joinpath("data/vocabulary.json").read_text(encoding="utf-8")
-        source: str | Path = "drivenav/data/vocabulary.json"
-    else:
-        source = Path(path)
-        text = source.read_text(encoding="utf-8")
-    try:
-        raw = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise InputError(source, "<file>", "valid JSON", str(exc)) from exc
-    return _parse(raw, source)
+        return _parse(json.loads(text), "drivenav/data/vocabulary.json")
+    return _parse(read_json(Path(path)), Path(path))
 
 
 def _parse(raw: Any, source: str | Path) -> Vocabulary:
@@ -165,27 +157,23 @@ def _parse(raw: Any, source: str | Path) -> Vocabulary:
         },
         generic_density=fields.number(raw.get("generic_density"), "generic_density", minimum=0.0),
     )
-    _check_references(vocab, source)
+    _check_references(vocab, fields)
     return vocab
 
 
 def _parse_spec(entry: Any, fields: Fields, where: str, room_types: tuple[str, ...]) -> CategorySpec:
-    source = fields.source
     item = fields.mapping(entry, where)
     size_min = _size(fields, item.get("size_min"), f"{where}.size_min")
     size_max = _size(fields, item.get("size_max"), f"{where}.size_max")
     if any(lo > hi for lo, hi in zip(size_min, size_max, strict=True)):
-        raise InputError(source, f"{where}.size_max", "size_max >= size_min per axis", size_max)
-    style_name = item.get("style")
-    if style_name not in {s.value for s in PlacementStyle}:
-        raise InputError(source, f"{where}.style", f"one of {[s.value for s in PlacementStyle]}", style_name)
+        raise fields.error(f"{where}.size_max", "size_max >= size_min per axis", size_max)
+    style_name = fields.choice(item.get("style"), f"{where}.style", [s.value for s in PlacementStyle])
     priors = fields.mapping(item.get("priors", {}), f"{where}.priors")
     for room in priors:
-        if room not in room_types:
-            raise InputError(source, f"{where}.priors", f"room types from {list(room_types)}", room)
+        fields.choice(room, f"{where}.priors.{room}", room_types)
     low, high = fields.numbers(item.get("elevation", [0.0, 0.0]), f"{where}.elevation", 2, "[low, high] metres")
     if not 0.0 <= low <= high:
-        raise InputError(source, f"{where}.elevation", "[low, high] with 0 <= low <= high", [low, high])
+        raise fields.error(f"{where}.elevation", "[low, high] with 0 <= low <= high", [low, high])
     max_per_room = fields.integer(item.get("max_per_room", 2), f"{where}.max_per_room", minimum=1)
     return CategorySpec(
         name=fields.text(item.get("name"), f"{where}.name"),
@@ -201,33 +189,34 @@ def _parse_spec(entry: Any, fields: Fields, where: str, room_types: tuple[str, .
     )
 
 
-def _check_references(vocab: Vocabulary, source: str | Path) -> None:
+def _check_references(vocab: Vocabulary, fields: Fields) -> None:
     """Names and synonyms map to one category each; anchors, densities and hosts name known things."""
-    names = set(vocab.categories())
+    names = vocab.categories()
     owner: dict[str, str] = {}
-    for spec in vocab.specs:
-        for term in (spec.name, *spec.synonyms):
+    for k, spec in enumerate(vocab.specs):
+        where = f"categories[{k}]"
+        terms = [("name", spec.name), *((f"synonyms[{j}]", term) for j, term in enumerate(spec.synonyms))]
+        for part, term in terms:
             key = normalize_term(term)
-            if owner.setdefault(key, spec.name) != spec.name or not key:
-                expected = f"terms unique across categories (this one is also under '{owner.get(key)}')"
-                raise InputError(source, f"{spec.name}.synonyms", expected, term)
+            if not key:
+                raise fields.error(f"{where}.{part}", "a term with letters or digits", term)
+            if owner.setdefault(key, spec.name) != spec.name:
+                raise fields.error(f"{where}.{part}", f"a term no other category has ('{owner[key]}' has it)", term)
         if spec.style is PlacementStyle.SURFACE and not spec.hosts:
-            raise InputError(source, f"{spec.name}.hosts", "at least one host for a surface object", [])
-        if not set(spec.hosts) <= names:
-            raise InputError(source, f"{spec.name}.hosts", "known category names", spec.hosts)
+            raise fields.error(f"{where}.hosts", "at least one host for a surface object", [])
+        for j, host in enumerate(spec.hosts):
+            fields.choice(host, f"{where}.hosts[{j}]", names, "a category name of this file")
     for room, anchors in vocab.anchors.items():
-        if room not in vocab.room_types or not set(anchors) <= names:
-            raise InputError(source, f"anchors.{room}", "a room type mapped to known categories", anchors)
+        fields.choice(room, f"anchors.{room}", vocab.room_types)
+        for j, anchor in enumerate(anchors):
+            fields.choice(anchor, f"anchors.{room}[{j}]", names, "a category name of this file")
     for room in vocab.density:
-        if room not in vocab.room_types:
-            raise InputError(source, f"density.{room}", f"room types from {list(vocab.room_types)}", room)
+        fields.choice(room, f"density.{room}", vocab.room_types)
 
 
 def _size(fields: Fields, value: Any, where: str) -> Vec3:
     """Three positive numbers (metres)."""
-    sx, sy, sz = fields.numbers(value, where, 3, "three positive numbers (metres)")
-    if min(sx, sy, sz) <= 0.0:
-        raise fields.error(where, "three positive numbers (metres)", value)
+    sx, sy, sz = fields.numbers(value, where, 3, "three positive numbers (metres)", positive=True)
     return sx, sy, sz
 
 

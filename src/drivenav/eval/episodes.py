@@ -31,11 +31,12 @@ from drivenav.envs.episode import (
 )
 from drivenav.envs.geodesic import GeodesicField, largest_component
 from drivenav.envs.library import SceneLibrary
+from drivenav.envs.rosmap import OBJECTS_FILE
 from drivenav.envs.scene import Scene
 from drivenav.errors import InputError
 from drivenav.eval.goals import object_goal
 from drivenav.types import SimConfig
-from drivenav.validation import Fields
+from drivenav.validation import Fields, read_json
 
 MIN_GEODESIC = 1.0  # metres, start to nearest view point
 MAX_GEODESIC = 30.0
@@ -58,17 +59,27 @@ class SceneGoals:
         return self.fields[category]
 
 
+def _scene_source(scene: Scene) -> str:
+    """What errors about a scene name: its map YAML, or the procedural house."""
+    return scene.source if scene.source != "procedural" else f"procedural house {scene.scene_id}"
+
+
+def _objects_source(scene: Scene) -> str:
+    """What errors about a scene's objects name: the map's objects.json where it has one, else the scene."""
+    objects = Path(scene.source).with_name(OBJECTS_FILE)
+    return str(objects) if scene.source != "procedural" and objects.is_file() else _scene_source(scene)
+
+
 def scene_goals(scene: Scene, sim: SimConfig) -> SceneGoals:
     """Goals of every object that has at least one reachable view point, grouped by category.
 
     A scene without free space the agent fits in, or without an object it can reach, is an :class:`InputError`
-    naming the scene's file (never a scene silently left out of the episodes).
+    naming the scene's file or its objects.json (never a scene silently left out of the episodes).
     """
-    source = scene.source if scene.source != "procedural" else f"procedural house {scene.scene_id}"
     reachable = largest_component(scene.navigable_grid(sim.agent_radius, sim.agent_height))
     if not reachable.any():
         expected = f"free space an agent of radius {sim.agent_radius} m fits in"
-        raise InputError(source, "image", expected, "only walls, unknown or too narrow space")
+        raise InputError(_scene_source(scene), "image", expected, "only walls, unknown or too narrow space")
     goals: dict[str, list[ObjectGoal]] = {}
     for obj in scene.objects:
         goal = object_goal(scene, obj, reachable, sim)
@@ -76,7 +87,8 @@ def scene_goals(scene: Scene, sim: SimConfig) -> SceneGoals:
             goals.setdefault(obj.category, []).append(goal)
     if not goals:
         expected = "objects seen from where the agent can go (objects.json, or free space to place them in)"
-        raise InputError(source, "objects", expected, f"{len(scene.objects)} objects, none reachable")
+        got = f"{len(scene.objects)} objects, none reachable"
+        raise InputError(_objects_source(scene), "objects", expected, got)
     return SceneGoals(scene, reachable, goals)
 
 
@@ -120,9 +132,8 @@ def generate_episodes(library: SceneLibrary, num: int, seed: int, sim: SimConfig
             contexts[scene_id] = scene_goals(library.load(scene_id), sim)
         episode = _make_episode(str(len(episodes)), scene_id, contexts[scene_id], used, rng)
         if episode is None:
-            source = contexts[scene_id].scene.source or scene_id
             expected = f"a start {MIN_GEODESIC:g}-{MAX_GEODESIC:g} m by geodesic distance from one of its objects"
-            raise InputError(source, "objects", expected, "none")
+            raise InputError(_objects_source(contexts[scene_id].scene), "objects", expected, "none")
         episodes.append(episode)
         used[episode.info["canonical_category"]] += 1
         turn += 1
@@ -204,47 +215,39 @@ def load_episodes(path: str | Path) -> list[Episode]:
     source = Path(path)
     if not source.is_file():
         raise InputError(source, "--episodes", "an episode count or an existing .json.gz file")
-    try:
-        raw = source.read_bytes()
-        text = gzip.decompress(raw) if raw[:2] == b"\x1f\x8b" else raw
-        data = json.loads(text)
-    except (OSError, EOFError, ValueError) as exc:
-        raise InputError(source, "<file>", "gzip-compressed JSON (json.gz) or JSON", str(exc)) from None
-    if not isinstance(data, dict) or not isinstance(data.get("episodes"), list):
-        raise InputError(source, "episodes", "a top-level object with an 'episodes' list")
-    _refuse_habitat_layout(source, data)
-    if not data["episodes"]:
-        raise InputError(source, "episodes", "a non-empty list of episodes", "[]")
     fields = Fields(source)
-    episodes = [_parse_episode(fields, f"episodes[{i}]", item) for i, item in enumerate(data["episodes"])]
-    _refuse_duplicates(source, episodes)
+    data = fields.mapping(read_json(source), "", required=("episodes",))
+    _refuse_habitat_layout(fields, data)
+    items = fields.sequence(data["episodes"], "episodes", 1, "a non-empty list of episodes")
+    episodes = [_parse_episode(fields, f"episodes[{i}]", item) for i, item in enumerate(items)]
+    _refuse_duplicates(fields, episodes)
     return episodes
 
 
-def _refuse_habitat_layout(source: Path, data: dict[str, Any]) -> None:
-    """Habitat's ObjectNav v1 / HM3D-OVON datasets keep goals per category (``goals_by_category``) and, in a split
-    file, the episodes in ``content/<scene>.json.gz`` beside it: the embedded world reads neither."""
-    split_file = not data["episodes"] and (source.parent / "content").is_dir()
-    if "goals_by_category" in data or split_file:
-        field = "episodes" if split_file else "goals_by_category"
-        got = "[] with content/ files beside it" if split_file else "goals by category, not in episodes"
-        expected = (
-            "the embedded world's layout; this is a Habitat ObjectNav / HM3D-OVON file: run it with --env habitat"
-        )
-        raise InputError(source, field, expected, got)
+HABITAT_SPLIT_KEYS = ("category_to_task_category_id", "category_to_mp3d_category_id")
+"""Keys of a Habitat ObjectNav v1 / HM3D-OVON split file (its episodes live in ``content/<scene>.json.gz``)."""
 
 
-def _refuse_duplicates(source: Path, episodes: list[Episode]) -> None:
+def _refuse_habitat_layout(fields: Fields, data: dict[str, Any]) -> None:
+    """Habitat's ObjectNav v1 layout (HM3D-OVON's too) keeps goals per category (``goals_by_category``) and, in a
+    split file, the episodes in ``content/<scene>.json.gz`` beside it: the embedded world reads neither."""
+    source = Path(fields.source)
+    expected = "goals inside each episode (the embedded world's layout); a Habitat file runs with --env habitat"
+    if "goals_by_category" in data:
+        got = "Habitat ObjectNav v1 / HM3D-OVON content file: goals by category, episodes without goals"
+        raise fields.error("goals_by_category", expected, got)
+    if data["episodes"] == [] and ((source.parent / "content").is_dir() or any(k in data for k in HABITAT_SPLIT_KEYS)):
+        got = "[] in a Habitat ObjectNav v1 / HM3D-OVON split file: episodes in content/<scene>.json.gz"
+        raise fields.error("episodes", expected, got)
+
+
+def _refuse_duplicates(fields: Fields, episodes: list[Episode]) -> None:
     first: dict[str, int] = {}
     for i, episode in enumerate(episodes):
         j = first.setdefault(episode.episode_id, i)
         if j != i:
-            raise InputError(
-                source,
-                f"episodes[{i}].episode_id",
-                f"an id no other episode has (episodes[{j}] has it)",
-                episode.episode_id,
-            )
+            expected = f"an id no other episode has (episodes[{j}] has it)"
+            raise fields.error(f"episodes[{i}].episode_id", expected, episode.episode_id)
 
 
 def _vec3(fields: Fields, name: str, value: Any) -> Vec3:
@@ -266,7 +269,7 @@ def _identifier(fields: Fields, name: str, value: Any) -> str:
 
 def _parse_episode(fields: Fields, name: str, item: Any) -> Episode:
     item = fields.mapping(item, name)
-    goals = fields.sequence(item.get("goals"), f"{name}.goals", nonempty=True)
+    goals = fields.sequence(item.get("goals"), f"{name}.goals", 1)
     return Episode(
         episode_id=_identifier(fields, f"{name}.episode_id", item.get("episode_id")),
         scene_id=_identifier(fields, f"{name}.scene_id", item.get("scene_id")),
@@ -274,14 +277,27 @@ def _parse_episode(fields: Fields, name: str, item: Any) -> Episode:
         start_rotation=_quat(fields, f"{name}.start_rotation", item.get("start_rotation")),
         object_category=_identifier(fields, f"{name}.object_category", item.get("object_category")),
         goals=tuple(_parse_goal(fields, f"{name}.goals[{k}]", g) for k, g in enumerate(goals)),
-        info=fields.mapping(item.get("info", {}), f"{name}.info"),
+        info=_parse_info(fields, f"{name}.info", item.get("info", {})),
     )
+
+
+def _parse_info(fields: Fields, name: str, value: Any) -> dict[str, Any]:
+    """``info``: the keys drivenav reads have their types (distance in metres >= 0, text, true / false); others
+    are kept as given."""
+    info = fields.mapping(value, name)
+    if "geodesic_distance" in info:
+        fields.number(info["geodesic_distance"], f"{name}.geodesic_distance", minimum=0.0)
+    if "canonical_category" in info:
+        fields.text(info["canonical_category"], f"{name}.canonical_category")
+    if "synonym" in info:
+        fields.choice(info["synonym"], f"{name}.synonym", (True, False), "true or false")
+    return info
 
 
 def _parse_goal(fields: Fields, name: str, item: Any) -> ObjectGoal:
     item = fields.mapping(item, name)
     view_points = []
-    for k, point in enumerate(fields.sequence(item.get("view_points"), f"{name}.view_points", nonempty=True)):
+    for k, point in enumerate(fields.sequence(item.get("view_points"), f"{name}.view_points", 1)):
         where = f"{name}.view_points[{k}]"
         state = fields.mapping(fields.mapping(point, where).get("agent_state"), f"{where}.agent_state")
         position = _vec3(fields, f"{where}.agent_state.position", state.get("position"))
@@ -299,20 +315,22 @@ GEODESIC_TOLERANCE = 0.10  # an episode's info.geodesic_distance may differ this
 
 
 def validate_for_scenes(episodes: list[Episode], library: SceneLibrary, source: str | Path, sim: SimConfig) -> None:
-    """Every episode fits the world: its scene is in ``library``, its start and view points are navigable, a goal
-    is reachable from the start, and ``info.geodesic_distance`` (if given) is the world's within 10 %."""
+    """Every episode fits the world: its scene is in ``library``; its start and view points lie on the scene's one
+    connected navigable area (:func:`largest_component`), so a goal is reachable from the start; and
+    ``info.geodesic_distance`` (if given) is the world's start-to-goal distance (what SPL divides by) within 10 %."""
+    fields = Fields(source)
     contexts: dict[str, SceneGoals] = {}
     for i, episode in enumerate(episodes):
         if episode.scene_id not in library:
-            raise InputError(source, f"episodes[{i}].scene_id", f"a scene of --scenes {library.spec}", episode.scene_id)
+            raise fields.error(f"episodes[{i}].scene_id", f"a scene of --scenes {library.spec}", episode.scene_id)
         if episode.scene_id not in contexts:
             scene = library.load(episode.scene_id)
             reachable = largest_component(scene.navigable_grid(sim.agent_radius, sim.agent_height))
             contexts[episode.scene_id] = SceneGoals(scene, reachable, {})
-        _validate_episode(episode, f"episodes[{i}]", contexts[episode.scene_id], source)
+        _validate_episode(episode, f"episodes[{i}]", contexts[episode.scene_id], fields)
 
 
-def _validate_episode(episode: Episode, name: str, context: SceneGoals, source: str | Path) -> None:
+def _validate_episode(episode: Episode, name: str, context: SceneGoals, fields: Fields) -> None:
     grid, reachable = context.scene.grid, context.reachable
     where = f"a navigable position the agent can reach in {episode.scene_id}"
 
@@ -321,18 +339,16 @@ def _validate_episode(episode: Episode, name: str, context: SceneGoals, source: 
         return bool(grid.contains(cell) and reachable[cell[0], cell[1]])
 
     if not on_reachable(episode.start_xy):
-        raise InputError(source, f"{name}.start_position", where, list(episode.start_position))
+        raise fields.error(f"{name}.start_position", where, list(episode.start_position))
     for k, goal in enumerate(episode.goals):
         for m, point in enumerate(goal.view_points):
             if not on_reachable(point.xy):
                 field = f"{name}.goals[{k}].view_points[{m}].agent_state.position"
-                raise InputError(source, field, where, list(point.position))
+                raise fields.error(field, where, list(point.position))
     key = repr([point.position for goal in episode.goals for point in goal.view_points])  # episodes share goals
     context.goals.setdefault(key, list(episode.goals))
-    distance = float(context.field_for(key).at(*episode.start_xy))
-    if not math.isfinite(distance):
-        raise InputError(source, f"{name}.goals", "a goal reachable from the start", "no view point reachable")
+    distance = context.field_for(key).at(*episode.start_xy)  # finite: start and view points share one component
     given = episode.info.get("geodesic_distance")
-    if isinstance(given, (int, float)) and abs(given - distance) > GEODESIC_TOLERANCE * distance:
+    if given is not None and abs(given - distance) > GEODESIC_TOLERANCE * distance:
         expected = f"the world's start-to-goal distance {distance:.2f} m within {GEODESIC_TOLERANCE:.0%}"
-        raise InputError(source, f"{name}.info.geodesic_distance", expected, given)
+        raise fields.error(f"{name}.info.geodesic_distance", expected, given)
