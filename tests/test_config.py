@@ -15,8 +15,18 @@ from drivenav.agent.registry import make_agent
 from drivenav.cli import main
 from drivenav.errors import InputError
 from drivenav.eval.ablations import ALL_METHODS
+from drivenav.mapping.config import MappingConfig, MapTuning
 from drivenav.methods import METHODS
-from drivenav.settings import Settings, agent_names, load_settings, preset_names, settings_to_dict, settings_to_yaml
+from drivenav.settings import (
+    Settings,
+    agent_names,
+    first_difference,
+    load_settings,
+    preset_names,
+    settings_to_dict,
+    settings_to_yaml,
+)
+from drivenav.types import SimConfig
 
 
 def test_defaults_are_the_papers_values() -> None:
@@ -41,7 +51,9 @@ def test_the_paper_preset_spells_out_the_defaults() -> None:
 def test_layers_apply_in_order(tmp_path: Path) -> None:
     mine = tmp_path / "mine.yaml"
     mine.write_text("paper:\n  speed:\n    lam: 0.4\nsim:\n  max_steps: 300\n")
-    s = load_settings("no-240", [str(mine), "quick"], ["paper.speed.lam=0.5"], {"sim.max_steps": 200})
+    s = load_settings(
+        "no-240", configs=[str(mine), "quick"], overrides=["paper.speed.lam=0.5"], options={"sim.max_steps": 200}
+    )
     assert s.paper.speed.lam == 0.5  # --set wins over the file
     assert s.sim.max_steps == 200  # an option wins over the presets and files
     assert s.paper.inspection.restrict_forward is False and s.run.agent == "no-240"
@@ -59,7 +71,13 @@ def test_layers_apply_in_order(tmp_path: Path) -> None:
         (["sim.width=-3"], ["'sim.width'", ">= 0", "-3"]),
         (["sim.max_steps=0"], ["'sim.max_steps'", "> 0"]),
         (["sim.min_depth=6"], ["'sim.min_depth'", "less than sim.max_depth"]),
-        (["sim=3"], ["'sim'", "a mapping with keys width", "'3'"]),
+        (["sim=3"], ["'sim'", "a mapping with keys width", "3"]),
+        (["run.seed=1.5"], ["'run.seed'", "an int like 0", "1.5"]),
+        (["paper.speed.lam=[1"], ["'paper.speed.lam'", "a YAML value", "'[1'"]),
+        (["paper.speed.lam=${nowhere}"], ["'paper.speed.lam'", "an interpolation", "'nowhere' not found"]),
+        (["run.agent=no-such"], ["'run.agent'", "one of direction-360", "'no-such'"]),
+        (["models.reasoner=gpt"], ["'models.reasoner'", "one of embedded, openai", "'gpt'"]),
+        (["mapping.min_obstacle_height=1.0"], ["'mapping.min_obstacle_height'", "less than sim.agent_height"]),
         (["paper.speed"], ["--set", "KEY=VALUE"]),
     ],
 )
@@ -79,10 +97,13 @@ def test_bad_config_files_and_names(tmp_path: Path) -> None:
     listed.write_text("- 1\n")
     unknown = tmp_path / "unknown.yaml"
     unknown.write_text("papr:\n  x: 1\n")
+    flat = tmp_path / "flat.yaml"
+    flat.write_text("paper:\n  speed: 3\n")
     for config, words in (
         (str(broken), ["broken.yaml", "a YAML mapping"]),
         (str(listed), ["list.yaml", "a YAML mapping"]),
         (str(unknown), ["unknown.yaml", "'papr'", "sim, mapping, paper, agent, models, run"]),
+        (str(flat), ["flat.yaml", "'paper.speed'", "a mapping with keys lam, r_obs", "got 3"]),
         ("no-such-preset", ["--config", "paper, quick"]),
     ):
         with pytest.raises(InputError) as caught:
@@ -125,6 +146,7 @@ def test_every_method_is_a_preset_over_the_defaults(name: str) -> None:
     agent = make_agent(settings)
     assert isinstance(agent, DriveNavAgent) and agent.name == name
     assert agent.config == settings.agent and agent.paper == settings.paper
+    assert agent.sim == settings.sim == SimConfig() and agent.mapping == settings.mapping == MapTuning()
 
 
 def test_one_list_of_methods_for_registry_and_ablations() -> None:
@@ -157,3 +179,35 @@ def test_eval_takes_overrides_and_records_them(tmp_path: Path) -> None:
     run = yaml.safe_load((out / "run.json").read_text())
     assert run["config"]["paper"]["speed"]["lam"] == 0.5 and run["config"]["sim"]["max_steps"] == 150
     assert main([*args, "--set", "paper.speed.lam=0.4"]) == 2  # resuming with another lambda is refused
+
+
+def test_the_mapper_follows_the_sensor_by_default() -> None:
+    sim = SimConfig(min_depth=0.3, max_depth=4.0, camera_height=1.2, agent_radius=0.2, grid_resolution=0.1)
+    mapping = MappingConfig.from_sim(sim, load_settings().mapping)
+    assert mapping == MappingConfig.from_sim(sim)
+    assert (mapping.min_depth, mapping.max_depth, mapping.camera_height) == (0.3, 4.0, 1.2)
+    assert (mapping.resolution, mapping.agent_radius, mapping.max_obstacle_height) == (0.1, 0.2, 0.88)
+    tuned = load_settings(overrides=["mapping.min_frontier_area=2.5"]).mapping
+    assert MappingConfig.from_sim(sim, tuned).min_frontier_area == 2.5
+
+
+def test_config_show_states_the_units() -> None:
+    header = [line for line in settings_to_yaml(load_settings()).splitlines() if line.startswith("#")]
+    assert any("metres" in line and "degrees (*_deg)" in line for line in header)
+
+
+def test_methods_name_the_papers_tables() -> None:
+    tables = {m.name: set(m.tables) for m in METHODS}
+    assert {name for name, t in tables.items() if "II" in t} == {"drive-nav", "direction-360", "nearest-frontier"}
+    assert {name for name, t in tables.items() if "V" in t} == {"directional", "no-weighted-fmm", "no-240"}
+    assert all(m.description and m.tables for m in METHODS)
+
+
+def test_first_difference_names_the_key() -> None:
+    base = settings_to_dict(load_settings())
+    assert first_difference(base, settings_to_dict(load_settings())) is None
+    changed = settings_to_dict(load_settings(overrides=["paper.speed.lam=0.5", "sim.max_steps=9"]))
+    assert first_difference(base, changed) == "paper.speed.lam"  # sorted order: paper before sim
+    assert first_difference(base, settings_to_dict(load_settings("no-240"))) == "agent.enrich"
+    assert first_difference({"a": {"b": 1}}, {"a": {"b": 1, "c": None}}) == "a.c"  # a key only one side has
+    assert first_difference({"a": {"b": 1}}, {"a": 2}) == "a"

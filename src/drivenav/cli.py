@@ -87,7 +87,7 @@ def _settings(args: argparse.Namespace, agent: str | None) -> Settings:
             given[key] = str(Path(str(given[key])).resolve())
     if "run.seed" in given:
         _seed(int(str(given["run.seed"])))
-    return load_settings(agent, args.config, args.overrides, given)
+    return load_settings(agent, configs=args.config, overrides=args.overrides, options=given)
 
 
 def _add_execution_options(parser: argparse.ArgumentParser) -> None:
@@ -225,9 +225,9 @@ def _add_config(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -
 
 
 def _cmd_config_show(args: argparse.Namespace) -> int:
-    from drivenav.settings import load_settings, settings_to_yaml
+    from drivenav.settings import settings_to_yaml
 
-    print(settings_to_yaml(load_settings(args.agent, args.config, args.overrides)), end="")
+    print(settings_to_yaml(_settings(args, args.agent)), end="")
     return 0
 
 

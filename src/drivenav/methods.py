@@ -9,6 +9,9 @@ without prompt enrichment and cross-frame verification.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
+
+PaperTable = Literal["II", "V", "VI"]  # II: analytical comparison; V: directional components; VI: module ablation
 
 _DIRECTIONAL = ("agent.enrich=false", "agent.verify=false")
 
@@ -18,7 +21,7 @@ class Method:
     """One agent variant: its ``--agent`` name, the paper's tables it appears in, what it is, its overrides."""
 
     name: str
-    tables: tuple[str, ...]
+    tables: tuple[PaperTable, ...]
     description: str
     overrides: tuple[str, ...] = ()
 
@@ -69,4 +72,5 @@ REFERENCE_AGENTS = ("oracle", "random")  # not DRIVE-Nav variants: the ground-tr
 
 
 def method_named(name: str) -> Method | None:
+    """The method called ``name`` (an ``--agent`` name), or None for a reference agent or an unknown name."""
     return next((m for m in METHODS if m.name == name), None)

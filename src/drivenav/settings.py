@@ -6,6 +6,12 @@ order (a preset shipped in ``drivenav/data/configs/`` or a YAML file), then the 
 were given (``--seed``, ``--max-steps``, ``--reasoner``, ...), then each ``--set KEY=VALUE`` in order.
 ``drivenav config show`` prints the result; ``run.json`` records it. A wrong key, type or value is one
 :class:`~drivenav.errors.InputError` line naming the key, what was given and what is allowed.
+
+Units: lengths in metres, angles in degrees (the ``*_deg`` fields; :class:`~drivenav.config.DriveNavConfig` reads
+them in radians through properties). The step budget is ``sim.max_steps`` (one value, the world's and the agent's).
+``mapping`` holds only the mapper's own tuning (:class:`~drivenav.mapping.config.MapTuning`); depth range, camera
+height, agent radius and grid resolution follow from ``sim`` (:meth:`~drivenav.mapping.config.MappingConfig.from_sim`),
+so the mapper always matches the sensor.
 """
 
 from __future__ import annotations
@@ -19,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig, ListConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from drivenav.agent.drivenav import AgentConfig
@@ -27,10 +33,17 @@ from drivenav.config import DriveNavConfig
 from drivenav.errors import InputError
 from drivenav.mapping.config import MapTuning
 from drivenav.methods import METHODS, REFERENCE_AGENTS, method_named
-from drivenav.semantics.registry import ModelSpec
+from drivenav.semantics.registry import DETECTORS, REASONERS, ModelSpec
 from drivenav.types import SimConfig
 
 PRESETS = "data/configs"
+YAML_HEADER = """\
+# drivenav configuration: load it back with --config FILE, change one value with --set KEY=VALUE.
+# Units: lengths in metres, angles in degrees (*_deg), sim.max_steps in actions (the step budget).
+# sim: sensor and body (Habitat ObjectNav); mapping: the mapper's tuning (its depth range, camera height,
+# agent radius and grid resolution come from sim); paper: DRIVE-Nav's constants (Sec. IV); agent: the method's
+# switches (Tables II, V, VI); models: reasoner and detector; run: the agent's name and the run seed.
+"""
 
 
 @dataclass(frozen=True)
@@ -66,6 +79,7 @@ def preset_names() -> list[str]:
 
 def load_settings(
     agent: str | None = None,
+    *,
     configs: Sequence[str] = (),
     overrides: Sequence[str] = (),
     options: Mapping[str, object] | None = None,
@@ -78,13 +92,23 @@ def load_settings(
     for config in configs:
         tree = _merge(tree, _config_layer(config), config)
     for key, value in (options or {}).items():
-        tree = _merge(tree, _option_layer(key, value), "command line", key, value)
+        tree = _merge(tree, _option_layer(key, value), "command line")
     for override in overrides:
-        key, _, value = override.partition("=")
-        tree = _merge(tree, _override_layer(override), "--set", key.strip(), value)
-    settings = OmegaConf.to_object(tree)
-    assert isinstance(settings, Settings)
+        tree = _merge(tree, _override_layer(override), "--set")
+    settings = _resolve(tree)
     check_values(settings)
+    return settings
+
+
+def _resolve(tree: DictConfig) -> Settings:
+    """The typed tree, with ``${...}`` interpolations resolved (one that names no key is an :class:`InputError`)."""
+    try:
+        settings = OmegaConf.to_object(tree)
+    except OmegaConfBaseException as error:
+        key = str(getattr(error, "full_key", None) or "<settings>")
+        expected = "an interpolation ${...} naming another key that holds a value of this field's type"
+        raise InputError("settings", key, expected, str(error).splitlines()[0]) from None
+    assert isinstance(settings, Settings)
     return settings
 
 
@@ -92,8 +116,7 @@ def _method_layer(agent: str) -> DictConfig:
     if agent not in agent_names():
         raise InputError("command line", "--agent", f"one of {', '.join(agent_names())}", agent)
     method = method_named(agent)
-    layer = OmegaConf.from_dotlist([*(method.overrides if method else ()), f"run.agent={agent}"])
-    return layer
+    return OmegaConf.from_dotlist([*(method.overrides if method else ()), f"run.agent={agent}"])
 
 
 def _config_layer(config: str) -> DictConfig:
@@ -120,37 +143,67 @@ def _option_layer(key: str, value: object) -> DictConfig:
 
 
 def _override_layer(override: str) -> DictConfig:
-    key, sep, _ = override.partition("=")
+    key, sep, value = override.partition("=")
     if not sep or not key.strip():
         raise InputError("command line", "--set", "KEY=VALUE with a dotted KEY (see 'drivenav config show')", override)
-    return OmegaConf.from_dotlist([override])
+    try:
+        return OmegaConf.from_dotlist([override])
+    except (OmegaConfBaseException, yaml.YAMLError):
+        raise InputError("--set", key.strip(), "a YAML value (a number, true/false, a string)", value) from None
 
 
-def _merge(tree: DictConfig, layer: DictConfig, source: str, key: str = "", given: object = None) -> DictConfig:
-    """``layer`` over ``tree``; an error names ``key`` and ``given`` where OmegaConf's does not say them."""
+def _merge(tree: DictConfig, layer: DictConfig, source: str) -> DictConfig:
+    """``layer`` over ``tree``, or an :class:`InputError` naming the first key of ``layer`` that does not fit."""
     try:
         merged = OmegaConf.merge(tree, layer)
     except OmegaConfBaseException as error:
-        raise _as_input_error(error, tree, source, key, given) from None
+        raise _as_input_error(error, layer, source) from None
     assert isinstance(merged, DictConfig)
     return merged
 
 
-def _as_input_error(
-    error: OmegaConfBaseException, tree: DictConfig, source: str, hint: str, hint_given: object
-) -> InputError:
-    key = str(getattr(error, "full_key", None) or hint)
+def _as_input_error(error: OmegaConfBaseException, layer: DictConfig, source: str) -> InputError:
+    """What is allowed comes from the defaults' tree (the same keys and types at every layer)."""
+    tree: DictConfig = OmegaConf.structured(Settings)
+    key = str(getattr(error, "full_key", None) or _misfit(tree, layer) or "")
+    if not key:
+        return InputError(
+            source, "<settings>", "settings as 'drivenav config show' prints them", str(error).split("\n")[0]
+        )
     parent, _, leaf = key.rpartition(".")
     node = OmegaConf.select(tree, parent) if parent else tree
     if isinstance(node, DictConfig) and leaf not in node:
         return InputError(source, key, f"a key of '{parent or '(top)'}': {', '.join(map(str, node.keys()))}", leaf)
-    current = OmegaConf.select(tree, key) if key else None
-    allowed = f"a {type(current).__name__} like {current!r}" if current is not None else "a value of the right type"
+    current = OmegaConf.select(tree, key)
+    given = OmegaConf.select(layer, key, default=getattr(error, "value", None), throw_on_resolution_failure=False)
+    return InputError(source, key, _allowed(current), "null" if given is None else _plain(given))
+
+
+def _misfit(tree: DictConfig, layer: DictConfig, prefix: str = "") -> str | None:
+    """The first key of ``layer`` whose value is not a mapping where ``tree`` has a section (OmegaConf's error for
+    that names no key)."""
+    for key, value in layer.items():
+        name = f"{prefix}{key!s}"
+        node = tree.get(key, None)
+        if isinstance(node, DictConfig) and not isinstance(value, DictConfig):
+            return name
+        if isinstance(node, DictConfig) and isinstance(value, DictConfig):
+            found = _misfit(node, value, f"{name}.")
+            if found is not None:
+                return found
+    return None
+
+
+def _allowed(current: object) -> str:
     if isinstance(current, DictConfig):
-        allowed = f"a mapping with keys {', '.join(map(str, current.keys()))}"
-    given = getattr(error, "value", None)
-    given = given if given is not None else hint_given
-    return InputError(source, key or "<settings>", allowed, given if given is not None else str(error).splitlines()[0])
+        return f"a mapping with keys {', '.join(map(str, current.keys()))}"
+    kind = type(current).__name__
+    return f"{'an' if kind[0] in 'aeiou' else 'a'} {kind} like {current!r}"
+
+
+def _plain(value: object) -> object:
+    """A layer's value as the user wrote it (plain lists and mappings, not OmegaConf nodes)."""
+    return OmegaConf.to_container(value) if isinstance(value, (DictConfig, ListConfig)) else value
 
 
 # ----------------------------------------------------------------------------------------------- values
@@ -197,6 +250,11 @@ def check_values(settings: Settings) -> None:
             raise InputError("settings", key, "a number > 0", value)
     rules = (
         ("sim.hfov_deg", settings.sim.hfov_deg < 180.0, "a field of view < 180 degrees"),
+        (
+            "mapping.min_obstacle_height",
+            settings.mapping.min_obstacle_height < settings.sim.agent_height,
+            "less than sim.agent_height (the top of the obstacle band)",
+        ),
         ("sim.min_depth", settings.sim.min_depth < settings.sim.max_depth, "less than sim.max_depth"),
         ("paper.speed.lam", settings.paper.speed.lam < 1.0, "lambda < 1 (the speed field stays positive, Eq. 1)"),
         ("paper.inspection.forward_range_deg", settings.paper.inspection.forward_range_deg <= 360.0, "<= 360"),
@@ -204,6 +262,14 @@ def check_values(settings: Settings) -> None:
     for key, holds, expected in rules:
         if not holds:
             raise InputError("settings", key, expected, leaves[key])
+    choices = (  # key, allowed names, the option that sets it
+        ("run.agent", agent_names(), "--agent"),
+        ("models.reasoner", REASONERS, "--reasoner"),
+        ("models.detector", DETECTORS, "--detector"),
+    )
+    for key, names, option in choices:
+        if leaves[key] not in names:
+            raise InputError("settings", key, f"one of {', '.join(names)} (the {option} option)", leaves[key])
 
 
 def settings_to_dict(settings: Settings) -> dict[str, Any]:
@@ -212,5 +278,26 @@ def settings_to_dict(settings: Settings) -> dict[str, Any]:
 
 
 def settings_to_yaml(settings: Settings) -> str:
-    """The tree as YAML (``drivenav config show``); it loads back with ``--config``."""
-    return OmegaConf.to_yaml(OmegaConf.structured(settings))
+    """The tree as YAML under a comment on units and sections (``drivenav config show``); it loads back with
+    ``--config``."""
+    return YAML_HEADER + OmegaConf.to_yaml(OmegaConf.structured(settings))
+
+
+def first_difference(a: Mapping[str, Any], b: Mapping[str, Any]) -> str | None:
+    """The first dotted key (in sorted order) whose value differs between two trees of
+    :func:`settings_to_dict`, or None when they are equal: what refuses a resume into a run directory started with
+    other settings. A key present in one tree only differs."""
+    return _difference(a, b, "")
+
+
+def _difference(a: object, b: object, prefix: str) -> str | None:
+    if not (isinstance(a, Mapping) and isinstance(b, Mapping)):
+        return None if a == b else prefix or "(root)"
+    for key in sorted({*a, *b}, key=str):
+        found = _difference(a.get(key, _ABSENT), b.get(key, _ABSENT), f"{prefix}{'.' if prefix else ''}{key}")
+        if found is not None:
+            return found
+    return None
+
+
+_ABSENT = object()  # a key missing from one tree (unequal to every value, None included)
