@@ -25,6 +25,7 @@ from drivenav.eval.episodes import episode_to_dict, save_episodes
 from drivenav.eval.provenance import package_version, source_state
 from drivenav.eval.records import EpisodeRecord, read_records
 from drivenav.eval.report import Summary
+from drivenav.settings import first_difference
 
 EPISODES_FILE = "episodes.jsonl"
 SUMMARY_FILE = "summary.json"
@@ -38,17 +39,6 @@ def episodes_sha256(episodes: Sequence[Episode]) -> str:
     """A digest of the episodes as written to an episodes file (order included)."""
     text = json.dumps([episode_to_dict(e) for e in episodes], sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
-
-
-def first_difference(old: Any, new: Any, prefix: str = "") -> str | None:
-    """The first dotted key whose value differs between two JSON-like trees (None when they are equal)."""
-    if isinstance(old, Mapping) and isinstance(new, Mapping):
-        for key in sorted(set(old) | set(new), key=str):
-            found = first_difference(old.get(key), new.get(key), f"{prefix}{key}.")
-            if found is not None:
-                return found
-        return None
-    return None if old == new else prefix.rstrip(".") or "(root)"
 
 
 def trace_path(out: Path, episode_id: str) -> Path:
@@ -74,7 +64,7 @@ class RunInfo:
 
     def check_resume(self, previous: Mapping[str, Any], source: Path) -> None:
         """Refuse to resume a run started with other settings or episodes."""
-        key = first_difference(previous.get("config"), self.config)
+        key = first_difference(previous.get("config") or {}, self.config)
         if key is not None:
             raise InputError(
                 source, f"config.{key}", "the settings this run directory was started with, to resume it", "others"
