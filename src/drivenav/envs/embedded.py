@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from collections import OrderedDict
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -33,6 +33,7 @@ from drivenav.grid import wrap_angle
 from drivenav.types import GEODESIC, SEMANTIC, Action, GroundTruth, Observation, Pose, SimConfig
 
 _DEFAULT_CONFIG = SimConfig()
+_GEODESIC_CACHE = 4  # target sets whose distance fields are kept
 
 
 @dataclass(frozen=True)
@@ -97,11 +98,13 @@ class EmbeddedEnv:
         self._turns = 0
         self._steps = 0
         self._measures = EmbeddedMeasures(config)
+        self._fields: OrderedDict[tuple[str | None, tuple[tuple[float, float], ...]], GeodesicField] = OrderedDict()
 
     # -- pickling: drop the scene cache ---------------------------------------------------------------
     def __getstate__(self) -> dict[str, Any]:
         state = dict(self.__dict__)
         state["_worlds"] = OrderedDict()
+        state["_fields"] = OrderedDict()
         state["_measures"] = EmbeddedMeasures(self._config)
         return state
 
@@ -192,6 +195,27 @@ class EmbeddedEnv:
     def close(self) -> None:
         """Drop the loaded scenes."""
         self._worlds.clear()
+        self._fields.clear()
+
+    def geodesic_distance(self, x: float, y: float, targets: Sequence[tuple[float, float]]) -> float:
+        """Geodesic distance (metres, inf if unreachable) from a world point to the nearest of ``targets`` over the
+        current scene's reachable cells: the measure of :class:`EmbeddedMeasures`, as a simulator's path finder
+        answers it (one Fast-Marching solve per target set, the last few kept)."""
+        world = self._world()
+        key = (self._scene_id, tuple(targets))
+        field = self._fields.get(key)
+        if field is None:
+            field = GeodesicField(world.reachable, world.scene.grid, list(targets))
+            self._fields[key] = field
+            while len(self._fields) > _GEODESIC_CACHE:
+                self._fields.popitem(last=False)
+        return float(field.at(x, y))
+
+    def forward(self, x: float, y: float, yaw: float, step: float) -> tuple[float, float, bool]:
+        """Where a straight move of ``step`` metres from a world point along ``yaw`` ends in the current scene
+        (sliding along walls), and whether it collided: the world's motion model."""
+        world = self._world()
+        return forward_step(world.navigable, world.scene.grid, x, y, yaw, step)
 
     def render(self, pose_world: Pose) -> Images:
         """RGB, depth and semantic images from a world-frame pose of the current scene."""

@@ -13,6 +13,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from drivenav.validation import Fields
+
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
 
@@ -94,3 +96,88 @@ class Episode:
     def view_points_xy(self) -> list[tuple[float, float]]:
         """All goals' view points as 2-D world points."""
         return [vp.xy for goal in self.goals for vp in goal.view_points]
+
+
+# -- the JSON form ----------------------------------------------------------------------------------------------
+
+
+def rounded(values: tuple[float, ...]) -> list[float]:
+    """Coordinates as episode files store them: 4 decimals (0.1 mm)."""
+    return [round(float(v), 4) for v in values]
+
+
+def goal_to_dict(goal: ObjectGoal) -> dict[str, Any]:
+    """A goal instance in the HM3D-OVON / ObjectNav v1 JSON form (``object_id`` as the file's integer)."""
+    return {
+        "object_id": goal.object_id,
+        "object_category": goal.object_category,
+        "position": rounded(goal.position),
+        "view_points": [
+            {"agent_state": {"position": rounded(vp.position), "rotation": rounded(vp.rotation)}, "iou": vp.iou}
+            for vp in goal.view_points
+        ],
+    }
+
+
+# -- reading the JSON form (episode files, Habitat layouts) with one-line errors naming the field ------------
+
+
+def parse_vec3(fields: Fields, name: str, value: Any) -> Vec3:
+    x, y, z = fields.numbers(value, name, 3)
+    return (x, y, z)
+
+
+def parse_quat(fields: Fields, name: str, value: Any) -> Quat:
+    x, y, z, w = fields.numbers(value, name, 4)
+    return (x, y, z, w)
+
+
+def parse_identifier(fields: Fields, name: str, value: Any) -> str:
+    """A non-empty string; integer ids (as some datasets write them) become strings."""
+    if isinstance(value, int) and not isinstance(value, bool):
+        return str(value)
+    return fields.text(value, name)
+
+
+def parse_episode(fields: Fields, name: str, item: Any) -> Episode:
+    item = fields.mapping(item, name)
+    goals = fields.sequence(item.get("goals"), f"{name}.goals", 1)
+    return Episode(
+        episode_id=parse_identifier(fields, f"{name}.episode_id", item.get("episode_id")),
+        scene_id=parse_identifier(fields, f"{name}.scene_id", item.get("scene_id")),
+        start_position=parse_vec3(fields, f"{name}.start_position", item.get("start_position")),
+        start_rotation=parse_quat(fields, f"{name}.start_rotation", item.get("start_rotation")),
+        object_category=parse_identifier(fields, f"{name}.object_category", item.get("object_category")),
+        goals=tuple(parse_goal(fields, f"{name}.goals[{k}]", g) for k, g in enumerate(goals)),
+        info=parse_info(fields, f"{name}.info", item.get("info", {})),
+    )
+
+
+def parse_info(fields: Fields, name: str, value: Any) -> dict[str, Any]:
+    """``info``: the keys drivenav reads have their types (distance in metres >= 0, text, true / false); others
+    are kept as given."""
+    info = fields.mapping(value, name)
+    if "geodesic_distance" in info:
+        fields.number(info["geodesic_distance"], f"{name}.geodesic_distance", minimum=0.0)
+    if "canonical_category" in info:
+        fields.text(info["canonical_category"], f"{name}.canonical_category")
+    if "synonym" in info:
+        fields.choice(info["synonym"], f"{name}.synonym", (True, False), "true or false")
+    return info
+
+
+def parse_goal(fields: Fields, name: str, item: Any) -> ObjectGoal:
+    item = fields.mapping(item, name)
+    view_points = []
+    for k, point in enumerate(fields.sequence(item.get("view_points"), f"{name}.view_points", 1)):
+        where = f"{name}.view_points[{k}]"
+        state = fields.mapping(fields.mapping(point, where).get("agent_state"), f"{where}.agent_state")
+        position = parse_vec3(fields, f"{where}.agent_state.position", state.get("position"))
+        rotation = parse_quat(fields, f"{where}.agent_state.rotation", state.get("rotation"))
+        view_points.append(ViewPoint(position, rotation, fields.number(point.get("iou", 1.0), f"{where}.iou")))
+    return ObjectGoal(
+        object_id=fields.integer(item.get("object_id", -1), f"{name}.object_id"),
+        object_category=parse_identifier(fields, f"{name}.object_category", item.get("object_category", "object")),
+        position=parse_vec3(fields, f"{name}.position", item.get("position")),
+        view_points=tuple(view_points),
+    )

@@ -13,13 +13,20 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivenav import metrics
-from drivenav.envs.base import EpisodeMeasures
+from drivenav.envs.base import EpisodeMeasures, measured
 from drivenav.envs.episode import Episode
 from drivenav.envs.geodesic import GeodesicField
 from drivenav.grid import GridSpec
 from drivenav.types import Action, Observation, Pose, SimConfig
 
 TARGET_SEEN_PIXELS = 150  # goal-instance pixels in one frame for the target to count as seen
+
+
+def shows_goal(observation: Observation, goal_ids: NDArray[np.int64]) -> bool:
+    """Whether an observation's ground-truth instance ids show a goal instance clearly (``target_seen``)."""
+    if observation.semantic is None:
+        return False
+    return int(np.count_nonzero(np.isin(observation.semantic, goal_ids))) >= TARGET_SEEN_PIXELS
 
 
 class EmbeddedMeasures:
@@ -59,9 +66,7 @@ class EmbeddedMeasures:
         self._target_seen = self._target_seen or self._shows_goal(observation)
 
     def _shows_goal(self, observation: Observation) -> bool:
-        if observation.semantic is None:
-            return False
-        return int(np.count_nonzero(np.isin(observation.semantic, self._goal_ids))) >= TARGET_SEEN_PIXELS
+        return shows_goal(observation, self._goal_ids)
 
     def result(self) -> EpisodeMeasures:
         """The metrics of the episode so far."""
@@ -70,12 +75,12 @@ class EmbeddedMeasures:
         geodesic = field.at(*self._positions[0])
         path_length = metrics.path_length(np.asarray(self._positions))
         is_success = metrics.success(self._called_stop, distance, self._config.success_distance)
-        return EpisodeMeasures(
-            success=int(is_success),
-            spl=round(metrics.spl(is_success, geodesic, path_length), 6),
-            distance_to_goal=round(distance, 4) if np.isfinite(distance) else None,
-            path_length=round(path_length, 4),
-            geodesic_distance=round(geodesic, 4) if np.isfinite(geodesic) else None,
+        return measured(
+            success=is_success,
+            spl=metrics.spl(is_success, geodesic, path_length),
+            distance_to_goal=distance,
+            path_length=path_length,
+            geodesic_distance=geodesic,
             collisions=self._collisions,
             target_seen=self._target_seen,
         )

@@ -23,9 +23,9 @@ from numpy.typing import NDArray
 from drivenav.envs.episode import (
     Episode,
     ObjectGoal,
-    Quat,
-    Vec3,
-    ViewPoint,
+    goal_to_dict,
+    parse_episode,
+    rounded,
     world_to_habitat,
     yaw_to_quaternion,
 )
@@ -170,33 +170,15 @@ def _make_episode(
     return None
 
 
-def _round(values: tuple[float, ...]) -> list[float]:
-    return [round(float(v), 4) for v in values]
-
-
 def episode_to_dict(episode: Episode) -> dict[str, Any]:
-    """The HM3D-OVON JSON form of an episode."""
+    """The HM3D-OVON JSON form of an episode (goals inside it)."""
     return {
         "episode_id": episode.episode_id,
         "scene_id": episode.scene_id,
-        "start_position": _round(episode.start_position),
-        "start_rotation": _round(episode.start_rotation),
+        "start_position": rounded(episode.start_position),
+        "start_rotation": rounded(episode.start_rotation),
         "object_category": episode.object_category,
-        "goals": [
-            {
-                "object_id": goal.object_id,
-                "object_category": goal.object_category,
-                "position": _round(goal.position),
-                "view_points": [
-                    {
-                        "agent_state": {"position": _round(vp.position), "rotation": _round(vp.rotation)},
-                        "iou": vp.iou,
-                    }
-                    for vp in goal.view_points
-                ],
-            }
-            for goal in episode.goals
-        ],
+        "goals": [goal_to_dict(goal) for goal in episode.goals],
         "info": dict(episode.info),
     }
 
@@ -219,7 +201,7 @@ def load_episodes(path: str | Path) -> list[Episode]:
     data = fields.mapping(read_json(source), "", required=("episodes",))
     _refuse_habitat_layout(fields, data)
     items = fields.sequence(data["episodes"], "episodes", 1, "a non-empty list of episodes")
-    episodes = [_parse_episode(fields, f"episodes[{i}]", item) for i, item in enumerate(items)]
+    episodes = [parse_episode(fields, f"episodes[{i}]", item) for i, item in enumerate(items)]
     _refuse_duplicates(fields, episodes)
     return episodes
 
@@ -248,67 +230,6 @@ def _refuse_duplicates(fields: Fields, episodes: list[Episode]) -> None:
         if j != i:
             expected = f"an id no other episode has (episodes[{j}] has it)"
             raise fields.error(f"episodes[{i}].episode_id", expected, episode.episode_id)
-
-
-def _vec3(fields: Fields, name: str, value: Any) -> Vec3:
-    x, y, z = fields.numbers(value, name, 3)
-    return (x, y, z)
-
-
-def _quat(fields: Fields, name: str, value: Any) -> Quat:
-    x, y, z, w = fields.numbers(value, name, 4)
-    return (x, y, z, w)
-
-
-def _identifier(fields: Fields, name: str, value: Any) -> str:
-    """A non-empty string; integer ids (as some datasets write them) become strings."""
-    if isinstance(value, int) and not isinstance(value, bool):
-        return str(value)
-    return fields.text(value, name)
-
-
-def _parse_episode(fields: Fields, name: str, item: Any) -> Episode:
-    item = fields.mapping(item, name)
-    goals = fields.sequence(item.get("goals"), f"{name}.goals", 1)
-    return Episode(
-        episode_id=_identifier(fields, f"{name}.episode_id", item.get("episode_id")),
-        scene_id=_identifier(fields, f"{name}.scene_id", item.get("scene_id")),
-        start_position=_vec3(fields, f"{name}.start_position", item.get("start_position")),
-        start_rotation=_quat(fields, f"{name}.start_rotation", item.get("start_rotation")),
-        object_category=_identifier(fields, f"{name}.object_category", item.get("object_category")),
-        goals=tuple(_parse_goal(fields, f"{name}.goals[{k}]", g) for k, g in enumerate(goals)),
-        info=_parse_info(fields, f"{name}.info", item.get("info", {})),
-    )
-
-
-def _parse_info(fields: Fields, name: str, value: Any) -> dict[str, Any]:
-    """``info``: the keys drivenav reads have their types (distance in metres >= 0, text, true / false); others
-    are kept as given."""
-    info = fields.mapping(value, name)
-    if "geodesic_distance" in info:
-        fields.number(info["geodesic_distance"], f"{name}.geodesic_distance", minimum=0.0)
-    if "canonical_category" in info:
-        fields.text(info["canonical_category"], f"{name}.canonical_category")
-    if "synonym" in info:
-        fields.choice(info["synonym"], f"{name}.synonym", (True, False), "true or false")
-    return info
-
-
-def _parse_goal(fields: Fields, name: str, item: Any) -> ObjectGoal:
-    item = fields.mapping(item, name)
-    view_points = []
-    for k, point in enumerate(fields.sequence(item.get("view_points"), f"{name}.view_points", 1)):
-        where = f"{name}.view_points[{k}]"
-        state = fields.mapping(fields.mapping(point, where).get("agent_state"), f"{where}.agent_state")
-        position = _vec3(fields, f"{where}.agent_state.position", state.get("position"))
-        rotation = _quat(fields, f"{where}.agent_state.rotation", state.get("rotation"))
-        view_points.append(ViewPoint(position, rotation, fields.number(point.get("iou", 1.0), f"{where}.iou")))
-    return ObjectGoal(
-        object_id=fields.integer(item.get("object_id", -1), f"{name}.object_id"),
-        object_category=_identifier(fields, f"{name}.object_category", item.get("object_category", "object")),
-        position=_vec3(fields, f"{name}.position", item.get("position")),
-        view_points=tuple(view_points),
-    )
 
 
 GEODESIC_TOLERANCE = 0.10  # an episode's info.geodesic_distance may differ this much from the world's own

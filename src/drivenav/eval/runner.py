@@ -11,6 +11,7 @@ Habitat metrics, the trajectory gives steps and revisits. Ground truth reaches o
 
 from __future__ import annotations
 
+import json
 import logging
 import traceback
 import zlib
@@ -62,8 +63,11 @@ class RunSpec:
         return self.settings.sim.max_steps
 
     def to_config(self) -> dict[str, Any]:
-        """The world and the settings as one JSON tree (recorded in ``run.json``)."""
-        return {"env": {"name": self.env.name, **asdict(self.env)}, **settings_to_dict(self.settings)}
+        """The world and the settings as one JSON tree (recorded in ``run.json``), in JSON's own types (a tuple
+        is a list), so that it compares equal to the tree read back on resume."""
+        tree = {"env": {"name": self.env.name, **asdict(self.env)}, **settings_to_dict(self.settings)}
+        result: dict[str, Any] = json.loads(json.dumps(tree))
+        return result
 
 
 def build_agent(spec: RunSpec) -> Agent:

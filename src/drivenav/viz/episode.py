@@ -2,7 +2,8 @@
 
 Writes ``<id>_topdown.png`` (the map with the trace, a legend and the last decisions' representative views),
 ``<id>_start_view.png`` and ``<id>_end_view.png`` (RGB, depth, semantics) and ``<id>.mp4`` (needs imageio-ffmpeg).
-Everything is re-rendered from the saved trace with the default camera (:class:`SimConfig`).
+Everything is re-rendered from the saved trace with the default camera (:class:`SimConfig`). A Habitat run gets
+the top-down picture only, its trace, decisions and goals on a blank floor (:func:`trace_scene`).
 """
 
 from __future__ import annotations
@@ -19,11 +20,12 @@ from PIL import Image
 from drivenav.envs.episode import Episode
 from drivenav.envs.library import SceneLibrary
 from drivenav.envs.render import Renderer
-from drivenav.envs.scene import Scene
+from drivenav.envs.scene import Material, Scene
 from drivenav.errors import InputError
 from drivenav.eval.episodes import load_episodes
 from drivenav.eval.records import EpisodeRecord, read_records
 from drivenav.eval.rundir import EPISODES_FILE, RUN_FILE, trace_path
+from drivenav.grid import GridSpec
 from drivenav.types import Pose, SimConfig
 from drivenav.viz.coverage import explored_cells
 from drivenav.viz.rerun_log import import_rerun, write_rerun
@@ -65,7 +67,20 @@ def view_strip(renderer: Renderer, pose: Pose) -> Image.Image:
     return Image.fromarray(np.concatenate(panels, axis=1))
 
 
-def _load_episode(run_dir: Path, episode_id: str) -> tuple[Scene, Episode, SavedTrace, EpisodeRecord | None]:
+TRACE_MARGIN = 2.0  # metres of blank floor around a trace drawn without a scene model
+
+
+def trace_scene(episode: Episode, trace: SavedTrace, resolution: float = 0.05) -> Scene:
+    """A blank floor under the trace and the goals: the canvas of worlds whose scenes drivenav cannot draw (Habitat
+    runs draw their trajectory, decisions and goals on it)."""
+    points = np.array([*(trace.xy(k) for k in range(len(trace))), *episode.view_points_xy()], dtype=np.float64)
+    low = points.min(axis=0) - TRACE_MARGIN
+    cells = np.ceil((points.max(axis=0) + TRACE_MARGIN - low) / resolution).astype(int)
+    grid = GridSpec(resolution, (float(low[0]), float(low[1])), (int(cells[1]), int(cells[0])))
+    return Scene(episode.scene_id, grid, np.full(grid.shape, Material.FREE, dtype=np.uint8))
+
+
+def _load_episode(run_dir: Path, episode_id: str) -> tuple[Scene | None, Episode, SavedTrace, EpisodeRecord | None]:
     run = _read_json(run_dir / RUN_FILE, "run")
     episodes = {e.episode_id: e for e in load_episodes(run_dir / "episodes.json.gz")}
     if episode_id not in episodes:
@@ -78,10 +93,17 @@ def _load_episode(run_dir: Path, episode_id: str) -> tuple[Scene, Episode, Saved
         raise InputError(path, "trace", "positions, yaws and events as written by 'drivenav eval'") from None
     records = {r.episode_id: r for r in read_records(run_dir / EPISODES_FILE)}
     world = run.get("config", {}).get("env", {})
-    if world.get("name") != "embedded":
-        raise InputError(run_dir / RUN_FILE, "config.env.name", "a run in the embedded world", world.get("name"))
-    scene = SceneLibrary(str(world["scenes"]), int(world["seed"])).load(episode.scene_id)
+    if world.get("name") not in DRAWN_WORLDS:
+        raise InputError(
+            run_dir / RUN_FILE, "config.env.name", f"a run in {' or '.join(DRAWN_WORLDS)}", world.get("name")
+        )
+    scene = None
+    if world["name"] == "embedded":
+        scene = SceneLibrary(str(world["scenes"]), int(world["seed"])).load(episode.scene_id)
     return scene, episode, trace, records.get(episode_id)
+
+
+DRAWN_WORLDS = ("embedded", "habitat")
 
 
 def render_episode_pictures(
@@ -95,6 +117,10 @@ def render_episode_pictures(
     scene, episode, trace, record = _load_episode(run_dir, episode_id)
     folder = out or run_dir / "viz"
     stem = trace_path(folder, episode_id).stem
+    if scene is None:  # a Habitat run: its scenes are meshes drivenav does not render
+        log.warning("a Habitat run: the top-down picture shows the trace and goals only (no scene, views or video)")
+        topdown = draw_episode(trace_scene(episode, trace), episode, trace, record)
+        return [save_png(topdown, folder / f"{stem}_topdown.png")]
     sim = SimConfig()
     renderer = Renderer(scene, sim)
     topdown = draw_episode(scene, episode, trace, record, explored_cells(scene, trace, sim))

@@ -1,0 +1,226 @@
+"""A Habitat world: drivenav's :class:`~drivenav.envs.base.Env` over habitat-lab's ``habitat.Env``.
+
+habitat-lab's task, sensors and measures do the work: the agent steps by action name (habitat-lab's integer
+indices follow the config's order), observations are converted by :mod:`.observations`, and the metrics are
+habitat-lab's own ``success``, ``spl``, ``distance_to_goal`` and ``collisions``; path length is the executed
+translation, the start distance habitat-lab's ``distance_to_goal`` at reset. The world frame is Habitat's floor
+plane as drivenav's 2-D map frame (:mod:`drivenav.envs.episode`).
+
+The agent's pose is the simulator's agent state relative to the episode start, in float64: exactly what the
+noise-free GPS and compass report, without their float32 rounding (~1e-7 m), which alone can flip a map cell
+or a sight line and make two runs of one episode differ. GPS and compass are still read and checked against it
+every step (:func:`check_gps_compass`), so a changed frame or sign convention stops the episode.
+
+For the oracle, ``geodesic`` ground truth comes from the simulator: its geodesic distance to the goals' view
+points and its path finder's step (with or without sliding, as the config's ``allow_sliding`` says).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from drivenav import metrics
+from drivenav.envs.base import EpisodeMeasures, measured
+from drivenav.envs.episode import Episode, habitat_to_world, quaternion_to_yaw, world_to_habitat
+from drivenav.envs.habitat.config import habitat_config
+from drivenav.envs.habitat.observations import to_observation
+from drivenav.envs.measures import shows_goal
+from drivenav.envs.vocabulary import VOCABULARY
+from drivenav.grid import wrap_angle
+from drivenav.types import GEODESIC, SEMANTIC, Action, GroundTruth, Observation, Pose, SimConfig
+
+if TYPE_CHECKING:
+    from drivenav.envs.habitat.spec import HabitatSpec
+
+ACTION_NAMES = {
+    Action.STOP: "stop",
+    Action.MOVE_FORWARD: "move_forward",
+    Action.TURN_LEFT: "turn_left",
+    Action.TURN_RIGHT: "turn_right",
+}
+POSE_CHECK = 1e-3  # metres / radians: GPS and compass against the agent state (float32 sensors read ~1e-6)
+COLLISION_EPSILON = 1e-5  # metres between the intended and the reached end of a step that count as a collision
+
+
+def agent_pose(state: Any) -> Pose:
+    """A habitat-sim agent state (position, ``quaternion.quaternion`` rotation) as a world-frame pose."""
+    x, y = habitat_to_world(list(np.asarray(state.position, dtype=np.float64)))
+    q = state.rotation
+    return Pose(x, y, quaternion_to_yaw((float(q.x), float(q.y), float(q.z), float(q.w))))
+
+
+@dataclass(frozen=True)
+class _SimGeodesic:
+    """The simulator's geodesic ground truth for one episode (the oracle's :class:`~drivenav.types.GeodesicOracle`)."""
+
+    sim: Any
+    episode: Any
+    start_pose: Pose
+    height: float
+    step: float
+    sliding: bool
+
+    def distance(self, x: float, y: float) -> float:
+        targets = [vp.agent_state.position for goal in self.episode.goals for vp in goal.view_points]
+        return float(self.sim.geodesic_distance(list(world_to_habitat(x, y, self.height)), targets, self.episode))
+
+    def forward(self, x: float, y: float, yaw: float) -> tuple[float, float, bool]:
+        start = np.array(world_to_habitat(x, y, self.height))
+        end = np.array(world_to_habitat(x + self.step * math.cos(yaw), y + self.step * math.sin(yaw), self.height))
+        finder = self.sim.pathfinder
+        reached = np.asarray(finder.try_step(start, end) if self.sliding else finder.try_step_no_sliding(start, end))
+        nx, ny = habitat_to_world(list(reached))
+        return nx, ny, bool(np.linalg.norm(reached - end) > COLLISION_EPSILON)
+
+
+class HabitatEnv:
+    """One ``habitat.Env`` over a benchmark split; episodes are looked up by drivenav's episode id."""
+
+    def __init__(self, spec: HabitatSpec, sim: SimConfig) -> None:
+        spec.import_plugins()  # first: a plugin may have to prepare habitat-lab's import
+
+        import habitat
+
+        from drivenav.envs.habitat import ovon  # noqa: F401  (registers the OVON-v1 dataset)
+
+        self._config = sim
+        self._habitat_config = habitat_config(spec, sim)
+        dataset = habitat.make_dataset(
+            self._habitat_config.habitat.dataset.type, config=self._habitat_config.habitat.dataset
+        )
+        for found in dataset.episodes:
+            found.scene_dataset_config = _under_data_dir(found.scene_dataset_config, spec.data_dir)
+        self._env = habitat.Env(self._habitat_config, dataset)
+        self._by_id = _index(spec.episodes(), list(self._env.episodes))
+        depth_sensor = self._habitat_config.habitat.simulator.agents.main_agent.sim_sensors.depth_sensor
+        self._normalized = bool(depth_sensor.normalize_depth)
+        self._sliding = bool(self._habitat_config.habitat.simulator.habitat_sim_v0.allow_sliding)
+        self._steps = 0
+        self._positions: list[tuple[float, float]] = []
+        self._start_distance = math.nan
+        self._start_pose = Pose(0.0, 0.0, 0.0)
+        self._semantic = spec.semantic
+        self._goal_ids: NDArray[np.int64] = np.zeros(0, dtype=np.int64)
+        self._target_seen = False
+
+    @property
+    def config(self) -> SimConfig:
+        return self._config
+
+    @property
+    def habitat_env(self) -> Any:
+        """The wrapped ``habitat.Env``."""
+        return self._env
+
+    def reset(self, episode: Episode) -> Observation:
+        found = self._by_id.get(episode.episode_id)
+        if found is None:
+            raise ValueError(f"episode {episode.episode_id} is not in this Habitat split")
+        self._env.current_episode = found
+        self._start_pose = _start_pose(found)
+        observations = self._env.reset()
+        self._steps = 0
+        self._positions = [self._xy()]
+        self._start_distance = float(self._env.get_metrics()["distance_to_goal"])
+        self._goal_ids = np.array([goal.object_id for goal in episode.goals], dtype=np.int64)
+        self._target_seen = False
+        return self._observe(observations, collided=False)
+
+    def step(self, action: Action) -> Observation:
+        observations = self._env.step(ACTION_NAMES[Action(action)])
+        self._steps += 1
+        self._positions.append(self._xy())
+        return self._observe(observations, collided=bool(self._env.sim.previous_step_collided))
+
+    def world_pose(self) -> Pose:
+        return agent_pose(self._env.sim.get_agent_state())
+
+    def measures(self) -> EpisodeMeasures:
+        found = self._env.get_metrics()
+        return measured(
+            success=bool(found["success"]),
+            spl=float(found["spl"]),
+            distance_to_goal=float(found["distance_to_goal"]),
+            path_length=metrics.path_length(np.asarray(self._positions)),
+            geodesic_distance=self._start_distance,
+            collisions=int(found["collisions"]["count"]),
+            target_seen=self._target_seen if self._semantic else None,
+        )
+
+    def ground_truth(self, kinds: frozenset[str]) -> GroundTruth:
+        """``geodesic`` from the simulator; ``semantic`` (with a semantic sensor): the scene's instance labels from
+        its semantic annotations, and drivenav's category vocabulary."""
+        labels = self._labels() if SEMANTIC in kinds and self._semantic else None
+        geodesic = self._geodesic() if GEODESIC in kinds else None
+        return GroundTruth(labels, VOCABULARY if labels is not None else None, geodesic)
+
+    def _labels(self) -> dict[int, str]:
+        objects = self._env.sim.semantic_annotations().objects
+        return {int(obj.semantic_id): str(obj.category.name()) for obj in objects if obj is not None}
+
+    def _geodesic(self) -> _SimGeodesic:
+        episode = self._env.current_episode
+        height = float(episode.start_position[1])
+        step = self._config.forward_step
+        return _SimGeodesic(self._env.sim, episode, self._start_pose, height, step, self._sliding)
+
+    def close(self) -> None:
+        self._env.close()
+
+    def _xy(self) -> tuple[float, float]:
+        pose = self.world_pose()
+        return pose.x, pose.y
+
+    def _observe(self, observations: Any, collided: bool) -> Observation:
+        observation = to_observation(observations, self._config, self._steps, collided, self._normalized)
+        pose = self._episode_pose()
+        check_gps_compass(observation.pose, pose)
+        self._target_seen = self._target_seen or shows_goal(observation, self._goal_ids)
+        return replace(observation, pose=pose)
+
+    def _episode_pose(self) -> Pose:
+        """The agent's pose relative to the episode start, from the simulator's agent state (float64)."""
+        local = self._start_pose.inverse().compose(self.world_pose())
+        return Pose(local.x, local.y, wrap_angle(local.yaw))
+
+
+def _start_pose(episode: Any) -> Pose:
+    """A habitat-lab episode's start as a world-frame pose (the origin of GPS and compass)."""
+    x, y = habitat_to_world(list(np.asarray(episode.start_position, dtype=np.float64)))
+    return Pose(x, y, wrap_angle(quaternion_to_yaw(list(episode.start_rotation))))
+
+
+def check_gps_compass(sensed: Pose, pose: Pose) -> None:
+    """GPS and compass must report the pose the simulator holds (they are noise-free in ObjectNav); a
+    disagreement means a frame or sign convention changed, and every map built from it would be wrong."""
+    if (
+        math.hypot(sensed.x - pose.x, sensed.y - pose.y) > POSE_CHECK
+        or abs(wrap_angle(sensed.yaw - pose.yaw)) > POSE_CHECK
+    ):
+        raise ValueError(f"GPS/compass give {sensed}, the simulator's agent state {pose} (episode frame)")
+
+
+def _under_data_dir(path: str, data_dir: str) -> str:
+    """An episode's ``scene_dataset_config`` written relative to habitat's ``data/`` folder (``./data/...``, as the
+    released datasets write it), resolved under ``--data-dir`` instead of the working directory."""
+    for prefix in ("./data/", "data/"):
+        if path.startswith(prefix):
+            return f"{data_dir.rstrip('/')}/{path[len(prefix) :]}"
+    return path
+
+
+def _index(ours: list[Episode], theirs: list[Any]) -> dict[str, Any]:
+    """drivenav's episode ids -> habitat-lab's episodes, paired in reading order and checked (scene basename and
+    start position must agree, so a reader that ordered them differently fails here, not in the metrics)."""
+    if len(ours) != len(theirs):
+        raise ValueError(f"habitat-lab read {len(theirs)} episodes of the split, drivenav {len(ours)}")
+    for mine, found in zip(ours, theirs, strict=True):
+        same_start = np.allclose(mine.start_position, np.asarray(found.start_position, dtype=np.float64), atol=1e-6)
+        if not (same_start and found.scene_id.endswith(mine.scene_id.split("/")[-1])):
+            raise ValueError(f"episode {mine.episode_id}: habitat-lab's reader gives another episode in its place")
+    return {mine.episode_id: found for mine, found in zip(ours, theirs, strict=True)}

@@ -1,0 +1,59 @@
+"""Shared set-up of the Habitat adapter's tests: embedded episodes exported to a Habitat data folder, and the
+runs of one episode in both worlds."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from drivenav_sim import SCENES, SIM_NAME
+
+from drivenav.agent.registry import make_agent
+from drivenav.envs.embedded import EmbeddedEnv
+from drivenav.envs.episode import Episode
+from drivenav.envs.habitat.benchmarks import BENCHMARKS
+from drivenav.envs.habitat.env import HabitatEnv
+from drivenav.envs.habitat.layouts import write_split
+from drivenav.envs.habitat.spec import HabitatSpec
+from drivenav.envs.library import SceneLibrary
+from drivenav.eval.records import EpisodeRecord
+from drivenav.eval.runner import Trace, run_episode
+from drivenav.settings import Settings, load_settings
+
+SIM_OVERRIDE = f"habitat.simulator.type={SIM_NAME}"
+SPLITS = {"hm3d-ovon": "val_seen", "hm3d-v1": "val"}  # one benchmark per layout
+
+
+def export(episodes: list[Episode], data_dir: Path, benchmark: str) -> HabitatSpec:
+    """Write ``episodes`` where ``benchmark``'s split lies under ``data_dir``; its spec on DriveNavSim-v0."""
+    bench = BENCHMARKS[benchmark]
+    split = SPLITS[benchmark]
+    write_split(episodes, data_dir / bench.data_path.format(split=split), bench.layout)
+    return HabitatSpec(benchmark, split, str(data_dir), (SIM_OVERRIDE,), semantic=True)
+
+
+def settings_for(agent: str, benchmark: str, *overrides: str) -> Settings:
+    return load_settings(agent, configs=[benchmark], overrides=overrides)
+
+
+@dataclass
+class BothWorlds:
+    """One embedded world and one habitat.Env over DriveNavSim-v0 with the same settings."""
+
+    spec: HabitatSpec
+    settings: Settings
+
+    def __post_init__(self) -> None:
+        self.embedded = EmbeddedEnv(SceneLibrary(SCENES, 0).load, self.settings.sim)
+        self.habitat = HabitatEnv(self.spec, self.settings.sim)
+
+    def run(self, episode: Episode) -> tuple[tuple[EpisodeRecord, Trace], tuple[EpisodeRecord, Trace]]:
+        """(embedded record and trace, Habitat record and trace) of one episode, each with a fresh agent."""
+        max_steps = self.settings.sim.max_steps
+        direct = run_episode(self.embedded, make_agent(self.settings), episode, 0, max_steps)
+        through = run_episode(self.habitat, make_agent(self.settings), episode, 0, max_steps)
+        return direct, through
+
+    def close(self) -> None:
+        self.embedded.close()
+        self.habitat.close()
