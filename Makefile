@@ -40,7 +40,10 @@ lint: $(VENV)/.dev-installed
 	$(VENV)/bin/ruff format --check src tests
 	$(VENV)/bin/mypy
 
-test: lint test-habitat
+# Both environments install side by side (mostly downloads), then lint, the Habitat suite and the main suite.
+test:
+	$(MAKE) -j2 $(VENV)/.dev-installed $(HABITAT_VENV)/.installed
+	$(MAKE) lint test-habitat
 	$(PY) -m pytest -n 2 -q
 
 # The Habitat adapter's tests, against habitat-lab's real Env, task, sensors, measures and dataset readers (its own

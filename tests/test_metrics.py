@@ -11,7 +11,8 @@ from drivenav import metrics
 
 
 def test_success_needs_stop_and_distance() -> None:
-    assert metrics.success(True, 0.25, 0.25)
+    assert metrics.success(True, 0.2499, 0.25)
+    assert not metrics.success(True, 0.25, 0.25)  # habitat-lab's Success: distance_to_target < success_distance
     assert not metrics.success(True, 0.2501, 0.25)
     assert not metrics.success(False, 0.0, 0.25)
 

@@ -19,8 +19,9 @@ REVISIT_RADIUS = 0.5  # metres: "within 0.5 m of the previously traversed 2-D tr
 
 
 def success(called_stop: bool, distance_to_goal: float, success_distance: float) -> bool:
-    """Habitat's ObjectNav success."""
-    return called_stop and distance_to_goal <= success_distance
+    """Habitat's ObjectNav success: STOP called closer than the success distance (strictly, as habitat-lab's
+    ``Success`` measure compares)."""
+    return called_stop and distance_to_goal < success_distance
 
 
 def spl(is_success: bool, geodesic_distance: float, path_length: float) -> float:

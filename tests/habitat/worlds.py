@@ -47,12 +47,13 @@ class BothWorlds:
         self.embedded = EmbeddedEnv(SceneLibrary(SCENES, 0).load, self.settings.sim)
         self.habitat = HabitatEnv(self.spec, self.settings.sim)
 
-    def run(self, episode: Episode) -> tuple[tuple[EpisodeRecord, Trace], tuple[EpisodeRecord, Trace]]:
-        """(embedded record and trace, Habitat record and trace) of one episode, each with a fresh agent."""
-        max_steps = self.settings.sim.max_steps
-        direct = run_episode(self.embedded, make_agent(self.settings), episode, 0, max_steps)
-        through = run_episode(self.habitat, make_agent(self.settings), episode, 0, max_steps)
-        return direct, through
+    def direct(self, episode: Episode) -> tuple[EpisodeRecord, Trace]:
+        """The record and trace of one episode in the embedded world, with a fresh agent."""
+        return run_episode(self.embedded, make_agent(self.settings), episode, 0, self.settings.sim.max_steps)
+
+    def through(self, episode: Episode) -> tuple[EpisodeRecord, Trace]:
+        """The record and trace of one episode through habitat.Env, with a fresh agent."""
+        return run_episode(self.habitat, make_agent(self.settings), episode, 0, self.settings.sim.max_steps)
 
     def close(self) -> None:
         self.embedded.close()
