@@ -305,20 +305,24 @@ def _legend_entries(success: bool) -> list[tuple[str, Marker]]:
         ("start", lambda d, x, y: mark_pose(d, x, y, 6, 0.0, START_COLOR)),
         ("end (green: success)", lambda d, x, y: mark_pose(d, x, y, 6, 0.0, end_color)),
         ("path, segment 1 ... last", path),
-        ("explored (approx., 5 m HFOV)", explored),
+        (EXPLORED_ENTRY, explored),
         ("direction chosen: arrow, goal", decision),
         ("inspection sweep", mark_inspection),
         ("detection", mark_detection),
         ("target accepted", mark_accepted),
         ("target rejected", mark_rejected),
-        ("goal object", goal),
+        (GOAL_ENTRY, goal),
         ("view points", lambda d, x, y: _disc(d, x, y, 2.5, VIEW_POINT_COLOR, None)),
     ]
 
 
-def add_legend(image: Image.Image, success: bool) -> Image.Image:
-    """The picture with a legend panel on its right."""
-    entries = _legend_entries(success)
+EXPLORED_ENTRY = "explored (approx., 5 m HFOV)"
+GOAL_ENTRY = "goal object"
+
+
+def add_legend(image: Image.Image, success: bool, omit: frozenset[str] = frozenset()) -> Image.Image:
+    """The picture with a legend panel on its right (without the entries named in ``omit``: what was not drawn)."""
+    entries = [entry for entry in _legend_entries(success) if entry[0] not in omit]
     height = max(image.height, HEADER + 26 * (len(entries) + 1))
     panel = Image.new("RGB", (image.width + LEGEND_WIDTH, height), (255, 255, 255))
     panel.paste(image, (0, 0))
@@ -362,7 +366,11 @@ def draw_episode(
     last = trace.pose(len(trace) - 1)
     draw_pose(draw, canvas, (last.x, last.y), last.yaw, SUCCESS_COLOR if success else FAILURE_COLOR)
     draw.text((6, 7), title(episode, record), fill=(0, 0, 0), font=FONT)
-    return add_legend(image, success)
+    omit = {EXPLORED_ENTRY} if explored is None else set()
+    goal_ids = {goal.object_id for goal in episode.goals}
+    if not any(obj.instance_id in goal_ids for obj in scene.objects):
+        omit.add(GOAL_ENTRY)  # e.g. a Habitat run drawn on a blank floor: goals show as view points only
+    return add_legend(image, success, frozenset(omit))
 
 
 def stack(images: Sequence[Image.Image], background: RGB = (255, 255, 255)) -> Image.Image:
