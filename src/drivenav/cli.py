@@ -110,15 +110,21 @@ def _settings(args: argparse.Namespace, agent: str | None) -> Settings:
     """The resolved configuration: defaults, ``agent``'s preset, ``--config``, the options given, ``--set``."""
     from drivenav.settings import load_settings
 
-    given = {key: getattr(args, name) for name, key in _OPTION_KEYS.items() if getattr(args, name, None) is not None}
+    given = _given_options(args)
     for key in ("models.vlm_record", "models.vlm_replay"):
         if given.get(key):
             given[key] = str(Path(str(given[key])).resolve())
     if "run.seed" in given:
         _seed(int(str(given["run.seed"])))
-    configs = [c for c in args.config if c not in getattr(args, "benchmarks", ())] if _is_habitat(args) else args.config
+    benchmark = _benchmark_presets(args)
+    configs = [*benchmark, *(c for c in args.config if c not in benchmark)]
     overrides = [o for o in args.overrides if not o.startswith(HABITAT_PREFIX)]
-    return load_settings(agent, configs=[*_benchmark_presets(args), *configs], overrides=overrides, options=given)
+    return load_settings(agent, configs=configs, overrides=overrides, options=given)
+
+
+def _given_options(args: argparse.Namespace) -> dict[str, object]:
+    """The dedicated options given on the command line, as settings keys (``--seed`` -> ``run.seed``, ...)."""
+    return {key: getattr(args, name) for name, key in _OPTION_KEYS.items() if getattr(args, name, None) is not None}
 
 
 def _is_habitat(args: argparse.Namespace) -> bool:
@@ -452,8 +458,7 @@ def _cmd_doctor(args: argparse.Namespace) -> int:
     from drivenav.doctor import DoctorRequest, format_checks, run_checks
     from drivenav.settings import load_settings
 
-    given = {key: getattr(args, name) for name, key in _OPTION_KEYS.items() if getattr(args, name, None) is not None}
-    models = load_settings(options=given).models
+    models = load_settings(options=_given_options(args)).models
     if _is_habitat(args) and args.config is None:
         raise InputError("command line", "--config", "a Habitat benchmark with --env habitat", None)
     benchmark = str(args.config) if _is_habitat(args) else ""

@@ -122,6 +122,7 @@ def habitat_checks(benchmark: str, data_dir: Path | None, split: str | None) -> 
 
 
 def _split_check(benchmark: str, split: str, data_dir: Path) -> Check:
+    from drivenav.envs.habitat.benchmarks import SCENES_DIR
     from drivenav.envs.habitat.layouts import scene_path
     from drivenav.envs.habitat.spec import HabitatSpec
 
@@ -132,9 +133,9 @@ def _split_check(benchmark: str, split: str, data_dir: Path) -> Check:
     except InputError as error:
         return Check(f"split {split}", False, str(error), fix)
     scenes = sorted({episode.scene_id for episode in episodes})
-    found = sum(Path(scene_path(scene, str(data_dir / "scene_datasets"))).is_file() for scene in scenes)
-    detail = f"{len(episodes)} episodes, {len(scenes)} scenes, {found} scene files found under scene_datasets/"
-    scene_fix = f"download the scenes of {benchmark} into {data_dir / 'scene_datasets'} (docs/habitat.md)"
+    found = sum(Path(scene_path(scene, str(spec.scenes_dir))).is_file() for scene in scenes)
+    detail = f"{len(episodes)} episodes, {len(scenes)} scenes, {found} scene files found under {SCENES_DIR}/"
+    scene_fix = f"download the scenes of {benchmark} into {spec.scenes_dir} (docs/habitat.md)"
     return Check(f"split {split}", found == len(scenes), detail, scene_fix)
 
 

@@ -30,12 +30,13 @@ from habitat.sims.habitat_simulator.actions import HabitatSimActions
 
 from drivenav.envs.embedded import EmbeddedEnv
 from drivenav.envs.episode import Episode, habitat_to_world, world_to_habitat, yaw_to_quaternion
+from drivenav.envs.habitat.benchmarks import SCENES_DIR
 from drivenav.envs.library import SceneLibrary
 from drivenav.types import Action, Observation, SimConfig
 
 SIM_NAME = "DriveNavSim-v0"
 SCENES = "procedural"
-SCENE_FOLDER = "scene_datasets/"
+SCENE_FOLDER = f"{SCENES_DIR}/"
 
 
 def sim_config(config: Any) -> SimConfig:

@@ -12,6 +12,7 @@ import math
 from dataclasses import Field, dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
+from drivenav.grid import wrap_angle
 from drivenav.types import Action, GroundTruth, Observation, Pose, SimConfig
 
 if TYPE_CHECKING:
@@ -60,6 +61,13 @@ def measured(
         collisions=collisions,
         target_seen=target_seen,
     )
+
+
+def episode_pose(start: Pose, pose: Pose) -> Pose:
+    """A world-frame ``pose`` in the episode frame of a world whose episode started at ``start`` (what every
+    world reports as :attr:`Observation.pose`), yaw in ``(-pi, pi]``."""
+    local = start.inverse().compose(pose)
+    return Pose(local.x, local.y, wrap_angle(local.yaw))
 
 
 class Env(Protocol):

@@ -21,7 +21,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.envs.base import EpisodeMeasures
+from drivenav.envs.base import EpisodeMeasures, episode_pose
 from drivenav.envs.episode import Episode
 from drivenav.envs.geodesic import GeodesicField, largest_component
 from drivenav.envs.measures import EmbeddedMeasures
@@ -250,12 +250,11 @@ class EmbeddedEnv:
     def _observe(self, collided: bool) -> Observation:
         state = self.state
         rgb, depth, semantic = self.render(state)
-        local = self._start.inverse().compose(state)
         return Observation(
             rgb=rgb,
             depth=depth,
             semantic=semantic,
-            pose=Pose(local.x, local.y, wrap_angle(local.yaw)),
+            pose=episode_pose(self._start, state),
             intrinsics=self._config.intrinsics,
             step=self._steps,
             collided=collided,

@@ -63,10 +63,7 @@ class EmbeddedMeasures:
             self._positions.append((pose.x, pose.y))
             self._collisions += int(observation.collided)
             self._called_stop = self._called_stop or action == Action.STOP
-        self._target_seen = self._target_seen or self._shows_goal(observation)
-
-    def _shows_goal(self, observation: Observation) -> bool:
-        return shows_goal(observation, self._goal_ids)
+        self._target_seen = self._target_seen or shows_goal(observation, self._goal_ids)
 
     def result(self) -> EpisodeMeasures:
         """The metrics of the episode so far."""

@@ -37,8 +37,9 @@ class HabitatBenchmark:
 
 _HM3D = "benchmark/nav/objectnav/objectnav_hm3d.yaml"
 _MP3D = "benchmark/nav/objectnav/objectnav_mp3d.yaml"
-_HM3D_SCENES = "scene_datasets/hm3d/hm3d_annotated_basis.scene_dataset_config.json"
-_MP3D_SCENES = "scene_datasets/mp3d/mp3d.scene_dataset_config.json"
+SCENES_DIR = "scene_datasets"  # under --data-dir, as in habitat's data/ folder
+_HM3D_SCENES = f"{SCENES_DIR}/hm3d/hm3d_annotated_basis.scene_dataset_config.json"
+_MP3D_SCENES = f"{SCENES_DIR}/mp3d/mp3d.scene_dataset_config.json"
 
 BENCHMARKS: dict[str, HabitatBenchmark] = {
     bench.name: bench

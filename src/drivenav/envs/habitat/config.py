@@ -50,7 +50,7 @@ def paper_values(spec: HabitatSpec, sim: SimConfig) -> dict[str, str]:
         "habitat.dataset.type": spec.bench.dataset_type,
         "habitat.dataset.split": spec.split,
         "habitat.dataset.data_path": _quoted(f"{data_dir}/{spec.bench.data_path}"),
-        "habitat.dataset.scenes_dir": _quoted(f"{data_dir}/scene_datasets"),
+        "habitat.dataset.scenes_dir": _quoted(str(spec.scenes_dir)),
         "habitat.simulator.scene_dataset": _quoted(f"{data_dir}/{spec.bench.scene_dataset}"),
     }
     for sensor in ("rgb_sensor", "depth_sensor"):

@@ -18,6 +18,7 @@ points and its path finder's step (with or without sliding, as the config's ``al
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
@@ -25,7 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivenav import metrics
-from drivenav.envs.base import EpisodeMeasures, measured
+from drivenav.envs.base import EpisodeMeasures, episode_pose, measured
 from drivenav.envs.episode import Episode, habitat_to_world, quaternion_to_yaw, world_to_habitat
 from drivenav.envs.habitat.config import habitat_config
 from drivenav.envs.habitat.observations import to_observation
@@ -47,11 +48,16 @@ POSE_CHECK = 1e-3  # metres / radians: GPS and compass against the agent state (
 COLLISION_EPSILON = 1e-5  # metres between the intended and the reached end of a step that count as a collision
 
 
+def habitat_pose(position: Any, rotation: Sequence[float]) -> Pose:
+    """A Habitat position and rotation quaternion ``[x, y, z, w]`` as a world-frame pose."""
+    x, y = habitat_to_world(list(np.asarray(position, dtype=np.float64)))
+    return Pose(x, y, quaternion_to_yaw([float(v) for v in rotation]))
+
+
 def agent_pose(state: Any) -> Pose:
     """A habitat-sim agent state (position, ``quaternion.quaternion`` rotation) as a world-frame pose."""
-    x, y = habitat_to_world(list(np.asarray(state.position, dtype=np.float64)))
     q = state.rotation
-    return Pose(x, y, quaternion_to_yaw((float(q.x), float(q.y), float(q.z), float(q.w))))
+    return habitat_pose(state.position, (q.x, q.y, q.z, q.w))
 
 
 @dataclass(frozen=True)
@@ -60,14 +66,15 @@ class _SimGeodesic:
 
     sim: Any
     episode: Any
+    targets: list[Any]  # the goals' view point positions, as habitat-lab's DistanceToGoal measures to
     start_pose: Pose
     height: float
     step: float
     sliding: bool
 
     def distance(self, x: float, y: float) -> float:
-        targets = [vp.agent_state.position for goal in self.episode.goals for vp in goal.view_points]
-        return float(self.sim.geodesic_distance(list(world_to_habitat(x, y, self.height)), targets, self.episode))
+        position = list(world_to_habitat(x, y, self.height))
+        return float(self.sim.geodesic_distance(position, self.targets, self.episode))
 
     def forward(self, x: float, y: float, yaw: float) -> tuple[float, float, bool]:
         start = np.array(world_to_habitat(x, y, self.height))
@@ -122,7 +129,7 @@ class HabitatEnv:
         if found is None:
             raise ValueError(f"episode {episode.episode_id} is not in this Habitat split")
         self._env.current_episode = found
-        self._start_pose = _start_pose(found)
+        self._start_pose = habitat_pose(found.start_position, found.start_rotation)
         observations = self._env.reset()
         self._steps = 0
         self._positions = [self._xy()]
@@ -165,9 +172,10 @@ class HabitatEnv:
 
     def _geodesic(self) -> _SimGeodesic:
         episode = self._env.current_episode
+        targets = [vp.agent_state.position for goal in episode.goals for vp in goal.view_points]
         height = float(episode.start_position[1])
         step = self._config.forward_step
-        return _SimGeodesic(self._env.sim, episode, self._start_pose, height, step, self._sliding)
+        return _SimGeodesic(self._env.sim, episode, targets, self._start_pose, height, step, self._sliding)
 
     def close(self) -> None:
         self._env.close()
@@ -178,21 +186,10 @@ class HabitatEnv:
 
     def _observe(self, observations: Any, collided: bool) -> Observation:
         observation = to_observation(observations, self._config, self._steps, collided, self._normalized)
-        pose = self._episode_pose()
+        pose = episode_pose(self._start_pose, self.world_pose())  # the simulator's state, float64
         check_gps_compass(observation.pose, pose)
         self._target_seen = self._target_seen or shows_goal(observation, self._goal_ids)
         return replace(observation, pose=pose)
-
-    def _episode_pose(self) -> Pose:
-        """The agent's pose relative to the episode start, from the simulator's agent state (float64)."""
-        local = self._start_pose.inverse().compose(self.world_pose())
-        return Pose(local.x, local.y, wrap_angle(local.yaw))
-
-
-def _start_pose(episode: Any) -> Pose:
-    """A habitat-lab episode's start as a world-frame pose (the origin of GPS and compass)."""
-    x, y = habitat_to_world(list(np.asarray(episode.start_position, dtype=np.float64)))
-    return Pose(x, y, wrap_angle(quaternion_to_yaw(list(episode.start_rotation))))
 
 
 def check_gps_compass(sensed: Pose, pose: Pose) -> None:

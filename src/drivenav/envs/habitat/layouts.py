@@ -118,7 +118,7 @@ def _unique_ids(episodes: list[Episode]) -> list[Episode]:
     if all(n == 1 for n in counts.values()):
         return episodes
     qualified = [replace(e, episode_id=f"{scene_name(e.scene_id)}:{e.episode_id}") for e in episodes]
-    repeated = [e.episode_id for e in qualified if Counter(q.episode_id for q in qualified)[e.episode_id] > 1]
+    repeated = [name for name, n in Counter(e.episode_id for e in qualified).items() if n > 1]
     if repeated:
         raise InputError("episodes", "episode_id", "ids unique within each scene", repeated[0])
     return qualified

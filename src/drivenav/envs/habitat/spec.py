@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, ClassVar
 
-from drivenav.envs.habitat.benchmarks import BENCHMARKS, HabitatBenchmark
+from drivenav.envs.habitat.benchmarks import BENCHMARKS, SCENES_DIR, HabitatBenchmark
 from drivenav.envs.habitat.layouts import read_split
 from drivenav.errors import InputError
 from drivenav.types import GEODESIC, SEMANTIC, SimConfig
@@ -57,6 +57,11 @@ class HabitatSpec:
     def split_file(self) -> Path:
         """The split's episode file under ``data_dir``."""
         return Path(self.data_dir) / self.bench.data_path.format(split=self.split)
+
+    @property
+    def scenes_dir(self) -> Path:
+        """Where the scenes lie (habitat-lab's ``dataset.scenes_dir``): ``data_dir/scene_datasets``."""
+        return Path(self.data_dir) / SCENES_DIR
 
     def episodes(self) -> list[Episode]:
         """The split's episodes in habitat-lab's order (read without habitat-lab)."""
