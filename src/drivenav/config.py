@@ -1,4 +1,6 @@
-"""The paper's constants in one typed config (DRIVE-Nav, Sec. IV). Every default is the paper's value.
+"""The paper's constants in one typed config (DRIVE-Nav, Sec. IV). Every default the paper states is the paper's
+value; the few constants the paper leaves open are marked "ours" where they are declared (and listed in
+docs/agent.md).
 
 Angles are set in degrees (``*_deg`` fields, what a reader of the paper and of a YAML file expects) and read in
 radians through the properties of the same name without the suffix.
@@ -19,6 +21,8 @@ class SpeedFieldConfig:
     beta: float = 3.0  # beta in F_vor = 1 + beta * exp(-d_vor / r_vor)
     r_vor: float = 0.5  # metres
     weighted: bool = True  # False: uniform speed (ablation "w/o weighted FMM")
+    skeleton_min_separation: float = 3.0  # ours: cells between the two nearest obstacles of a skeleton cell
+    skeleton_min_angle_ratio: float = 1.3  # ours: |f(p) - f(q)| >= ratio * d (features subtend >= ~81 deg)
 
 
 @dataclass(frozen=True)
@@ -29,7 +33,10 @@ class DirectionConfig:
     cluster_span_deg: float = 45.0  # tau_theta
     path_bearings: bool = True  # False: straight-line bearing to the frontier (ablation)
     merge_tolerance: float = 0.25  # metres: frontier points "at the same world-frame location"
-    association_gate_deg: float = 90.0  # not in the paper: max Delta for an angular match
+    association_gate_deg: float = 90.0  # ours: max Delta for an angular match
+    source_snap_radius: float = 0.5  # ours: metres the FMM source may move to reach traversable space
+    goal_snap_radius: float = 1.0  # ours: metres a goal point may move to reach traversable space
+    margin_cells: float = 3.0  # ours: extra marching (cells at the slowest speed) after the last target
 
     @property
     def cluster_span(self) -> float:
@@ -68,6 +75,7 @@ class SemanticsConfig:
     enrich_rounds: int = 5
     verify_frames: int = 3
     max_images_per_prompt: int = 30
+    verify_spacing_steps: int = 3  # ours: steps between two verification frames of a candidate
 
 
 @dataclass(frozen=True)

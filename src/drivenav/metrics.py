@@ -16,6 +16,7 @@ from scipy.spatial import cKDTree
 
 REVISIT_TRAVEL = 5.0  # metres of travel near earlier trajectory for a segment to count as a revisit
 REVISIT_RADIUS = 0.5  # metres: "within 0.5 m of the previously traversed 2-D trajectory"
+RETRACE_GAP = 1.0  # metres of travel before a stretch of the trajectory counts as "earlier" (ours)
 
 
 def success(called_stop: bool, distance_to_goal: float, success_distance: float) -> bool:
@@ -78,3 +79,43 @@ def count_revisits(
         if float(np.sum(lengths[np.isfinite(near)])) >= min_travel:
             revisits += 1
     return revisits
+
+
+def retraced(
+    positions: NDArray[np.float64],
+    min_travel: float = REVISIT_TRAVEL,
+    radius: float = REVISIT_RADIUS,
+    gap: float = RETRACE_GAP,
+) -> tuple[int, float]:
+    """A segmentation-free revisit count: ``(stretches, metres)``.
+
+    A move is *retraced* when its midpoint lies within ``radius`` of the trajectory driven more than ``gap``
+    metres of travel earlier. ``stretches`` counts the maximal runs of retraced moves (turns in place neither
+    break nor extend a run) of at least ``min_travel`` metres; ``metres`` is the length of all retraced moves. It
+    needs no agent's segments, so it measures every method alike (the paper's count, :func:`count_revisits`,
+    depends on where each method starts its segments).
+    """
+    points = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
+    steps = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    moves = np.flatnonzero(steps > 1e-9)
+    if len(moves) < 2:
+        return 0, 0.0
+    dense = densify(points, radius / 4.0)
+    along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(dense, axis=0), axis=1))])
+    travelled = np.concatenate([[0.0], np.cumsum(steps)])
+    near = np.zeros(len(moves), np.bool_)
+    for k, i in enumerate(moves):
+        earlier = dense[along <= travelled[i] - gap]
+        if len(earlier):
+            mid = 0.5 * (points[i] + points[i + 1])
+            near[k] = bool(np.min(np.sum((earlier - mid) ** 2, axis=1)) <= radius * radius)
+    lengths = steps[moves]
+    stretches, run = 0, 0.0
+    for is_near, length in zip(near, lengths, strict=True):
+        if is_near:
+            run += length
+            continue
+        stretches += run >= min_travel
+        run = 0.0
+    stretches += run >= min_travel
+    return int(stretches), float(lengths[near].sum())

@@ -26,6 +26,34 @@ class ModelStats:
     phrase: str = ""
 
 
+@dataclass(frozen=True)
+class DecisionStats:
+    """How an episode's exploration went (Sec. IV-A b-c): direction labels the tracker created, merged and
+    removed; inspection events; reasoner decisions by trigger (``scan``, ``inspection``, ``vanished``, ``stuck``);
+    decisions at a dead end (no still-relevant direction in the forward 240 deg, so the rear range was offered);
+    how often the followed direction was carried over a relabelling (``followed_through_relabel``) or lost its label
+    with no successor (``selected_lost``); fresh labels recognised as a recently removed direction at the same place
+    (``labels_reidentified``); steps by activity (``start_scan``, ``scan``, ``sweep``, ``follow``,
+    ``enrich``, ``approach``, ``escape`` for collision recovery, ``stop``) and turn reversals (a left turn
+    right after a right one, or the reverse: oscillation); and what became of target detections (Sec. IV-C):
+    candidates entered into the object map, accepted, and set aside because the agent could not get to them."""
+
+    labels_created: int = 0
+    labels_merged: int = 0
+    labels_removed: int = 0
+    inspection_events: int = 0
+    decisions_by_reason: dict[str, int] = field(default_factory=dict)
+    dead_end_decisions: int = 0
+    followed_through_relabel: int = 0
+    selected_lost: int = 0
+    labels_reidentified: int = 0
+    steps_by_activity: dict[str, int] = field(default_factory=dict)
+    turn_reversals: int = 0
+    target_candidates: int = 0
+    targets_accepted: int = 0
+    targets_set_aside: int = 0
+
+
 class Agent(ABC):
     """Base class: segment bookkeeping, stop reason and model-call counting.
 
@@ -65,6 +93,10 @@ class Agent(ABC):
     def episode_stats(self) -> ModelStats:
         """Model calls by kind, enrichment and verification of this episode (none for model-free agents)."""
         return ModelStats()
+
+    def decision_stats(self) -> DecisionStats:
+        """Labels, inspection events, decisions and steps by activity of this episode (none for other agents)."""
+        return DecisionStats()
 
     def start_segment(self, step: int) -> None:
         """Mark that a new frontier-selection segment begins at ``step`` (paper Sec. V-C revisits)."""

@@ -31,6 +31,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -44,6 +45,17 @@ FreeSpace = Callable[[float, float], bool]
 """Whether a world point (episode frame) is free space on the robot's map."""
 
 Polyline = NDArray[np.float64]  # (N, 2) world (x, y), from the robot to the goal
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """The local planner's tuning (ours: the paper names a low-level planner but not its parameters)."""
+
+    lookahead: float = 0.8  # metres: radius of the pursuit circle
+    stuck_steps: int = 16  # forward steps over which progress is measured
+    stuck_progress: float = 0.15  # metres of net progress below which those steps count as stuck
+    escape_turns: int = 2  # turns per blocked forward step in a row before the escape step
+    max_turns: int = 12  # turns in a row after which the planner reports spinning
 
 
 def reached(path: Polyline | None, pose: Pose, tolerance: float) -> bool:
@@ -64,11 +76,11 @@ class LocalPlanner:
     def __init__(
         self,
         sim: SimConfig,
-        lookahead: float = 0.8,
-        stuck_steps: int = 16,
-        stuck_progress: float = 0.15,
-        escape_turns: int = 2,
-        max_turns: int = 12,
+        lookahead: float = PlannerConfig.lookahead,
+        stuck_steps: int = PlannerConfig.stuck_steps,
+        stuck_progress: float = PlannerConfig.stuck_progress,
+        escape_turns: int = PlannerConfig.escape_turns,
+        max_turns: int = PlannerConfig.max_turns,
     ) -> None:
         if lookahead <= 0.0 or stuck_steps < 1 or stuck_progress < 0.0 or escape_turns < 1 or max_turns < 1:
             raise ValueError("LocalPlanner needs lookahead > 0, stuck_steps, escape_turns, max_turns >= 1")
@@ -81,6 +93,17 @@ class LocalPlanner:
         self._half_turn = math.radians(sim.turn_angle_deg) / 2.0
         self._max_escape_turns = max(1, round(180.0 / sim.turn_angle_deg))
         self.reset()
+
+    @staticmethod
+    def from_config(sim: SimConfig, config: PlannerConfig) -> LocalPlanner:
+        """A planner tuned by ``config``."""
+        c = config
+        return LocalPlanner(sim, c.lookahead, c.stuck_steps, c.stuck_progress, c.escape_turns, c.max_turns)
+
+    @property
+    def escaping(self) -> bool:
+        """Whether the last action came from a collision escape."""
+        return self._escaping
 
     def reset(self) -> None:
         """Forget the escape plan, the collision streak and the stuck history (call on every new goal)."""

@@ -4,7 +4,9 @@
 segments the current frame; a new detection becomes a *candidate*. With verification on, a candidate collects at
 most ``verify_frames`` approach frames, each judged by the reasoner: ``sure`` accepts at once, ``not`` rejects at
 once (its position goes to failed-position memory), ``uncertain`` waits for the next frame, and a candidate not
-rejected within the frames is accepted. Without verification, detections are accepted at once. Prompt enrichment
+rejected within the frames is accepted. A candidate the agent cannot get to is *set aside* for some steps
+(:meth:`TargetSearch.set_aside`), not rejected: failed-position memory is for verification's "not". Without
+verification, detections are accepted at once. Prompt enrichment
 (only when the reasoner sees the target but no candidate exists) alternates proposing a detector phrase and
 testing it on the current frame for at most ``enrich_rounds`` rounds; a phrase that grounds is kept for the rest
 of the episode.
@@ -18,12 +20,18 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.agent.trace import DetectionEvent, TargetAccepted, TargetRejected, Trace, VerificationEvent
+from drivenav.agent.trace import (
+    DetectionEvent,
+    TargetAccepted,
+    TargetRejected,
+    TargetSetAside,
+    Trace,
+    VerificationEvent,
+)
 from drivenav.mapping.objects import ObjectCandidate, ObjectMap, project_mask
 from drivenav.semantics.protocols import Detection, Grounder, Reasoner, VerificationFrame, View
 from drivenav.types import Observation, SimConfig
 
-FRAME_SPACING_STEPS = 3  # steps between two verification frames of a candidate (distinct approach views)
 OVERLAY_COLOR = np.array([255, 0, 0], dtype=np.float32)
 
 
@@ -33,6 +41,7 @@ class SearchConfig:
     verify: bool = True
     enrich_rounds: int = 5
     verify_frames: int = 3
+    spacing_steps: int = 3  # steps between two verification frames of a candidate (distinct approach views)
 
 
 def mask_overlay(rgb: NDArray[np.uint8], mask: NDArray[np.bool_]) -> NDArray[np.uint8]:
@@ -57,7 +66,9 @@ class TargetSearch:
         self.enrich_rounds = 0
         self.verifications: Counter[str] = Counter()
         self.seen_now: set[int] = set()
+        self.step = 0
         self._frames: dict[int, list[VerificationFrame]] = {}
+        self._aside: dict[int, int] = {}  # candidate id -> step until which it is set aside
 
     def begin(self, goal: str) -> None:
         self.goal = goal
@@ -68,6 +79,7 @@ class TargetSearch:
     def observe(self, observation: Observation, trace: Trace) -> None:
         """Ground the current phrase in this frame; detections become candidates and are verified."""
         self.seen_now = set()
+        self.step = observation.step
         if self.grounder is None:
             return
         for detection in self.grounder.segment(observation, self.phrase):
@@ -109,7 +121,7 @@ class TargetSearch:
             self._accept(cid, observation.step, trace)
             return
         frames = self._frames.setdefault(cid, [])
-        if frames and not force and observation.step - frames[-1].step < FRAME_SPACING_STEPS:
+        if frames and not force and observation.step - frames[-1].step < self.config.spacing_steps:
             return
         frame = VerificationFrame(
             observation.rgb,
@@ -158,6 +170,11 @@ class TargetSearch:
             self.verifications["rejected"] += 1
         trace.add(TargetRejected(step, candidate_id, candidate.center, reason))
 
+    def set_aside(self, candidate_id: int, until: int, trace: Trace) -> None:
+        """Leave a candidate alone until step ``until`` (the agent could not get to it); it stays in the map."""
+        self._aside[candidate_id] = until
+        trace.add(TargetSetAside(self.step, candidate_id, self.objects.get(candidate_id).center, until))
+
     # ----------------------------------------------------------------- enrichment (Sec. IV-B)
 
     def enrich(self, observation: Observation, view: View, description: str, trace: Trace) -> bool:
@@ -180,10 +197,20 @@ class TargetSearch:
 
     # ----------------------------------------------------------------- queries
 
+    def outcome(self) -> tuple[int, int, int]:
+        """Candidates entered into the object map, accepted, and set aside, this episode."""
+        live = self.objects.candidates()
+        created = len(live) + len(self.objects.rejected())
+        return created, sum(c.status == "accepted" for c in live), len(self._aside)
+
     def current(self) -> ObjectCandidate | None:
-        """The candidate to approach: accepted ones first, then the earliest pending one."""
-        accepted = self.objects.accepted()
+        """The candidate to approach: accepted ones first, then the earliest pending one; none set aside."""
+        accepted = [c for c in self.objects.accepted() if self._aside.get(c.candidate_id, -1) < self.step]
         if accepted:
             return accepted[0]
-        pending = [c for c in self.objects.candidates() if c.status == "candidate"]
+        pending = [
+            c
+            for c in self.objects.candidates()
+            if c.status == "candidate" and self._aside.get(c.candidate_id, -1) < self.step
+        ]
         return min(pending, key=lambda c: c.first_step) if pending else None

@@ -96,6 +96,17 @@ class TargetRejected(Event):
 
 
 @dataclass(frozen=True)
+class TargetSetAside(Event):
+    """A target the agent could not get to is left alone until step ``until`` (not rejected: only a verification
+    can say it is not the target)."""
+
+    candidate: int
+    position: Point
+    until: int
+    kind: ClassVar[str] = "target_set_aside"
+
+
+@dataclass(frozen=True)
 class StopEvent(Event):
     reason: str
     kind: ClassVar[str] = "stop"

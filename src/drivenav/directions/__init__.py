@@ -2,6 +2,14 @@
 
 from drivenav.directions.pipeline import DirectionPipeline
 from drivenav.directions.tracking import DirectionTracker
-from drivenav.directions.types import Cluster, Direction, DirectionResult, FrontierPath
+from drivenav.directions.types import Cluster, Direction, DirectionResult, FrontierPath, TrackingUpdate
 
-__all__ = ["Cluster", "Direction", "DirectionPipeline", "DirectionResult", "DirectionTracker", "FrontierPath"]
+__all__ = [
+    "Cluster",
+    "Direction",
+    "DirectionPipeline",
+    "DirectionResult",
+    "DirectionTracker",
+    "FrontierPath",
+    "TrackingUpdate",
+]

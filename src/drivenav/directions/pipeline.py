@@ -12,11 +12,11 @@ One weighted FMM solve from the robot serves every frontier. Per frontier:
 
 Goal paths (for the low-level planner that follows the selected direction's farthest frontier point or
 approaches a detected object, Sec. IV): each goal point is snapped to the nearest traversable cell within
-``GOAL_SNAP_RADIUS``, marked as one more target of the same early-stopping solve, and backtracked like a
+``goal_snap_radius``, marked as one more target of the same early-stopping solve, and backtracked like a
 frontier, so following a goal costs no second FMM solve.
 
 The robot's own cell seeds the marching (``T = 0``). If that cell is not traversable (the robot stands in the
-inflation band), the nearest traversable cell within ``SNAP_RADIUS`` seeds it instead and the path's first
+inflation band), the nearest traversable cell within ``source_snap_radius`` seeds it instead and the path's first
 segment runs from the robot to that cell's centre -- the only segment allowed to touch non-traversable cells.
 """
 
@@ -39,17 +39,13 @@ from drivenav.directions.tracking import DirectionTracker
 from drivenav.directions.types import DirectionResult, FrontierPath
 from drivenav.mapping.types import Frontier, MapSnapshot
 
-SNAP_RADIUS = 0.5  # metres: how far the FMM source may be moved to reach traversable space
-GOAL_SNAP_RADIUS = 1.0  # metres: how far a goal point may be moved to reach traversable space
-MARGIN_CELLS = 3.0  # extra marching (in cells at the slowest speed) after the last frontier is reached
-
 TIMING_KEYS = ("distance_transforms", "skeleton", "fmm", "backtracking", "clustering", "tracking", "total")
 
 
-def source_cell(field: SpeedField, robot_xy: Sequence[float]) -> tuple[int, int] | None:
+def source_cell(field: SpeedField, robot_xy: Sequence[float], radius: float) -> tuple[int, int] | None:
     """The window cell that seeds the FMM: the robot's cell, else the nearest traversable one within
-    ``SNAP_RADIUS``; ``None`` if there is none."""
-    return nearest_traversable(field, robot_xy, SNAP_RADIUS)
+    ``radius`` (``DirectionConfig.source_snap_radius``); ``None`` if there is none."""
+    return nearest_traversable(field, robot_xy, radius)
 
 
 def nearest_traversable(field: SpeedField, xy: Point, radius: float) -> tuple[int, int] | None:
@@ -108,9 +104,10 @@ class DirectionPipeline:
         timings.update(field.timings_ms)
 
         t = time.perf_counter()
-        source = source_cell(field, robot_xy)
+        cfg = self._config.directions
+        source = source_cell(field, robot_xy, cfg.source_snap_radius)
         cells = [_frontier_cells(field, f) for f in frontiers]
-        goal_cells = [nearest_traversable(field, goal, GOAL_SNAP_RADIUS) for goal in goals]
+        goal_cells = [nearest_traversable(field, goal, cfg.goal_snap_radius) for goal in goals]
         T = self._solve(field, source, cells, [g for g in goal_cells if g is not None])
         timings["fmm"] = elapsed_ms(t)
 
@@ -136,7 +133,9 @@ class DirectionPipeline:
         directions = self._tracker.update(clusters)
         timings["tracking"] = elapsed_ms(t)
         timings["total"] = elapsed_ms(t_start)
-        return DirectionResult(directions, {p.frontier_id: p for p in paths}, tuple(unreachable), timings, goal_paths)
+        paths_by_id = {p.frontier_id: p for p in paths}
+        update = self._tracker.last_update
+        return DirectionResult(directions, paths_by_id, tuple(unreachable), timings, goal_paths, update)
 
     def _solve(
         self,
@@ -159,7 +158,7 @@ class DirectionPipeline:
             np.array([source], dtype=np.int64),
             np.zeros(1),
             target_label=labels,
-            margin=MARGIN_CELLS * res / slowest,
+            margin=self._config.directions.margin_cells * res / slowest,
         )
 
     def _frontier_path(

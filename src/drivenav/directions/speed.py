@@ -34,8 +34,6 @@ from drivenav.grid import GridSpec
 from drivenav.mapping.types import Frontier, MapSnapshot
 
 CROP_MARGIN = 2  # cells around the bounding box of the traversable and obstacle cells
-SKELETON_MIN_SEPARATION = 3.0  # cells: gamma of the integer medial axis (prunes pixel-noise branches)
-SKELETON_MIN_ANGLE_RATIO = 1.3  # |f(p) - f(q)| >= ratio * d: the two features subtend >= ~81 degrees
 TABLE_TOLERANCE = 1e-6  # exponential terms below this are replaced by their asymptote
 
 
@@ -145,8 +143,8 @@ def medial_skeleton(
     sq: NDArray[np.float64],
     frow: NDArray[np.int32],
     fcol: NDArray[np.int32],
-    min_separation: float = SKELETON_MIN_SEPARATION,
-    angle_ratio: float = SKELETON_MIN_ANGLE_RATIO,
+    min_separation: float = SpeedFieldConfig.skeleton_min_separation,
+    angle_ratio: float = SpeedFieldConfig.skeleton_min_angle_ratio,
 ) -> NDArray[np.bool_]:
     """The medial skeleton of ``region`` w.r.t. the features of a feature transform: a pruned integer medial
     axis (Hesselink & Roerdink, 2008).
@@ -245,7 +243,10 @@ def build_speed_field(snapshot: MapSnapshot, frontiers: Sequence[Frontier], conf
         return SpeedField(window, trav, far, np.zeros(trav.shape, np.bool_), far, speed, timings)
     obstacle_sq, frow, fcol = feature_transform(snapshot.obstacle[rs, cs])
     t1 = time.perf_counter()
-    skeleton = medial_skeleton(trav & snapshot.navigable[rs, cs], obstacle_sq, frow, fcol)
+    region = trav & snapshot.navigable[rs, cs]
+    skeleton = medial_skeleton(
+        region, obstacle_sq, frow, fcol, config.skeleton_min_separation, config.skeleton_min_angle_ratio
+    )
     t2 = time.perf_counter()
     skeleton_sq = squared_edt(skeleton)
     speed = weighted_speed(trav, obstacle_sq, skeleton_sq, config, window.grid.resolution)

@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 
 from drivenav.config import DirectionConfig
 from drivenav.directions.clustering import circular_distance
-from drivenav.directions.types import Cluster, Direction
+from drivenav.directions.types import Cluster, Direction, TrackingUpdate
 
 
 def waypoints_coincide(a: NDArray[np.float64], b: NDArray[np.float64], tolerance: float) -> bool:
@@ -39,6 +39,7 @@ class DirectionTracker:
         self._config = config
         self._directions: tuple[Direction, ...] = ()
         self._next_label = 0
+        self.last_update = TrackingUpdate()
 
     @property
     def directions(self) -> tuple[Direction, ...]:
@@ -49,13 +50,19 @@ class DirectionTracker:
         """Forget all directions and restart labels at 0 (a new episode)."""
         self._directions = ()
         self._next_label = 0
+        self.last_update = TrackingUpdate()
 
     def update(self, clusters: Sequence[Cluster]) -> tuple[Direction, ...]:
         """Label this step's clusters; returns the tracked directions sorted by label."""
         labels: list[int | None] = [None] * len(clusters)
-        retired = self._merge_by_position(clusters, labels)
+        merged = self._merge_by_position(clusters, labels)
+        retired = {label for parents in merged.values() for label in parents}
         self._associate_by_angle(clusters, labels, retired)
+        created = [k for k, label in enumerate(labels) if label is None]
         final = [self._fresh_label() if label is None else label for label in labels]
+        kept = set(final)
+        removed = tuple(d.label for d in self._directions if d.label not in kept and d.label not in retired)
+        self.last_update = TrackingUpdate(tuple(final[k] for k in created), merged, removed)
         directions = [Direction.from_cluster(label, c) for label, c in zip(final, clusters, strict=True)]
         self._directions = tuple(sorted(directions, key=lambda d: d.label))
         return self._directions
@@ -65,8 +72,9 @@ class DirectionTracker:
         self._next_label += 1
         return label
 
-    def _merge_by_position(self, clusters: Sequence[Cluster], labels: list[int | None]) -> set[int]:
-        """Stage 1; fills ``labels`` for merged clusters and returns the retired previous labels."""
+    def _merge_by_position(self, clusters: Sequence[Cluster], labels: list[int | None]) -> dict[int, tuple[int, ...]]:
+        """Stage 1; fills ``labels`` for merged clusters and returns each fresh label's retired previous labels."""
+        merged: dict[int, tuple[int, ...]] = {}
         retired: set[int] = set()
         tolerance = self._config.merge_tolerance
         for k, cluster in enumerate(clusters):
@@ -77,8 +85,9 @@ class DirectionTracker:
             ]
             if len(hits) >= 2:
                 retired.update(hits)
-                labels[k] = self._fresh_label()
-        return retired
+                labels[k] = label = self._fresh_label()
+                merged[label] = tuple(hits)
+        return merged
 
     def _associate_by_angle(self, clusters: Sequence[Cluster], labels: list[int | None], retired: set[int]) -> None:
         """Stage 2: greedy matching by increasing Delta, within the association gate."""

@@ -73,13 +73,25 @@ class Direction:
 
 
 @dataclass(frozen=True)
+class TrackingUpdate:
+    """What one tracking step did to the labels (Sec. IV-A b): ``created`` fresh labels of unmatched clusters,
+    ``merged`` fresh labels of position-based merges with the prior labels each retired, ``removed`` prior labels
+    left unmatched. A label kept by angular association appears in none of them."""
+
+    created: tuple[int, ...] = ()
+    merged: dict[int, tuple[int, ...]] = field(default_factory=dict)
+    removed: tuple[int, ...] = ()
+
+
+@dataclass(frozen=True)
 class DirectionResult:
     """One mapping step of the directions core.
 
     ``directions`` are sorted by label; ``paths`` maps frontier id to its path (reachable frontiers only);
     ``unreachable`` lists the frontier ids dropped because no traversable path reaches them;
     ``timings_ms`` breaks the step down into ``distance_transforms``, ``skeleton``, ``fmm``, ``backtracking``
-    (including bearings and goal paths), ``clustering``, ``tracking`` and ``total``; ``goal_paths`` holds, per
+    (including bearings and goal paths), ``clustering``, ``tracking`` and ``total``; ``tracking`` says which
+    labels this step created, merged and removed; ``goal_paths`` holds, per
     goal point passed to the pipeline and in that order, the robot-to-goal polyline ``(N, 2)`` from the same
     FMM solve (ending at the centre of the traversable cell the goal was snapped to), or ``None`` where the goal
     is unreachable.
@@ -90,3 +102,4 @@ class DirectionResult:
     unreachable: tuple[int, ...]
     timings_ms: dict[str, float] = field(default_factory=dict)
     goal_paths: tuple[NDArray[np.float64] | None, ...] = ()
+    tracking: TrackingUpdate = field(default_factory=TrackingUpdate)

@@ -68,7 +68,10 @@ def format_markdown(report: dict[str, Any]) -> str:
         _table_v(report["methods"]),
         _table_ii(report["table_ii"]),
         _table_vii(report["runtime"]),
+        _decisions(report["methods"]),
+        _steps(report["methods"]),
         _failures(report["methods"]),
+        _missed(report["methods"]),
         _orderings(report),
         _pictures(report.get("pictures")),
     ]
@@ -150,15 +153,20 @@ def _table_ii(table: dict[str, Any]) -> list[str]:
         "## Table II: common successful episodes",
         "",
         f"Episodes every method below solved, start-to-goal geodesic distance > {table['min_distance']:g} m: "
-        f"n = {table['common_episodes']}. Lower is better.",
+        f"n = {table['common_episodes']}. Lower is better. Revisits: the paper's count (a frontier-selection "
+        "segment that travels >= 5 m within 0.5 m of the earlier path); retraced: the same without segments (each "
+        "stretch of >= 5 m driven within 0.5 m of the path driven more than 1 m earlier), and its metres.",
         "",
-        "| method | ours | avg steps | avg revisits | paper steps | paper revisits |",
-        "|---|---|---|---|---|---|",
-        f"| VLFM | (not implemented) | - | - | {TABLE_II_VLFM[0]:.1f} | {TABLE_II_VLFM[1]:.3f} |",
+        "| method | ours | avg steps | avg revisits | retraced | retraced m | paper steps | paper revisits |",
+        "|---|---|---|---|---|---|---|---|",
+        f"| VLFM | (not implemented) | - | - | - | - | {TABLE_II_VLFM[0]:.1f} | {TABLE_II_VLFM[1]:.3f} |",
     ]
     for row in rows:
         common = table["methods"][row.method]["common"]
-        ours = f"{common['avg_steps']:.1f} | {common['avg_revisits']:.3f}" if common else "- | -"
+        ours = "- | - | - | -"
+        if common:
+            retraced = [_number(common.get(k), "{:.3f}") for k in ("avg_retraced_revisits", "avg_retraced_m")]
+            ours = f"{common['avg_steps']:.1f} | {common['avg_revisits']:.3f} | {' | '.join(retraced)}"
         lines.append(f"| {row.label} | `{row.method}` | {ours} | {row.paper[0]:.1f} | {row.paper[1]:.3f} |")
     return _not_run(lines, rows)
 
@@ -190,6 +198,82 @@ def _compute_rows(compute: dict[str, Any] | None) -> list[str]:
         count = f", {module['invocations']} in {compute['steps']} steps" if "invocations" in module else ""
         rows.append(f"| {name} | {latency} | {module['invocation']}{count} |")
     return rows
+
+
+def _number(value: float | None, template: str) -> str:
+    return "-" if value is None else template.format(value)
+
+
+DECISION_COLUMNS = (
+    ("decisions", "decisions"),
+    ("decisions.scan", "scan"),
+    ("decisions.inspection", "inspection"),
+    ("decisions.vanished", "vanished"),
+    ("decisions.stuck", "stuck"),
+    ("dead_end_decisions", "dead end"),
+    ("inspection_events", "inspection events"),
+    ("labels_created", "labels created"),
+    ("labels_merged", "merged"),
+    ("labels_removed", "removed"),
+    ("labels_reidentified", "re-identified"),
+    ("followed_through_relabel", "followed through relabel"),
+    ("selected_lost", "followed lost"),
+)
+STEP_COLUMNS = ("start_scan", "scan", "sweep", "follow", "escape", "approach", "enrich")
+
+
+def _decisions(methods: dict[str, Any]) -> list[str]:
+    lines = [
+        "## Decisions and direction labels per episode",
+        "",
+        "Means per episode (reasoner calls: median and mean). Decisions by trigger: the start scan (and every "
+        "decision of the 360 deg scanning methods), an inspection event, the followed direction gone, the "
+        "planner stuck; a dead end offers the rear range because no direction is left in the forward 240 deg.",
+        "",
+        "| method | reasoner calls (median / mean) | " + " | ".join(name for _, name in DECISION_COLUMNS) + " |",
+        "|---|---|" + "---|" * len(DECISION_COLUMNS),
+    ]
+    for name, entry in methods.items():
+        means = entry.get("decisions", {})
+        calls = f"{_number(entry.get('median_vlm_calls'), '{:g}')} / {_number(entry.get('vlm_calls'), '{:.1f}')}"
+        cells = " | ".join(f"{means.get(key, 0.0):.2f}" for key, _ in DECISION_COLUMNS)
+        lines.append(f"| `{name}` | {calls} | {cells} |")
+    return lines
+
+
+def _steps(methods: dict[str, Any]) -> list[str]:
+    lines = [
+        "## Where the steps go",
+        "",
+        "Mean steps per episode by activity (`escape`: the local planner's collision recovery) and turn "
+        "reversals (a left turn right after a right one or the reverse).",
+        "",
+        "| method | steps | " + " | ".join(STEP_COLUMNS) + " | turn reversals |",
+        "|---|---|" + "---|" * (len(STEP_COLUMNS) + 1),
+    ]
+    for name, entry in methods.items():
+        means = entry.get("decisions", {})
+        cells = " | ".join(f"{means.get(f'steps.{key}', 0.0):.1f}" for key in STEP_COLUMNS)
+        steps = _number(entry.get("avg_steps"), "{:.1f}")
+        lines.append(f"| `{name}` | {steps} | {cells} | {means.get('turn_reversals', 0.0):.1f} |")
+    return lines
+
+
+def _missed(methods: dict[str, Any]) -> list[str]:
+    causes = list(dict.fromkeys(c for entry in methods.values() for c in entry.get("missed_target_causes", {})))
+    lines = [
+        "## Missed targets by cause",
+        "",
+        "`missed_target` episodes (a goal was in view at some step, never reached), by what the agent did with it.",
+        "",
+        f"| method | missed | {' | '.join(causes)} |",
+        "|---|---|" + "---|" * len(causes),
+    ]
+    for name, entry in methods.items():
+        counts = entry.get("missed_target_causes", {})
+        cells = " | ".join(str(counts.get(c, 0)) for c in causes)
+        lines.append(f"| `{name}` | {sum(counts.values())} | {cells} |")
+    return lines
 
 
 def _failures(methods: dict[str, Any]) -> list[str]:

@@ -11,9 +11,11 @@ from __future__ import annotations
 import json
 from collections import Counter
 from collections.abc import Sequence
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
+from drivenav.agent.base import DecisionStats
 from drivenav.envs.episode import Episode
 from drivenav.errors import InputError
 from drivenav.eval.ablation_report import format_markdown, write_csv
@@ -22,7 +24,7 @@ from drivenav.eval.episodes import load_episodes, save_episodes
 from drivenav.eval.paper_tables import TABLE_II_METHODS
 from drivenav.eval.pictures import render_pictures
 from drivenav.eval.provenance import git_commit
-from drivenav.eval.records import ERROR, EpisodeRecord
+from drivenav.eval.records import ERROR, MISSED_CAUSES, EpisodeRecord, missed_cause
 from drivenav.eval.report import summarize
 from drivenav.eval.rundir import trace_path
 from drivenav.eval.runner import Executor, RunSpec, evaluate
@@ -95,9 +97,32 @@ def method_entry(records: list[EpisodeRecord]) -> dict[str, Any]:
         "avg_revisits": summary.avg_revisits,
         "sr_ci95": _rounded(wilson_interval(successes, len(measured))) if measured else None,
         "spl_ci95": _rounded(bootstrap_mean_interval([float(r.spl or 0.0) for r in measured])) if measured else None,
+        "avg_retraced_revisits": summary.avg_retraced_revisits,
         "vlm_calls": summary.avg_vlm_calls,
+        "median_vlm_calls": summary.median_vlm_calls,
         "failure_causes": failure_counts(records),
+        "missed_target_causes": missed_counts(records),
+        "decisions": decision_means(records),
     }
+
+
+def missed_counts(records: list[EpisodeRecord]) -> dict[str, int]:
+    """``missed_target`` episodes by :func:`~drivenav.eval.records.missed_cause`."""
+    counts = Counter(missed_cause(r) for r in records if r.failure_cause == "missed_target")
+    return {cause: counts.get(cause, 0) for cause in MISSED_CAUSES}
+
+
+def decision_means(records: list[EpisodeRecord]) -> dict[str, float]:
+    """Per-episode means of the decision counters (:class:`~drivenav.agent.base.DecisionStats`); decisions and
+    steps broken down by reason and activity under ``decisions.REASON`` and ``steps.ACTIVITY``."""
+    started = [r.decisions for r in records if not r.is_error] or [DecisionStats()]
+    totals: Counter[str] = Counter()
+    for stats in started:
+        totals.update({k: v for k, v in asdict(stats).items() if isinstance(v, int)})
+        totals.update({f"decisions.{k}": v for k, v in stats.decisions_by_reason.items()})
+        totals.update({f"steps.{k}": v for k, v in stats.steps_by_activity.items()})
+        totals["decisions"] += sum(stats.decisions_by_reason.values())
+    return {key: round(value / len(started), 3) for key, value in sorted(totals.items())}
 
 
 def _rounded(interval: tuple[float, float]) -> list[float]:

@@ -10,6 +10,7 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
+from statistics import median
 from typing import Any
 
 from drivenav.eval.records import EpisodeRecord
@@ -34,11 +35,14 @@ class Summary:
     spl: float | None
     avg_steps: float | None
     avg_revisits: float | None
+    avg_retraced_revisits: float | None
+    avg_retraced_m: float | None
     avg_path_length: float | None
     avg_geodesic_distance: float | None
     avg_distance_to_goal: float | None
     avg_collisions: float | None
     avg_vlm_calls: float | None
+    median_vlm_calls: float | None
     vlm_fallbacks: int
     errors: int
     stop_reasons: dict[str, int] = field(default_factory=dict)
@@ -55,11 +59,14 @@ def summarize(records: Sequence[EpisodeRecord]) -> Summary:
         spl=_rounded(mean(records, lambda r: r.spl), 6),
         avg_steps=_rounded(mean(records, lambda r: r.steps), 3),
         avg_revisits=_rounded(mean(records, lambda r: r.revisits), 4),
+        avg_retraced_revisits=_rounded(mean(records, lambda r: r.retraced_revisits), 4),
+        avg_retraced_m=_rounded(mean(records, lambda r: r.retraced_m), 3),
         avg_path_length=_rounded(mean(records, lambda r: r.path_length), 3),
         avg_geodesic_distance=_rounded(mean(records, lambda r: r.geodesic_distance), 3),
         avg_distance_to_goal=_rounded(mean(records, lambda r: r.distance_to_goal), 3),
         avg_collisions=_rounded(mean(records, lambda r: r.collisions), 3),
         avg_vlm_calls=_rounded(mean(records, lambda r: r.vlm_calls), 3),
+        median_vlm_calls=median([r.vlm_calls for r in records]) if records else None,
         vlm_fallbacks=sum(r.stats.vlm_fallbacks for r in records),
         errors=sum(r.is_error for r in records),
         stop_reasons=dict(sorted(Counter(r.stop_reason for r in records).items())),
@@ -82,6 +89,7 @@ def format_table(summary: Summary, title: str = "") -> str:
         ("avg geodesic distance", shown(summary.avg_geodesic_distance, "{:.2f} m")),
         ("avg distance to goal", shown(summary.avg_distance_to_goal, "{:.2f} m")),
         ("avg revisits", shown(summary.avg_revisits, "{:.3f}")),
+        ("avg retraced stretches", shown(summary.avg_retraced_revisits, "{:.3f}")),
         ("avg collisions", shown(summary.avg_collisions, "{:.2f}")),
         ("avg VLM calls", shown(summary.avg_vlm_calls, "{:.2f}")),
         ("VLM fallbacks", f"{summary.vlm_fallbacks}"),

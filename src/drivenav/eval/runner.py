@@ -26,7 +26,7 @@ from tqdm import tqdm
 from tqdm.contrib.logging import logging_redirect_tqdm
 
 from drivenav import metrics
-from drivenav.agent.base import Agent, ModelStats
+from drivenav.agent.base import Agent, DecisionStats, ModelStats
 from drivenav.agent.registry import make_agent
 from drivenav.envs.base import Env, EnvSpec, EpisodeMeasures
 from drivenav.envs.episode import Episode
@@ -190,6 +190,8 @@ def run_episode(env: Env, agent: Agent, episode: Episode, run_seed: int, max_ste
         stop_reason = "timeout"
     measures = env.measures() if path.positions else EpisodeMeasures()  # a failed reset measured nothing
     calls, stats = _model_use(agent, started=bool(path.positions))
+    positions = np.asarray(path.positions).reshape(-1, 2)
+    retraced_revisits, retraced_m = metrics.retraced(positions)
     record = EpisodeRecord(
         episode_id=episode.episode_id,
         scene_id=episode.scene_id,
@@ -203,7 +205,9 @@ def run_episode(env: Env, agent: Agent, episode: Episode, run_seed: int, max_ste
         path_length=measures.path_length,
         geodesic_distance=measures.geodesic_distance,
         distance_to_goal=measures.distance_to_goal,
-        revisits=metrics.count_revisits(np.asarray(path.positions).reshape(-1, 2), agent.segment_starts),
+        revisits=metrics.count_revisits(positions, agent.segment_starts),
+        retraced_revisits=retraced_revisits,
+        retraced_m=round(retraced_m, 4),
         collisions=measures.collisions,
         stop_reason=stop_reason,
         vlm_calls=calls,
@@ -211,6 +215,7 @@ def run_episode(env: Env, agent: Agent, episode: Episode, run_seed: int, max_ste
         failure_cause=failure_cause(measures.success, stop_reason, measures.target_seen),
         privileged=tuple(sorted(agent.requires)),
         stats=stats,
+        decisions=agent.decision_stats() if path.positions else DecisionStats(),
     )
     trace: Trace = {
         "episode_id": episode.episode_id,

@@ -4,12 +4,16 @@ A direction's representative view is the frame whose camera yaw was closest to i
 once the yaw is within ``view_tolerance`` (15 deg) of the bearing -- inclusively, see
 :mod:`drivenav.inspection.sweep` -- and replaced whenever a later frame has a smaller angular error. Views are
 keyed by direction label; the tracker never re-uses a label, so a stored view always belongs to the direction that
-carries its label, and views of retired labels are simply dropped.
+carries its label, and views of retired labels are dropped. A direction that only got a fresh label -- a
+position-based merge of directions, or the followed direction carried over a relabelling -- inherits the view of
+the parent whose camera faced the new bearing best (:meth:`RepresentativeViews.inherit`; ours: the paper gives the
+merged direction a fresh label and says nothing about its views, and it is not a newly revealed direction).
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
+from dataclasses import replace
 
 from drivenav.config import InspectionConfig
 from drivenav.directions.types import Direction
@@ -40,6 +44,17 @@ class RepresentativeViews:
             self._views[direction.label] = _view(direction, observation, error, step)
             written.append((direction.label, stored is not None))
         return written
+
+    def inherit(self, label: int, parents: Iterable[int], bearing: float) -> bool:
+        """Give ``label`` (bearing ``bearing``) the parents' view whose yaw is nearest that bearing, its error
+        measured against the new bearing (a later, better aligned frame replaces it); True if one was given."""
+        views = [self._views[p] for p in parents if p in self._views]
+        if not views or label in self._views:
+            return False
+        best = min(views, key=lambda v: abs(signed_offset(bearing, v.pose.yaw)))
+        error = abs(signed_offset(bearing, best.pose.yaw))
+        self._views[label] = replace(best, label=label, bearing=bearing, error=error)
+        return True
 
     def has_view(self, label: int) -> bool:
         return label in self._views
