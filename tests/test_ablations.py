@@ -25,6 +25,10 @@ METHOD_KEYS = {
     "spl",
     "avg_steps",
     "avg_revisits",
+    "avg_retraced_revisits",
+    "median_vlm_calls",
+    "missed_target_causes",
+    "decisions",
     "sr_ci95",
     "spl_ci95",
     "vlm_calls",
@@ -90,6 +94,7 @@ def test_bench_ablations_writes_tables_and_resumes(tmp_path: Path) -> None:
             low, high = entry[key]
             assert 0.0 <= low <= value <= high <= 1.0
         assert sum(entry["failure_causes"].values()) == 2 - round(2 * entry["success_rate"])
+        assert sum(entry["missed_target_causes"].values()) == entry["failure_causes"]["missed_target"]
     assert set(report["table_ii"]["methods"]) == {"drive-nav", "nearest-frontier"}
     compute = report["runtime"]["compute"]
     assert compute["agent"] == "drive-nav" and compute["episodes"] == 2

@@ -6,10 +6,9 @@ most ``verify_frames`` approach frames, each judged by the reasoner: ``sure`` ac
 once (its position goes to failed-position memory), ``uncertain`` waits for the next frame, and a candidate not
 rejected within the frames is accepted. A candidate the agent cannot get to is *set aside* for some steps
 (:meth:`TargetSearch.set_aside`), not rejected: failed-position memory is for verification's "not". Without
-verification, detections are accepted at once. Prompt enrichment
-(only when the reasoner sees the target but no candidate exists) alternates proposing a detector phrase and
-testing it on the current frame for at most ``enrich_rounds`` rounds; a phrase that grounds is kept for the rest
-of the episode.
+verification, detections are accepted at once. Prompt enrichment (only when the reasoner sees the target but no
+candidate exists) alternates proposing a detector phrase and testing it on the current frame for at most
+``enrich_rounds`` rounds; a phrase that grounds is kept for the rest of the episode.
 """
 
 from __future__ import annotations
