@@ -241,3 +241,28 @@ def test_an_episode_record_accounts_for_every_step_and_decision() -> None:
     assert sum(stats.decisions_by_reason.values()) == len(selected)
     assert stats.inspection_events == len([e for e in trace["events"] if e["kind"] == "inspection"])
     assert stats.labels_created >= 1 and record.retraced_revisits == 0
+
+
+def test_a_split_off_branch_is_new_but_a_flickering_one_is_not() -> None:
+    agent, ctx = _agent_at("drive-nav", {0: 10.0, 1: 40.0}, 0.0)
+    agent._inspected = {0, 1}
+    agent._carry_over(ctx)
+    merged = Direction(
+        2,
+        math.radians(25.0),
+        (0, 1),
+        (),
+        np.vstack([d.waypoints for d in ctx.result.directions]),
+        np.zeros((1, 2)),
+        (3.0, 1.0),
+    )
+    result = DirectionResult((merged,), {}, (), tracking=TrackingUpdate(merged={2: (0, 1)}))
+    agent._carry_over(StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
+    flicker = Direction(3, math.radians(40.0), (1,), (), ctx.directions[1].waypoints, np.zeros((1, 2)), (3.0, 2.0))
+    result = DirectionResult((merged, flicker), {}, (), tracking=TrackingUpdate(created=(3,)))
+    agent._carry_over(StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
+    assert 3 in agent._inspected  # label 1 again, split off the merge a step later
+    branch = _direction(4, -60.0)  # a branch at a place no retired direction held
+    result = DirectionResult((merged, flicker, branch), {}, (), tracking=TrackingUpdate(created=(4,)))
+    agent._carry_over(StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
+    assert 4 not in agent._inspected and agent.decision_stats().labels_reidentified == 1

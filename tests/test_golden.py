@@ -1,7 +1,7 @@
 """Golden records: the same embedded episodes, seeds and agents give the same records as before (captured from
 commit 0209848 with ``drivenav eval --max-steps 120``, when the evaluation core became world-agnostic; re-captured
-for issue 12, whose agent changes moved drive-nav's episode 0 and no-240's episodes 0 and 1: the other 18 are
-unchanged)."""
+for issue 12, whose agent changes moved drive-nav's episode 0, direction-360's and no-240's episodes 0 and 1: the
+other 16 are unchanged)."""
 
 from __future__ import annotations
 

@@ -32,9 +32,9 @@ class DecisionStats:
     removed; inspection events; reasoner decisions by trigger (``scan``, ``inspection``, ``vanished``, ``stuck``);
     decisions at a dead end (no still-relevant direction in the forward 240 deg, so the rear range was offered);
     how often the followed direction was carried over a relabelling (``followed_through_relabel``) or lost its label
-    with no successor (``selected_lost``); fresh labels recognised as a recently removed direction at the same place
-    (``labels_reidentified``); steps by activity (``start_scan``, ``scan``, ``sweep``, ``follow``,
-    ``enrich``, ``approach``, ``escape`` for collision recovery, ``stop``) and turn reversals (a left turn
+    with no successor (``selected_lost``); fresh labels recognised as a retired direction (removed, or merged
+    away) back at its place (``labels_reidentified``); steps by activity (``start_scan``, ``scan``, ``sweep``,
+    ``follow``, ``enrich``, ``approach``, ``escape`` for collision recovery, ``stop``) and turn reversals (a left turn
     right after a right one, or the reverse: oscillation); and what became of target detections (Sec. IV-C):
     candidates entered into the object map, accepted, and set aside because the agent could not get to them."""
 

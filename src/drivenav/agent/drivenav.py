@@ -173,7 +173,7 @@ class DriveNavAgent(Agent):
         self._selected: int | None = None
         self._followed: Direction | None = None  # the selected direction as of the previous step
         self._previous: dict[int, Direction] = {}  # the directions of the previous step
-        self._gone: dict[int, tuple[Direction, int]] = {}  # removed directions and the step they went
+        self._gone: dict[int, tuple[Direction, int]] = {}  # retired directions and the step they went
         self._event_heading = 0.0  # the heading when the current inspection event began
         self._goal: Point | None = None
         self._target: int | None = None
@@ -234,7 +234,8 @@ class DriveNavAgent(Agent):
         self._stats.labels_removed += len(update.removed)
         for child, parents in update.merged.items():
             self._relabel(child, parents, ctx.directions[child].bearing)
-        self._remember_removed(update.removed)
+        retired = [label for parents in update.merged.values() for label in parents]
+        self._remember_retired((*update.removed, *retired))
         for label in update.created:
             self._reidentify(ctx.directions[label])
         if self._selected is not None and self._selected not in ctx.directions:
@@ -249,14 +250,16 @@ class DriveNavAgent(Agent):
         self._followed = ctx.directions.get(self._selected) if self._selected is not None else None
         self._previous = ctx.directions
 
-    def _remember_removed(self, removed: tuple[int, ...]) -> None:
+    def _remember_retired(self, removed: tuple[int, ...]) -> None:
         horizon = self.step - self.config.reidentify_steps
         self._gone = {label: gone for label, gone in self._gone.items() if gone[1] >= horizon}
         self._gone.update({label: (self._previous[label], self.step) for label in removed if label in self._previous})
 
     def _reidentify(self, direction: Direction) -> None:
-        """A fresh label at the place of a recently removed direction is that direction again (its frontiers
-        flickered out of the map for a few steps): it keeps its inspected state and view."""
+        """A fresh label at the place of a direction whose label was retired earlier (removed, or merged into
+        another) is that direction again, no newly revealed one: it keeps its inspected state and view. (Without
+        this, a cluster flickering between one and two directions started an inspection event at every split.) A
+        branch splitting off a live direction is new: the T of a corridor reveals its exits that way."""
         tolerance = self.paper.directions.merge_tolerance
         former = tuple(
             label
