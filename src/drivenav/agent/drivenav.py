@@ -191,6 +191,8 @@ class DriveNavAgent(Agent):
         timings: dict[str, float] = {}
         start = time.perf_counter()
         self._mapper.update(observation.depth, observation.intrinsics, observation.pose)
+        if observation.occupancy is not None and self._mapper.config.fuse_lidar:  # a robot's LiDAR (Sec. V-E)
+            self._mapper.fuse_occupancy(observation.occupancy)
         snapshot, frontiers = self._mapper.snapshot(), self._mapper.frontiers()
         timings["mapping"] = _ms_since(start)
         ctx = self._perceive(observation.pose, snapshot, frontiers, self._goal)

@@ -177,18 +177,19 @@ def run_episode(env: Env, agent: Agent, episode: Episode, run_seed: int, max_ste
     except InputError:
         raise  # e.g. a replay that does not match the run: the run stops with its message
     except Exception as exc:
-        error = {
-            "type": type(exc).__name__,
-            "message": str(exc),
-            "traceback": "".join(traceback.format_exception(type(exc), exc, exc.__traceback__)),
-        }
+        error = _error(exc)
+    measures = EpisodeMeasures()  # a failed reset measured nothing
+    if path.positions:
+        try:
+            measures = env.measures()
+        except Exception as exc:  # a world gone with its measures (a robot's link): the first error is kept
+            error = error or _error(exc)
     if error:
         stop_reason = ERROR
     elif called_stop:
         stop_reason = agent.stop_reason or "agent_stop"
     else:
         stop_reason = "timeout"
-    measures = env.measures() if path.positions else EpisodeMeasures()  # a failed reset measured nothing
     calls, stats = _model_use(agent, started=bool(path.positions))
     positions = np.asarray(path.positions).reshape(-1, 2)
     retraced_revisits, retraced_m = metrics.retraced(positions)
@@ -230,6 +231,14 @@ def run_episode(env: Env, agent: Agent, episode: Episode, run_seed: int, max_ste
     if error:
         trace["error"] = error
     return record, trace
+
+
+def _error(exc: Exception) -> dict[str, str]:
+    return {
+        "type": type(exc).__name__,
+        "message": str(exc),
+        "traceback": "".join(traceback.format_exception(type(exc), exc, exc.__traceback__)),
+    }
 
 
 def _model_use(agent: Agent, started: bool) -> tuple[int, ModelStats]:

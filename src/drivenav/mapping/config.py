@@ -13,7 +13,12 @@ from drivenav.types import SimConfig
 @dataclass(frozen=True)
 class MapTuning:
     """The mapper settings a user sets (the ``mapping`` section of the configuration); the rest of
-    :class:`MappingConfig` follows from the sensor and body (:meth:`MappingConfig.from_sim`)."""
+    :class:`MappingConfig` follows from the sensor and body (:meth:`MappingConfig.from_sim`).
+
+    ``fuse_lidar``: when a robot sends LiDAR occupancy (:attr:`~drivenav.types.Observation.occupancy`), fuse it
+    into the obstacle and explored maps (paper Sec. V-E: on the real robot LiDAR and IMU give a 2-D occupancy grid
+    restricted to the camera's forward 79 deg); simulation worlds send none, so the default is depth only.
+    """
 
     min_obstacle_height: float = 0.15
     clip_epsilon: float = 0.01
@@ -23,6 +28,7 @@ class MapTuning:
     growth_margin: float = 5.0
     max_size: float = 200.0
     pixel_stride: int = 2
+    fuse_lidar: bool = False
 
 
 @dataclass(frozen=True)

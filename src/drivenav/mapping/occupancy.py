@@ -17,6 +17,18 @@ Derived on demand (:meth:`OccupancyMapper.snapshot`): ``explored`` is the 8-conn
 ray-cast map holding the agent; ``navigable`` is the 4-connected component of explored, non-inflated cells
 holding the agent (or the nearest such cell when inflation covers the agent's own cell).
 
+LiDAR (paper Sec. V-E: on the real robot, LiDAR + IMU give a 2-D occupancy grid keeping only the returns inside
+the camera's forward 79 deg, Habitat's HFOV): :meth:`OccupancyMapper.fuse_occupancy` fuses such a window
+(:class:`~drivenav.types.LocalOccupancy`; the agent calls it when ``fuse_lidar`` is set). Cells are matched by
+their centres, so the window's resolution may differ a little from the map's and its origin be offset: a map cell
+holding an occupied window cell's centre is marked in a LiDAR obstacle layer of its own; a map cell whose centre
+lies in a free window cell is explored and cleared from that layer (a person who walked by), unless an occupied
+window cell lands on it too; unknown cells change nothing. Depth obstacles are never cleared.
+The LiDAR layer is inflated by the same disk, recomputed only around the window. The obstacles the rest of the
+mapper uses (the snapshot's ``obstacle``, the inflation behind ``navigable``, frontier pockets) are the union of
+the depth and LiDAR layers: with nothing fused, exactly the depth maps. A window whose resolution is not within
+a factor 2 of the map's, or whose origin is not finite, is ignored whole.
+
 The grid starts ``initial_size`` metres square around the episode origin; before each update it is
 re-allocated, ``growth_margin`` metres beyond what the sensor range needs, whenever that range would leave
 the grid. Depth holes (NaN, inf, <= 0) are skipped; a frame of the wrong type or shape, or a non-finite
@@ -31,13 +43,14 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import ndimage
 
 from drivenav.grid import GridSpec
 from drivenav.mapping.config import MappingConfig
 from drivenav.mapping.frontiers import component_at, extract_frontiers, nearest_in
 from drivenav.mapping.kernels import cast_rays, project_depth, stamp
 from drivenav.mapping.types import Frontier, MapSnapshot
-from drivenav.types import CameraIntrinsics, Pose
+from drivenav.types import FREE_CELL, OCCUPIED_CELL, UNKNOWN_CELL, CameraIntrinsics, LocalOccupancy, Pose
 
 Mask = NDArray[np.bool_]
 Box = tuple[int, int, int, int]  # row0, row1, col0, col1 (half-open)
@@ -45,7 +58,8 @@ Box = tuple[int, int, int, int]  # row0, row1, col0, col1 (half-open)
 
 @dataclass(frozen=True)
 class UpdateInfo:
-    """What the last :meth:`OccupancyMapper.update` did: ``reason`` says why a frame was ignored."""
+    """What the last :meth:`OccupancyMapper.update` or :meth:`~OccupancyMapper.fuse_occupancy` did: ``reason``
+    says why a frame or window was ignored."""
 
     accepted: bool
     reason: str
@@ -69,6 +83,15 @@ def disk_offsets(radius: float, resolution: float) -> NDArray[np.int64]:
     di, dj = np.mgrid[-n : n + 1, -n : n + 1]
     inside = (di**2 + dj**2) * resolution**2 <= radius**2 + 1e-9
     return np.stack([di[inside], dj[inside]], axis=1).astype(np.int64)
+
+
+def disk_footprint(offsets: NDArray[np.int64]) -> Mask:
+    """The square mask of ``offsets`` (from :func:`disk_offsets`) centred on its middle cell: a dilation structure
+    that grows a mask exactly as stamping the disk around each set cell does."""
+    n = int(np.abs(offsets).max())
+    footprint = np.zeros((2 * n + 1, 2 * n + 1), dtype=np.bool_)
+    footprint[offsets[:, 0] + n, offsets[:, 1] + n] = True
+    return footprint
 
 
 def ray_fan(
@@ -97,6 +120,7 @@ class OccupancyMapper:
         cfg = self.config
         self._disk = disk_offsets(cfg.agent_radius, cfg.resolution)  # the agent's footprint
         self._inflation = disk_offsets(self.inflation_radius, cfg.resolution)
+        self._footprint = disk_footprint(self._inflation)
         self._band = np.array(
             [cfg.min_depth, cfg.max_depth, cfg.clip_epsilon, cfg.min_obstacle_height, cfg.max_obstacle_height]
         )
@@ -116,6 +140,8 @@ class OccupancyMapper:
         self._obstacle: Mask = np.zeros((n, n), dtype=np.bool_)
         self._inflated: Mask = np.zeros((n, n), dtype=np.bool_)
         self._explored: Mask = np.zeros((n, n), dtype=np.bool_)
+        self._lidar_obstacle: Mask = np.zeros((n, n), dtype=np.bool_)
+        self._lidar_inflated: Mask = np.zeros((n, n), dtype=np.bool_)
         self._pose = Pose(0.0, 0.0, 0.0)
         self._box: Box | None = None
         self._derived: _Derived | None = None
@@ -175,6 +201,90 @@ class OccupancyMapper:
         self._frontiers = None
         self._last = UpdateInfo(True, "", _ms_since(start), added, grew)
 
+    def fuse_occupancy(self, local: LocalOccupancy) -> None:
+        """Fuse a LiDAR occupancy window (paper Sec. V-E; module docstring); a bad window is ignored (see
+        :attr:`last_update`). An occupied and a free window cell landing on the same mapper cell leave it occupied.
+        """
+        start = time.perf_counter()
+        reason = _window_reject_reason(local, self.config.resolution) or self._too_far(*self._window_square(local))
+        if reason:
+            self._last = UpdateInfo(False, reason, _ms_since(start), 0, False)
+            return
+        centre, half = self._window_square(local)
+        grew = self._ensure_covers(centre, half)
+        box = self._window_box(local)
+        added = self._mark_lidar(local, box)
+        self._inflate_lidar(box)
+        row, col = (int(v) for v in self._grid.world_to_cell((centre.x, centre.y)))
+        self._extend_box(row, col, half + self.config.pocket_window)
+        self._derived = None
+        self._frontiers = None
+        self._last = UpdateInfo(True, "", _ms_since(start), added, grew)
+
+    def _window_square(self, local: LocalOccupancy) -> tuple[Pose, float]:
+        """Centre and half-size of the square the grid must hold for ``local``: the window and its inflation."""
+        rows, cols = local.cells.shape
+        centre = Pose(
+            local.origin[0] + cols * local.resolution / 2.0, local.origin[1] + rows * local.resolution / 2.0, 0.0
+        )
+        half = max(rows, cols) * local.resolution / 2.0
+        return centre, half + self.inflation_radius + self.config.resolution
+
+    def _window_box(self, local: LocalOccupancy) -> Box:
+        """The map cells the window overlaps."""
+        rows, cols = local.cells.shape
+        corner = (local.origin[0] + cols * local.resolution, local.origin[1] + rows * local.resolution)
+        (r0, c0), (r1, c1) = (self._grid.world_to_cell(p) for p in (local.origin, corner))
+        return int(r0), int(r1) + 1, int(c0), int(c1) + 1
+
+    def _mark_lidar(self, local: LocalOccupancy, box: Box) -> int:
+        """Clear and explore the map cells whose centre lies in a free window cell, then mark every map cell
+        holding an occupied window cell's centre (no gaps in free space, no obstacle lost, whichever grid is the
+        finer); the number of new LiDAR obstacle cells."""
+        r0, r1, c0, c1 = box
+        before = self._lidar_obstacle[r0:r1, c0:c1].copy()
+        free = self._sample_window(local, box) == FREE_CELL
+        self._lidar_obstacle[r0:r1, c0:c1] &= ~free
+        self._explored[r0:r1, c0:c1] |= free
+        hit_i, hit_j = np.nonzero(local.cells == OCCUPIED_CELL)
+        centres = np.stack([hit_j + 0.5, hit_i + 0.5], axis=1) * local.resolution + np.array(local.origin)
+        hits = self._grid.world_to_cell(centres)
+        self._lidar_obstacle[hits[:, 0], hits[:, 1]] = True
+        return int(np.count_nonzero(self._lidar_obstacle[r0:r1, c0:c1] & ~before))
+
+    def _sample_window(self, local: LocalOccupancy, box: Box) -> NDArray[np.int8]:
+        """The state of the window cell holding each map cell centre of ``box`` (unknown outside the window)."""
+        r0, r1, c0, c1 = box
+        res = self._grid.resolution
+        ys = self._grid.origin[1] + (np.arange(r0, r1) + 0.5) * res
+        xs = self._grid.origin[0] + (np.arange(c0, c1) + 0.5) * res
+        i = np.floor((ys - local.origin[1]) / local.resolution).astype(np.int64)
+        j = np.floor((xs - local.origin[0]) / local.resolution).astype(np.int64)
+        rows, cols = local.cells.shape
+        inside_i, inside_j = (i >= 0) & (i < rows), (j >= 0) & (j < cols)
+        sampled = np.full((r1 - r0, c1 - c0), UNKNOWN_CELL, dtype=np.int8)
+        sampled[np.ix_(inside_i, inside_j)] = local.cells[np.ix_(i[inside_i], j[inside_j])]
+        return sampled
+
+    def _inflate_lidar(self, box: Box) -> None:
+        """Recompute the inflated LiDAR layer where obstacles changed inside ``box`` can reach: ``box`` grown by the
+        inflation radius, dilating the LiDAR obstacles of ``box`` grown by twice that."""
+        n = self._footprint.shape[0] // 2
+        i0, i1, j0, j1 = self._pad(box, n)
+        o0, o1, p0, p1 = self._pad(box, 2 * n)
+        grown = ndimage.binary_dilation(self._lidar_obstacle[o0:o1, p0:p1], structure=self._footprint)
+        self._lidar_inflated[i0:i1, j0:j1] = grown[i0 - o0 : i1 - o0, j0 - p0 : j1 - p0]
+
+    def _pad(self, box: Box, n: int) -> Box:
+        """``box`` grown by ``n`` cells on every side, clipped to the grid."""
+        rows, cols = self._grid.shape
+        return max(box[0] - n, 0), min(box[1] + n, rows), max(box[2] - n, 0), min(box[3] + n, cols)
+
+    def _blocked(self, box: Box) -> Mask:
+        """Cells of ``box`` within the inflation radius of a depth or LiDAR obstacle."""
+        r0, r1, c0, c1 = box
+        return self._inflated[r0:r1, c0:c1] | self._lidar_inflated[r0:r1, c0:c1]
+
     def snapshot(self) -> MapSnapshot:
         """Read-only copies of the current maps (see :class:`MapSnapshot`)."""
         derived = self._derive()
@@ -183,7 +293,7 @@ class OccupancyMapper:
         r0, r1, c0, c1 = derived.box
         explored[r0:r1, c0:c1] = derived.explored
         navigable[r0:r1, c0:c1] = derived.navigable
-        obstacle = self._obstacle.copy()
+        obstacle = self._obstacle | self._lidar_obstacle
         for array in (obstacle, explored, navigable):
             array.flags.writeable = False
         return MapSnapshot(self._grid, obstacle, explored, navigable)
@@ -196,12 +306,12 @@ class OccupancyMapper:
 
     def _extract_frontiers(self) -> list[Frontier]:
         derived = self._derive()
-        r0, r1, c0, c1 = derived.box
+        r0, _, c0, _ = derived.box
         return extract_frontiers(
             self._grid,
             derived.explored,
             derived.navigable,
-            self._inflated[r0:r1, c0:c1],
+            self._blocked(derived.box),
             min_area=self.config.min_frontier_area,
             pocket_window=self.config.pocket_window,
             offset=(r0, c0),
@@ -220,7 +330,7 @@ class OccupancyMapper:
         row, col = (int(v) for v in self._grid.world_to_cell((self._pose.x, self._pose.y)))
         agent = (row - r0, col - c0)
         explored = component_at(self._explored[r0:r1, c0:c1], agent, eight=True)
-        free = explored & ~self._inflated[r0:r1, c0:c1]
+        free = explored & ~self._blocked(self._box)
         search = math.ceil(self.inflation_radius / self.config.resolution) + 2
         seed = agent if free[agent] else nearest_in(free, agent, search)
         navigable = component_at(free, seed, eight=False) if seed is not None else np.zeros_like(free)
@@ -248,7 +358,7 @@ class OccupancyMapper:
         new_hi = np.where(hi >= shape, hi + pad + 1, shape)
         new_shape = (int(new_hi[0] - new_lo[0]), int(new_hi[1] - new_lo[1]))
         dr, dc = int(-new_lo[0]), int(-new_lo[1])
-        for name in ("_obstacle", "_inflated", "_explored"):
+        for name in ("_obstacle", "_inflated", "_explored", "_lidar_obstacle", "_lidar_inflated"):
             old: Mask = getattr(self, name)
             grown = np.zeros(new_shape, dtype=np.bool_)
             grown[dr : dr + old.shape[0], dc : dc + old.shape[1]] = old
@@ -282,6 +392,18 @@ def _reject_reason(depth: object, intrinsics: CameraIntrinsics, pose: Pose) -> s
         return "intrinsics are not finite and positive"
     if not all(math.isfinite(v) for v in (pose.x, pose.y, pose.yaw)):
         return "pose is not finite"
+    return ""
+
+
+def _window_reject_reason(local: LocalOccupancy, resolution: float) -> str:
+    """Why a LiDAR occupancy window cannot be fused onto a map of ``resolution`` ('' when it can)."""
+    cells = local.cells
+    if not isinstance(cells, np.ndarray) or cells.ndim != 2 or cells.dtype.kind not in "iu" or cells.size == 0:
+        return "occupancy cells are not a non-empty 2-D integer array"
+    if not (math.isfinite(local.resolution) and resolution / 2.0 <= local.resolution <= 2.0 * resolution):
+        return f"occupancy resolution {local.resolution!r} is not within a factor 2 of the map's {resolution}"
+    if not all(math.isfinite(v) for v in local.origin):
+        return "occupancy origin is not finite"
     return ""
 
 

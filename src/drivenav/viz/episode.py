@@ -80,6 +80,13 @@ def trace_scene(episode: Episode, trace: SavedTrace, resolution: float = 0.05) -
     return Scene(episode.scene_id, grid, np.full(grid.shape, Material.FREE, dtype=np.uint8))
 
 
+def trace_picture(episode: Episode, trace: SavedTrace, record: EpisodeRecord | None, folder: Path) -> Path:
+    """The top-down picture of a trace on a blank floor (worlds whose scenes drivenav cannot draw, a live robot's
+    episode): ``folder/<id>_topdown.png``."""
+    topdown = draw_episode(trace_scene(episode, trace), episode, trace, record)
+    return save_png(topdown, folder / f"{trace_path(folder, episode.episode_id).stem}_topdown.png")
+
+
 def _load_episode(run_dir: Path, episode_id: str) -> tuple[Scene | None, Episode, SavedTrace, EpisodeRecord | None]:
     run = _read_json(run_dir / RUN_FILE, "run")
     episodes = {e.episode_id: e for e in load_episodes(run_dir / "episodes.json.gz")}
@@ -103,7 +110,7 @@ def _load_episode(run_dir: Path, episode_id: str) -> tuple[Scene | None, Episode
     return scene, episode, trace, records.get(episode_id)
 
 
-DRAWN_WORLDS = ("embedded", "habitat")
+DRAWN_WORLDS = ("embedded", "habitat", "robot")
 
 
 def render_episode_pictures(
@@ -117,10 +124,9 @@ def render_episode_pictures(
     scene, episode, trace, record = _load_episode(run_dir, episode_id)
     folder = out or run_dir / "viz"
     stem = trace_path(folder, episode_id).stem
-    if scene is None:  # a Habitat run: its scenes are meshes drivenav does not render
-        log.warning("a Habitat run: the top-down picture shows the trace and goals only (no scene, views or video)")
-        topdown = draw_episode(trace_scene(episode, trace), episode, trace, record)
-        return [save_png(topdown, folder / f"{stem}_topdown.png")]
+    if scene is None:  # a Habitat or robot run: scenes drivenav does not render
+        log.warning("not an embedded run: the top-down picture shows the trace and goals only (no scene, views, video)")
+        return [trace_picture(episode, trace, record, folder)]
     sim = SimConfig()
     renderer = Renderer(scene, sim)
     topdown = draw_episode(scene, episode, trace, record, explored_cells(scene, trace, sim))

@@ -1,0 +1,420 @@
+"""The brain-robot wire protocol (version 1): pure encoding and decoding, no sockets (docs/robot.md).
+
+A message is a ZMQ multipart message: one JSON header frame (UTF-8), then one frame per array, each the array's
+raw little-endian bytes (sent without copies; never pickle). The header names every array with its dtype and
+shape, so a receiver checks each frame's size before it builds a view on it.
+
+Requests (brain -> robot) and their replies:
+
+========== ================================================ =================================================
+request    body                                             reply
+========== ================================================ =================================================
+HELLO      the brain's sensor and body settings (RobotInfo) WELCOME with the robot's RobotInfo, or ERROR naming
+                                                            the first differing field
+RESET      ``episode_id``, ``target``                       OBSERVATION (the pose at reset is the episode origin)
+OBSERVE    --                                               OBSERVATION
+STEP       ``action`` (0-3, Habitat's numbering)            OBSERVATION after the motion; a STEP whose request id
+                                                            was seen is answered again, never executed twice
+STOP       --                                               STOPPED (the robot halts at once)
+BYE        --                                               GOODBYE with ``measures`` (a simulated robot's Habitat
+                                                            metrics of the episode; null on a real robot)
+PING       --                                               PONG (a heartbeat: keeps the robot's deadman fed)
+========== ================================================ =================================================
+
+Every reply repeats the request id. A malformed, oversized, unknown or out-of-order request gets an ERROR reply
+whose ``error`` names what was wrong. An OBSERVATION carries ``rgb`` (uint8 HxWx3, or ``rgb_jpeg`` bytes),
+``depth`` (uint16 millimetres, 0 = no return) and, where the robot has them, ``occupancy`` (int8 LiDAR occupancy
+window, :class:`~drivenav.types.LocalOccupancy`) and ``semantic`` (int32 instance ids, a simulated robot only).
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, field, fields
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from drivenav.types import CameraIntrinsics, LocalOccupancy, Pose, SimConfig
+
+PROTOCOL = "drivenav-robot"
+VERSION = 1
+REQUESTS = ("HELLO", "RESET", "OBSERVE", "STEP", "STOP", "BYE", "PING")
+REPLIES = ("WELCOME", "OBSERVATION", "STOPPED", "GOODBYE", "PONG", "ERROR")
+MAX_HEADER_BYTES = 65_536
+DEPTH_SCALE = 1000.0  # depth on the wire: uint16 millimetres
+_DTYPES = frozenset({"|u1", "|i1", "<u2", "<i2", "<i4", "<u4", "<f4", "<f8"})
+
+JSON = Any  # a value json.loads returns
+
+
+class ProtocolError(ValueError):
+    """A message that breaks the protocol; ``str(error)`` names the field and what was expected."""
+
+    def __init__(self, field_name: str, expected: str, got: object = None) -> None:
+        self.field_name = field_name
+        text = f"field '{field_name}': expected {expected}"
+        if got is not None:
+            shown = repr(got)
+            text += f", got {shown if len(shown) <= 80 else shown[:77] + '...'}"
+        super().__init__(text)
+
+
+@dataclass(frozen=True)
+class RobotInfo:
+    """A robot's sensor and body settings (HELLO / WELCOME): what the brain's configuration must match.
+
+    ``provides`` lists the ground truth the robot can give (``semantic`` for a simulated robot, nothing for a real
+    one); ``lidar`` says whether observations carry LiDAR occupancy; ``rgb_encoding`` is ``raw`` or ``jpeg``.
+    """
+
+    width: int
+    height: int
+    hfov_deg: float
+    min_depth: float
+    max_depth: float
+    camera_height: float
+    forward_step: float
+    turn_angle_deg: float
+    provides: tuple[str, ...] = ()
+    lidar: bool = False
+    rgb_encoding: str = "raw"
+
+    @staticmethod
+    def from_sim(sim: SimConfig, **extra: Any) -> RobotInfo:
+        """The settings a brain configured with ``sim`` expects of its robot."""
+        return RobotInfo(
+            sim.width,
+            sim.height,
+            sim.hfov_deg,
+            sim.min_depth,
+            sim.max_depth,
+            sim.camera_height,
+            sim.forward_step,
+            sim.turn_angle_deg,
+            **extra,
+        )
+
+    def to_json(self) -> dict[str, JSON]:
+        return {**asdict(self), "provides": list(self.provides)}
+
+    @staticmethod
+    def from_json(body: Mapping[str, JSON]) -> RobotInfo:
+        values: dict[str, Any] = {}
+        for item in fields(RobotInfo):
+            if item.name not in body:
+                if item.name in _INFO_OPTIONAL:
+                    continue
+                raise ProtocolError(f"body.{item.name}", "a value")
+            values[item.name] = body[item.name]
+        _check_info_types(values)
+        values["provides"] = tuple(str(p) for p in values.get("provides", ()))
+        return RobotInfo(**values)
+
+
+_INFO_OPTIONAL = frozenset({"provides", "lidar", "rgb_encoding"})
+MATCHED_FIELDS = ("width", "height", "hfov_deg", "min_depth", "max_depth", "forward_step", "turn_angle_deg")
+
+
+def _check_info_types(values: Mapping[str, Any]) -> None:
+    for name in ("width", "height"):
+        if not (isinstance(values[name], int) and not isinstance(values[name], bool) and values[name] > 0):
+            raise ProtocolError(f"body.{name}", "a positive integer", values[name])
+    for name in ("hfov_deg", "min_depth", "max_depth", "camera_height", "forward_step", "turn_angle_deg"):
+        value = values[name]
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise ProtocolError(f"body.{name}", "a finite number", value)
+    if values.get("rgb_encoding", "raw") not in ("raw", "jpeg"):
+        raise ProtocolError("body.rgb_encoding", "raw or jpeg", values.get("rgb_encoding"))
+
+
+@dataclass(frozen=True)
+class Mismatch:
+    """A setting in which the robot differs from the brain's configuration (``sim.<field>``)."""
+
+    field: str
+    robot: float
+    brain: float
+
+    def __str__(self) -> str:
+        return f"{self.field}: the robot has {self.robot}, the brain is configured for {self.brain} (sim.{self.field})"
+
+
+def mismatch(robot: RobotInfo, brain: RobotInfo) -> Mismatch | None:
+    """The first setting in which a robot differs from what the brain is configured for (None when none).
+
+    Sizes, field of view, depth range and step lengths must match (the agent's maps and turn counting rely on them),
+    and so must the camera height (the brain's mapper takes it from ``sim.camera_height``: set it to the robot's).
+    """
+    for name in (*MATCHED_FIELDS, "camera_height"):
+        mine, theirs = getattr(brain, name), getattr(robot, name)
+        if not math.isclose(float(mine), float(theirs), rel_tol=1e-6, abs_tol=1e-9):
+            return Mismatch(name, theirs, mine)
+    return None
+
+
+@dataclass(frozen=True)
+class Message:
+    """One protocol message: the header's fields and the named arrays.
+
+    ``pose`` is in the episode frame and ``odom`` in the robot's own odometry frame (both ``(x, y, yaw)``);
+    ``stamp`` is the sensor time of an observation, ``sent`` the sender's clock when it was encoded.
+    """
+
+    type: str
+    request_id: str
+    step: int = 0
+    sent: float = 0.0
+    stamp: float = 0.0
+    pose: Pose | None = None
+    odom: Pose | None = None
+    intrinsics: CameraIntrinsics | None = None
+    gimbal: tuple[float, float] = (0.0, 0.0)
+    collided: bool = False
+    status: str = "ok"
+    body: Mapping[str, JSON] = field(default_factory=dict)
+    arrays: Mapping[str, NDArray[Any]] = field(default_factory=dict)
+
+
+def encode(message: Message) -> list[bytes | memoryview]:
+    """The frames of ``message``: its JSON header, then each array's bytes (C order, little-endian, no copy when
+    the array already is)."""
+    specs, buffers = [], []
+    for name, array in message.arrays.items():
+        wire = _wire_array(array)
+        specs.append({"name": name, "dtype": wire.dtype.str, "shape": list(wire.shape)})
+        buffers.append(wire.data.cast("B") if wire.size else b"")
+    header = {
+        "protocol": PROTOCOL,
+        "version": VERSION,
+        "type": message.type,
+        "id": message.request_id,
+        "step": message.step,
+        "sent": message.sent,
+        "stamp": message.stamp,
+        "pose": _pose_json(message.pose),
+        "odom": _pose_json(message.odom),
+        "intrinsics": None if message.intrinsics is None else asdict(message.intrinsics),
+        "gimbal": list(message.gimbal),
+        "collided": message.collided,
+        "status": message.status,
+        "body": dict(message.body),
+        "arrays": specs,
+    }
+    return [json.dumps(header, allow_nan=False).encode(), *buffers]
+
+
+def _wire_array(array: NDArray[Any]) -> NDArray[Any]:
+    wire = np.ascontiguousarray(array)
+    if wire.dtype.byteorder == ">" or (wire.dtype.byteorder == "=" and not _little_endian()):
+        wire = wire.astype(wire.dtype.newbyteorder("<"))
+    if wire.dtype.str not in _DTYPES:
+        raise ProtocolError("arrays.dtype", f"one of {sorted(_DTYPES)}", wire.dtype.str)
+    return wire
+
+
+def _little_endian() -> bool:
+    return bool(np.little_endian)
+
+
+def _pose_json(pose: Pose | None) -> list[float] | None:
+    return None if pose is None else [pose.x, pose.y, pose.yaw]
+
+
+def decode(frames: Sequence[bytes | memoryview], kinds: Sequence[str]) -> Message:
+    """The message in ``frames``, one of the types ``kinds`` (:data:`REQUESTS` or :data:`REPLIES`); a
+    :class:`ProtocolError` names the first thing wrong."""
+    if not frames:
+        raise ProtocolError("header", "a JSON header frame")
+    header = _header(frames[0])
+    kind = header.get("type")
+    if kind not in kinds:
+        raise ProtocolError("type", f"one of {', '.join(kinds)}", kind)
+    arrays = _arrays(header.get("arrays", []), frames[1:])
+    return Message(
+        type=str(kind),
+        request_id=_text(header, "id"),
+        step=_integer(header, "step"),
+        sent=_number(header, "sent"),
+        stamp=_number(header, "stamp"),
+        pose=_pose(header, "pose"),
+        odom=_pose(header, "odom"),
+        intrinsics=_intrinsics(header.get("intrinsics")),
+        gimbal=_gimbal(header.get("gimbal", [0.0, 0.0])),
+        collided=bool(header.get("collided", False)),
+        status=str(header.get("status", "ok")),
+        body=_body(header.get("body", {})),
+        arrays=arrays,
+    )
+
+
+def _header(frame: bytes | memoryview) -> dict[str, JSON]:
+    raw = bytes(frame)
+    if len(raw) > MAX_HEADER_BYTES:
+        raise ProtocolError("header", f"at most {MAX_HEADER_BYTES} bytes", len(raw))
+    try:
+        header = json.loads(raw.decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise ProtocolError("header", "a UTF-8 JSON object", str(error)) from None
+    if not isinstance(header, dict):
+        raise ProtocolError("header", "a JSON object", type(header).__name__)
+    if header.get("protocol") != PROTOCOL:
+        raise ProtocolError("protocol", repr(PROTOCOL), header.get("protocol"))
+    if header.get("version") != VERSION:
+        raise ProtocolError("version", f"protocol version {VERSION}", header.get("version"))
+    return header
+
+
+def _text(header: Mapping[str, JSON], name: str) -> str:
+    value = header.get(name)
+    if not isinstance(value, str) or not value or len(value) > 128:
+        raise ProtocolError(name, "a non-empty string of at most 128 characters", value)
+    return value
+
+
+def _integer(header: Mapping[str, JSON], name: str) -> int:
+    value = header.get(name, 0)
+    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+        raise ProtocolError(name, "an integer >= 0", value)
+    return value
+
+
+def _number(header: Mapping[str, JSON], name: str) -> float:
+    value = header.get(name, 0.0)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ProtocolError(name, "a finite number", value)
+    return float(value)
+
+
+def _finite_list(value: JSON, name: str, length: int) -> list[float]:
+    ok = isinstance(value, list) and len(value) == length
+    ok = ok and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)
+    if not ok:
+        raise ProtocolError(name, f"a list of {length} finite numbers", value)
+    return [float(v) for v in value]
+
+
+def _pose(header: Mapping[str, JSON], name: str) -> Pose | None:
+    value = header.get(name)
+    if value is None:
+        return None
+    x, y, yaw = _finite_list(value, name, 3)
+    return Pose(x, y, yaw)
+
+
+def _gimbal(value: JSON) -> tuple[float, float]:
+    yaw, pitch = _finite_list(value, "gimbal", 2)
+    return yaw, pitch
+
+
+def _intrinsics(value: JSON) -> CameraIntrinsics | None:
+    if value is None:
+        return None
+    names = ("width", "height", "fx", "fy", "cx", "cy")
+    if not isinstance(value, dict) or set(value) != set(names):
+        raise ProtocolError("intrinsics", f"an object with {', '.join(names)}", value)
+    width, height = value["width"], value["height"]
+    if not all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in (width, height)):
+        raise ProtocolError("intrinsics.width/height", "positive integers", (width, height))
+    fx, fy, cx, cy = _finite_list([value[n] for n in names[2:]], "intrinsics", 4)
+    if fx <= 0.0 or fy <= 0.0:
+        raise ProtocolError("intrinsics.fx/fy", "positive focal lengths", (fx, fy))
+    return CameraIntrinsics(width, height, fx, fy, cx, cy)
+
+
+def _body(value: JSON) -> dict[str, JSON]:
+    if not isinstance(value, dict):
+        raise ProtocolError("body", "a JSON object", type(value).__name__)
+    return value
+
+
+def _arrays(specs: JSON, frames: Sequence[bytes | memoryview]) -> dict[str, NDArray[Any]]:
+    if not isinstance(specs, list):
+        raise ProtocolError("arrays", "a list of {name, dtype, shape}", specs)
+    if len(specs) != len(frames):
+        raise ProtocolError("arrays", f"one entry per array frame ({len(frames)} frames)", len(specs))
+    arrays: dict[str, NDArray[Any]] = {}
+    for spec, frame in zip(specs, frames, strict=False):
+        name, dtype, shape = _array_spec(spec)
+        expected = int(np.prod(shape, dtype=np.int64)) * dtype.itemsize
+        if len(frame) != expected:
+            raise ProtocolError(f"arrays.{name}", f"{expected} bytes for {dtype.str} {tuple(shape)}", len(frame))
+        arrays[name] = np.frombuffer(frame, dtype=dtype).reshape(shape)
+    return arrays
+
+
+def _array_spec(spec: JSON) -> tuple[str, np.dtype[Any], list[int]]:
+    if not isinstance(spec, dict):
+        raise ProtocolError("arrays", "objects {name, dtype, shape}", spec)
+    name, dtype, shape = spec.get("name"), spec.get("dtype"), spec.get("shape")
+    if not isinstance(name, str) or not name:
+        raise ProtocolError("arrays.name", "a non-empty string", name)
+    if dtype not in _DTYPES:
+        raise ProtocolError(f"arrays.{name}.dtype", f"one of {sorted(_DTYPES)}", dtype)
+    if not isinstance(shape, list) or len(shape) > 4 or not all(isinstance(n, int) and n >= 0 for n in shape):
+        raise ProtocolError(f"arrays.{name}.shape", "a list of at most 4 integers >= 0", shape)
+    return name, np.dtype(str(dtype)), shape
+
+
+# -- payload conversions ------------------------------------------------------------------------------------------
+
+
+def depth_to_wire(depth: NDArray[np.float32]) -> NDArray[np.uint16]:
+    """Metres to uint16 millimetres (rounded); no return (NaN, inf, <= 0) and anything past 65.535 m become 0."""
+    mm = np.nan_to_num(np.asarray(depth, dtype=np.float64) * DEPTH_SCALE, nan=0.0, posinf=0.0, neginf=0.0)
+    mm = np.rint(mm)
+    mm[(mm <= 0.0) | (mm > np.iinfo(np.uint16).max)] = 0.0
+    return mm.astype(np.uint16)
+
+
+def depth_from_wire(mm: NDArray[np.uint16]) -> NDArray[np.float32]:
+    """uint16 millimetres to float32 metres; 0 (no return) becomes NaN, a hole the mapper skips (never
+    ``min_depth``)."""
+    depth: NDArray[np.float32] = mm.astype(np.float32) / np.float32(DEPTH_SCALE)
+    depth[mm == 0] = np.nan
+    return depth
+
+
+def rgb_to_jpeg(rgb: NDArray[np.uint8], quality: int = 90) -> NDArray[np.uint8]:
+    """An RGB image as JPEG bytes (a uint8 array, to travel as an array frame)."""
+    from PIL import Image
+
+    buffer = io.BytesIO()
+    Image.fromarray(rgb).save(buffer, format="JPEG", quality=quality)
+    return np.frombuffer(buffer.getvalue(), dtype=np.uint8)
+
+
+def rgb_from_jpeg(data: NDArray[np.uint8], shape: tuple[int, int]) -> NDArray[np.uint8]:
+    """The RGB image of JPEG bytes; it must have ``shape`` (height, width)."""
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        image = np.asarray(Image.open(io.BytesIO(data.tobytes())).convert("RGB"), dtype=np.uint8)
+    except (UnidentifiedImageError, OSError) as error:
+        raise ProtocolError("arrays.rgb_jpeg", "a JPEG image", str(error)) from None
+    if image.shape[:2] != shape:
+        raise ProtocolError("arrays.rgb_jpeg", f"an image of {shape[0]}x{shape[1]} (height x width)", image.shape[:2])
+    return image
+
+
+def occupancy_body(local: LocalOccupancy) -> dict[str, JSON]:
+    """The header fields of a LiDAR occupancy window (its cells travel as the ``occupancy`` array)."""
+    return {"occupancy_origin": list(local.origin), "occupancy_resolution": local.resolution}
+
+
+def occupancy_from(message: Message) -> LocalOccupancy | None:
+    """The LiDAR occupancy window an OBSERVATION carries, or None."""
+    cells = message.arrays.get("occupancy")
+    if cells is None:
+        return None
+    if cells.dtype != np.int8 or cells.ndim != 2:
+        raise ProtocolError("arrays.occupancy", "a 2-D int8 array", f"{cells.dtype} {cells.shape}")
+    origin = _finite_list(message.body.get("occupancy_origin"), "body.occupancy_origin", 2)
+    resolution = _finite_list([message.body.get("occupancy_resolution")], "body.occupancy_resolution", 1)[0]
+    if resolution <= 0.0:
+        raise ProtocolError("body.occupancy_resolution", "a positive cell size", resolution)
+    return LocalOccupancy(cells, (origin[0], origin[1]), resolution)
