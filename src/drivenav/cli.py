@@ -479,10 +479,9 @@ def _habitat_spec(args: argparse.Namespace, settings: Settings, overrides: tuple
 def _episodes(args: argparse.Namespace, spec: RunSpec) -> list[Episode]:
     """The run's episodes: the embedded world's (:func:`_load_or_generate`), or a Habitat split's first N / all."""
     from drivenav.envs.habitat.spec import HabitatSpec
-    from drivenav.envs.robot import RobotSpec
     from drivenav.eval.episodes import load_episodes
 
-    if isinstance(spec.env, RobotSpec):
+    if spec.env.name == "robot":  # the robot's own episodes (pyzmq is imported only for robot runs)
         if str(args.episodes).isdigit():
             raise InputError(
                 "command line", "--episodes", "an episodes file with --env robot (the robot's)", args.episodes
