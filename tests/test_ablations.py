@@ -12,10 +12,10 @@ import pytest
 from drivenav.cli import main
 from drivenav.envs.library import SceneLibrary
 from drivenav.eval.ablation_report import ordering_differences
-from drivenav.eval.ablations import ALL_METHODS
 from drivenav.eval.benchmark import BENCHMARK_V1, BenchmarkDefinition, generate_benchmark, resolve_scenes
 from drivenav.eval.episodes import save_episodes, validate_for_scenes
 from drivenav.eval.stats import bootstrap_mean_interval, wilson_interval
+from drivenav.methods import ALL_METHODS
 from drivenav.types import SimConfig
 
 METHOD_KEYS = {

@@ -14,9 +14,8 @@ from drivenav.agent.oracle import OracleAgent
 from drivenav.agent.registry import make_agent
 from drivenav.cli import main
 from drivenav.errors import InputError
-from drivenav.eval.ablations import ALL_METHODS
 from drivenav.mapping.config import MappingConfig, MapTuning
-from drivenav.methods import METHODS
+from drivenav.methods import ALL_METHODS, METHODS
 from drivenav.settings import (
     Settings,
     agent_names,

@@ -16,8 +16,9 @@ from conftest import REPO, run_cli
 from drivenav.envs.embedded import EmbeddedSpec
 from drivenav.envs.library import SceneLibrary
 from drivenav.eval.episodes import generate_episodes, load_episodes, save_episodes
+from drivenav.eval.executor import Executor
 from drivenav.eval.records import read_records
-from drivenav.eval.runner import Executor, RunSpec, evaluate
+from drivenav.eval.runner import RunSpec, evaluate
 from drivenav.settings import load_settings
 
 RECORD_KEYS = {

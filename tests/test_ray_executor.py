@@ -13,10 +13,11 @@ from drivenav.envs.embedded import EmbeddedSpec
 from drivenav.envs.library import SceneLibrary
 from drivenav.errors import InputError
 from drivenav.eval.episodes import generate_episodes, save_episodes
+from drivenav.eval.executor import Executor
 from drivenav.eval.ray_executor import import_ray
 from drivenav.eval.records import EpisodeRecord, read_records
 from drivenav.eval.rundir import EPISODES_FILE
-from drivenav.eval.runner import Executor, RunSpec, evaluate
+from drivenav.eval.runner import RunSpec, evaluate
 from drivenav.settings import load_settings
 
 SEED = 11

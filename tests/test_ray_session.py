@@ -11,9 +11,10 @@ from drivenav.envs.embedded import EmbeddedSpec
 from drivenav.envs.library import SceneLibrary
 from drivenav.eval.ablations import run_methods
 from drivenav.eval.episodes import generate_episodes
+from drivenav.eval.executor import Executor
 from drivenav.eval.records import read_records
 from drivenav.eval.rundir import EPISODES_FILE
-from drivenav.eval.runner import Executor, RunSpec
+from drivenav.eval.runner import RunSpec
 from drivenav.settings import load_settings
 
 

@@ -22,7 +22,8 @@ if TYPE_CHECKING:
     from drivenav.envs.episode import Episode
     from drivenav.envs.habitat.spec import HabitatSpec
     from drivenav.envs.robot import RobotSpec
-    from drivenav.eval.runner import Executor, RunSpec
+    from drivenav.eval.executor import Executor
+    from drivenav.eval.runner import RunSpec
     from drivenav.settings import Settings
 
 limit_blas_threads()  # before numpy loads
@@ -31,7 +32,7 @@ Handler = Callable[[argparse.Namespace], int]
 
 
 def _add_eval(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    from drivenav.settings import agent_names
+    from drivenav.methods import agent_names
 
     parser = commands.add_parser("eval", help="run an agent on episodes and write metrics")
     parser.add_argument("--agent", required=True, help=f"agent name ({', '.join(agent_names())})")
@@ -128,7 +129,7 @@ HABITAT_PREFIX = "habitat."  # --set habitat.KEY=VALUE: a habitat-lab override, 
 
 
 def _add_config_options(parser: argparse.ArgumentParser) -> None:
-    from drivenav.settings import preset_names
+    from drivenav.methods import preset_names
 
     group = parser.add_argument_group("configuration (see 'drivenav config show')")
     group.add_argument(
@@ -209,7 +210,7 @@ def _habitat_overrides(args: argparse.Namespace) -> tuple[str, ...]:
 
 
 def _add_execution_options(parser: argparse.ArgumentParser) -> None:
-    from drivenav.eval.runner import EXECUTORS
+    from drivenav.eval.executor import EXECUTORS
 
     parser.add_argument(
         "--workers", type=int, default=None, help="parallel workers (default: 1 local, every CPU of a Ray cluster)"
@@ -219,7 +220,7 @@ def _add_execution_options(parser: argparse.ArgumentParser) -> None:
 
 
 def _executor(args: argparse.Namespace) -> Executor:
-    from drivenav.eval.runner import Executor
+    from drivenav.eval.executor import Executor
 
     return Executor(args.executor, args.workers, args.ray_address)
 
@@ -297,8 +298,8 @@ def _add_bench(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 
 
 def _add_bench_ablations(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    from drivenav.eval.ablations import ALL_METHODS
     from drivenav.eval.benchmark import BENCHMARK_V1
+    from drivenav.methods import ALL_METHODS
 
     parser = sub.add_parser("ablations", help="the paper's Tables II, V, VI and VII on the embedded benchmark")
     parser.add_argument(
@@ -357,7 +358,7 @@ def _add_demo(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
 
 
 def _add_config(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    from drivenav.settings import agent_names
+    from drivenav.methods import agent_names
 
     parser = commands.add_parser("config", help="the configuration tree")
     sub = parser.add_subparsers(dest="config_command", required=True)

@@ -9,6 +9,7 @@ without prompt enrichment and cross-frame verification.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from importlib import resources
 from typing import Literal
 
 PaperTable = Literal["II", "V", "VI"]  # II: analytical comparison; V: directional components; VI: module ablation
@@ -74,3 +75,20 @@ REFERENCE_AGENTS = ("oracle", "random")  # not DRIVE-Nav variants: the ground-tr
 def method_named(name: str) -> Method | None:
     """The method called ``name`` (an ``--agent`` name), or None for a reference agent or an unknown name."""
     return next((m for m in METHODS if m.name == name), None)
+
+
+ALL_METHODS = tuple(method.name for method in METHODS)
+"""The methods of the paper's tables, in the order ``bench ablations`` runs them."""
+
+PRESETS = "data/configs"  # the --config presets shipped with drivenav, under the package
+
+
+def agent_names() -> list[str]:
+    """Every ``--agent`` name: the methods of the paper's tables and the reference agents."""
+    return sorted([*REFERENCE_AGENTS, *ALL_METHODS])
+
+
+def preset_names() -> list[str]:
+    """The ``--config`` presets shipped with drivenav."""
+    folder = resources.files("drivenav").joinpath(PRESETS)
+    return sorted(item.name[: -len(".yaml")] for item in folder.iterdir() if item.name.endswith(".yaml"))

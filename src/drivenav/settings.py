@@ -32,11 +32,10 @@ from drivenav.agent.drivenav import AgentConfig
 from drivenav.config import DriveNavConfig
 from drivenav.errors import InputError
 from drivenav.mapping.config import MapTuning
-from drivenav.methods import METHODS, REFERENCE_AGENTS, method_named
+from drivenav.methods import PRESETS, agent_names, method_named, preset_names
 from drivenav.semantics.registry import DETECTORS, REASONERS, ModelSpec
 from drivenav.types import SimConfig
 
-PRESETS = "data/configs"
 YAML_HEADER = """\
 # drivenav configuration: load it back with --config FILE, change one value with --set KEY=VALUE.
 # Units: lengths in metres, angles in degrees (*_deg), sim.max_steps in actions (the step budget).
@@ -64,17 +63,6 @@ class Settings:
     agent: AgentConfig = field(default_factory=AgentConfig)
     models: ModelSpec = field(default_factory=ModelSpec)
     run: RunSettings = field(default_factory=RunSettings)
-
-
-def agent_names() -> list[str]:
-    """Every ``--agent`` name: the methods of the paper's tables and the reference agents."""
-    return sorted([*REFERENCE_AGENTS, *(m.name for m in METHODS)])
-
-
-def preset_names() -> list[str]:
-    """The ``--config`` presets shipped with drivenav."""
-    folder = resources.files("drivenav").joinpath(PRESETS)
-    return sorted(item.name[: -len(".yaml")] for item in folder.iterdir() if item.name.endswith(".yaml"))
 
 
 def load_settings(

@@ -10,9 +10,9 @@ from drivenav.agent.drivenav import DriveNavAgent
 from drivenav.agent.oracle import OracleAgent
 from drivenav.agent.random_agent import RandomAgent
 from drivenav.errors import InputError
-from drivenav.methods import method_named
+from drivenav.methods import agent_names, method_named
 from drivenav.semantics.registry import make_grounder, make_reasoner, model_requirements
-from drivenav.settings import Settings, agent_names
+from drivenav.settings import Settings
 from drivenav.types import SimConfig
 
 REFERENCE: dict[str, Callable[[SimConfig], Agent]] = {

@@ -21,20 +21,19 @@ from drivenav.errors import InputError
 from drivenav.eval.ablation_report import format_markdown, write_csv
 from drivenav.eval.compare import compare_runs, load_runs
 from drivenav.eval.episodes import load_episodes, save_episodes
+from drivenav.eval.executor import Executor
 from drivenav.eval.paper_tables import TABLE_II_METHODS
 from drivenav.eval.pictures import render_pictures
 from drivenav.eval.provenance import git_commit
 from drivenav.eval.records import ERROR, MISSED_CAUSES, EpisodeRecord, missed_cause
 from drivenav.eval.report import summarize
 from drivenav.eval.rundir import trace_path
-from drivenav.eval.runner import Executor, RunSpec, evaluate
+from drivenav.eval.runner import RunSpec, evaluate
 from drivenav.eval.stats import bootstrap_mean_interval, wilson_interval
 from drivenav.eval.timings import runtime_table, traced_steps
-from drivenav.methods import METHODS
-from drivenav.settings import agent_names
+from drivenav.methods import agent_names
 from drivenav.types import SimConfig
 
-ALL_METHODS = tuple(method.name for method in METHODS)
 FAILURE_CAUSES = ("false_positive_stop", "missed_target", "timeout", "no_frontier", "target_never_seen")
 RUNS_DIR = "runs"
 EPISODES_COPY = "episodes.json.gz"

@@ -4,13 +4,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from importlib import resources
+from typing import TYPE_CHECKING
 
-from drivenav.envs.episode import Episode
-from drivenav.envs.library import SceneLibrary
-from drivenav.envs.rosmap import default_shared_maps_dir
 from drivenav.errors import InputError
-from drivenav.eval.episodes import generate_episodes, load_episodes
-from drivenav.types import SimConfig
+
+if TYPE_CHECKING:  # the definitions load without numpy (the command line reads them for its defaults)
+    from drivenav.envs.episode import Episode
 
 SHARED_MAPS = "{shared_maps}"  # stands for drivenav.envs.rosmap.default_shared_maps_dir() in a scenes SPEC
 
@@ -41,6 +40,8 @@ def resolve_scenes(spec: str) -> str:
     """``spec`` with ``{shared_maps}`` replaced by the shared floor plans folder (an error if there is none)."""
     if SHARED_MAPS not in spec:
         return spec
+    from drivenav.envs.rosmap import default_shared_maps_dir
+
     maps = default_shared_maps_dir()
     if maps is None:
         raise InputError("DRIVENAV_SHARED", "--scenes", "a shared folder holding data/maps (the real floor plans)")
@@ -50,6 +51,10 @@ def resolve_scenes(spec: str) -> str:
 def generate_benchmark(definition: BenchmarkDefinition, episodes: int | None = None) -> list[Episode]:
     """The definition's episodes, the first ``episodes`` of them if given: its frozen file where it has one, else
     generated (generation is sequential, so a prefix is the same episodes)."""
+    from drivenav.envs.library import SceneLibrary
+    from drivenav.eval.episodes import generate_episodes, load_episodes
+    from drivenav.types import SimConfig
+
     count = episodes or definition.episodes
     if definition.frozen is not None:
         with resources.as_file(resources.files("drivenav").joinpath(f"data/{definition.frozen}")) as path:

@@ -16,7 +16,6 @@ import logging
 import traceback
 import zlib
 from collections.abc import Iterator, Sequence
-from contextlib import AbstractContextManager, nullcontext
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -31,6 +30,7 @@ from drivenav.agent.registry import make_agent
 from drivenav.envs.base import Env, EnvSpec, EpisodeMeasures
 from drivenav.envs.episode import Episode
 from drivenav.errors import InputError
+from drivenav.eval.executor import Executor
 from drivenav.eval.records import ERROR, EpisodeRecord, failure_cause
 from drivenav.eval.report import Summary, summarize
 from drivenav.eval.rundir import RunDirectory
@@ -86,39 +86,6 @@ def check_world_supports(spec: RunSpec, agent: Agent) -> None:
             f"an agent the {spec.env.name} world can run (it provides {offered})",
             f"{spec.agent}, which needs {', '.join(missing)}",
         )
-
-
-@dataclass(frozen=True)
-class Executor:
-    """Where episodes run; records do not depend on it.
-
-    ``local``: in this process for one worker, else a pool of ``workers`` processes. ``ray``: up to ``workers``
-    Ray tasks at a time (default: the cluster's CPUs) on a private local instance, or on the cluster at
-    ``ray_address``.
-    """
-
-    kind: str = "local"
-    workers: int | None = None
-    ray_address: str | None = None
-
-    def __post_init__(self) -> None:
-        if self.kind not in EXECUTORS:
-            raise InputError("command line", "--executor", " or ".join(EXECUTORS), self.kind)
-        if self.workers is not None and self.workers < 1:
-            raise InputError("command line", "--workers", "a positive integer", self.workers)
-        if self.ray_address is not None and self.kind != "ray":
-            raise InputError("command line", "--ray-address", "only with --executor ray", self.ray_address)
-
-    def session(self) -> AbstractContextManager[object]:
-        """Around several runs: one Ray connection for all of them (nothing to hold for local runs)."""
-        if self.kind != "ray":
-            return nullcontext()
-        from drivenav.eval.ray_executor import ray_session
-
-        return ray_session(self.workers, self.ray_address)
-
-
-EXECUTORS = ("local", "ray")
 
 
 def episode_seed(run_seed: int, episode_id: str) -> int:

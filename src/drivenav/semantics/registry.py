@@ -8,10 +8,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from drivenav.errors import InputError
-from drivenav.semantics.protocols import Grounder, Reasoner
-from drivenav.types import SEMANTIC
+
+if TYPE_CHECKING:  # the command line reads the names here without loading numpy
+    from drivenav.semantics.protocols import Grounder, Reasoner
 
 REASONERS = ("embedded", "openai", "replay", "geometric")
 DETECTORS = ("embedded", "ground-truth", "sam3", "owlv2")
@@ -33,6 +35,8 @@ class ModelSpec:
 
 def model_requirements(spec: ModelSpec) -> frozenset[str]:
     """The privileged inputs the chosen models need: the embedded stand-ins read ground-truth labels."""
+    from drivenav.types import SEMANTIC
+
     return frozenset({SEMANTIC}) if {spec.reasoner, spec.detector} & _STAND_INS else frozenset()
 
 
