@@ -210,3 +210,8 @@ def test_bench_reports_the_contract_fields() -> None:
         "tracking",
     }
     assert report["median_ms"] > 0.0
+    assert report["skfmm_ms"] > 0.0
+    assert report["ratio_vs_skfmm"] == report["breakdown_ms"]["fmm"] / report["skfmm_ms"]
+    explored = report["mostly_explored"]
+    assert explored["explored_cells"] > 1.5 * report["explored_cells"]
+    assert explored["median_ms"] > 0.0 and explored["directions"] >= 1

@@ -1,8 +1,12 @@
-"""Benchmark of the directions core on a synthetic, partly explored 480 x 480 house map (5 cm cells).
+"""Benchmark of the directions core on a synthetic 480 x 480 house map (5 cm cells), partly and mostly explored.
 
-The house (24 m x 24 m) has a cross of corridors and eight furnished rooms; the explored region is what a
-5 m range sensor saw from a handful of viewpoints along the corridors, so frontiers appear at range limits,
-at doorways and in shadows. Each timed run recomputes everything from the map (no caching across runs).
+The house (24 m x 24 m) has a cross of corridors and eight furnished rooms. In the main case the explored region is
+what a 5 m range sensor saw from a handful of viewpoints along the corridors, so frontiers appear at range limits,
+at doorways and in shadows; in the ``mostly_explored`` case the sensor also looked from inside every room, so the
+solve covers most of the house and few frontiers are left. Each timed run recomputes everything from the map (no
+caching across runs). The same grid and speed field are also solved with scikit-fmm's ``travel_time`` (the solver
+of SemExp, L3MVN and home-robot), which solves the whole reachable region: ``ratio_vs_skfmm`` is our FMM stage's
+median over its median.
 """
 
 from __future__ import annotations
@@ -16,8 +20,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivenav.config import DriveNavConfig
-from drivenav.directions.pipeline import TIMING_KEYS, DirectionPipeline
+from drivenav.directions.pipeline import TIMING_KEYS, DirectionPipeline, source_cell
+from drivenav.directions.speed import build_speed_field
 from drivenav.directions.synthetic import extract_frontiers, make_snapshot, rect
+from drivenav.directions.types import DirectionResult
 from drivenav.mapping.types import Frontier, MapSnapshot
 
 RESOLUTION = 0.05
@@ -35,6 +41,16 @@ VIEWPOINTS = (
     (19.5, 11.8),
     (16.0, 15.5),
     (8.5, 8.0),
+)
+ROOM_VIEWPOINTS = (
+    (3.5, 6.0),
+    (8.5, 5.0),
+    (14.5, 8.0),
+    (20.5, 6.0),
+    (3.5, 18.0),
+    (8.5, 20.0),
+    (15.0, 19.5),
+    (21.0, 19.0),
 )
 ROBOT_XY = (11.8, 11.8)
 MIN_FRONTIER_CELLS = 8
@@ -84,24 +100,22 @@ def visible_cells(free: NDArray[np.bool_], viewpoint: tuple[float, float]) -> ND
     return seen
 
 
-def bench_scene() -> tuple[MapSnapshot, list[Frontier], tuple[float, float]]:
-    """The benchmark's snapshot, frontiers (at least ``MIN_FRONTIER_CELLS`` cells each) and robot position."""
+def bench_scene(mostly_explored: bool = False) -> tuple[MapSnapshot, list[Frontier], tuple[float, float]]:
+    """The benchmark's snapshot, frontiers (at least ``MIN_FRONTIER_CELLS`` cells each) and robot position; with
+    ``mostly_explored``, the sensor also looked from inside every room."""
     free = house_free_space()
     explored = np.zeros_like(free)
-    for viewpoint in VIEWPOINTS:
+    for viewpoint in VIEWPOINTS + (ROOM_VIEWPOINTS if mostly_explored else ()):
         explored |= visible_cells(free, viewpoint)
     snapshot = make_snapshot(free, explored, RESOLUTION, inflation=0.15)
     return snapshot, extract_frontiers(snapshot, MIN_FRONTIER_CELLS), ROBOT_XY
 
 
-def bench_directions(repeats: int = 50, config: DriveNavConfig | None = None) -> dict[str, Any]:
-    """Time :meth:`DirectionPipeline.update` (map -> labelled directions for all frontiers) on one core.
-
-    Returns the map size, frontier and direction counts, the median total in ms and the median of each stage.
-    """
-    numba.set_num_threads(1)
-    snapshot, frontiers, robot = bench_scene()
-    pipeline = DirectionPipeline(config or DriveNavConfig())
+def _time_pipeline(
+    pipeline: DirectionPipeline, scene: tuple[MapSnapshot, list[Frontier], tuple[float, float]], repeats: int
+) -> tuple[DirectionResult, list[float], list[dict[str, float]]]:
+    """The last result, the wall time and the stage timings of ``repeats`` full updates (after a warm-up)."""
+    snapshot, frontiers, robot = scene
     result = pipeline.update(snapshot, frontiers, robot)  # warm-up: compiles or loads the numba kernels
     runs: list[dict[str, float]] = []
     wall: list[float] = []
@@ -111,7 +125,48 @@ def bench_directions(repeats: int = 50, config: DriveNavConfig | None = None) ->
         result = pipeline.update(snapshot, frontiers, robot)
         wall.append((time.perf_counter() - start) * 1e3)
         runs.append(result.timings_ms)
+    return result, wall, runs
+
+
+def skfmm_ms(
+    scene: tuple[MapSnapshot, list[Frontier], tuple[float, float]], config: DriveNavConfig, repeats: int
+) -> float:
+    """Median ms of scikit-fmm's ``travel_time`` from the robot's cell on the pipeline's own grid and speed field."""
+    import skfmm
+
+    snapshot, frontiers, robot = scene
+    field = build_speed_field(snapshot, frontiers, config.speed)
+    source = source_cell(field, robot, config.directions.source_snap_radius)
+    if source is None:
+        raise ValueError("the benchmark's robot has no traversable cell")
+    phi = np.ones(field.speed.shape)
+    phi[source] = -1.0
+    blocked = field.speed <= 0.0
+    phi_masked = np.ma.MaskedArray(phi, blocked)
+    speed_masked = np.ma.MaskedArray(np.where(blocked, 1.0, field.speed), blocked)
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        skfmm.travel_time(phi_masked, speed_masked, dx=field.window.grid.resolution)
+        times.append((time.perf_counter() - start) * 1e3)
+    return float(np.median(times))
+
+
+def bench_directions(repeats: int = 50, config: DriveNavConfig | None = None) -> dict[str, Any]:
+    """Time :meth:`DirectionPipeline.update` (map -> labelled directions for all frontiers) on one core.
+
+    Returns the map size, frontier and direction counts, the median total in ms and the median of each stage, the
+    same for the ``mostly_explored`` map, and scikit-fmm's time on the main case's grid and speed field.
+    """
+    numba.set_num_threads(1)
+    config = config or DriveNavConfig()
+    scene = bench_scene()
+    snapshot, frontiers, _ = scene
+    result, wall, runs = _time_pipeline(DirectionPipeline(config), scene, repeats)
     breakdown = {key: float(np.median([r[key] for r in runs])) for key in TIMING_KEYS if key != "total"}
+    explored_scene = bench_scene(mostly_explored=True)
+    explored_result, explored_wall, _ = _time_pipeline(DirectionPipeline(config), explored_scene, repeats)
+    reference = skfmm_ms(scene, config, max(3, repeats // 5))
     return {
         "map_cells": int(snapshot.obstacle.size),
         "map_shape": [int(s) for s in snapshot.obstacle.shape],
@@ -124,4 +179,12 @@ def bench_directions(repeats: int = 50, config: DriveNavConfig | None = None) ->
         "median_ms": float(np.median(wall)),
         "min_ms": float(np.min(wall)),
         "breakdown_ms": breakdown,
+        "skfmm_ms": reference,
+        "ratio_vs_skfmm": breakdown["fmm"] / reference,
+        "mostly_explored": {
+            "explored_cells": int(explored_scene[0].explored.sum()),
+            "frontiers": len(explored_scene[1]),
+            "directions": len(explored_result.directions),
+            "median_ms": float(np.median(explored_wall)),
+        },
     }
