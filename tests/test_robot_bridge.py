@@ -403,3 +403,22 @@ def test_lidar_occupancy_travels_with_observations_and_is_fused_when_switched_on
             20,
         )
     assert record.error == "" and record.steps == 20
+
+
+def test_ctrl_c_during_a_live_episode_stops_the_robot_and_ends_the_episode() -> None:
+    from drivenav.robot.live import LiveEnv, OperatorStopError, live_episode
+    from drivenav.types import SimConfig
+
+    motion = CountingMotion()
+    with served(still_session(motion)) as endpoint:
+        sim = SimConfig(width=64, height=48)
+        env = RobotSpec(endpoint).build(sim)
+        live = LiveEnv(env, build_agent(RunSpec(RobotSpec(endpoint), load_settings("random"))))
+        live.reset(live_episode("chair"))
+        live.step(Action.MOVE_FORWARD)
+        motion.stopped.clear()
+        live.interrupted = True
+        with pytest.raises(OperatorStopError, match="stopped by the operator"):
+            live.step(Action.MOVE_FORWARD)
+        assert motion.stopped.is_set() and motion.executed == 1  # STOP sent, the second step never ran
+        env.close()
