@@ -4,9 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
 from numpy.typing import NDArray
 
 from drivenav.envs.vocabulary import VOCABULARY
+from drivenav.semantics.embedded import instance_areas
 from drivenav.semantics.embedded_detector import EmbeddedDetectorConfig, EmbeddedGrounder, stable_hash
 from drivenav.semantics.embedding import default_embedder
 from drivenav.semantics.protocols import Detection, Grounder
@@ -173,3 +177,20 @@ def test_config_probabilities_and_validation() -> None:
         EmbeddedDetectorConfig(confusion_rate=1.5)
     with pytest.raises(ValueError, match="depth_width"):
         EmbeddedDetectorConfig(depth_width=0.0)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    semantic=arrays(
+        np.int32,
+        st.tuples(st.integers(0, 12), st.integers(1, 12)),
+        elements=st.one_of(st.integers(0, 9), st.integers(-3, 3), st.integers(2**21, 2**21 + 2)),
+    )
+)
+def test_instance_areas_counts_like_unique(semantic: NDArray[np.int32]) -> None:
+    """Counting by table (issue 14) and by sorting agree, ids in increasing order, id 0 left out."""
+    ids, counts = np.unique(semantic, return_counts=True)
+    expected = {int(i): int(c) for i, c in zip(ids, counts, strict=True) if i != 0}
+    found = instance_areas(semantic)
+    assert found == expected
+    assert list(found) == sorted(found)

@@ -8,8 +8,11 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
+from numpy.typing import NDArray
+from scipy import ndimage
 
 from drivenav.mapping.config import MappingConfig
+from drivenav.mapping.frontiers import component_at
 from drivenav.mapping.occupancy import OccupancyMapper
 from drivenav.mapping.synthetic import Box3, BoxWorld
 from drivenav.types import CameraIntrinsics, Pose
@@ -77,3 +80,18 @@ def test_random_frames_keep_the_invariants(steps: list[tuple[Pose, np.ndarray]])
     for f in mapper.frontiers():
         assert snap.navigable[f.cells[:, 0], f.cells[:, 1]].all()
         assert f.unexplored_area >= CONFIG.min_frontier_area
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    mask=arrays(np.bool_, st.tuples(st.integers(1, 24), st.integers(1, 24))),
+    eight=st.booleans(),
+    data=st.data(),
+)
+def test_component_at_is_the_labelled_component(mask: NDArray[np.bool_], eight: bool, data: st.DataObject) -> None:
+    """The flood fill behind ``component_at`` (issue 14) gives exactly scipy's connected-component label."""
+    i = data.draw(st.integers(0, mask.shape[0] - 1))
+    j = data.draw(st.integers(0, mask.shape[1] - 1))
+    labels, _ = ndimage.label(mask, structure=ndimage.generate_binary_structure(2, 2 if eight else 1))
+    expected = labels == labels[i, j] if mask[i, j] else np.zeros_like(mask)
+    np.testing.assert_array_equal(component_at(mask, (i, j), eight=eight), expected)

@@ -22,6 +22,7 @@ segment runs from the robot to that cell's centre -- the only segment allowed to
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Sequence
 
@@ -80,9 +81,21 @@ class DirectionPipeline:
     def __init__(self, config: DriveNavConfig) -> None:
         self._config = config
         self._tracker = DirectionTracker(config.directions)
+        self._last_field: tuple[MapSnapshot, tuple[Frontier, ...], SpeedField] | None = None
 
     def reset(self) -> None:
         self._tracker.reset()
+        self._last_field = None
+
+    def _speed_field(self, snapshot: MapSnapshot, frontiers: Sequence[Frontier]) -> SpeedField:
+        """The speed field of these very map and frontier objects, built once: a second update in the same step
+        (a new goal at a decision) reuses it and reports no distance-transform or skeleton time."""
+        last = self._last_field
+        if last is not None and last[0] is snapshot and _same_objects(last[1], frontiers):
+            return dataclasses.replace(last[2], timings_ms=dict.fromkeys(last[2].timings_ms, 0.0))
+        field = build_speed_field(snapshot, frontiers, self._config.speed)
+        self._last_field = (snapshot, tuple(frontiers), field)
+        return field
 
     def update(
         self,
@@ -100,7 +113,7 @@ class DirectionPipeline:
         t_start = time.perf_counter()
         robot_xy = (float(robot_xy[0]), float(robot_xy[1]))
         timings = dict.fromkeys(TIMING_KEYS, 0.0)
-        field = build_speed_field(snapshot, frontiers, self._config.speed)
+        field = self._speed_field(snapshot, frontiers)
         timings.update(field.timings_ms)
 
         t = time.perf_counter()
@@ -233,6 +246,10 @@ def _goal_path(
     if source is None or cell is None or not np.isfinite(T[cell]):
         return None
     return _world_path(field, backtrack(T, field.traversable, cell, source), robot)
+
+
+def _same_objects(a: Sequence[object], b: Sequence[object]) -> bool:
+    return len(a) == len(b) and all(x is y for x, y in zip(a, b, strict=True))
 
 
 def _same_point(a: Point, b: Point) -> bool:

@@ -18,6 +18,7 @@ are exactly what the full map would give.
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -221,9 +222,18 @@ def weighted_speed(
 ) -> NDArray[np.float64]:
     """Eqs. 1-3 on the traversable cells, from squared cell distances, via per-call lookup tables (squared
     distances on a grid are integers, so a table lookup is exact and much cheaper than two exponentials)."""
+    obs, vor = _speed_tables(config, resolution)
+    return np.asarray(_speed_kernel(trav, obstacle_sq, skeleton_sq, obs, vor), dtype=np.float64)
+
+
+@functools.lru_cache(maxsize=8)
+def _speed_tables(config: SpeedFieldConfig, resolution: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The obstacle and skeleton lookup tables, built once per configuration and resolution (read-only)."""
     obs = _squared_distance_table(_f_obs, config, config.r_obs, config.lam, resolution)
     vor = _squared_distance_table(_f_vor, config, config.r_vor, config.beta, resolution)
-    return np.asarray(_speed_kernel(trav, obstacle_sq, skeleton_sq, obs, vor), dtype=np.float64)
+    for table in (obs, vor):
+        table.flags.writeable = False
+    return obs, vor
 
 
 def build_speed_field(snapshot: MapSnapshot, frontiers: Sequence[Frontier], config: SpeedFieldConfig) -> SpeedField:

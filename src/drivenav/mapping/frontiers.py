@@ -18,12 +18,11 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from drivenav.grid import GridSpec
-from drivenav.mapping.kernels import pocket_size
+from drivenav.mapping.kernels import flood_fill, pocket_size
 from drivenav.mapping.types import Frontier
 
 Mask = NDArray[np.bool_]
 
-_FOUR = ndimage.generate_binary_structure(2, 1)
 _EIGHT = ndimage.generate_binary_structure(2, 2)
 
 
@@ -32,9 +31,7 @@ def component_at(mask: Mask, seed: tuple[int, int], *, eight: bool) -> Mask:
     i, j = seed
     if not (0 <= i < mask.shape[0] and 0 <= j < mask.shape[1] and mask[i, j]):
         return np.zeros_like(mask)
-    labels, _ = ndimage.label(mask, structure=_EIGHT if eight else _FOUR)
-    result: Mask = labels == labels[i, j]
-    return result
+    return np.asarray(flood_fill(np.ascontiguousarray(mask, dtype=np.bool_), i, j, eight), dtype=np.bool_)
 
 
 def nearest_in(mask: Mask, seed: tuple[int, int], radius: int) -> tuple[int, int] | None:
@@ -74,12 +71,13 @@ def extract_frontiers(
     to a pocket. Frontier ids number the kept frontiers in raster order of their first cell, so they are
     stable within one call only.
     """
-    labels, count = ndimage.label(frontier_cells(explored, navigable), structure=_EIGHT)
+    found = frontier_cells(explored, navigable)
+    labels, count = ndimage.label(found, structure=_EIGHT)
     if count == 0:
         return []
     passable = ~explored & ~blocked
     margin = math.ceil(pocket_window / grid.resolution)
-    rows, cols = np.nonzero(labels)
+    rows, cols = np.nonzero(found)
     member = labels[rows, cols]
     order = np.argsort(member, kind="stable")
     cells = np.stack([rows, cols], axis=1).astype(np.int64)[order]

@@ -159,3 +159,30 @@ def pocket_size(passable: Mask, cells: I64, window: I64) -> int:
                 queue[tail] = ii * w + jj
                 tail += 1
     return tail
+
+
+@_jit
+def flood_fill(mask: Mask, i: int, j: int, eight: bool) -> Mask:
+    """The 4- or 8-connected component of ``mask`` holding cell ``(i, j)``, which must be set.
+
+    Visits only the component (breadth-first), so it costs what the component costs, not the whole array.
+    """
+    rows, cols = mask.shape
+    out = np.zeros((rows, cols), dtype=np.bool_)
+    queue = np.empty(rows * cols, dtype=np.int64)
+    out[i, j] = True
+    queue[0] = i * cols + j
+    head, tail = 0, 1
+    while head < tail:
+        ci, cj = queue[head] // cols, queue[head] % cols
+        head += 1
+        for di in range(-1, 2):
+            for dj in range(-1, 2):
+                if (di == 0 and dj == 0) or (not eight and di != 0 and dj != 0):
+                    continue
+                ii, jj = ci + di, cj + dj
+                if 0 <= ii < rows and 0 <= jj < cols and mask[ii, jj] and not out[ii, jj]:
+                    out[ii, jj] = True
+                    queue[tail] = ii * cols + jj
+                    tail += 1
+    return out
