@@ -13,6 +13,7 @@ from scipy import ndimage
 
 from drivenav.mapping.config import MappingConfig
 from drivenav.mapping.frontiers import component_at
+from drivenav.mapping.kernels import raster_components
 from drivenav.mapping.occupancy import OccupancyMapper
 from drivenav.mapping.synthetic import Box3, BoxWorld
 from drivenav.types import CameraIntrinsics, Pose
@@ -95,3 +96,15 @@ def test_component_at_is_the_labelled_component(mask: NDArray[np.bool_], eight: 
     labels, _ = ndimage.label(mask, structure=ndimage.generate_binary_structure(2, 2 if eight else 1))
     expected = labels == labels[i, j] if mask[i, j] else np.zeros_like(mask)
     np.testing.assert_array_equal(component_at(mask, (i, j), eight=eight), expected)
+
+
+@settings(max_examples=80, deadline=None)
+@given(mask=arrays(np.bool_, st.tuples(st.integers(1, 24), st.integers(1, 24))))
+def test_raster_components_group_like_scipy_label(mask: NDArray[np.bool_]) -> None:
+    """Frontier grouping (issue 14): scipy's 8-connected labels, components in label order, cells in raster order."""
+    labels, count = ndimage.label(mask, structure=ndimage.generate_binary_structure(2, 2))
+    cells, starts = raster_components(mask)
+    assert len(starts) == count + 1
+    for k in range(count):
+        expected = np.argwhere(labels == k + 1)
+        np.testing.assert_array_equal(cells[starts[k] : starts[k + 1]], expected)

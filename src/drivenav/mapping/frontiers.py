@@ -11,19 +11,17 @@ exactly; unexplored space that opens onto the unknown fills much of the window (
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import ndimage
 
 from drivenav.grid import GridSpec
-from drivenav.mapping.kernels import flood_fill, pocket_size
+from drivenav.mapping.kernels import flood_fill, pocket_size, raster_components
 from drivenav.mapping.types import Frontier
 
 Mask = NDArray[np.bool_]
-
-_EIGHT = ndimage.generate_binary_structure(2, 2)
 
 
 def component_at(mask: Mask, seed: tuple[int, int], *, eight: bool) -> Mask:
@@ -71,17 +69,10 @@ def extract_frontiers(
     to a pocket. Frontier ids number the kept frontiers in raster order of their first cell, so they are
     stable within one call only.
     """
-    found = frontier_cells(explored, navigable)
-    labels, count = ndimage.label(found, structure=_EIGHT)
-    if count == 0:
-        return []
+    cells, starts = raster_components(frontier_cells(explored, navigable))
+    groups = [cells[a:b] for a, b in itertools.pairwise(starts)]
     passable = ~explored & ~blocked
     margin = math.ceil(pocket_window / grid.resolution)
-    rows, cols = np.nonzero(found)
-    member = labels[rows, cols]
-    order = np.argsort(member, kind="stable")
-    cells = np.stack([rows, cols], axis=1).astype(np.int64)[order]
-    groups = np.split(cells, np.searchsorted(member[order], np.arange(2, count + 1)))
     frontiers: list[Frontier] = []
     for group in groups:
         area = _pocket_area(passable, group, margin) * grid.resolution**2

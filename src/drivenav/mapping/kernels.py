@@ -186,3 +186,44 @@ def flood_fill(mask: Mask, i: int, j: int, eight: bool) -> Mask:
                     queue[tail] = ii * cols + jj
                     tail += 1
     return out
+
+
+@_jit
+def raster_components(mask: Mask) -> tuple[I64, I64]:
+    """The 8-connected components of ``mask``, numbered in raster order of their first cell (as
+    ``scipy.ndimage.label`` numbers them): every set cell as ``(row, col)`` grouped by component, each group in
+    raster order, and the ``count + 1`` offsets where the groups start and the last ends."""
+    rows, cols = mask.shape
+    label = np.full((rows, cols), -1, dtype=np.int64)
+    queue = np.empty(rows * cols, dtype=np.int64)
+    sizes = np.zeros(rows * cols + 1, dtype=np.int64)
+    count = 0
+    for i in range(rows):
+        for j in range(cols):
+            if not mask[i, j] or label[i, j] >= 0:
+                continue
+            label[i, j] = count
+            queue[0] = i * cols + j
+            head, tail = 0, 1
+            while head < tail:
+                ci, cj = queue[head] // cols, queue[head] % cols
+                head += 1
+                for ii in range(max(ci - 1, 0), min(ci + 2, rows)):
+                    for jj in range(max(cj - 1, 0), min(cj + 2, cols)):
+                        if mask[ii, jj] and label[ii, jj] < 0:
+                            label[ii, jj] = count
+                            queue[tail] = ii * cols + jj
+                            tail += 1
+            sizes[count + 1] = tail
+            count += 1
+    starts = np.cumsum(sizes[: count + 1])
+    cells = np.empty((starts[count], 2), dtype=np.int64)
+    fill = starts[:count].copy()
+    for i in range(rows):
+        for j in range(cols):
+            k = label[i, j]
+            if k >= 0:
+                cells[fill[k], 0] = i
+                cells[fill[k], 1] = j
+                fill[k] += 1
+    return cells, starts
