@@ -116,6 +116,19 @@ class _Tensors:
         return np.asarray(self._handle.get_tensor(name), dtype=np.float32)
 
 
+def _mapped_tensor(path: Path, name: str) -> FloatArray:
+    """A float32 tensor of a safetensors file as a read-only memory map: only the rows a text uses are ever read,
+    and the pages are shared by every process on the machine (the 47 MB word-embedding table)."""
+    with path.open("rb") as file:
+        size = int.from_bytes(file.read(8), "little")
+        entry = json.loads(file.read(size))[name]
+    if entry["dtype"] != "F32":
+        raise ValueError(f"{path}: tensor {name!r} is {entry['dtype']}, expected F32")
+    begin = 8 + size + int(entry["data_offsets"][0])
+    shape = tuple(int(n) for n in entry["shape"])
+    return np.memmap(path, dtype="<f4", mode="r", offset=begin, shape=shape)
+
+
 def _linear(weights: _Tensors, *prefixes: str) -> _Linear:
     matrix = np.concatenate([weights[f"{p}.weight"] for p in prefixes], axis=0)
     bias = np.concatenate([weights[f"{p}.bias"] for p in prefixes])
@@ -157,7 +170,7 @@ class TextEmbedder:
             raise EmbeddingModelMissingError(f"{weights_path} not found (reinstall: '{INSTALL_HINT}')")
         with safe_open(str(weights_path), framework="np") as handle:
             weights = _Tensors(handle)
-            self._word = weights["embeddings.word_embeddings.weight"]
+            self._word = _mapped_tensor(weights_path, "embeddings.word_embeddings.weight")
             self._position = weights["embeddings.position_embeddings.weight"]
             self._token_type = weights["embeddings.token_type_embeddings.weight"][0]
             self._embedding_norm = _norm(weights, "embeddings.LayerNorm")
