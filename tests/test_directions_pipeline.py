@@ -215,3 +215,59 @@ def test_bench_reports_the_contract_fields() -> None:
     explored = report["mostly_explored"]
     assert explored["explored_cells"] > 1.5 * report["explored_cells"]
     assert explored["median_ms"] > 0.0 and explored["directions"] >= 1
+
+
+def _copy_snapshot(snapshot: MapSnapshot) -> MapSnapshot:
+    return MapSnapshot(snapshot.grid, snapshot.obstacle.copy(), snapshot.explored.copy(), snapshot.navigable.copy())
+
+
+def _same_result(a: DirectionResult, b: DirectionResult) -> None:
+    assert len(a.directions) == len(b.directions)
+    for d, e in zip(a.directions, b.directions, strict=True):
+        assert (d.label, d.bearing, d.frontier_ids, d.farthest_point) == (
+            e.label,
+            e.bearing,
+            e.frontier_ids,
+            e.farthest_point,
+        )
+        np.testing.assert_array_equal(d.waypoints, e.waypoints)
+    assert a.unreachable == b.unreachable
+    assert a.paths.keys() == b.paths.keys()
+    for key, path in a.paths.items():
+        other = b.paths[key]
+        np.testing.assert_array_equal(path.path, other.path)
+        assert (path.bearing, path.travel_time, path.farthest_point) == (
+            other.bearing,
+            other.travel_time,
+            other.farthest_point,
+        )
+
+
+@pytest.mark.parametrize("robot", [(4.0, 4.0), (4.0, 3.0), (5.5, 4.0)])
+def test_a_reused_speed_field_gives_what_a_fresh_pipeline_gives(robot: tuple[float, float]) -> None:
+    """Issue 14: an unchanged map (equal content, new arrays) reuses the speed field; the robot may have moved."""
+    snapshot, frontiers = t_junction()
+    pipeline = DirectionPipeline(DriveNavConfig())
+    pipeline.update(snapshot, frontiers, (4.0, 4.0))
+    again = _copy_snapshot(snapshot)
+    reused = pipeline.update(again, extract_frontiers(again), robot)
+    assert reused.timings_ms["distance_transforms"] == 0.0
+    fresh_pipeline = DirectionPipeline(DriveNavConfig())
+    fresh_pipeline.update(snapshot, frontiers, (4.0, 4.0))
+    fresh = fresh_pipeline.update(again, extract_frontiers(again), robot)
+    _same_result(reused, fresh)
+
+
+def test_a_changed_obstacle_rebuilds_the_speed_field() -> None:
+    snapshot, frontiers = t_junction()
+    pipeline = DirectionPipeline(DriveNavConfig())
+    first = pipeline.update(snapshot, frontiers, (4.0, 4.0))
+    obstacle = snapshot.obstacle.copy()
+    obstacle[80, 75] = True  # one new obstacle cell inside the corridor
+    changed = MapSnapshot(snapshot.grid, obstacle, snapshot.explored.copy(), snapshot.navigable.copy())
+    second = pipeline.update(changed, frontiers, (4.0, 4.0))
+    assert second.timings_ms["distance_transforms"] > 0.0
+    fresh = DirectionPipeline(DriveNavConfig())
+    fresh.update(snapshot, frontiers, (4.0, 4.0))
+    _same_result(second, fresh.update(changed, frontiers, (4.0, 4.0)))
+    assert first.directions  # the junction has directions at all
