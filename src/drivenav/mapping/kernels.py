@@ -162,30 +162,35 @@ def pocket_size(passable: Mask, cells: I64, window: I64) -> int:
 
 
 @_jit
-def flood_fill(mask: Mask, i: int, j: int, eight: bool) -> Mask:
-    """The 4- or 8-connected component of ``mask`` holding cell ``(i, j)``, which must be set.
-
-    Visits only the component (breadth-first), so it costs what the component costs, not the whole array.
-    """
+def _flood(mask: Mask, label: I64, i: int, j: int, value: int, eight: bool, queue: I64) -> int:
+    """Give ``value`` to every cell of ``mask``'s 4- or 8-connected component holding the set cell ``(i, j)`` that
+    ``label`` still marks ``-1``, breadth-first through ``queue`` (one slot per cell); the number of cells given."""
     rows, cols = mask.shape
-    out = np.zeros((rows, cols), dtype=np.bool_)
-    queue = np.empty(rows * cols, dtype=np.int64)
-    out[i, j] = True
+    label[i, j] = value
     queue[0] = i * cols + j
     head, tail = 0, 1
     while head < tail:
         ci, cj = queue[head] // cols, queue[head] % cols
         head += 1
-        for di in range(-1, 2):
-            for dj in range(-1, 2):
-                if (di == 0 and dj == 0) or (not eight and di != 0 and dj != 0):
-                    continue
-                ii, jj = ci + di, cj + dj
-                if 0 <= ii < rows and 0 <= jj < cols and mask[ii, jj] and not out[ii, jj]:
-                    out[ii, jj] = True
+        for ii in range(max(ci - 1, 0), min(ci + 2, rows)):
+            for jj in range(max(cj - 1, 0), min(cj + 2, cols)):
+                if (eight or ii == ci or jj == cj) and mask[ii, jj] and label[ii, jj] < 0:
+                    label[ii, jj] = value
                     queue[tail] = ii * cols + jj
                     tail += 1
-    return out
+    return tail
+
+
+@_jit
+def flood_fill(mask: Mask, i: int, j: int, eight: bool) -> Mask:
+    """The 4- or 8-connected component of ``mask`` holding cell ``(i, j)``, which must be set.
+
+    Visits only the component (breadth-first), so it costs what the component costs, not a labelling of the array.
+    """
+    label = np.full(mask.shape, -1, dtype=np.int64)
+    _flood(mask, label, i, j, 0, eight, np.empty(mask.size, dtype=np.int64))
+    component: Mask = label == 0
+    return component
 
 
 @_jit
@@ -200,22 +205,9 @@ def raster_components(mask: Mask) -> tuple[I64, I64]:
     count = 0
     for i in range(rows):
         for j in range(cols):
-            if not mask[i, j] or label[i, j] >= 0:
-                continue
-            label[i, j] = count
-            queue[0] = i * cols + j
-            head, tail = 0, 1
-            while head < tail:
-                ci, cj = queue[head] // cols, queue[head] % cols
-                head += 1
-                for ii in range(max(ci - 1, 0), min(ci + 2, rows)):
-                    for jj in range(max(cj - 1, 0), min(cj + 2, cols)):
-                        if mask[ii, jj] and label[ii, jj] < 0:
-                            label[ii, jj] = count
-                            queue[tail] = ii * cols + jj
-                            tail += 1
-            sizes[count + 1] = tail
-            count += 1
+            if mask[i, j] and label[i, j] < 0:
+                sizes[count + 1] = _flood(mask, label, i, j, count, True, queue)
+                count += 1
     starts = np.cumsum(sizes[: count + 1])
     cells = np.empty((starts[count], 2), dtype=np.int64)
     fill = starts[:count].copy()
