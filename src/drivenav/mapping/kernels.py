@@ -162,20 +162,23 @@ def pocket_size(passable: Mask, cells: I64, window: I64) -> int:
 
 
 @_jit
-def _flood(mask: Mask, label: I64, i: int, j: int, value: int, eight: bool, queue: I64) -> int:
-    """Give ``value`` to every cell of ``mask``'s 4- or 8-connected component holding the set cell ``(i, j)`` that
-    ``label`` still marks ``-1``, breadth-first through ``queue`` (one slot per cell); the number of cells given."""
+def _flood(mask: Mask, visited: Mask, i: int, j: int, eight: bool, queue: I64) -> int:
+    """Mark in ``visited`` the 4- or 8-connected component of ``mask`` holding the set, unvisited cell ``(i, j)``,
+    breadth-first; its cells' flat indices end up in ``queue[:n]`` (one slot per cell), and ``n`` is returned."""
     rows, cols = mask.shape
-    label[i, j] = value
+    visited[i, j] = True
     queue[0] = i * cols + j
     head, tail = 0, 1
     while head < tail:
         ci, cj = queue[head] // cols, queue[head] % cols
         head += 1
-        for ii in range(max(ci - 1, 0), min(ci + 2, rows)):
-            for jj in range(max(cj - 1, 0), min(cj + 2, cols)):
-                if (eight or ii == ci or jj == cj) and mask[ii, jj] and label[ii, jj] < 0:
-                    label[ii, jj] = value
+        for di in range(-1, 2):
+            for dj in range(-1, 2):
+                if (di == 0 and dj == 0) or (not eight and di != 0 and dj != 0):
+                    continue
+                ii, jj = ci + di, cj + dj
+                if 0 <= ii < rows and 0 <= jj < cols and mask[ii, jj] and not visited[ii, jj]:
+                    visited[ii, jj] = True
                     queue[tail] = ii * cols + jj
                     tail += 1
     return tail
@@ -187,10 +190,9 @@ def flood_fill(mask: Mask, i: int, j: int, eight: bool) -> Mask:
 
     Visits only the component (breadth-first), so it costs what the component costs, not a labelling of the array.
     """
-    label = np.full(mask.shape, -1, dtype=np.int64)
-    _flood(mask, label, i, j, 0, eight, np.empty(mask.size, dtype=np.int64))
-    component: Mask = label == 0
-    return component
+    visited = np.zeros(mask.shape, dtype=np.bool_)
+    _flood(mask, visited, i, j, eight, np.empty(mask.size, dtype=np.int64))
+    return visited
 
 
 @_jit
@@ -199,14 +201,18 @@ def raster_components(mask: Mask) -> tuple[I64, I64]:
     ``scipy.ndimage.label`` numbers them): every set cell as ``(row, col)`` grouped by component, each group in
     raster order, and the ``count + 1`` offsets where the groups start and the last ends."""
     rows, cols = mask.shape
+    visited = np.zeros((rows, cols), dtype=np.bool_)
     label = np.full((rows, cols), -1, dtype=np.int64)
     queue = np.empty(rows * cols, dtype=np.int64)
     sizes = np.zeros(rows * cols + 1, dtype=np.int64)
     count = 0
     for i in range(rows):
         for j in range(cols):
-            if mask[i, j] and label[i, j] < 0:
-                sizes[count + 1] = _flood(mask, label, i, j, count, True, queue)
+            if mask[i, j] and not visited[i, j]:
+                n = _flood(mask, visited, i, j, True, queue)
+                for q in range(n):
+                    label[queue[q] // cols, queue[q] % cols] = count
+                sizes[count + 1] = n
                 count += 1
     starts = np.cumsum(sizes[: count + 1])
     cells = np.empty((starts[count], 2), dtype=np.int64)
