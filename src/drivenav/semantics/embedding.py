@@ -3,7 +3,8 @@
 The embedded stand-ins for Qwen3-VL (Sec. IV-A c, IV-B, IV-C) and SAM3 (Sec. IV-B) judge how related a
 visible object is to the goal text by the cosine similarity of sentence embeddings. This module runs the
 sentence-transformers model ``all-MiniLM-L6-v2`` without torch: the WordPiece tokenizer from ``tokenizer.json``
-(``tokenizers``), the weights from ``model.safetensors`` (``safetensors.numpy``) and a BERT encoder forward pass:
+(``tokenizers``), the weights from ``model.safetensors`` (memory-mapped, read with numpy) and a BERT encoder
+forward pass:
 
 * embeddings: word + position + token type (all 0), then LayerNorm;
 * ``num_hidden_layers`` blocks of multi-head self-attention (padding masked out) and a GELU (erf form)
@@ -29,7 +30,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from safetensors import safe_open
 from scipy.special import erf
 from tokenizers import Tokenizer
 
@@ -105,41 +105,41 @@ class _Block:
     output_norm: _Norm
 
 
-class _Tensors:
-    """The checkpoint's tensors read one at a time as they are needed, so that loading never holds the whole file
-    beside the fused and transposed copies kept (about 90 MB less at the peak: issue 14's memory goal)."""
+class _Checkpoint:
+    """The tensors of a ``model.safetensors`` file as read-only float32 views of one memory map of it (the format:
+    an 8-byte little-endian header length, a JSON header of dtype, shape and data offsets, then the raw data).
 
-    def __init__(self, handle: Any) -> None:
-        self._handle = handle
+    Only the pages a computation touches are read, and they are shared by every process on the machine: the
+    fused and transposed layers copy what they need once, and the 47 MB word-embedding table is never copied,
+    only the rows of the tokens a text uses are read (issue 14's memory goal)."""
+
+    def __init__(self, path: Path) -> None:
+        self._path = path
+        with path.open("rb") as file:
+            size = int.from_bytes(file.read(8), "little")
+            self._header: dict[str, Any] = json.loads(file.read(size))
+        self._data = np.memmap(path, dtype=np.uint8, mode="r", offset=8 + size)
 
     def __getitem__(self, name: str) -> FloatArray:
-        return np.asarray(self._handle.get_tensor(name), dtype=np.float32)
+        entry = self._header[name]
+        if entry["dtype"] != "F32":
+            raise ValueError(f"{self._path}: tensor {name!r} is {entry['dtype']}, expected F32")
+        begin, end = (int(n) for n in entry["data_offsets"])
+        shape = tuple(int(n) for n in entry["shape"])
+        return self._data[begin:end].view("<f4").reshape(shape)
 
 
-def _mapped_tensor(path: Path, name: str) -> FloatArray:
-    """A float32 tensor of a safetensors file as a read-only memory map: only the rows a text uses are ever read,
-    and the pages are shared by every process on the machine (the 47 MB word-embedding table)."""
-    with path.open("rb") as file:
-        size = int.from_bytes(file.read(8), "little")
-        entry = json.loads(file.read(size))[name]
-    if entry["dtype"] != "F32":
-        raise ValueError(f"{path}: tensor {name!r} is {entry['dtype']}, expected F32")
-    begin = 8 + size + int(entry["data_offsets"][0])
-    shape = tuple(int(n) for n in entry["shape"])
-    return np.memmap(path, dtype="<f4", mode="r", offset=begin, shape=shape)
-
-
-def _linear(weights: _Tensors, *prefixes: str) -> _Linear:
+def _linear(weights: _Checkpoint, *prefixes: str) -> _Linear:
     matrix = np.concatenate([weights[f"{p}.weight"] for p in prefixes], axis=0)
     bias = np.concatenate([weights[f"{p}.bias"] for p in prefixes])
     return _Linear(np.ascontiguousarray(matrix.T), bias)
 
 
-def _norm(weights: _Tensors, prefix: str) -> _Norm:
+def _norm(weights: _Checkpoint, prefix: str) -> _Norm:
     return _Norm(weights[f"{prefix}.weight"], weights[f"{prefix}.bias"])
 
 
-def _block(weights: _Tensors, k: int) -> _Block:
+def _block(weights: _Checkpoint, k: int) -> _Block:
     p = f"encoder.layer.{k}"
     a = f"{p}.attention"
     return _Block(
@@ -168,13 +168,12 @@ class TextEmbedder:
         weights_path = folder / "model.safetensors"
         if not weights_path.is_file():
             raise EmbeddingModelMissingError(f"{weights_path} not found (reinstall: '{INSTALL_HINT}')")
-        with safe_open(str(weights_path), framework="np") as handle:
-            weights = _Tensors(handle)
-            self._word = _mapped_tensor(weights_path, "embeddings.word_embeddings.weight")
-            self._position = weights["embeddings.position_embeddings.weight"]
-            self._token_type = weights["embeddings.token_type_embeddings.weight"][0]
-            self._embedding_norm = _norm(weights, "embeddings.LayerNorm")
-            self._blocks = [_block(weights, k) for k in range(int(config["num_hidden_layers"]))]
+        weights = _Checkpoint(weights_path)
+        self._word = weights["embeddings.word_embeddings.weight"]
+        self._position = weights["embeddings.position_embeddings.weight"]
+        self._token_type = weights["embeddings.token_type_embeddings.weight"][0]
+        self._embedding_norm = _norm(weights, "embeddings.LayerNorm")
+        self._blocks = [_block(weights, k) for k in range(int(config["num_hidden_layers"]))]
         self._cache: dict[str, FloatArray] = {}
 
     @staticmethod
