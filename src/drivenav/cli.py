@@ -43,13 +43,21 @@ def _add_eval(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
         help="embedded: a number of episodes to generate, or an episodes file; habitat: N (the split's first) or all",
     )
     _add_world_options(parser)
-    parser.add_argument("--seed", type=int, default=None, help="run seed (default 0; sets run.seed)")
+    _add_run_seed(parser)
     parser.add_argument("--out", required=True, type=Path, help="run directory (rerun to resume)")
-    parser.add_argument("--max-steps", type=int, default=None, help="step budget (default 500; sets sim.max_steps)")
+    _add_max_steps(parser)
     _add_execution_options(parser)
     _add_model_options(parser)
     _add_config_options(parser)
     parser.set_defaults(handler=_cmd_eval)
+
+
+def _add_max_steps(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--max-steps", type=int, default=None, help="step budget (default 500; sets sim.max_steps)")
+
+
+def _add_run_seed(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--seed", type=int, default=None, help="run seed (default 0; sets run.seed)")
 
 
 def _add_run(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -61,8 +69,8 @@ def _add_run(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> N
     parser.add_argument(
         "--episode-id", default=None, help="the episode id sent with RESET (serve-sim: one of its episodes)"
     )
-    parser.add_argument("--max-steps", type=int, default=None, help="step budget (default 500; sets sim.max_steps)")
-    parser.add_argument("--seed", type=int, default=None, help="run seed (default 0; sets run.seed)")
+    _add_max_steps(parser)
+    _add_run_seed(parser)
     group = parser.add_argument_group("robot")
     _add_robot_address(group)
     _add_model_options(parser)
@@ -311,7 +319,7 @@ def _add_bench_ablations(sub: argparse._SubParsersAction[argparse.ArgumentParser
     parser.add_argument("--out", required=True, type=Path, help="output directory (rerun to resume)")
     parser.add_argument("--methods", default=",".join(ALL_METHODS), help="comma-separated agent names")
     parser.add_argument("--scenes", default=BENCHMARK_V1.scenes, help="a --scenes SPEC (default: benchmark v1's)")
-    parser.add_argument("--max-steps", type=int, default=None, help="step budget (default 500; sets sim.max_steps)")
+    _add_max_steps(parser)
     parser.add_argument("--pictures", type=int, default=2, help="episodes drawn for the report (0: none)")
     _add_world_options(parser)
     _add_execution_options(parser)
