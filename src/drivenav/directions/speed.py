@@ -220,8 +220,9 @@ def weighted_speed(
     config: SpeedFieldConfig,
     resolution: float,
 ) -> NDArray[np.float64]:
-    """Eqs. 1-3 on the traversable cells, from squared cell distances, via per-call lookup tables (squared
-    distances on a grid are integers, so a table lookup is exact and much cheaper than two exponentials)."""
+    """Eqs. 1-3 on the traversable cells, from squared cell distances, via lookup tables built once per configuration
+    and resolution (squared distances on a grid are integers, so a table lookup is exact and much cheaper than two
+    exponentials)."""
     obs, vor = _speed_tables(config, resolution)
     return np.asarray(_speed_kernel(trav, obstacle_sq, skeleton_sq, obs, vor), dtype=np.float64)
 
