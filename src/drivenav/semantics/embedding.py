@@ -106,27 +106,34 @@ class _Block:
 
 
 class _Checkpoint:
-    """The tensors of a ``model.safetensors`` file as read-only float32 views of one memory map of it (the format:
-    an 8-byte little-endian header length, a JSON header of dtype, shape and data offsets, then the raw data).
+    """The float32 tensors of a ``model.safetensors`` file (an 8-byte little-endian header length, a JSON header of
+    dtype, shape and data offsets, then the raw data), its header parsed once.
 
-    Only the pages a computation touches are read, and they are shared by every process on the machine: the
-    fused and transposed layers copy what they need once, and the 47 MB word-embedding table is never copied,
-    only the rows of the tokens a text uses are read (issue 14's memory goal)."""
+    ``weights[name]`` reads one tensor into memory (loading never holds the whole file beside the fused and
+    transposed layers built from it); :meth:`mapped` maps one read-only instead, so that only the pages a
+    computation touches are read, shared by every process on the machine: the 47 MB word-embedding table, of which
+    a text uses a few rows (issue 14's memory goal)."""
 
     def __init__(self, path: Path) -> None:
         self._path = path
         with path.open("rb") as file:
             size = int.from_bytes(file.read(8), "little")
             self._header: dict[str, Any] = json.loads(file.read(size))
-        self._data = np.memmap(path, dtype=np.uint8, mode="r", offset=8 + size)
+        self._data_start = 8 + size
 
     def __getitem__(self, name: str) -> FloatArray:
+        offset, shape = self._locate(name)
+        return np.fromfile(self._path, dtype="<f4", count=math.prod(shape), offset=offset).reshape(shape)
+
+    def mapped(self, name: str) -> FloatArray:
+        offset, shape = self._locate(name)
+        return np.memmap(self._path, dtype="<f4", mode="r", offset=offset, shape=shape)
+
+    def _locate(self, name: str) -> tuple[int, tuple[int, ...]]:
         entry = self._header[name]
         if entry["dtype"] != "F32":
             raise ValueError(f"{self._path}: tensor {name!r} is {entry['dtype']}, expected F32")
-        begin, end = (int(n) for n in entry["data_offsets"])
-        shape = tuple(int(n) for n in entry["shape"])
-        return self._data[begin:end].view("<f4").reshape(shape)
+        return self._data_start + int(entry["data_offsets"][0]), tuple(int(n) for n in entry["shape"])
 
 
 def _linear(weights: _Checkpoint, *prefixes: str) -> _Linear:
@@ -169,7 +176,7 @@ class TextEmbedder:
         if not weights_path.is_file():
             raise EmbeddingModelMissingError(f"{weights_path} not found (reinstall: '{INSTALL_HINT}')")
         weights = _Checkpoint(weights_path)
-        self._word = weights["embeddings.word_embeddings.weight"]
+        self._word = weights.mapped("embeddings.word_embeddings.weight")
         self._position = weights["embeddings.position_embeddings.weight"]
         self._token_type = weights["embeddings.token_type_embeddings.weight"][0]
         self._embedding_norm = _norm(weights, "embeddings.LayerNorm")
