@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from drivenav.directions.bearings import bearing_to, circle_crossing, normalize_angle
 from drivenav.directions.fmm import travel_time
-from drivenav.directions.paths import backtrack
+from drivenav.directions.paths import _backtrack_kernel, backtrack, backtrack_many
 
 N = 40
 
@@ -114,3 +114,27 @@ def test_bearings_are_normalised_to_zero_two_pi() -> None:
     assert normalize_angle(-1e-18) == 0.0
     assert bearing_to((1.0, 1.0), (1.0, 0.0)) == pytest.approx(1.5 * math.pi)
     assert bearing_to((0.0, 0.0), (-1.0, 0.0)) == pytest.approx(math.pi)
+
+
+@settings(max_examples=30, deadline=None)
+@given(obstacle_maps(), st.integers(0, 10_000), st.integers(0, 6))
+def test_backtracking_many_starts_in_one_call_gives_each_walk_alone(
+    scene: tuple[np.ndarray, np.ndarray, tuple[int, int]], pick: int, count: int
+) -> None:
+    trav, speed, source = scene
+    T = travel_time(speed, 0.05, np.array([source]), np.zeros(1))
+    reachable = np.argwhere(np.isfinite(T))
+    starts = reachable[[(pick * (k + 3)) % len(reachable) for k in range(count)]].reshape(-1, 2)
+    walks = backtrack_many(T, trav, starts, source)
+    assert len(walks) == len(starts)
+    for start, walk in zip(starts, walks, strict=True):
+        alone, ok = _backtrack_kernel(T, trav, int(start[0]), int(start[1]), source[0], source[1])
+        assert ok
+        np.testing.assert_array_equal(walk, alone)
+
+
+def test_backtracking_many_names_the_first_start_outside_the_solve() -> None:
+    T = np.full((5, 5), np.inf)
+    T[2, 2] = 0.0
+    with pytest.raises(ValueError, match=r"\(0, 4\)"):
+        backtrack_many(T, np.ones((5, 5), np.bool_), np.array([[2, 2], [0, 4]]), (2, 2))

@@ -12,7 +12,8 @@ import pytest
 from drivenav.config import DirectionConfig, DriveNavConfig, SpeedFieldConfig
 from drivenav.directions.bench import bench_directions
 from drivenav.directions.clustering import circular_distance
-from drivenav.directions.pipeline import DirectionPipeline
+from drivenav.directions.pipeline import DirectionPipeline, _frontier_cells
+from drivenav.directions.speed import build_speed_field
 from drivenav.directions.synthetic import extract_frontiers, make_snapshot, rect
 from drivenav.directions.types import DirectionResult
 from drivenav.mapping.types import Frontier, MapSnapshot
@@ -271,3 +272,17 @@ def test_a_changed_obstacle_rebuilds_the_speed_field() -> None:
     fresh.update(snapshot, frontiers, (4.0, 4.0))
     _same_result(second, fresh.update(changed, frontiers, (4.0, 4.0)))
     assert first.directions  # the junction has directions at all
+
+
+def test_frontier_cells_of_all_frontiers_at_once_are_each_frontiers_traversable_window_cells() -> None:
+    snapshot, frontiers = t_junction()
+    outside = np.array([[-3, 5], [0, 400], [2, 2]], dtype=np.int64)  # off the grid, off the window, untraversable
+    extra = dataclasses.replace(frontiers[0], frontier_id=99, cells=np.vstack([frontiers[0].cells, outside]))
+    field = build_speed_field(snapshot, frontiers, SpeedFieldConfig())
+    every = [*frontiers, extra, dataclasses.replace(frontiers[0], frontier_id=100, cells=outside)]
+    w = field.window
+    for frontier, cells in zip(every, _frontier_cells(field, every), strict=True):
+        local = frontier.cells - (w.r0, w.c0)
+        local = local[w.grid.contains(local)]
+        np.testing.assert_array_equal(cells, local[field.traversable[local[:, 0], local[:, 1]]])
+    assert _frontier_cells(field, []) == []

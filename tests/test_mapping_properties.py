@@ -11,9 +11,10 @@ from hypothesis.extra.numpy import arrays
 from numpy.typing import NDArray
 from scipy import ndimage
 
+from drivenav.grid import GridSpec
 from drivenav.mapping.config import MappingConfig
 from drivenav.mapping.frontiers import component_at
-from drivenav.mapping.kernels import raster_components
+from drivenav.mapping.kernels import pocket_size, pocket_sizes, raster_components
 from drivenav.mapping.occupancy import OccupancyMapper
 from drivenav.mapping.synthetic import Box3, BoxWorld
 from drivenav.types import CameraIntrinsics, Pose
@@ -108,3 +109,37 @@ def test_raster_components_group_like_scipy_label(mask: NDArray[np.bool_]) -> No
     for k in range(count):
         expected = np.argwhere(labels == k + 1)
         np.testing.assert_array_equal(cells[starts[k] : starts[k + 1]], expected)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    passable=arrays(np.bool_, st.tuples(st.integers(1, 30), st.integers(1, 30))),
+    seed=st.integers(0, 2**31),
+    margin=st.integers(0, 6),
+)
+def test_pocket_sizes_of_all_groups_equal_one_call_per_group(
+    passable: NDArray[np.bool_], seed: int, margin: int
+) -> None:
+    rng = np.random.default_rng(seed)
+    cells, starts = raster_components(rng.random(passable.shape) < 0.2)
+    sizes = pocket_sizes(passable, cells, starts, margin)
+    for k, size in enumerate(sizes):
+        group = cells[starts[k] : starts[k + 1]]
+        lo = np.maximum(group.min(axis=0) - margin, 0)
+        hi = np.minimum(group.max(axis=0) + margin + 1, passable.shape)
+        assert size == pocket_size(passable, group, np.array([lo[0], hi[0], lo[1], hi[1]]))
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    x=st.floats(-1e4, 1e4, allow_nan=False),
+    y=st.floats(-1e4, 1e4, allow_nan=False),
+    ox=st.floats(-100.0, 100.0),
+    oy=st.floats(-100.0, 100.0),
+    resolution=st.sampled_from([0.01, 0.025, 0.05, 0.1, 0.3]),
+)
+def test_cell_of_one_point_equals_the_array_conversion(
+    x: float, y: float, ox: float, oy: float, resolution: float
+) -> None:
+    grid = GridSpec(resolution, (ox, oy), (10, 10))
+    assert grid.cell_at(x, y) == tuple(int(v) for v in grid.world_to_cell((x, y)))

@@ -34,16 +34,27 @@ class GridSpec:
     def world_to_cell(self, xy: ArrayLike) -> NDArray[np.int64]:
         """World ``(..., 2)`` points ``(x, y)`` to integer cells ``(..., 2)`` as ``(row, col)``."""
         p = np.asarray(xy, dtype=np.float64)
-        col = np.floor((p[..., 0] - self.origin[0]) / self.resolution)
-        row = np.floor((p[..., 1] - self.origin[1]) / self.resolution)
-        return np.stack([row, col], axis=-1).astype(np.int64)
+        out = np.empty((*p.shape[:-1], 2), dtype=np.int64)
+        out[..., 0] = np.floor((p[..., 1] - self.origin[1]) / self.resolution)
+        out[..., 1] = np.floor((p[..., 0] - self.origin[0]) / self.resolution)
+        return out
+
+    def cell_at(self, x: float, y: float) -> tuple[int, int]:
+        """The ``(row, col)`` holding one world point: :meth:`world_to_cell` for a single point, without building
+        arrays (the planner and the mappers ask this thousands of times per episode; same IEEE operations, same
+        cells)."""
+        return (
+            math.floor((y - self.origin[1]) / self.resolution),
+            math.floor((x - self.origin[0]) / self.resolution),
+        )
 
     def cell_to_world(self, rc: ArrayLike) -> NDArray[np.float64]:
         """Cells ``(..., 2)`` as ``(row, col)`` to the world ``(x, y)`` of their centres."""
         c = np.asarray(rc, dtype=np.float64)
-        x = self.origin[0] + (c[..., 1] + 0.5) * self.resolution
-        y = self.origin[1] + (c[..., 0] + 0.5) * self.resolution
-        return np.stack([x, y], axis=-1)
+        out = np.empty((*c.shape[:-1], 2), dtype=np.float64)
+        out[..., 0] = self.origin[0] + (c[..., 1] + 0.5) * self.resolution
+        out[..., 1] = self.origin[1] + (c[..., 0] + 0.5) * self.resolution
+        return out
 
     def contains(self, rc: ArrayLike) -> NDArray[np.bool_]:
         """Whether cells ``(..., 2)`` lie inside the grid."""

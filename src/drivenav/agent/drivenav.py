@@ -104,7 +104,7 @@ class StepContext:
 
     def free(self, x: float, y: float) -> bool:
         """Whether a point is navigable on the robot's map (the planner's line-of-sight test)."""
-        row, col = self.snapshot.grid.world_to_cell((x, y))
+        row, col = self.snapshot.grid.cell_at(x, y)
         inside = 0 <= row < self.snapshot.navigable.shape[0] and 0 <= col < self.snapshot.navigable.shape[1]
         return bool(inside and self.snapshot.navigable[row, col])
 

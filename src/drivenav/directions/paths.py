@@ -14,6 +14,7 @@ cell or one of its 4-neighbours (the FMM seeds), then steps to the source centre
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numba
@@ -145,6 +146,51 @@ def _backtrack_kernel(
     return buf[: k + 1].copy(), True
 
 
+@numba.njit(cache=True)
+def _backtrack_many_kernel(
+    T: NDArray[np.float64], trav: NDArray[np.bool_], starts: NDArray[np.int64], src_i: int, src_j: int
+) -> tuple[NDArray[np.float64], NDArray[np.int64], int]:
+    """Every start's walk, concatenated: the points, the ``K + 1`` offsets of the walks, and the index of the
+    first walk that stalled (``-1`` if none; the walks after it are not taken)."""
+    offsets = np.zeros(starts.shape[0] + 1, np.int64)
+    buf = np.empty((1024, 2), np.float64)
+    n = 0
+    for k in range(starts.shape[0]):
+        points, ok = _backtrack_kernel(T, trav, starts[k, 0], starts[k, 1], src_i, src_j)
+        if not ok:
+            return buf[:n].copy(), offsets, k
+        m = points.shape[0]
+        if n + m > buf.shape[0]:
+            grown = np.empty((2 * (n + m), 2), np.float64)
+            grown[:n] = buf[:n]
+            buf = grown
+        buf[n : n + m] = points
+        n += m
+        offsets[k + 1] = n
+    return buf[:n].copy(), offsets, -1
+
+
+def backtrack_many(
+    T: NDArray[np.float64], traversable: NDArray[np.bool_], starts: NDArray[np.int64], source: tuple[int, int]
+) -> list[NDArray[np.float64]]:
+    """:func:`backtrack` from each of the cells ``starts`` ``(K, 2)`` in one call (the frontiers of a step)."""
+    starts = np.ascontiguousarray(starts, dtype=np.int64).reshape(-1, 2)
+    bad = np.flatnonzero(~np.isfinite(T[starts[:, 0], starts[:, 1]]))
+    if bad.size:
+        raise ValueError(f"T is not finite at the start cell {tuple(int(v) for v in starts[bad[0]])}")
+    points, offsets, stalled = _backtrack_many_kernel(
+        np.ascontiguousarray(T, dtype=np.float64),
+        np.ascontiguousarray(traversable, dtype=np.bool_),
+        starts,
+        int(source[0]),
+        int(source[1]),
+    )
+    if stalled >= 0:
+        start = tuple(int(v) for v in starts[stalled])
+        raise RuntimeError(f"backtracking from {start} stalled before reaching {source}")
+    return [points[a:b] for a, b in itertools.pairwise(offsets)]
+
+
 def backtrack(
     T: NDArray[np.float64], traversable: NDArray[np.bool_], start: tuple[int, int], source: tuple[int, int]
 ) -> NDArray[np.float64]:
@@ -154,16 +200,4 @@ def backtrack(
     ``T`` must be finite at ``start``. Raises ``RuntimeError`` if no descending neighbour exists (only possible
     if ``T`` was not produced by a marching from ``source``).
     """
-    if not np.isfinite(T[start]):
-        raise ValueError(f"T is not finite at the start cell {start}")
-    points, ok = _backtrack_kernel(
-        np.ascontiguousarray(T, dtype=np.float64),
-        np.ascontiguousarray(traversable, dtype=np.bool_),
-        int(start[0]),
-        int(start[1]),
-        int(source[0]),
-        int(source[1]),
-    )
-    if not ok:
-        raise RuntimeError(f"backtracking from {start} stalled before reaching {source}")
-    return np.asarray(points, dtype=np.float64)
+    return backtrack_many(T, traversable, np.array([start], dtype=np.int64), source)[0]

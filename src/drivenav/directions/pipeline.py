@@ -33,7 +33,7 @@ from drivenav.config import DriveNavConfig
 from drivenav.directions.bearings import Point, bearing_to, circle_crossing
 from drivenav.directions.clustering import build_clusters
 from drivenav.directions.fmm import travel_time
-from drivenav.directions.paths import backtrack
+from drivenav.directions.paths import backtrack, backtrack_many
 from drivenav.directions.speed import SpeedField, build_speed_field
 from drivenav.directions.timing import elapsed_ms
 from drivenav.directions.tracking import DirectionTracker
@@ -53,7 +53,7 @@ def nearest_traversable(field: SpeedField, xy: Point, radius: float) -> tuple[in
     """The window cell holding world point ``xy`` if traversable, else the nearest traversable cell whose
     centre distance from that cell is at most ``radius``; ``None`` if there is none."""
     grid = field.window.grid
-    r, c = (int(v) for v in grid.world_to_cell(np.asarray(xy[:2], dtype=np.float64)))
+    r, c = grid.cell_at(float(xy[0]), float(xy[1]))
     reach = int(np.ceil(radius / grid.resolution))
     r0, c0 = max(r - reach, 0), max(c - reach, 0)
     patch = field.traversable[r0 : max(r + reach + 1, 0), c0 : max(c + reach + 1, 0)]
@@ -67,12 +67,17 @@ def nearest_traversable(field: SpeedField, xy: Point, radius: float) -> tuple[in
     return int(cells[best, 0]), int(cells[best, 1])
 
 
-def _frontier_cells(field: SpeedField, frontier: Frontier) -> NDArray[np.int64]:
-    """The frontier's traversable cells, in window coordinates."""
+def _frontier_cells(field: SpeedField, frontiers: Sequence[Frontier]) -> list[NDArray[np.int64]]:
+    """Each frontier's traversable cells, in window coordinates (all frontiers masked in one pass)."""
+    if not frontiers:
+        return []
     w = field.window
-    cells = frontier.cells - (w.r0, w.c0)
-    cells = cells[w.grid.contains(cells)]
-    return np.asarray(cells[field.traversable[cells[:, 0], cells[:, 1]]], dtype=np.int64)
+    every = np.concatenate([f.cells for f in frontiers]) - (w.r0, w.c0)
+    keep = w.grid.contains(every)
+    keep[keep] = field.traversable[every[keep, 0], every[keep, 1]]
+    kept_before = np.concatenate([[0], np.cumsum(keep)])
+    ends = np.cumsum([len(f.cells) for f in frontiers])
+    return np.split(np.asarray(every[keep], dtype=np.int64), kept_before[ends[:-1]])
 
 
 class DirectionPipeline:
@@ -121,20 +126,15 @@ class DirectionPipeline:
         t = time.perf_counter()
         cfg = self._config.directions
         source = source_cell(field, robot_xy, cfg.source_snap_radius)
-        cells = [_frontier_cells(field, f) for f in frontiers]
+        cells = _frontier_cells(field, frontiers)
         goal_cells = [nearest_traversable(field, goal, cfg.goal_snap_radius) for goal in goals]
         T = self._solve(field, source, cells, [g for g in goal_cells if g is not None])
         timings["fmm"] = elapsed_ms(t)
 
         t = time.perf_counter()
-        paths: list[FrontierPath] = []
-        unreachable: list[int] = []
-        for frontier, own in zip(frontiers, cells, strict=True):
-            path = None if source is None else self._frontier_path(field, T, source, frontier, own, robot_xy)
-            if path is None:
-                unreachable.append(frontier.frontier_id)
-            else:
-                paths.append(path)
+        found = self._frontier_paths(field, T, source, frontiers, cells, robot_xy)
+        paths = [p for p in found if p is not None]
+        unreachable = [f.frontier_id for f, p in zip(frontiers, found, strict=True) if p is None]
         robot = np.asarray(robot_xy, dtype=np.float64)
         goal_paths = tuple(_goal_path(field, T, source, cell, robot) for cell in goal_cells)
         timings["backtracking"] = elapsed_ms(t)
@@ -176,23 +176,36 @@ class DirectionPipeline:
             margin=self._config.directions.margin_cells * res / slowest,
         )
 
-    def _frontier_path(
+    def _frontier_paths(
         self,
         field: SpeedField,
         T: NDArray[np.float64],
-        source: tuple[int, int],
-        frontier: Frontier,
-        own: NDArray[np.int64],
+        source: tuple[int, int] | None,
+        frontiers: Sequence[Frontier],
+        cells: Sequence[NDArray[np.int64]],
         robot_xy: Sequence[float],
-    ) -> FrontierPath | None:
-        """Backtrack from the frontier's least-time cell and derive its bearing; ``None`` if unreachable."""
-        if own.size == 0:
-            return None
-        times = T[own[:, 0], own[:, 1]]
-        best = int(np.argmin(times))
-        if not np.isfinite(times[best]):
-            return None
-        rc = backtrack(T, field.traversable, (int(own[best, 0]), int(own[best, 1])), source)
+    ) -> list[FrontierPath | None]:
+        """Per frontier, the path backtracked from its least-time cell and its bearing (all walks in one call);
+        ``None`` for a frontier none of whose cells is reachable."""
+        best: list[int] = []
+        for own in cells:
+            times = T[own[:, 0], own[:, 1]]
+            k = int(np.argmin(times)) if own.size else -1
+            best.append(k if k >= 0 and np.isfinite(times[k]) else -1)
+        reached = [i for i, k in enumerate(best) if k >= 0]
+        if source is None or not reached:
+            return [None] * len(frontiers)
+        starts = np.array([cells[i][best[i]] for i in reached], dtype=np.int64)
+        walks = backtrack_many(T, field.traversable, starts, source)
+        found: list[FrontierPath | None] = [None] * len(frontiers)
+        for i, start, rc in zip(reached, starts, walks, strict=True):
+            found[i] = self._frontier_path(field, frontiers[i], rc, float(T[start[0], start[1]]), robot_xy)
+        return found
+
+    def _frontier_path(
+        self, field: SpeedField, frontier: Frontier, rc: NDArray[np.float64], time: float, robot_xy: Sequence[float]
+    ) -> FrontierPath:
+        """The frontier's path (backtracked window points ``rc``, arrival ``time`` at its start) and bearing."""
         robot = np.asarray(robot_xy[:2], dtype=np.float64)
         path = _world_path(field, rc, robot)
         cfg = self._config.directions
@@ -205,7 +218,7 @@ class DirectionPipeline:
         return FrontierPath(
             frontier.frontier_id,
             (float(target[0]), float(target[1])),
-            float(times[best]),
+            time,
             path,
             point,
             bearing_to(robot, point),

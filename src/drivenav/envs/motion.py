@@ -20,7 +20,7 @@ from drivenav.types import Action, Pose, SimConfig
 
 def is_navigable(navigable: NDArray[np.bool_], grid: GridSpec, x: float, y: float) -> bool:
     """Whether the agent's centre may stand at world ``(x, y)``."""
-    row, col = (int(v) for v in grid.world_to_cell((x, y)))
+    row, col = grid.cell_at(x, y)
     rows, cols = navigable.shape
     return 0 <= row < rows and 0 <= col < cols and bool(navigable[row, col])
 

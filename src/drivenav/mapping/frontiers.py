@@ -11,14 +11,13 @@ exactly; unexplored space that opens onto the unknown fills much of the window (
 
 from __future__ import annotations
 
-import itertools
 import math
 
 import numpy as np
 from numpy.typing import NDArray
 
 from drivenav.grid import GridSpec
-from drivenav.mapping.kernels import flood_fill, pocket_size, raster_components
+from drivenav.mapping.kernels import flood_fill, pocket_sizes, raster_components
 from drivenav.mapping.types import Frontier
 
 Mask = NDArray[np.bool_]
@@ -70,23 +69,14 @@ def extract_frontiers(
     stable within one call only.
     """
     cells, starts = raster_components(frontier_cells(explored, navigable))
-    groups = [cells[a:b] for a, b in itertools.pairwise(starts)]
     passable = ~explored & ~blocked
     margin = math.ceil(pocket_window / grid.resolution)
+    areas = pocket_sizes(passable, cells, starts, margin) * grid.resolution**2
     frontiers: list[Frontier] = []
-    for group in groups:
-        area = _pocket_area(passable, group, margin) * grid.resolution**2
-        if area >= min_area:
-            frontiers.append(_make_frontier(len(frontiers), grid, group + np.array(offset), area))
+    for k in np.flatnonzero(areas >= min_area):
+        group = cells[starts[k] : starts[k + 1]]
+        frontiers.append(_make_frontier(len(frontiers), grid, group + np.array(offset), float(areas[k])))
     return frontiers
-
-
-def _pocket_area(passable: Mask, cells: NDArray[np.int64], margin: int) -> int:
-    """Number of pocket cells of one frontier (see the module docstring)."""
-    lo = np.maximum(cells.min(axis=0) - margin, 0)
-    hi = np.minimum(cells.max(axis=0) + margin + 1, passable.shape)
-    window = np.array([lo[0], hi[0], lo[1], hi[1]], dtype=np.int64)
-    return pocket_size(passable, cells, window)
 
 
 def _make_frontier(frontier_id: int, grid: GridSpec, cells: NDArray[np.int64], area: float) -> Frontier:

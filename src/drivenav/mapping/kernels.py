@@ -162,6 +162,23 @@ def pocket_size(passable: Mask, cells: I64, window: I64) -> int:
 
 
 @_jit
+def pocket_sizes(passable: Mask, cells: I64, starts: I64, margin: int) -> I64:
+    """:func:`pocket_size` of every group ``cells[starts[k]:starts[k + 1]]``, each in its bounding box grown by
+    ``margin`` cells and clipped to ``passable`` (one call for all the frontiers of a step)."""
+    rows, cols = passable.shape
+    sizes = np.zeros(starts.shape[0] - 1, dtype=np.int64)
+    window = np.empty(4, dtype=np.int64)
+    for k in range(sizes.shape[0]):
+        group = cells[starts[k] : starts[k + 1]]
+        window[0] = max(group[:, 0].min() - margin, 0)
+        window[1] = min(group[:, 0].max() + margin + 1, rows)
+        window[2] = max(group[:, 1].min() - margin, 0)
+        window[3] = min(group[:, 1].max() + margin + 1, cols)
+        sizes[k] = pocket_size(passable, group, window)
+    return sizes
+
+
+@_jit
 def _flood(mask: Mask, visited: Mask, i: int, j: int, eight: bool, queue: I64) -> int:
     """Mark in ``visited`` the 4- or 8-connected component of ``mask`` holding the set, unvisited cell ``(i, j)``,
     breadth-first; its cells' flat indices end up in ``queue[:n]`` (one slot per cell), and ``n`` is returned."""

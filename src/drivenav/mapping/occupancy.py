@@ -215,7 +215,7 @@ class OccupancyMapper:
         box = self._window_box(local)
         added = self._mark_lidar(local, box)
         self._inflate_lidar(box)
-        row, col = (int(v) for v in self._grid.world_to_cell((centre.x, centre.y)))
+        row, col = self._grid.cell_at(centre.x, centre.y)
         self._extend_box(row, col, half + self.config.pocket_window)
         self._derived = None
         self._frontiers = None
@@ -327,7 +327,7 @@ class OccupancyMapper:
             empty = np.zeros((0, 0), dtype=np.bool_)
             return _Derived((0, 0, 0, 0), empty, empty)
         r0, r1, c0, c1 = self._box
-        row, col = (int(v) for v in self._grid.world_to_cell((self._pose.x, self._pose.y)))
+        row, col = self._grid.cell_at(self._pose.x, self._pose.y)
         agent = (row - r0, col - c0)
         explored = component_at(self._explored[r0:r1, c0:c1], agent, eight=True)
         free = explored & ~self._blocked(self._box)
