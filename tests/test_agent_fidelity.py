@@ -50,7 +50,7 @@ def test_tracking_reports_created_merged_and_removed_labels_of_fig3() -> None:
 def _view(label: int, yaw_deg: float) -> View:
     image = np.zeros((2, 2, 3), np.uint8)
     pose = Pose(0.0, 0.0, math.radians(yaw_deg))
-    return View(label, image, np.zeros((2, 2), np.float32), None, pose, pose.yaw, 0.0, 0)
+    return View(label, image, None, pose, pose.yaw, 0.0, 0)
 
 
 def test_a_relabelled_direction_inherits_the_parent_view_facing_it_best() -> None:

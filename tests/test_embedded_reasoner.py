@@ -32,7 +32,6 @@ def view(label: int, *boxes: Box) -> View:
     return View(
         label=label,
         rgb=np.zeros((H, W, 3), dtype=np.uint8),
-        depth=np.full((H, W), 2.0, dtype=np.float32),
         semantic=semantic(*boxes),
         pose=Pose(0.0, 0.0, 0.0),
         bearing=0.0,

@@ -35,7 +35,7 @@ def image(seed: int, shape: tuple[int, int] = (48, 64)) -> np.ndarray:
 
 def view(label: int) -> View:
     rgb = image(label)
-    return View(label, rgb, np.ones(rgb.shape[:2], np.float32), None, Pose(0.0, 0.0, 0.0), 0.1, 0.05, 3)
+    return View(label, rgb, None, Pose(0.0, 0.0, 0.0), 0.1, 0.05, 3)
 
 
 def candidates(labels: list[int]) -> list[Candidate]:

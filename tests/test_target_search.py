@@ -85,7 +85,7 @@ def test_enrichment_finds_a_phrase_the_detector_grounds_and_keeps_it() -> None:
     frame = _frame(0, 2)
     search.observe(frame, Trace())
     assert search.current() is None
-    view = View(0, frame.rgb, frame.depth, frame.semantic, frame.pose, 0.0, 0.0, 0)
+    view = View(0, frame.rgb, frame.semantic, frame.pose, 0.0, 0.0, 0)
     assert search.enrich(frame, view, "shows: sofa", Trace())
     assert search.phrase == "sofa" and 1 <= search.enrich_rounds <= 5
     search.observe(_frame(1, 2), Trace())
@@ -96,7 +96,7 @@ def test_enrichment_gives_up_after_five_rounds() -> None:
     grounder = PhraseGrounder(2, set())
     search = _search(grounder, "settee", verify=False)
     frame = _frame(0, 2)
-    view = View(0, frame.rgb, frame.depth, frame.semantic, frame.pose, 0.0, 0.0, 0)
+    view = View(0, frame.rgb, frame.semantic, frame.pose, 0.0, 0.0, 0)
     assert not search.enrich(frame, view, "", Trace())
     assert 1 <= search.enrich_rounds <= 5
     assert len(set(search.failed_phrases)) == len(search.failed_phrases) >= 3  # failed phrases fed back

@@ -163,7 +163,7 @@ def vlm_check(models: ModelSpec) -> Check:
     except InputError as error:
         return Check(name, False, str(error), fix)
     frame = _test_frame(SimConfig())
-    view = View(1, frame.rgb, frame.depth, None, frame.pose, 0.0, 0.0, 0)
+    view = View(1, frame.rgb, None, frame.pose, 0.0, 0.0, 0)
     reasoner.begin_episode("chair", None)
     selection = reasoner.select_direction("chair", [Candidate(1, 0.0, 0.0, 1.0, 10, view)])
     outcome = reasoner.calls[-1].outcome if reasoner.calls else "no call"

@@ -61,13 +61,27 @@ class GridSpec:
         c = np.asarray(rc)
         return (c[..., 0] >= 0) & (c[..., 0] < self.shape[0]) & (c[..., 1] >= 0) & (c[..., 1] < self.shape[1])
 
-    def cell_centers(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """World ``x`` and ``y`` of every cell centre, each of shape :attr:`shape`."""
-        rows, cols = self.shape
-        xs = self.origin[0] + (np.arange(cols) + 0.5) * self.resolution
-        ys = self.origin[1] + (np.arange(rows) + 0.5) * self.resolution
+    def cell_centers(
+        self, rows: slice = slice(None), cols: slice = slice(None)
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """World ``x`` and ``y`` of every cell centre, each of shape :attr:`shape`; of the block ``[rows, cols]``
+        only when given (the same values as the whole grid's there)."""
+        xs = self.origin[0] + (np.arange(self.shape[1])[cols] + 0.5) * self.resolution
+        ys = self.origin[1] + (np.arange(self.shape[0])[rows] + 0.5) * self.resolution
         gx, gy = np.meshgrid(xs, ys)
         return gx, gy
+
+    def block_covering(self, points: ArrayLike, margin: float = 0.0) -> tuple[slice, slice]:
+        """The ``(rows, cols)`` block holding every cell whose centre lies within ``margin`` of the bounding box of
+        the world ``points`` ``(N, 2)`` (one cell of slack on each side, clipped to the grid)."""
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        if p.size == 0:
+            return slice(0, 0), slice(0, 0)
+        lo = (p.min(axis=0) - margin - np.asarray(self.origin)) / self.resolution - 1.5
+        hi = (p.max(axis=0) + margin - np.asarray(self.origin)) / self.resolution + 1.5
+        c0, r0 = (max(math.floor(v), 0) for v in lo)
+        c1, r1 = (math.ceil(v) + 1 for v in hi)
+        return slice(r0, min(max(r1, r0), self.shape[0])), slice(c0, min(max(c1, c0), self.shape[1]))
 
 
 def wrap_angle(angle: float) -> float:

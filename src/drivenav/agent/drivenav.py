@@ -369,8 +369,8 @@ class DriveNavAgent(Agent):
         if action is not None:
             return action
         error = abs(wrap_angle(ctx.pose.yaw - direction.bearing))
-        rgb, depth, semantic = observation.rgb, observation.depth, observation.semantic
-        view = View(direction.label, rgb, depth, semantic, ctx.pose, direction.bearing, error, self.step)
+        rgb, semantic = observation.rgb, observation.semantic
+        view = View(direction.label, rgb, semantic, ctx.pose, direction.bearing, error, self.step)
         self._enriched.add(direction.label)
         self._search.enrich(observation, view, self._descriptions.get(direction.label, ""), self.trace)
         self._mode = Mode.FOLLOW

@@ -129,10 +129,12 @@ class Scene:
     @cached_property
     def room_index(self) -> NDArray[np.int16]:
         """Per cell: 1 + index into :attr:`rooms` of the room containing the cell centre, 0 if none."""
-        gx, gy = self.grid.cell_centers()
         index = np.zeros(self.grid.shape, dtype=np.int16)
         for k, room in enumerate(self.rooms):
-            index[(index == 0) & room.contains(gx, gy)] = k + 1
+            block = self.grid.block_covering(room.polygon)
+            gx, gy = self.grid.cell_centers(*block)
+            part = index[block]
+            part[(part == 0) & room.contains(gx, gy)] = k + 1
         return index
 
     def blocking_objects(self, agent_height: float) -> list[ObjectInstance]:
@@ -142,10 +144,10 @@ class Scene:
     def obstacle_grid(self, agent_height: float) -> NDArray[np.bool_]:
         """Cells the agent's body cannot overlap: non-free structure and blocking object footprints."""
         blocked: NDArray[np.bool_] = self.structure != Material.FREE
-        gx, gy = self.grid.cell_centers()
         half = self.grid.resolution / 2.0
         for obj in self.blocking_objects(agent_height):
-            blocked |= obj.contains(gx, gy, margin=half)
+            block = self.grid.block_covering(obj.footprint(), margin=2.0 * half)  # covers a rotated margin
+            blocked[block] |= obj.contains(*self.grid.cell_centers(*block), margin=half)
         return blocked
 
     def navigable_grid(self, agent_radius: float, agent_height: float) -> NDArray[np.bool_]:

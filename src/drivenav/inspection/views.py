@@ -79,7 +79,6 @@ def _view(direction: Direction, observation: Observation, error: float, step: in
     return View(
         label=direction.label,
         rgb=observation.rgb,
-        depth=observation.depth,
         semantic=observation.semantic,
         pose=observation.pose,
         bearing=direction.bearing,
