@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from drivenav.directions.bearings import bearing_to, circle_crossing, normalize_angle
 from drivenav.directions.fmm import travel_time
-from drivenav.directions.paths import _backtrack_kernel, backtrack, backtrack_many
+from drivenav.directions.paths import backtrack, backtrack_many
 
 N = 40
 
@@ -128,9 +128,7 @@ def test_backtracking_many_starts_in_one_call_gives_each_walk_alone(
     walks = backtrack_many(T, trav, starts, source)
     assert len(walks) == len(starts)
     for start, walk in zip(starts, walks, strict=True):
-        alone, ok = _backtrack_kernel(T, trav, int(start[0]), int(start[1]), source[0], source[1])
-        assert ok
-        np.testing.assert_array_equal(walk, alone)
+        np.testing.assert_array_equal(walk, backtrack(T, trav, (int(start[0]), int(start[1])), source))
 
 
 def test_backtracking_many_names_the_first_start_outside_the_solve() -> None:

@@ -106,19 +106,22 @@ def _append(buf: NDArray[np.float64], k: int, r: float, c: float) -> NDArray[np.
 
 
 @numba.njit(cache=True)
-def _backtrack_kernel(
+def _walk(
     T: NDArray[np.float64],
     trav: NDArray[np.bool_],
     start_i: int,
     start_j: int,
     src_i: int,
     src_j: int,
-) -> tuple[NDArray[np.float64], bool]:
-    buf = np.empty((256, 2), np.float64)
+    buf: NDArray[np.float64],
+    k: int,
+) -> tuple[NDArray[np.float64], int, bool]:
+    """One walk from ``(start_i, start_j)`` to the source, its points appended to ``buf`` from row ``k``: the
+    (possibly grown) buffer, the row after the walk's last point, and whether the walk reached the source."""
     r, c = float(start_i), float(start_j)
     ci, cj = start_i, start_j
-    buf = _append(buf, 0, r, c)
-    k = 1
+    buf = _append(buf, k, r, c)
+    k += 1
     same = 0
     while abs(ci - src_i) + abs(cj - src_j) > 1:
         moved = False
@@ -137,13 +140,13 @@ def _backtrack_kernel(
         if not moved:
             bi, bj = _steepest_neighbour(T, trav, ci, cj)
             if bi < 0:
-                return buf[:k].copy(), False
+                return buf, k, False
             r, c, ci, cj = float(bi), float(bj), bi, bj
             same = 0
         buf = _append(buf, k, r, c)
         k += 1
     buf = _append(buf, k, float(src_i), float(src_j))
-    return buf[: k + 1].copy(), True
+    return buf, k + 1, True
 
 
 @numba.njit(cache=True)
@@ -156,16 +159,9 @@ def _backtrack_many_kernel(
     buf = np.empty((1024, 2), np.float64)
     n = 0
     for k in range(starts.shape[0]):
-        points, ok = _backtrack_kernel(T, trav, starts[k, 0], starts[k, 1], src_i, src_j)
+        buf, n, ok = _walk(T, trav, starts[k, 0], starts[k, 1], src_i, src_j, buf, n)
         if not ok:
-            return buf[:n].copy(), offsets, k
-        m = points.shape[0]
-        if n + m > buf.shape[0]:
-            grown = np.empty((2 * (n + m), 2), np.float64)
-            grown[:n] = buf[:n]
-            buf = grown
-        buf[n : n + m] = points
-        n += m
+            return buf[: offsets[k]].copy(), offsets, k
         offsets[k + 1] = n
     return buf[:n].copy(), offsets, -1
 

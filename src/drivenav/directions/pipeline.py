@@ -187,15 +187,19 @@ class DirectionPipeline:
     ) -> list[FrontierPath | None]:
         """Per frontier, the path backtracked from its least-time cell and its bearing (all walks in one call);
         ``None`` for a frontier none of whose cells is reachable."""
-        best: list[int] = []
-        for own in cells:
+        reached: list[int] = []
+        least: list[NDArray[np.int64]] = []
+        for i, own in enumerate(cells):
+            if own.size == 0:
+                continue
             times = T[own[:, 0], own[:, 1]]
-            k = int(np.argmin(times)) if own.size else -1
-            best.append(k if k >= 0 and np.isfinite(times[k]) else -1)
-        reached = [i for i, k in enumerate(best) if k >= 0]
+            k = int(np.argmin(times))
+            if np.isfinite(times[k]):
+                reached.append(i)
+                least.append(own[k])
         if source is None or not reached:
             return [None] * len(frontiers)
-        starts = np.array([cells[i][best[i]] for i in reached], dtype=np.int64)
+        starts = np.array(least, dtype=np.int64)
         walks = backtrack_many(T, field.traversable, starts, source)
         found: list[FrontierPath | None] = [None] * len(frontiers)
         for i, start, rc in zip(reached, starts, walks, strict=True):

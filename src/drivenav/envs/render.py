@@ -353,6 +353,7 @@ def _render_kernel(
             n_hits[u] += 1
 
     # Pass 2: per pixel, the nearest surface, then its shade.
+    color = np.empty(3)
     for v in range(height):
         k = (ccy - v) / fy
         if k < 0.0:
@@ -395,13 +396,11 @@ def _render_kernel(
                 room = room_index[r, cc]
                 shade = _floor_shade(floor_pattern[room], hx, hy, best, texel)
                 shade *= _bilinear(floor_shade, gx, gy)
-                c0 = floor_rgb[room, 0] * shade
-                c1 = floor_rgb[room, 1] * shade
-                c2 = floor_rgb[room, 2] * shade
+                for ch in range(3):
+                    color[ch] = floor_rgb[room, ch] * shade
             elif kind == _CEILING:
-                c0 = float(surface_rgb[_CEILING_ROW, 0])
-                c1 = float(surface_rgb[_CEILING_ROW, 1])
-                c2 = float(surface_rgb[_CEILING_ROW, 2])
+                for ch in range(3):
+                    color[ch] = surface_rgb[_CEILING_ROW, ch]
             elif kind == _WALL:
                 mat = wall_mat[u]
                 shade = 0.86 if wall_face[u] == 0 else 1.0
@@ -414,9 +413,8 @@ def _render_kernel(
                     row = _DOOR_ROW
                 else:
                     row = _UNKNOWN_ROW
-                c0 = surface_rgb[row, 0] * shade
-                c1 = surface_rgb[row, 1] * shade
-                c2 = surface_rgb[row, 2] * shade
+                for ch in range(3):
+                    color[ch] = surface_rgb[row, ch] * shade
             else:
                 if face == _FACE_TOP:
                     shade = 1.0
@@ -427,15 +425,12 @@ def _render_kernel(
                 else:
                     shade = 0.5
                 lum = 0.3 * obj_rgb[obj, 0] + 0.59 * obj_rgb[obj, 1] + 0.11 * obj_rgb[obj, 2]
-                c0 = obj_rgb[obj, 0] * shade
-                c1 = obj_rgb[obj, 1] * shade
-                c2 = obj_rgb[obj, 2] * shade
-                if _box_edge_distance(obj_geom[obj], face, hx, hy, hz) < texel:
-                    if lum > 70.0:
-                        c0, c1, c2 = c0 * 0.45, c1 * 0.45, c2 * 0.45
-                    else:
-                        c0, c1, c2 = c0 + 90.0, c1 + 90.0, c2 + 90.0
+                on_edge = _box_edge_distance(obj_geom[obj], face, hx, hy, hz) < texel
+                for ch in range(3):
+                    value = obj_rgb[obj, ch] * shade
+                    if on_edge:
+                        value = value * 0.45 if lum > 70.0 else value + 90.0
+                    color[ch] = value
             light = 1.0 / (1.0 + _FALLOFF * best)
-            rgb[v, u, 0] = np.uint8(min(255.0, max(0.0, c0 * light)))
-            rgb[v, u, 1] = np.uint8(min(255.0, max(0.0, c1 * light)))
-            rgb[v, u, 2] = np.uint8(min(255.0, max(0.0, c2 * light)))
+            for ch in range(3):
+                rgb[v, u, ch] = np.uint8(min(255.0, max(0.0, color[ch] * light)))

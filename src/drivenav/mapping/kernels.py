@@ -131,34 +131,21 @@ def pocket_size(passable: Mask, cells: I64, window: I64) -> int:
     """Count the ``passable`` cells 4-connected to the 4-neighbours of ``cells`` inside ``window``.
 
     ``window`` = (row0, row1, col0, col1), half-open. The flood starts from every passable 4-neighbour of a
-    member of ``cells`` (an (N, 2) array of rows and columns) that lies in the window.
+    member of ``cells`` (an (N, 2) array of rows and columns) that lies in the window: one :func:`_flood` per
+    seed not yet reached, whose components together are the pocket.
     """
     r0, r1, c0, c1 = window[0], window[1], window[2], window[3]
-    h, w = r1 - r0, c1 - c0
+    inside = passable[r0:r1, c0:c1]
+    h, w = inside.shape
     visited = np.zeros((h, w), dtype=np.bool_)
     queue = np.empty(h * w, dtype=np.int64)
-    di = np.array([1, -1, 0, 0])
-    dj = np.array([0, 0, 1, -1])
-    tail = 0
+    size = 0
     for n in range(cells.shape[0]):
-        for d in range(4):
-            i = cells[n, 0] + di[d] - r0
-            j = cells[n, 1] + dj[d] - c0
-            if 0 <= i < h and 0 <= j < w and not visited[i, j] and passable[i + r0, j + c0]:
-                visited[i, j] = True
-                queue[tail] = i * w + j
-                tail += 1
-    head = 0
-    while head < tail:
-        i, j = queue[head] // w, queue[head] % w
-        head += 1
-        for d in range(4):
-            ii, jj = i + di[d], j + dj[d]
-            if 0 <= ii < h and 0 <= jj < w and not visited[ii, jj] and passable[ii + r0, jj + c0]:
-                visited[ii, jj] = True
-                queue[tail] = ii * w + jj
-                tail += 1
-    return tail
+        for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+            i, j = cells[n, 0] + di - r0, cells[n, 1] + dj - c0
+            if 0 <= i < h and 0 <= j < w and inside[i, j] and not visited[i, j]:
+                size += _flood(inside, visited, i, j, False, queue)
+    return size
 
 
 @_jit
