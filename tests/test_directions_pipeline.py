@@ -286,3 +286,47 @@ def test_frontier_cells_of_all_frontiers_at_once_are_each_frontiers_traversable_
         local = local[w.grid.contains(local)]
         np.testing.assert_array_equal(cells, local[field.traversable[local[:, 0], local[:, 1]]])
     assert _frontier_cells(field, []) == []
+
+
+def test_an_unchanged_map_robot_and_goal_reuse_the_solve() -> None:
+    """Issue 14: turning in place with nothing new in view runs no FMM; a new goal or position solves again."""
+    snapshot, frontiers = t_junction()
+    pipeline = DirectionPipeline(DriveNavConfig())
+    pipeline.update(snapshot, frontiers, (4.0, 4.0))
+    again = _copy_snapshot(snapshot)
+    reused = pipeline.update(again, extract_frontiers(again), (4.0, 4.0))
+    assert reused.timings_ms["fmm"] == 0.0 and reused.timings_ms["backtracking"] == 0.0
+    fresh = DirectionPipeline(DriveNavConfig())
+    fresh.update(snapshot, frontiers, (4.0, 4.0))
+    _same_result(reused, fresh.update(again, extract_frontiers(again), (4.0, 4.0)))
+    goal = (6.5, 4.0)
+    planned = pipeline.update(again, extract_frontiers(again), (4.0, 4.0), goals=[goal])
+    assert planned.timings_ms["fmm"] > 0.0
+    expected = fresh.update(again, extract_frontiers(again), (4.0, 4.0), goals=[goal])
+    _same_result(planned, expected)
+    assert planned.goal_paths[0] is not None and expected.goal_paths[0] is not None
+    np.testing.assert_array_equal(planned.goal_paths[0], expected.goal_paths[0])
+
+
+@pytest.mark.parametrize("robot", [(4.0, 4.0), (4.0, 2.2), (6.0, 4.0)])
+def test_each_paths_farthest_point_is_its_frontiers_member_farthest_from_the_robot(robot: tuple[float, float]) -> None:
+    snapshot, frontiers = t_junction()
+    result = DirectionPipeline(DriveNavConfig()).update(snapshot, frontiers, robot)
+    by_id = {f.frontier_id: f for f in frontiers}
+    assert result.paths
+    for frontier_id, path in result.paths.items():
+        points = by_id[frontier_id].points
+        far = points[int(np.argmax(((points - robot) ** 2).sum(axis=1)))]
+        assert path.farthest_point == (float(far[0]), float(far[1]))
+        assert path.path.flags.c_contiguous and np.array_equal(path.path[0], robot)
+
+
+def test_renumbered_frontiers_on_an_unchanged_map_are_solved_again() -> None:
+    """The reused solve carries frontier ids: the same cells under other ids give paths under the new ids."""
+    snapshot, frontiers = t_junction()
+    pipeline = DirectionPipeline(DriveNavConfig())
+    first = pipeline.update(snapshot, frontiers, (4.0, 4.0))
+    renumbered = [dataclasses.replace(f, frontier_id=f.frontier_id + 10) for f in frontiers]
+    second = pipeline.update(snapshot, renumbered, (4.0, 4.0))
+    assert second.timings_ms["fmm"] > 0.0
+    assert set(second.paths) == {k + 10 for k in first.paths}

@@ -7,9 +7,10 @@ import math
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
 
 from drivenav.config import DirectionConfig
-from drivenav.directions.tracking import DirectionTracker, waypoints_coincide
+from drivenav.directions.tracking import DirectionTracker, coinciding, waypoints_coincide
 from drivenav.directions.types import Cluster
 
 
@@ -94,3 +95,19 @@ def test_labels_are_stable_under_bearing_jitter(count: int, offset: float, jitte
         for k, b in enumerate(base):
             match = min(result, key=lambda d, b=b: abs(math.remainder(math.degrees(d.bearing) - b, 360.0)))
             assert match.label == first[k].label
+
+
+waypoint_sets = st.lists(
+    arrays(np.float64, st.tuples(st.integers(0, 4), st.just(2)), elements=st.sampled_from([0.0, 0.1, 0.25, 0.3, 1.0])),
+    max_size=5,
+)
+
+
+@settings(max_examples=150, deadline=None)
+@given(a=waypoint_sets, b=waypoint_sets, tolerance=st.sampled_from([0.1, 0.25, 0.3]))
+def test_coinciding_of_all_pairs_is_waypoints_coincide_per_pair(
+    a: list[np.ndarray], b: list[np.ndarray], tolerance: float
+) -> None:
+    """Issue 14: the tracker's one-operation pair test equals the per-pair test, boundaries included."""
+    expected = [[waypoints_coincide(x, y, tolerance) for y in b] for x in a]
+    assert coinciding(a, b, tolerance).tolist() == expected

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
@@ -143,3 +144,42 @@ def test_cell_of_one_point_equals_the_array_conversion(
 ) -> None:
     grid = GridSpec(resolution, (ox, oy), (10, 10))
     assert grid.cell_at(x, y) == tuple(int(v) for v in grid.world_to_cell((x, y)))
+
+
+def _pocket_reference(passable: NDArray[np.bool_], cells: NDArray[np.int64], window: NDArray[np.int64]) -> int:
+    """The pocket by scipy's 4-connected labels of the window: the components holding a seed, summed."""
+    r0, r1, c0, c1 = (int(v) for v in window)
+    labels, _ = ndimage.label(passable[r0:r1, c0:c1])
+    seeds = (cells[:, None, :] + np.array([[1, 0], [-1, 0], [0, 1], [0, -1]])[None]).reshape(-1, 2) - (r0, c0)
+    inside = (seeds >= 0).all(axis=1) & (seeds < labels.shape).all(axis=1)
+    touched = set(labels[seeds[inside, 0], seeds[inside, 1]].tolist()) - {0}
+    return int(np.isin(labels, list(touched)).sum())
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    passable=arrays(np.bool_, st.tuples(st.integers(1, 30), st.integers(1, 30))),
+    seed=st.integers(0, 2**31),
+    margin=st.integers(0, 6),
+)
+def test_pocket_sizes_are_scipys_labelled_components(passable: NDArray[np.bool_], seed: int, margin: int) -> None:
+    """The scan-line fill behind the pockets (issue 14) counts exactly the 4-connected components it seeds."""
+    rng = np.random.default_rng(seed)
+    cells, starts = raster_components(rng.random(passable.shape) < 0.2)
+    for k, size in enumerate(pocket_sizes(passable, cells, starts, margin)):
+        group = cells[starts[k] : starts[k + 1]]
+        lo = np.maximum(group.min(axis=0) - margin, 0)
+        hi = np.minimum(group.max(axis=0) + margin + 1, passable.shape)
+        assert size == _pocket_reference(passable, group, np.array([lo[0], hi[0], lo[1], hi[1]]))
+
+
+@pytest.mark.parametrize("density", [0.45, 0.6, 0.8])
+def test_fill_of_large_ragged_masks_is_the_labelled_component(density: float) -> None:
+    """Large masks with thousands of short runs (they grow the scan-line fill's seed stack past its first size)."""
+    rng = np.random.default_rng(int(density * 100))
+    mask = rng.random((300, 260)) < density
+    for eight in (False, True):
+        labels, _ = ndimage.label(mask, structure=ndimage.generate_binary_structure(2, 2 if eight else 1))
+        biggest = int(np.argmax(np.bincount(labels.ravel())[1:])) + 1
+        i, j = np.argwhere(labels == biggest)[0]
+        np.testing.assert_array_equal(component_at(mask, (int(i), int(j)), eight=eight), labels == biggest)

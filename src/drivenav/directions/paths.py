@@ -170,6 +170,15 @@ def backtrack_many(
     T: NDArray[np.float64], traversable: NDArray[np.bool_], starts: NDArray[np.int64], source: tuple[int, int]
 ) -> list[NDArray[np.float64]]:
     """:func:`backtrack` from each of the cells ``starts`` ``(K, 2)`` in one call (the frontiers of a step)."""
+    points, offsets = backtrack_walks(T, traversable, starts, source)
+    return [points[a:b] for a, b in itertools.pairwise(offsets)]
+
+
+def backtrack_walks(
+    T: NDArray[np.float64], traversable: NDArray[np.bool_], starts: NDArray[np.int64], source: tuple[int, int]
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """:func:`backtrack_many` as one array: every walk's points, concatenated, and the ``K + 1`` offsets where
+    the walks start and the last ends."""
     starts = np.ascontiguousarray(starts, dtype=np.int64).reshape(-1, 2)
     bad = np.flatnonzero(~np.isfinite(T[starts[:, 0], starts[:, 1]]))
     if bad.size:
@@ -184,7 +193,7 @@ def backtrack_many(
     if stalled >= 0:
         start = tuple(int(v) for v in starts[stalled])
         raise RuntimeError(f"backtracking from {start} stalled before reaching {source}")
-    return [points[a:b] for a, b in itertools.pairwise(offsets)]
+    return points, offsets
 
 
 def backtrack(

@@ -25,6 +25,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -33,11 +34,11 @@ from drivenav.config import DriveNavConfig
 from drivenav.directions.bearings import Point, bearing_to, circle_crossing
 from drivenav.directions.clustering import build_clusters
 from drivenav.directions.fmm import travel_time
-from drivenav.directions.paths import backtrack, backtrack_many
+from drivenav.directions.paths import backtrack, backtrack_walks
 from drivenav.directions.speed import SpeedField, build_speed_field
 from drivenav.directions.timing import elapsed_ms
 from drivenav.directions.tracking import DirectionTracker
-from drivenav.directions.types import DirectionResult, FrontierPath
+from drivenav.directions.types import Cluster, DirectionResult, FrontierPath
 from drivenav.mapping.types import Frontier, MapSnapshot
 
 TIMING_KEYS = ("distance_transforms", "skeleton", "fmm", "backtracking", "clustering", "tracking", "total")
@@ -80,6 +81,20 @@ def _frontier_cells(field: SpeedField, frontiers: Sequence[Frontier]) -> list[ND
     return np.split(np.asarray(every[keep], dtype=np.int64), kept_before[ends[:-1]])
 
 
+@dataclass(frozen=True)
+class _Solve:
+    """What one FMM solve gave for a robot position and goals: the frontier paths by id, the unreachable
+    frontiers, the goal paths and the clusters (tracking, which has state, runs every step)."""
+
+    robot_xy: tuple[float, float]
+    goals: tuple[tuple[float, float], ...]
+    frontiers: tuple[Frontier, ...]
+    paths: dict[int, FrontierPath]
+    unreachable: tuple[int, ...]
+    goal_paths: tuple[NDArray[np.float64] | None, ...]
+    clusters: tuple[Cluster, ...]
+
+
 class DirectionPipeline:
     """Stateful per-episode entry point: :meth:`update` once per mapping step, :meth:`reset` per episode."""
 
@@ -87,22 +102,25 @@ class DirectionPipeline:
         self._config = config
         self._tracker = DirectionTracker(config.directions)
         self._last_field: tuple[MapSnapshot, tuple[Frontier, ...], SpeedField] | None = None
+        self._last_solve: _Solve | None = None
 
     def reset(self) -> None:
         self._tracker.reset()
         self._last_field = None
+        self._last_solve = None
 
-    def _speed_field(self, snapshot: MapSnapshot, frontiers: Sequence[Frontier]) -> SpeedField:
-        """The speed field, rebuilt only when what it is a function of changed: the grid, the obstacle and navigable
-        maps and the frontier cells (not the explored map, not the robot). A re-plan within one step (a new goal at
-        a decision) and a step that changed none of them (about a fifth of the steps: turning in place towards
-        known space) reuse the last one, reporting no distance-transform or skeleton time."""
+    def _speed_field(self, snapshot: MapSnapshot, frontiers: Sequence[Frontier]) -> tuple[SpeedField, bool]:
+        """The speed field and whether it is the last one: it is rebuilt only when what it is a function of changed:
+        the grid, the obstacle and navigable maps and the frontier cells (not the explored map, not the robot). A
+        re-plan within one step (a new goal at a decision) and a step that changed none of them (about a fifth of
+        the steps: turning in place towards known space) reuse the last one, reporting no distance-transform or
+        skeleton time."""
         last = self._last_field
         if last is not None and _same_field_inputs(last[0], last[1], snapshot, frontiers):
-            return dataclasses.replace(last[2], timings_ms=dict.fromkeys(last[2].timings_ms, 0.0))
+            return dataclasses.replace(last[2], timings_ms=dict.fromkeys(last[2].timings_ms, 0.0)), True
         field = build_speed_field(snapshot, frontiers, self._config.speed)
         self._last_field = (snapshot, tuple(frontiers), field)
-        return field
+        return field, False
 
     def update(
         self,
@@ -115,14 +133,38 @@ class DirectionPipeline:
 
         ``robot_xy`` is the robot's world position (extra items, e.g. a yaw, are ignored). ``goals`` are world
         points to plan to from the same solve (see the module docstring); their paths come back, in order, in
-        :attr:`DirectionResult.goal_paths`.
+        :attr:`DirectionResult.goal_paths`. A step with the last step's speed field, robot position and goals (turning
+        in place with nothing new in view) reuses the last solve, paths and clusters: only tracking runs.
         """
         t_start = time.perf_counter()
         robot_xy = (float(robot_xy[0]), float(robot_xy[1]))
+        goal_points = tuple((float(g[0]), float(g[1])) for g in goals)
         timings = dict.fromkeys(TIMING_KEYS, 0.0)
-        field = self._speed_field(snapshot, frontiers)
+        field, same_field = self._speed_field(snapshot, frontiers)
         timings.update(field.timings_ms)
+        last = self._last_solve
+        if same_field and last is not None and _same_solve_inputs(last, robot_xy, goal_points, frontiers):
+            solve = last  # same field, robot, goals and frontiers: the same solve, paths and clusters (no FMM time)
+        else:
+            solve = self._solve_and_cluster(field, frontiers, robot_xy, goal_points, timings)
+            self._last_solve = solve
 
+        t = time.perf_counter()
+        directions = self._tracker.update(solve.clusters)
+        timings["tracking"] = elapsed_ms(t)
+        timings["total"] = elapsed_ms(t_start)
+        update = self._tracker.last_update
+        return DirectionResult(directions, solve.paths, solve.unreachable, timings, solve.goal_paths, update)
+
+    def _solve_and_cluster(
+        self,
+        field: SpeedField,
+        frontiers: Sequence[Frontier],
+        robot_xy: tuple[float, float],
+        goals: tuple[tuple[float, float], ...],
+        timings: dict[str, float],
+    ) -> _Solve:
+        """The FMM solve, the frontier and goal paths and the clusters of one step; stage times go to ``timings``."""
         t = time.perf_counter()
         cfg = self._config.directions
         source = source_cell(field, robot_xy, cfg.source_snap_radius)
@@ -134,23 +176,17 @@ class DirectionPipeline:
         t = time.perf_counter()
         found = self._frontier_paths(field, T, source, frontiers, cells, robot_xy)
         paths = [p for p in found if p is not None]
-        unreachable = [f.frontier_id for f, p in zip(frontiers, found, strict=True) if p is None]
+        unreachable = tuple(f.frontier_id for f, p in zip(frontiers, found, strict=True) if p is None)
         robot = np.asarray(robot_xy, dtype=np.float64)
         goal_paths = tuple(_goal_path(field, T, source, cell, robot) for cell in goal_cells)
         timings["backtracking"] = elapsed_ms(t)
 
         t = time.perf_counter()
         by_id = {f.frontier_id: f for f in frontiers}
-        clusters = build_clusters(paths, by_id, robot_xy, self._config.directions.cluster_span)
+        clusters = build_clusters(paths, by_id, robot_xy, cfg.cluster_span)
         timings["clustering"] = elapsed_ms(t)
-
-        t = time.perf_counter()
-        directions = self._tracker.update(clusters)
-        timings["tracking"] = elapsed_ms(t)
-        timings["total"] = elapsed_ms(t_start)
         paths_by_id = {p.frontier_id: p for p in paths}
-        update = self._tracker.last_update
-        return DirectionResult(directions, paths_by_id, tuple(unreachable), timings, goal_paths, update)
+        return _Solve(robot_xy, goals, tuple(frontiers), paths_by_id, unreachable, goal_paths, tuple(clusters))
 
     def _solve(
         self,
@@ -200,24 +236,30 @@ class DirectionPipeline:
         if source is None or not reached:
             return [None] * len(frontiers)
         starts = np.array(least, dtype=np.int64)
-        walks = backtrack_many(T, field.traversable, starts, source)
+        rc, offsets = backtrack_walks(T, field.traversable, starts, source)
+        world = _to_world(field, rc)
+        robot = np.asarray(robot_xy[:2], dtype=np.float64)
+        far = _farthest_points([frontiers[i].points for i in reached], robot)
         found: list[FrontierPath | None] = [None] * len(frontiers)
-        for i, start, rc in zip(reached, starts, walks, strict=True):
-            found[i] = self._frontier_path(field, frontiers[i], rc, float(T[start[0], start[1]]), robot_xy)
+        for n, (i, start) in enumerate(zip(reached, starts, strict=True)):
+            path = _from_robot(world[offsets[n] : offsets[n + 1]][::-1], robot)
+            found[i] = self._frontier_path(frontiers[i], path, float(T[start[0], start[1]]), robot, far[n])
         return found
 
     def _frontier_path(
-        self, field: SpeedField, frontier: Frontier, rc: NDArray[np.float64], time: float, robot_xy: Sequence[float]
+        self,
+        frontier: Frontier,
+        path: NDArray[np.float64],
+        time: float,
+        robot: NDArray[np.float64],
+        farthest: tuple[float, float],
     ) -> FrontierPath:
-        """The frontier's path (backtracked window points ``rc``, arrival ``time`` at its start) and bearing."""
-        robot = np.asarray(robot_xy[:2], dtype=np.float64)
-        path = _world_path(field, rc, robot)
+        """The frontier's path (world polyline from the robot, arrival ``time`` at its end) and bearing."""
         cfg = self._config.directions
         waypoint = (float(frontier.waypoint[0]), float(frontier.waypoint[1]))
         point = circle_crossing(path, robot, cfg.bearing_radius) if cfg.path_bearings else waypoint
         if _same_point(point, robot):  # degenerate: the frontier is at the robot; use its waypoint
             point = waypoint
-        far = frontier.points[int(np.argmax(((frontier.points - robot) ** 2).sum(axis=1)))]
         target = path[-1]
         return FrontierPath(
             frontier.frontier_id,
@@ -226,7 +268,7 @@ class DirectionPipeline:
             path,
             point,
             bearing_to(robot, point),
-            (float(far[0]), float(far[1])),
+            farthest,
         )
 
 
@@ -246,12 +288,33 @@ def _target_labels(shape: tuple[int, int], targets: Sequence[NDArray[np.int64]])
     return labels
 
 
+def _to_world(field: SpeedField, rc: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Continuous window ``(row, col)`` points (cell centres at integers) as world ``(x, y)`` points."""
+    grid = field.window.grid
+    return np.asarray((rc[:, ::-1] + 0.5) * grid.resolution + grid.origin, dtype=np.float64)
+
+
+def _from_robot(world: NDArray[np.float64], robot: NDArray[np.float64]) -> NDArray[np.float64]:
+    """A walk's world points, source first, as a polyline from the robot (a new array): the robot is prepended
+    unless it stands on the source cell's centre."""
+    return np.ascontiguousarray(world) if _same_point(world[0], robot) else np.vstack([robot, world])
+
+
 def _world_path(field: SpeedField, rc: NDArray[np.float64], robot: NDArray[np.float64]) -> NDArray[np.float64]:
     """Backtracked window ``(row, col)`` points (target to source) as a world ``(x, y)`` polyline from the
-    robot to the target; the robot itself is prepended unless it stands on the source cell's centre."""
-    grid = field.window.grid
-    world = (rc[::-1, ::-1] + 0.5) * grid.resolution + grid.origin
-    return world if _same_point(world[0], robot) else np.vstack([robot, world])
+    robot to the target."""
+    return _from_robot(_to_world(field, rc)[::-1], robot)
+
+
+def _farthest_points(points: Sequence[NDArray[np.float64]], robot: NDArray[np.float64]) -> list[tuple[float, float]]:
+    """Per point set, its point farthest from ``robot`` (the first of equals), all sets in one pass."""
+    every = np.concatenate(points)
+    d2 = np.add.reduce((every - robot) ** 2, axis=1)
+    bounds = np.cumsum([0] + [len(p) for p in points])
+    most = np.maximum.reduceat(d2, bounds[:-1])
+    hits = np.flatnonzero(d2 == np.repeat(most, np.diff(bounds)))
+    first = hits[np.searchsorted(hits, bounds[:-1])]
+    return [(float(every[k, 0]), float(every[k, 1])) for k in first]
 
 
 def _goal_path(
@@ -276,6 +339,21 @@ def _same_field_inputs(
     maps = ((snapshot_a.obstacle, snapshot_b.obstacle), (snapshot_a.navigable, snapshot_b.navigable))
     cells = ((a.cells, b.cells) for a, b in zip(frontiers_a, frontiers_b, strict=True))
     return all(x is y or np.array_equal(x, y) for x, y in (*maps, *cells))
+
+
+def _same_solve_inputs(
+    last: _Solve, robot_xy: tuple[float, float], goals: tuple[tuple[float, float], ...], frontiers: Sequence[Frontier]
+) -> bool:
+    """Whether a step on the last step's speed field gives the last solve: the same robot position and goals, and
+    frontiers with the same ids, waypoints and points (what the paths and clusters carry besides the field)."""
+    if last.robot_xy != robot_xy or last.goals != goals or len(last.frontiers) != len(frontiers):
+        return False
+    return all(
+        a.frontier_id == b.frontier_id
+        and a.waypoint == b.waypoint
+        and (a.points is b.points or np.array_equal(a.points, b.points))
+        for a, b in zip(last.frontiers, frontiers, strict=True)
+    )
 
 
 def _same_point(a: Point, b: Point) -> bool:

@@ -28,8 +28,31 @@ def waypoints_coincide(a: NDArray[np.float64], b: NDArray[np.float64], tolerance
     """Whether some waypoint of ``a`` ``(K, 2)`` lies within ``tolerance`` of some waypoint of ``b``."""
     if a.size == 0 or b.size == 0:
         return False
+    return bool(_close_pairs(a, b, tolerance).any())
+
+
+def _close_pairs(a: NDArray[np.float64], b: NDArray[np.float64], tolerance: float) -> NDArray[np.bool_]:
+    """``[i, j]``: whether point ``a[i]`` lies within ``tolerance`` of point ``b[j]``."""
     diff = a[:, None, :] - b[None, :, :]
-    return bool((np.einsum("ijk,ijk->ij", diff, diff) <= tolerance * tolerance).any())
+    return np.asarray(np.einsum("ijk,ijk->ij", diff, diff) <= tolerance * tolerance, dtype=np.bool_)
+
+
+def coinciding(
+    a: Sequence[NDArray[np.float64]], b: Sequence[NDArray[np.float64]], tolerance: float
+) -> NDArray[np.bool_]:
+    """``[k, m]``: :func:`waypoints_coincide` of ``a[k]`` and ``b[m]``, every pair from one array operation (the
+    same arithmetic per pair of points)."""
+    out = np.zeros((len(a), len(b)), dtype=np.bool_)
+    a_counts = np.array([len(w) for w in a], dtype=np.int64)
+    b_counts = np.array([len(w) for w in b], dtype=np.int64)
+    if not (a_counts.any() and b_counts.any()):
+        return out
+    close = _close_pairs(np.concatenate(a).reshape(-1, 2), np.concatenate(b).reshape(-1, 2), tolerance)
+    rows = np.flatnonzero(a_counts)
+    cols = np.flatnonzero(b_counts)
+    by_row = np.logical_or.reduceat(close, (np.cumsum(a_counts) - a_counts)[rows], axis=0)
+    out[np.ix_(rows, cols)] = np.logical_or.reduceat(by_row, (np.cumsum(b_counts) - b_counts)[cols], axis=1)
+    return out
 
 
 class DirectionTracker:
@@ -76,13 +99,11 @@ class DirectionTracker:
         """Stage 1; fills ``labels`` for merged clusters and returns each fresh label's retired previous labels."""
         merged: dict[int, tuple[int, ...]] = {}
         retired: set[int] = set()
-        tolerance = self._config.merge_tolerance
-        for k, cluster in enumerate(clusters):
-            hits = [
-                d.label
-                for d in self._directions
-                if d.label not in retired and waypoints_coincide(cluster.waypoints, d.waypoints, tolerance)
-            ]
+        close = coinciding(
+            [c.waypoints for c in clusters], [d.waypoints for d in self._directions], self._config.merge_tolerance
+        )
+        for k in range(len(clusters)):
+            hits = [d.label for m, d in enumerate(self._directions) if d.label not in retired and close[k, m]]
             if len(hits) >= 2:
                 retired.update(hits)
                 labels[k] = label = self._fresh_label()

@@ -72,16 +72,23 @@ def extract_frontiers(
     passable = ~explored & ~blocked
     margin = math.ceil(pocket_window / grid.resolution)
     areas = pocket_sizes(passable, cells, starts, margin) * grid.resolution**2
-    frontiers: list[Frontier] = []
-    for k in np.flatnonzero(areas >= min_area):
-        group = cells[starts[k] : starts[k + 1]]
-        frontiers.append(_make_frontier(len(frontiers), grid, group + np.array(offset), float(areas[k])))
-    return frontiers
-
-
-def _make_frontier(frontier_id: int, grid: GridSpec, cells: NDArray[np.int64], area: float) -> Frontier:
+    kept = np.flatnonzero(areas >= min_area)
+    if kept.size == 0:
+        return []
+    cells = cells + np.array(offset)
     points = grid.cell_to_world(cells)
-    k = int(np.argmin(np.sum((points - points.mean(axis=0)) ** 2, axis=1)))
+    return [
+        _make_frontier(n, cells[starts[k] : starts[k + 1]], points[starts[k] : starts[k + 1]], float(areas[k]))
+        for n, k in enumerate(kept)
+    ]
+
+
+def _make_frontier(frontier_id: int, cells: NDArray[np.int64], points: NDArray[np.float64], area: float) -> Frontier:
+    """Frontier ``frontier_id`` of grid ``cells`` with world ``points``; its waypoint is the member nearest the
+    centroid (``np.add.reduce`` directly: the same sums and quotient as ``mean`` and ``sum``, without their Python
+    wrappers, which cost more than the arithmetic on a frontier's few dozen cells)."""
+    centroid = np.add.reduce(points, axis=0) / len(points)
+    k = int(np.add.reduce((points - centroid) ** 2, axis=1).argmin())
     return Frontier(
         frontier_id=frontier_id,
         points=points,

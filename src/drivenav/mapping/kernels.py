@@ -131,20 +131,21 @@ def pocket_size(passable: Mask, cells: I64, window: I64) -> int:
     """Count the ``passable`` cells 4-connected to the 4-neighbours of ``cells`` inside ``window``.
 
     ``window`` = (row0, row1, col0, col1), half-open. The flood starts from every passable 4-neighbour of a
-    member of ``cells`` (an (N, 2) array of rows and columns) that lies in the window: one :func:`_flood` per
+    member of ``cells`` (an (N, 2) array of rows and columns) that lies in the window: one :func:`_fill_runs` per
     seed not yet reached, whose components together are the pocket.
     """
     r0, r1, c0, c1 = window[0], window[1], window[2], window[3]
     inside = passable[r0:r1, c0:c1]
     h, w = inside.shape
     visited = np.zeros((h, w), dtype=np.bool_)
-    queue = np.empty(h * w, dtype=np.int64)
+    stack = np.empty(h + w + 16, dtype=np.int64)
     size = 0
     for n in range(cells.shape[0]):
         for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
             i, j = cells[n, 0] + di - r0, cells[n, 1] + dj - c0
             if 0 <= i < h and 0 <= j < w and inside[i, j] and not visited[i, j]:
-                size += _flood(inside, visited, i, j, False, queue)
+                filled, stack = _fill_runs(inside, visited, i, j, False, stack)
+                size += filled
     return size
 
 
@@ -189,13 +190,59 @@ def _flood(mask: Mask, visited: Mask, i: int, j: int, eight: bool, queue: I64) -
 
 
 @_jit
+def _fill_runs(mask: Mask, visited: Mask, i: int, j: int, eight: bool, stack: I64) -> tuple[int, I64]:
+    """Mark in ``visited`` the 4- or 8-connected component of ``mask`` holding the set, unvisited cell ``(i, j)``,
+    a whole row run at a time (scan-line fill): the number of cells marked and the (possibly grown) seed stack.
+
+    A popped seed is widened to its maximal run of unvisited ``mask`` cells in its row; the rows above and below are
+    scanned under that run (one cell wider on each side with 8-connectivity) and the first cell of each unvisited
+    ``mask`` run there is pushed. Marks exactly the cells :func:`_flood` marks, reading the rows sequentially instead
+    of queueing every cell.
+    """
+    rows, cols = mask.shape
+    stack[0] = i * cols + j
+    top = 1
+    count = 0
+    while top > 0:
+        top -= 1
+        y, x = stack[top] // cols, stack[top] % cols
+        if visited[y, x]:
+            continue
+        left, right = x, x
+        while left > 0 and mask[y, left - 1] and not visited[y, left - 1]:
+            left -= 1
+        while right < cols - 1 and mask[y, right + 1] and not visited[y, right + 1]:
+            right += 1
+        visited[y, left : right + 1] = True
+        count += right - left + 1
+        lo, hi = (max(left - 1, 0), min(right + 1, cols - 1)) if eight else (left, right)
+        for ny in (y - 1, y + 1):
+            if ny < 0 or ny >= rows:
+                continue
+            in_run = False
+            for q in range(lo, hi + 1):
+                if not mask[ny, q] or visited[ny, q]:
+                    in_run = False
+                elif not in_run:
+                    in_run = True
+                    if top == stack.size:
+                        grown = np.empty(2 * stack.size, dtype=np.int64)
+                        grown[:top] = stack
+                        stack = grown
+                    stack[top] = ny * cols + q
+                    top += 1
+    return count, stack
+
+
+@_jit
 def flood_fill(mask: Mask, i: int, j: int, eight: bool) -> Mask:
     """The 4- or 8-connected component of ``mask`` holding cell ``(i, j)``, which must be set.
 
-    Visits only the component (breadth-first), so it costs what the component costs, not a labelling of the array.
+    Visits only the component (a row run at a time), so it costs what the component costs, not a labelling of the
+    array.
     """
     visited = np.zeros(mask.shape, dtype=np.bool_)
-    _flood(mask, visited, i, j, eight, np.empty(mask.size, dtype=np.int64))
+    _fill_runs(mask, visited, i, j, eight, np.empty(sum(mask.shape) + 16, dtype=np.int64))
     return visited
 
 
@@ -203,29 +250,28 @@ def flood_fill(mask: Mask, i: int, j: int, eight: bool) -> Mask:
 def raster_components(mask: Mask) -> tuple[I64, I64]:
     """The 8-connected components of ``mask``, numbered in raster order of their first cell (as
     ``scipy.ndimage.label`` numbers them): every set cell as ``(row, col)`` grouped by component, each group in
-    raster order, and the ``count + 1`` offsets where the groups start and the last ends."""
-    rows, cols = mask.shape
-    visited = np.zeros((rows, cols), dtype=np.bool_)
-    label = np.full((rows, cols), -1, dtype=np.int64)
-    queue = np.empty(rows * cols, dtype=np.int64)
-    sizes = np.zeros(rows * cols + 1, dtype=np.int64)
+    raster order, and the ``count + 1`` offsets where the groups start and the last ends.
+
+    Only the set cells are visited after one scan for them (frontier cells are a few hundred of a box of 10^5):
+    each unvisited one in raster order starts the next component, whose flooded cells are sorted into raster order.
+    """
+    cols = mask.shape[1]
+    flat = np.flatnonzero(mask)
+    visited = np.zeros(mask.shape, dtype=np.bool_)
+    queue = np.empty(flat.size, dtype=np.int64)
+    cells = np.empty((flat.size, 2), dtype=np.int64)
+    starts = np.zeros(flat.size + 1, dtype=np.int64)
     count = 0
-    for i in range(rows):
-        for j in range(cols):
-            if mask[i, j] and not visited[i, j]:
-                n = _flood(mask, visited, i, j, True, queue)
-                for q in range(n):
-                    label[queue[q] // cols, queue[q] % cols] = count
-                sizes[count + 1] = n
-                count += 1
-    starts = np.cumsum(sizes[: count + 1])
-    cells = np.empty((starts[count], 2), dtype=np.int64)
-    fill = starts[:count].copy()
-    for i in range(rows):
-        for j in range(cols):
-            k = label[i, j]
-            if k >= 0:
-                cells[fill[k], 0] = i
-                cells[fill[k], 1] = j
-                fill[k] += 1
-    return cells, starts
+    for f in flat:
+        i, j = f // cols, f % cols
+        if visited[i, j]:
+            continue
+        n = _flood(mask, visited, i, j, True, queue)
+        group = np.sort(queue[:n])
+        first = starts[count]
+        for q in range(n):
+            cells[first + q, 0] = group[q] // cols
+            cells[first + q, 1] = group[q] % cols
+        count += 1
+        starts[count] = first + n
+    return cells, starts[: count + 1].copy()
