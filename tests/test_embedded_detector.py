@@ -10,7 +10,7 @@ from hypothesis.extra.numpy import arrays
 from numpy.typing import NDArray
 
 from drivenav.envs.vocabulary import VOCABULARY
-from drivenav.semantics.embedded import instance_areas
+from drivenav.instances import instance_areas
 from drivenav.semantics.embedded_detector import EmbeddedDetectorConfig, EmbeddedGrounder, stable_hash
 from drivenav.semantics.embedding import default_embedder
 from drivenav.semantics.protocols import Detection, Grounder

@@ -17,6 +17,7 @@ from drivenav.envs.base import EpisodeMeasures, measured
 from drivenav.envs.episode import Episode
 from drivenav.envs.geodesic import GeodesicField
 from drivenav.grid import GridSpec
+from drivenav.instances import count_pixels_of
 from drivenav.types import Action, Observation, Pose, SimConfig
 
 TARGET_SEEN_PIXELS = 150  # goal-instance pixels in one frame for the target to count as seen
@@ -26,7 +27,7 @@ def shows_goal(observation: Observation, goal_ids: NDArray[np.int64]) -> bool:
     """Whether an observation's ground-truth instance ids show a goal instance clearly (``target_seen``)."""
     if observation.semantic is None:
         return False
-    return int(np.count_nonzero(np.isin(observation.semantic, goal_ids))) >= TARGET_SEEN_PIXELS
+    return count_pixels_of(observation.semantic, goal_ids) >= TARGET_SEEN_PIXELS
 
 
 class EmbeddedMeasures:

@@ -47,6 +47,7 @@ from typing import TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
+from drivenav.instances import instance_areas
 from drivenav.semantics.embedding import TextEmbedder, default_embedder
 from drivenav.semantics.geometric import direction_score
 from drivenav.semantics.protocols import (
@@ -63,22 +64,6 @@ from drivenav.semantics.protocols import (
 from drivenav.types import GroundTruth
 
 _T = TypeVar("_T")
-_BINCOUNT_MAX_ID = 1 << 20  # larger instance ids are counted by sorting, not with a table this long
-
-
-def instance_areas(semantic: NDArray[np.int32]) -> dict[int, int]:
-    """Pixel count of every instance id present in ``semantic`` (id 0, nothing, left out), in increasing id order.
-
-    Counted with ``bincount`` (linear time) when the ids are small non-negative integers, else by sorting.
-    """
-    flat = semantic.ravel()
-    if flat.size and int(flat.min()) >= 0 and int(flat.max()) <= _BINCOUNT_MAX_ID:
-        counts = np.bincount(flat)
-        ids = np.flatnonzero(counts)
-        counts = counts[ids]
-    else:
-        ids, counts = np.unique(flat, return_counts=True)
-    return {int(i): int(c) for i, c in zip(ids, counts, strict=True) if i != 0}
 
 
 def label_areas(semantic: NDArray[np.int32], labels: Mapping[int, str], min_pixels: int) -> list[tuple[str, int]]:

@@ -41,7 +41,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.semantics.embedded import instance_areas, normalize_phrase
+from drivenav.instances import instance_areas
+from drivenav.semantics.embedded import normalize_phrase
 from drivenav.semantics.embedding import TextEmbedder, default_embedder
 from drivenav.semantics.protocols import Detection, category_key
 from drivenav.types import GroundTruth, Observation

@@ -1,0 +1,60 @@
+"""Pixel counts in instance-id images (a world's ``semantic`` observation), one pass over the pixels.
+
+The embedded detector counts every instance of a frame and the worlds' ``target_seen`` measure counts the goal
+instances' pixels, at every step; ``numpy.bincount`` first copies an ``int32`` image to ``intp`` and ``numpy.isin``
+builds a lookup table per call, which cost two to four times the counting itself on a 640 x 480 frame.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+MAX_TABLE_ID = 1 << 20  # larger (or negative) instance ids are counted by sorting, not with a table this long
+
+
+@numba.njit(cache=True)
+def _count_ids(flat: NDArray[np.integer], size: int) -> NDArray[np.int64]:
+    counts = np.zeros(size, np.int64)
+    for v in flat:
+        counts[v] += 1
+    return counts
+
+
+@numba.njit(cache=True)
+def _count_listed(flat: NDArray[np.integer], listed: NDArray[np.bool_]) -> int:
+    n = 0
+    top = listed.size
+    for v in flat:
+        if 0 <= v < top and listed[v]:
+            n += 1
+    return n
+
+
+def instance_areas(semantic: NDArray[np.integer]) -> dict[int, int]:
+    """Pixel count of every instance id present in ``semantic`` (id 0, nothing, left out), in increasing id order.
+
+    Counted in one pass into a table when the ids are small non-negative integers, else by sorting.
+    """
+    flat = np.ascontiguousarray(semantic).ravel()
+    if flat.size and int(flat.min()) >= 0 and int(flat.max()) <= MAX_TABLE_ID:
+        counts = _count_ids(flat, int(flat.max()) + 1)
+        ids = np.flatnonzero(counts)
+        counts = counts[ids]
+    else:
+        ids, counts = np.unique(flat, return_counts=True)
+    return {int(i): int(c) for i, c in zip(ids, counts, strict=True) if i != 0}
+
+
+def count_pixels_of(semantic: NDArray[np.integer], ids: NDArray[np.integer]) -> int:
+    """How many pixels of ``semantic`` hold one of ``ids`` (``np.isin`` counted, in one pass when the ids are
+    small non-negative integers)."""
+    wanted = np.asarray(ids).ravel()
+    if wanted.size == 0 or semantic.size == 0:
+        return 0
+    if int(wanted.min()) < 0 or int(wanted.max()) > MAX_TABLE_ID:
+        return int(np.count_nonzero(np.isin(semantic, wanted)))
+    listed = np.zeros(int(wanted.max()) + 1, np.bool_)
+    listed[wanted] = True
+    return int(_count_listed(np.ascontiguousarray(semantic).ravel(), listed))

@@ -1,0 +1,29 @@
+"""Pixel counts of instance-id images (issue 14): the one-pass counts equal numpy's."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+from numpy.typing import NDArray
+
+from drivenav.instances import MAX_TABLE_ID, count_pixels_of
+
+ids = st.one_of(st.integers(0, 9), st.integers(-3, 3), st.integers(MAX_TABLE_ID - 1, MAX_TABLE_ID + 2))
+
+
+@settings(max_examples=120, deadline=None)
+@given(
+    semantic=arrays(np.int32, st.tuples(st.integers(0, 12), st.integers(1, 12)), elements=ids),
+    wanted=arrays(np.int64, st.integers(0, 4), elements=ids),
+)
+def test_count_pixels_of_is_isin_counted(semantic: NDArray[np.int32], wanted: NDArray[np.int64]) -> None:
+    assert count_pixels_of(semantic, wanted) == int(np.count_nonzero(np.isin(semantic, wanted)))
+
+
+def test_count_pixels_of_a_frame_view() -> None:
+    """A non-contiguous view (a crop of a frame) is counted like its copy."""
+    frame = np.arange(48, dtype=np.int32).reshape(6, 8) % 5
+    view = frame[1:5, ::2]
+    assert count_pixels_of(view, np.array([1, 3])) == int(np.isin(view, [1, 3]).sum())
