@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -11,7 +12,7 @@ from hypothesis import strategies as st
 
 from drivenav.directions.bearings import bearing_to, circle_crossing, normalize_angle
 from drivenav.directions.fmm import travel_time
-from drivenav.directions.paths import backtrack, backtrack_many
+from drivenav.directions.paths import backtrack, backtrack_walks
 
 N = 40
 
@@ -125,7 +126,8 @@ def test_backtracking_many_starts_in_one_call_gives_each_walk_alone(
     T = travel_time(speed, 0.05, np.array([source]), np.zeros(1))
     reachable = np.argwhere(np.isfinite(T))
     starts = reachable[[(pick * (k + 3)) % len(reachable) for k in range(count)]].reshape(-1, 2)
-    walks = backtrack_many(T, trav, starts, source)
+    points, offsets = backtrack_walks(T, trav, starts, source)
+    walks = [points[a:b] for a, b in itertools.pairwise(offsets)]
     assert len(walks) == len(starts)
     for start, walk in zip(starts, walks, strict=True):
         np.testing.assert_array_equal(walk, backtrack(T, trav, (int(start[0]), int(start[1])), source))
@@ -135,4 +137,4 @@ def test_backtracking_many_names_the_first_start_outside_the_solve() -> None:
     T = np.full((5, 5), np.inf)
     T[2, 2] = 0.0
     with pytest.raises(ValueError, match=r"\(0, 4\)"):
-        backtrack_many(T, np.ones((5, 5), np.bool_), np.array([[2, 2], [0, 4]]), (2, 2))
+        backtrack_walks(T, np.ones((5, 5), np.bool_), np.array([[2, 2], [0, 4]]), (2, 2))

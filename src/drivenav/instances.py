@@ -38,8 +38,9 @@ def instance_areas(semantic: NDArray[np.integer]) -> dict[int, int]:
     Counted in one pass into a table when the ids are small non-negative integers, else by sorting.
     """
     flat = np.ascontiguousarray(semantic).ravel()
-    if flat.size and int(flat.min()) >= 0 and int(flat.max()) <= MAX_TABLE_ID:
-        counts = _count_ids(flat, int(flat.max()) + 1)
+    top = int(flat.max()) if flat.size else -1
+    if top >= 0 and int(flat.min()) >= 0 and top <= MAX_TABLE_ID:
+        counts = _count_ids(flat, top + 1)
         ids = np.flatnonzero(counts)
         counts = counts[ids]
     else:

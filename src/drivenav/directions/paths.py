@@ -14,7 +14,6 @@ cell or one of its 4-neighbours (the FMM seeds), then steps to the source centre
 
 from __future__ import annotations
 
-import itertools
 import math
 
 import numba
@@ -166,19 +165,11 @@ def _backtrack_many_kernel(
     return buf[:n].copy(), offsets, -1
 
 
-def backtrack_many(
-    T: NDArray[np.float64], traversable: NDArray[np.bool_], starts: NDArray[np.int64], source: tuple[int, int]
-) -> list[NDArray[np.float64]]:
-    """:func:`backtrack` from each of the cells ``starts`` ``(K, 2)`` in one call (the frontiers of a step)."""
-    points, offsets = backtrack_walks(T, traversable, starts, source)
-    return [points[a:b] for a, b in itertools.pairwise(offsets)]
-
-
 def backtrack_walks(
     T: NDArray[np.float64], traversable: NDArray[np.bool_], starts: NDArray[np.int64], source: tuple[int, int]
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """:func:`backtrack_many` as one array: every walk's points, concatenated, and the ``K + 1`` offsets where
-    the walks start and the last ends."""
+    """:func:`backtrack` from each of the cells ``starts`` ``(K, 2)`` in one call (the frontiers of a step): every
+    walk's points, concatenated, and the ``K + 1`` offsets where the walks start and the last ends."""
     starts = np.ascontiguousarray(starts, dtype=np.int64).reshape(-1, 2)
     bad = np.flatnonzero(~np.isfinite(T[starts[:, 0], starts[:, 1]]))
     if bad.size:
@@ -205,4 +196,5 @@ def backtrack(
     ``T`` must be finite at ``start``. Raises ``RuntimeError`` if no descending neighbour exists (only possible
     if ``T`` was not produced by a marching from ``source``).
     """
-    return backtrack_many(T, traversable, np.array([start], dtype=np.int64), source)[0]
+    points, _ = backtrack_walks(T, traversable, np.array([start], dtype=np.int64), source)
+    return points

@@ -338,7 +338,7 @@ def _same_field_inputs(
         return False
     maps = ((snapshot_a.obstacle, snapshot_b.obstacle), (snapshot_a.navigable, snapshot_b.navigable))
     cells = ((a.cells, b.cells) for a, b in zip(frontiers_a, frontiers_b, strict=True))
-    return all(x is y or np.array_equal(x, y) for x, y in (*maps, *cells))
+    return all(_same_array(x, y) for x, y in (*maps, *cells))
 
 
 def _same_solve_inputs(
@@ -349,11 +349,14 @@ def _same_solve_inputs(
     if last.robot_xy != robot_xy or last.goals != goals or len(last.frontiers) != len(frontiers):
         return False
     return all(
-        a.frontier_id == b.frontier_id
-        and a.waypoint == b.waypoint
-        and (a.points is b.points or np.array_equal(a.points, b.points))
+        a.frontier_id == b.frontier_id and a.waypoint == b.waypoint and _same_array(a.points, b.points)
         for a, b in zip(last.frontiers, frontiers, strict=True)
     )
+
+
+def _same_array(a: NDArray[np.generic], b: NDArray[np.generic]) -> bool:
+    """The same array object, or equal shapes and contents."""
+    return a is b or np.array_equal(a, b)
 
 
 def _same_point(a: Point, b: Point) -> bool:
