@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from scipy import ndimage
 
-from drivenav.directions.edt import feature_transform, squared_edt
+from drivenav.directions.edt import edt, feature_transform, squared_edt
 from drivenav.directions.fmm import travel_time
 
 masks = arrays(np.bool_, st.tuples(st.integers(1, 25), st.integers(1, 25)), elements=st.booleans())
@@ -27,6 +27,24 @@ def test_squared_edt_matches_scipy(feature: np.ndarray) -> None:
         return
     want = ndimage.distance_transform_edt(~feature) ** 2
     np.testing.assert_allclose(got, want, atol=1e-9)
+
+
+sparse_masks = st.integers(0, 2**32 - 1).flatmap(
+    lambda seed: st.just(np.random.default_rng(seed).random((1 + seed % 97, 1 + seed // 97 % 89)) < (seed % 7) / 60.0)
+)
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.one_of(masks, sparse_masks))
+def test_edt_is_scipys_distance_bit_for_bit_and_the_squares_are_the_feature_transforms(feature: np.ndarray) -> None:
+    """The one-array transform (scene loading, the skeleton's distances) gives exactly the numbers of scipy and of
+    the feature transform, on small masks and on larger sparse ones (long empty column runs, empty rows)."""
+    got = edt(feature)
+    np.testing.assert_array_equal(squared_edt(feature), feature_transform(feature)[0])
+    if not feature.any():
+        assert np.isinf(got).all()
+        return
+    np.testing.assert_array_equal(got, ndimage.distance_transform_edt(~feature))
 
 
 @settings(max_examples=60, deadline=None)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -20,6 +21,7 @@ from drivenav.inspection import (
     sweep_turns,
     turn_toward,
 )
+from drivenav.packing import PackedImage
 from drivenav.types import Action, CameraIntrinsics, Observation, Pose
 
 TURN = math.radians(30.0)
@@ -199,6 +201,38 @@ def test_observe_records_every_direction_in_tolerance_across_zero() -> None:
     ds = [direction(1, 355.0), direction(2, 8.0), direction(5, 90.0)]
     assert views.observe(ds, observation(math.radians(2.0)), 0) == [(1, False), (2, False)]
     assert views.labels() == {1, 2}
+
+
+def test_stored_views_hold_their_frame_packed_once_and_read_back_exactly() -> None:
+    views = RepresentativeViews()
+    rng = np.random.default_rng(4)
+    rgb = rng.integers(0, 256, (48, 64, 3), dtype=np.uint8)
+    semantic = rng.integers(-1, 40, (48, 64), dtype=np.int32)
+    frame = dataclasses.replace(observation(0.0), rgb=rgb, semantic=semantic)
+    assert views.observe([direction(1, 5.0), direction(2, -10.0)], frame, 7) == [(1, False), (2, False)]
+    one, two = views.get(1), views.get(2)
+    assert one is not None and two is not None
+    assert isinstance(one._rgb, PackedImage) and one._rgb is two._rgb  # one compressed copy for both directions
+    assert one._semantic is two._semantic
+    for view in (one, two):
+        assert view.rgb.dtype == np.uint8 and np.array_equal(view.rgb, rgb)
+        assert view.semantic is not None and view.semantic.dtype == np.int32 and np.array_equal(view.semantic, semantic)
+        assert not np.shares_memory(view.rgb, rgb)  # the observation's frame is not kept alive
+    assert (one.step, one.bearing, two.error) == (
+        7,
+        pytest.approx(math.radians(5.0)),
+        pytest.approx(math.radians(10.0)),
+    )
+
+
+def test_inherited_view_shares_the_parents_packed_frame() -> None:
+    views = RepresentativeViews()
+    views.observe([direction(1, 0.0), direction(2, 25.0)], observation(math.radians(20.0), 3), 3)
+    assert views.inherit(9, [1, 2], math.radians(18.0))
+    child, parent = views.get(9), views.get(2)
+    assert child is not None and parent is not None
+    assert child._rgb is parent._rgb and (child.label, child.step) == (9, 3)
+    assert child.error == pytest.approx(math.radians(2.0)) and child.bearing == pytest.approx(math.radians(18.0))
 
 
 def test_retain_and_reset() -> None:

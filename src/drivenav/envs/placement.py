@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
+from drivenav.directions.edt import edt
 from drivenav.envs.geodesic import largest_component
 from drivenav.envs.scene import Material, ObjectInstance, Scene
 from drivenav.envs.vocabulary import VOCABULARY, CategorySpec, PlacementStyle, Vocabulary
@@ -344,7 +345,7 @@ def _near(mask: NDArray[np.bool_], radius: float, res: float) -> NDArray[np.bool
     """Cells within ``radius`` metres of a cell of ``mask`` (none if the mask is empty)."""
     if not mask.any():
         return np.zeros_like(mask)
-    result: NDArray[np.bool_] = ndimage.distance_transform_edt(~mask) * res <= radius
+    result: NDArray[np.bool_] = edt(mask) * res <= radius
     return result
 
 

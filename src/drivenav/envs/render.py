@@ -26,8 +26,8 @@ import math
 import numba
 import numpy as np
 from numpy.typing import NDArray
-from scipy import ndimage
 
+from drivenav.directions.edt import edt
 from drivenav.envs import palette
 from drivenav.envs.scene import Material, Scene
 from drivenav.types import Pose, SimConfig
@@ -97,7 +97,7 @@ class PackedScene:
 def _contact_shadow(scene: Scene) -> NDArray[np.float32]:
     """Per-cell floor brightness factor in ``[0.7, 1]``: darker within :data:`_AO_RANGE` of an obstacle."""
     obstacles = scene.obstacle_grid(0.05)
-    dist = ndimage.distance_transform_edt(~obstacles) * scene.grid.resolution
+    dist = edt(obstacles) * scene.grid.resolution
     closeness = 1.0 - np.clip(dist / _AO_RANGE, 0.0, 1.0)
     return np.ascontiguousarray(1.0 - 0.3 * closeness**2, dtype=np.float32)
 

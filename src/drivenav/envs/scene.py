@@ -16,8 +16,8 @@ from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import ndimage
 
+from drivenav.directions.edt import edt
 from drivenav.grid import GridSpec
 
 MAX_CLIMB = 0.15  # metres: floor objects this low do not block the agent
@@ -157,7 +157,7 @@ class Scene:
         if cached is None:
             obstacles = self.obstacle_grid(agent_height)
             # Distance from the cell centre to the nearest obstacle cell's face (half a cell nearer than its centre).
-            clearance = (ndimage.distance_transform_edt(~obstacles) - 0.5) * self.grid.resolution
+            clearance = (edt(obstacles) - 0.5) * self.grid.resolution
             cached = np.asarray(clearance > agent_radius)
             self._navigable_cache[key] = cached
         return cached

@@ -8,12 +8,13 @@ carries its label, and views of retired labels are dropped. A direction that onl
 position-based merge of directions, or the followed direction carried over a relabelling -- inherits the view of
 the parent whose camera faced the new bearing best (:meth:`RepresentativeViews.inherit`; ours: the paper gives the
 merged direction a fresh label and says nothing about its views, and it is not a newly revealed direction).
+Stored views hold their frame compressed (:meth:`~drivenav.semantics.protocols.View.packed`, once per frame
+however many directions it becomes the view of): reads give the same pixels.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
-from dataclasses import replace
 
 from drivenav.config import InspectionConfig
 from drivenav.directions.types import Direction
@@ -36,12 +37,14 @@ class RepresentativeViews:
         the stored one. Returns ``(label, replaced)`` for every view written, in the order of ``directions``.
         """
         written: list[tuple[int, bool]] = []
+        frame: View | None = None  # the observation, packed once for every direction it becomes the view of
         for direction in directions:
             error = abs(signed_offset(direction.bearing, observation.pose.yaw))
             stored = self._views.get(direction.label)
             if not within(error, self.tolerance) or (stored is not None and error >= stored.error):
                 continue
-            self._views[direction.label] = _view(direction, observation, error, step)
+            frame = frame or _packed_frame(observation, step)
+            self._views[direction.label] = frame.relabelled(direction.label, direction.bearing, error)
             written.append((direction.label, stored is not None))
         return written
 
@@ -53,7 +56,7 @@ class RepresentativeViews:
             return False
         best = min(views, key=lambda v: abs(signed_offset(bearing, v.pose.yaw)))
         error = abs(signed_offset(bearing, best.pose.yaw))
-        self._views[label] = replace(best, label=label, bearing=bearing, error=error)
+        self._views[label] = best.relabelled(label, bearing, error)
         return True
 
     def has_view(self, label: int) -> bool:
@@ -75,16 +78,9 @@ class RepresentativeViews:
         self._views.clear()
 
 
-def _view(direction: Direction, observation: Observation, error: float, step: int) -> View:
-    return View(
-        label=direction.label,
-        rgb=observation.rgb,
-        semantic=observation.semantic,
-        pose=observation.pose,
-        bearing=direction.bearing,
-        error=error,
-        step=step,
-    )
+def _packed_frame(observation: Observation, step: int) -> View:
+    """The observation's images, packed, as a view (label, bearing and error are set per direction)."""
+    return View(-1, observation.rgb, observation.semantic, observation.pose, 0.0, 0.0, step).packed()
 
 
 def needs_inspection(

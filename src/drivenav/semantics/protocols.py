@@ -8,30 +8,72 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Literal, Protocol
+from typing import Any, Literal, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
+from drivenav.packing import PackedImage
 from drivenav.types import GroundTruth, Observation, Pose
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False, init=False)
 class View:
     """A representative view of a direction (Sec. IV-A c): the frame whose yaw was closest to its bearing.
 
     ``bearing`` is the direction's bearing when the view was taken and ``error`` = |yaw - bearing| then.
     ``semantic`` is the world's instance image where it has one (the embedded reasoner reads it). No depth is
     kept: the paper's VLM sees images only, and an episode holds dozens of views (a depth image is 36 % of one).
+    The images are held as given or, after :meth:`packed`, compressed (:mod:`drivenav.packing`) and unpacked
+    on each read.
     """
 
     label: int
-    rgb: NDArray[np.uint8]
-    semantic: NDArray[np.int32] | None
     pose: Pose
     bearing: float
     error: float
     step: int
+    _rgb: NDArray[np.uint8] | PackedImage
+    _semantic: NDArray[np.int32] | PackedImage | None
+
+    def __init__(
+        self,
+        label: int,
+        rgb: NDArray[np.uint8] | PackedImage,
+        semantic: NDArray[np.int32] | PackedImage | None,
+        pose: Pose,
+        bearing: float,
+        error: float,
+        step: int,
+    ) -> None:
+        object.__setattr__(self, "label", label)
+        object.__setattr__(self, "pose", pose)
+        object.__setattr__(self, "bearing", bearing)
+        object.__setattr__(self, "error", error)
+        object.__setattr__(self, "step", step)
+        object.__setattr__(self, "_rgb", rgb)
+        object.__setattr__(self, "_semantic", semantic)
+
+    @property
+    def rgb(self) -> NDArray[np.uint8]:
+        return self._rgb.unpack() if isinstance(self._rgb, PackedImage) else self._rgb
+
+    @property
+    def semantic(self) -> NDArray[np.int32] | None:
+        return self._semantic.unpack() if isinstance(self._semantic, PackedImage) else self._semantic
+
+    def packed(self) -> View:
+        """This view with its images packed (:class:`~drivenav.packing.PackedImage`); reads give the same pixels."""
+        semantic = None if self._semantic is None else _packed(self._semantic)
+        return View(self.label, _packed(self._rgb), semantic, self.pose, self.bearing, self.error, self.step)
+
+    def relabelled(self, label: int, bearing: float, error: float) -> View:
+        """The same frame as the view of direction ``label`` at ``bearing`` (its images shared, not copied)."""
+        return View(label, self._rgb, self._semantic, self.pose, bearing, error, self.step)
+
+
+def _packed(image: NDArray[Any] | PackedImage) -> PackedImage:
+    return image if isinstance(image, PackedImage) else PackedImage.pack(image)
 
 
 @dataclass(frozen=True)
