@@ -8,8 +8,8 @@ carries its label, and views of retired labels are dropped. A direction that onl
 position-based merge of directions, or the followed direction carried over a relabelling -- inherits the view of
 the parent whose camera faced the new bearing best (:meth:`RepresentativeViews.inherit`; ours: the paper gives the
 merged direction a fresh label and says nothing about its views, and it is not a newly revealed direction).
-Stored views hold their frame compressed (:meth:`~drivenav.semantics.protocols.View.packed`, once per frame
-however many directions it becomes the view of): reads give the same pixels.
+Stored views hold their frame compressed (:class:`~drivenav.packing.PackedImage`, once per frame however many
+directions it becomes the view of): reads give the same pixels.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ from collections.abc import Iterable, Sequence
 from drivenav.config import InspectionConfig
 from drivenav.directions.types import Direction
 from drivenav.inspection.sweep import signed_offset, within
+from drivenav.packing import PackedImage
 from drivenav.semantics.protocols import View
 from drivenav.types import Observation
 
@@ -37,15 +38,16 @@ class RepresentativeViews:
         the stored one. Returns ``(label, replaced)`` for every view written, in the order of ``directions``.
         """
         written: list[tuple[int, bool]] = []
-        frame: View | None = None  # the observation, packed once for every direction it becomes the view of
+        images: tuple[PackedImage, PackedImage | None] | None = None  # packed once for all the views they become
         for direction in directions:
-            error = abs(signed_offset(direction.bearing, observation.pose.yaw))
-            stored = self._views.get(direction.label)
+            label, bearing = direction.label, direction.bearing
+            error = abs(signed_offset(bearing, observation.pose.yaw))
+            stored = self._views.get(label)
             if not within(error, self.tolerance) or (stored is not None and error >= stored.error):
                 continue
-            frame = frame or _packed_frame(observation, step)
-            self._views[direction.label] = frame.relabelled(direction.label, direction.bearing, error)
-            written.append((direction.label, stored is not None))
+            images = images or _packed_images(observation)
+            self._views[label] = View(label, *images, observation.pose, bearing, error, step)
+            written.append((label, stored is not None))
         return written
 
     def inherit(self, label: int, parents: Iterable[int], bearing: float) -> bool:
@@ -78,9 +80,10 @@ class RepresentativeViews:
         self._views.clear()
 
 
-def _packed_frame(observation: Observation, step: int) -> View:
-    """The observation's images, packed, as a view (label, bearing and error are set per direction)."""
-    return View(-1, observation.rgb, observation.semantic, observation.pose, 0.0, 0.0, step).packed()
+def _packed_images(observation: Observation) -> tuple[PackedImage, PackedImage | None]:
+    """The observation's RGB and instance images, compressed."""
+    semantic = None if observation.semantic is None else PackedImage.pack(observation.semantic)
+    return PackedImage.pack(observation.rgb), semantic
 
 
 def needs_inspection(

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal, Protocol
+from typing import Literal, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -24,8 +24,8 @@ class View:
     ``bearing`` is the direction's bearing when the view was taken and ``error`` = |yaw - bearing| then.
     ``semantic`` is the world's instance image where it has one (the embedded reasoner reads it). No depth is
     kept: the paper's VLM sees images only, and an episode holds dozens of views (a depth image is 36 % of one).
-    The images are held as given or, after :meth:`packed`, compressed (:mod:`drivenav.packing`) and unpacked
-    on each read.
+    The images are held as given or compressed (:class:`~drivenav.packing.PackedImage`, as the agent stores
+    them) and unpacked on each read.
     """
 
     label: int
@@ -62,18 +62,9 @@ class View:
     def semantic(self) -> NDArray[np.int32] | None:
         return self._semantic.unpack() if isinstance(self._semantic, PackedImage) else self._semantic
 
-    def packed(self) -> View:
-        """This view with its images packed (:class:`~drivenav.packing.PackedImage`); reads give the same pixels."""
-        semantic = None if self._semantic is None else _packed(self._semantic)
-        return View(self.label, _packed(self._rgb), semantic, self.pose, self.bearing, self.error, self.step)
-
     def relabelled(self, label: int, bearing: float, error: float) -> View:
         """The same frame as the view of direction ``label`` at ``bearing`` (its images shared, not copied)."""
         return View(label, self._rgb, self._semantic, self.pose, bearing, error, self.step)
-
-
-def _packed(image: NDArray[Any] | PackedImage) -> PackedImage:
-    return image if isinstance(image, PackedImage) else PackedImage.pack(image)
 
 
 @dataclass(frozen=True)
