@@ -157,3 +157,17 @@ def test_render_any_world_pose() -> None:
 def test_step_before_reset_raises() -> None:
     with pytest.raises(RuntimeError):
         make_env().step(Action.STOP)
+
+
+def test_rgb_is_rendered_only_when_read_and_equals_the_eager_frame() -> None:
+    env = make_env()
+    env.reset(episode(2.0, 2.0, 0.0))
+    obs = env.step(Action.TURN_LEFT)
+    env.step(Action.MOVE_FORWARD)  # the world moves on before the image is read
+    assert "rgb" not in vars(obs)
+    world_pose = Pose(2.0, 2.0, math.radians(30.0))
+    rgb, depth, semantic = env.render(world_pose)
+    np.testing.assert_array_equal(obs.depth, depth)
+    np.testing.assert_array_equal(obs.semantic, semantic)
+    np.testing.assert_array_equal(obs.rgb, rgb)
+    assert obs.rgb is obs.rgb  # rendered once, then kept

@@ -208,3 +208,17 @@ def test_bench_reports_fields() -> None:
     result = bench_sim(frames=5, scene=room())
     assert result["width"] == 640 and result["height"] == 480 and result["frames"] == 5
     assert isinstance(result["fps"], float) and result["fps"] > 0
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.floats(0.0, 1.0), st.floats(0.0, 1.0), st.floats(-math.pi, math.pi))
+def test_geometry_only_gives_the_full_frames_depth_and_semantics(fx: float, fy: float, yaw: float) -> None:
+    scene = demo_house()
+    rows, cols = scene.grid.shape
+    res = scene.grid.resolution
+    pose = Pose(scene.grid.origin[0] + fx * cols * res, scene.grid.origin[1] + fy * rows * res, yaw)
+    renderer = Renderer(scene, CFG)
+    _, depth, sem = renderer.render(pose)
+    depth_only, sem_only = renderer.render_geometry(pose)
+    np.testing.assert_array_equal(depth_only, depth)
+    np.testing.assert_array_equal(sem_only, sem)

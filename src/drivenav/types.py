@@ -13,10 +13,10 @@ component).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from enum import IntEnum
-from typing import Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -121,6 +121,10 @@ class Observation:
     ``[min_depth, max_depth]``; ``semantic`` is (H, W) int32 instance ids (0 = none) or None where the world
     has no ground truth; ``pose`` is in the episode frame. ``occupancy`` is a robot's LiDAR occupancy around the
     agent (None in simulation and where the robot sends none).
+
+    A world whose RGB image costs more than its other images may hand it over unrendered (:meth:`deferred`): it is
+    rendered on the first read of ``rgb`` and kept, so a consumer that never looks at it (the embedded models read
+    depth and instance ids) never pays for it. ``dataclasses.replace``, copies and pickles read it first.
     """
 
     rgb: NDArray[np.uint8]
@@ -131,6 +135,46 @@ class Observation:
     step: int
     collided: bool
     occupancy: LocalOccupancy | None = None
+
+    @classmethod
+    def deferred(
+        cls,
+        render_rgb: Callable[[], NDArray[np.uint8]],
+        depth: NDArray[np.float32],
+        semantic: NDArray[np.int32] | None,
+        pose: Pose,
+        intrinsics: CameraIntrinsics,
+        step: int,
+        collided: bool,
+        occupancy: LocalOccupancy | None = None,
+    ) -> Observation:
+        """An observation whose ``rgb`` is ``render_rgb()``, called on its first read (at most once)."""
+        observation = object.__new__(cls)
+        values = (depth, semantic, pose, intrinsics, step, collided, occupancy)
+        for name, value in zip(_DEFERRED_FIELDS, values, strict=True):
+            object.__setattr__(observation, name, value)
+        object.__setattr__(observation, "_render_rgb", render_rgb)
+        return observation
+
+    if not TYPE_CHECKING:  # hidden from type checkers, which would otherwise accept any attribute name
+
+        def __getattr__(self, name: str) -> Any:
+            """Only reached for attributes not set: a deferred ``rgb`` is rendered here, once."""
+            render = self.__dict__.get("_render_rgb") if name == "rgb" else None
+            if render is None:
+                raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+            rgb = render()
+            object.__setattr__(self, "rgb", rgb)
+            object.__delattr__(self, "_render_rgb")
+            return rgb
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickles and copies carry the pixels, not the renderer of a deferred image."""
+        self.rgb  # noqa: B018 -- renders a deferred image
+        return dict(self.__dict__)
+
+
+_DEFERRED_FIELDS = ("depth", "semantic", "pose", "intrinsics", "step", "collided", "occupancy")
 
 
 SEMANTIC = "semantic"  # instance ids of the visible pixels and what each instance is

@@ -248,10 +248,12 @@ class EmbeddedEnv:
         return wrap_angle(self._start.yaw + self._turns * math.radians(self._config.turn_angle_deg))
 
     def _observe(self, collided: bool) -> Observation:
+        """The observation at the current state; its RGB image is rendered only if someone reads it."""
         state = self.state
-        rgb, depth, semantic = self.render(state)
-        return Observation(
-            rgb=rgb,
+        renderer = self._world().renderer
+        depth, semantic = renderer.render_geometry(state)
+        return Observation.deferred(
+            lambda: renderer.render(state)[0],
             depth=depth,
             semantic=semantic,
             pose=episode_pose(self._start, state),
