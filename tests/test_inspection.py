@@ -21,7 +21,7 @@ from drivenav.inspection import (
     sweep_turns,
     turn_toward,
 )
-from drivenav.packing import PackedImage
+from drivenav.packing import DeferredImage, PackedImage
 from drivenav.types import Action, CameraIntrinsics, Observation, Pose
 
 TURN = math.radians(30.0)
@@ -223,6 +223,25 @@ def test_stored_views_hold_their_frame_packed_once_and_read_back_exactly() -> No
         pytest.approx(math.radians(5.0)),
         pytest.approx(math.radians(10.0)),
     )
+
+
+def test_a_deferred_rgb_image_is_stored_unrendered_and_rendered_on_each_read() -> None:
+    rgb = np.random.default_rng(5).integers(0, 256, (48, 64, 3), dtype=np.uint8)
+    renders: list[int] = []
+
+    def render() -> np.ndarray:
+        renders.append(1)
+        return rgb.copy()
+
+    eager = observation(0.0, 2)
+    frame = Observation.deferred(render, eager.depth, eager.semantic, eager.pose, eager.intrinsics, 2, False)
+    views = RepresentativeViews()
+    assert views.observe([direction(1, 5.0), direction(2, -10.0)], frame, 2) == [(1, False), (2, False)]
+    one, two = views.get(1), views.get(2)
+    assert one is not None and two is not None
+    assert isinstance(one._rgb, DeferredImage) and one._rgb is two._rgb and not renders  # nothing rendered yet
+    assert np.array_equal(one.rgb, rgb) and not one.rgb.flags.writeable and len(renders) == 2  # each read renders
+    assert np.array_equal(frame.rgb, rgb)  # the observation itself still renders its own image
 
 
 def test_inherited_view_shares_the_parents_packed_frame() -> None:

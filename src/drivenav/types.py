@@ -156,6 +156,11 @@ class Observation:
         object.__setattr__(observation, "_render_rgb", render_rgb)
         return observation
 
+    def rgb_renderer(self) -> Callable[[], NDArray[np.uint8]] | None:
+        """The call that renders a deferred RGB image not read yet; None once it is read, and for an eager one."""
+        render: Callable[[], NDArray[np.uint8]] | None = self.__dict__.get("_render_rgb")
+        return render
+
     if not TYPE_CHECKING:  # hidden from type checkers, which would otherwise accept any attribute name
 
         def __getattr__(self, name: str) -> Any:

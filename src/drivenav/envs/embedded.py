@@ -12,6 +12,7 @@ cache (scenes are reloaded through ``scene_loader`` on demand); :class:`Embedded
 
 from __future__ import annotations
 
+import functools
 import math
 from collections import OrderedDict
 from collections.abc import Callable, Sequence
@@ -253,7 +254,7 @@ class EmbeddedEnv:
         renderer = self._world().renderer
         depth, semantic = renderer.render_geometry(state)
         return Observation.deferred(
-            lambda: renderer.render(state)[0],
+            functools.partial(_rgb_image, renderer, state),
             depth=depth,
             semantic=semantic,
             pose=episode_pose(self._start, state),
@@ -261,3 +262,8 @@ class EmbeddedEnv:
             step=self._steps,
             collided=collided,
         )
+
+
+def _rgb_image(renderer: Renderer, pose: Pose) -> NDArray[np.uint8]:
+    """The RGB image from ``pose`` (a deferred observation's, rendered when read)."""
+    return renderer.render(pose)[0]

@@ -9,7 +9,8 @@ position-based merge of directions, or the followed direction carried over a rel
 the parent whose camera faced the new bearing best (:meth:`RepresentativeViews.inherit`; ours: the paper gives the
 merged direction a fresh label and says nothing about its views, and it is not a newly revealed direction).
 Stored views hold their frame compressed (:class:`~drivenav.packing.PackedImage`, once per frame however many
-directions it becomes the view of): reads give the same pixels.
+directions it becomes the view of), or an RGB image the world has not rendered yet as its rendering call
+(:class:`~drivenav.packing.DeferredImage`): reads give the same pixels.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from collections.abc import Iterable, Sequence
 from drivenav.config import InspectionConfig
 from drivenav.directions.types import Direction
 from drivenav.inspection.sweep import signed_offset, within
-from drivenav.packing import PackedImage
+from drivenav.packing import DeferredImage, PackedImage
 from drivenav.semantics.protocols import View
 from drivenav.types import Observation
 
@@ -38,14 +39,14 @@ class RepresentativeViews:
         the stored one. Returns ``(label, replaced)`` for every view written, in the order of ``directions``.
         """
         written: list[tuple[int, bool]] = []
-        images: tuple[PackedImage, PackedImage | None] | None = None  # packed once for all the views they become
+        images: _Stored | None = None  # packed once for all the views they become
         for direction in directions:
             label, bearing = direction.label, direction.bearing
             error = abs(signed_offset(bearing, observation.pose.yaw))
             stored = self._views.get(label)
             if not within(error, self.tolerance) or (stored is not None and error >= stored.error):
                 continue
-            images = images or _packed_images(observation)
+            images = images or _stored_images(observation)
             self._views[label] = View(label, *images, observation.pose, bearing, error, step)
             written.append((label, stored is not None))
         return written
@@ -80,10 +81,15 @@ class RepresentativeViews:
         self._views.clear()
 
 
-def _packed_images(observation: Observation) -> tuple[PackedImage, PackedImage | None]:
-    """The observation's RGB and instance images, compressed."""
+_Stored = tuple[PackedImage | DeferredImage, PackedImage | None]
+
+
+def _stored_images(observation: Observation) -> _Stored:
+    """The observation's RGB and instance images as a view keeps them: compressed, or an RGB image the world has not
+    rendered yet as its rendering call."""
     semantic = None if observation.semantic is None else PackedImage.pack(observation.semantic)
-    return PackedImage.pack(observation.rgb), semantic
+    render = observation.rgb_renderer()
+    return (PackedImage.pack(observation.rgb) if render is None else DeferredImage(render)), semantic
 
 
 def needs_inspection(

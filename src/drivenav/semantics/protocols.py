@@ -13,7 +13,7 @@ from typing import Literal, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.packing import PackedImage
+from drivenav.packing import DeferredImage, PackedImage
 from drivenav.types import GroundTruth, Observation, Pose
 
 
@@ -24,8 +24,9 @@ class View:
     ``bearing`` is the direction's bearing when the view was taken and ``error`` = |yaw - bearing| then.
     ``semantic`` is the world's instance image where it has one (the embedded reasoner reads it). No depth is
     kept: the paper's VLM sees images only, and an episode holds dozens of views (a depth image is 36 % of one).
-    The images are held as given or compressed (:class:`~drivenav.packing.PackedImage`, as the agent stores
-    them) and unpacked on each read.
+    The images are held as given, compressed (:class:`~drivenav.packing.PackedImage`) or, for a simulated RGB
+    image nobody has read, as its rendering call (:class:`~drivenav.packing.DeferredImage`), and are unpacked or
+    rendered on each read.
     """
 
     label: int
@@ -33,13 +34,13 @@ class View:
     bearing: float
     error: float
     step: int
-    _rgb: NDArray[np.uint8] | PackedImage
+    _rgb: NDArray[np.uint8] | PackedImage | DeferredImage
     _semantic: NDArray[np.int32] | PackedImage | None
 
     def __init__(
         self,
         label: int,
-        rgb: NDArray[np.uint8] | PackedImage,
+        rgb: NDArray[np.uint8] | PackedImage | DeferredImage,
         semantic: NDArray[np.int32] | PackedImage | None,
         pose: Pose,
         bearing: float,
@@ -56,7 +57,7 @@ class View:
 
     @property
     def rgb(self) -> NDArray[np.uint8]:
-        return self._rgb.unpack() if isinstance(self._rgb, PackedImage) else self._rgb
+        return self._rgb if isinstance(self._rgb, np.ndarray) else self._rgb.unpack()
 
     @property
     def semantic(self) -> NDArray[np.int32] | None:
