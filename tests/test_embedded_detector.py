@@ -120,6 +120,17 @@ def test_unrelated_labels_are_never_returned() -> None:
         assert found_ids(obs, g.segment(obs, "toilet")) <= {4}
 
 
+def test_semantic_probability_follows_each_episodes_ground_truth() -> None:
+    g = grounder()
+    same_category = g.semantic_probability("couch", "sofa")  # one vocabulary category: couch is a sofa
+    g.begin_episode(GroundTruth(LABELS, None), 0)  # no vocabulary: "couch" and "sofa" are two categories
+    assert g.semantic_probability("couch", "sofa") == pytest.approx(
+        g.config.semantic_probability(g.embedder.similarity("couch", "sofa"), same_category=False)
+    )
+    g.begin_episode(TRUTH, 0)
+    assert g.semantic_probability("couch", "sofa") == same_category > 0.9
+
+
 def test_same_seed_frame_and_phrase_give_the_same_detections() -> None:
     obs = observation(SOFA, CHAIR, ARMCHAIR, TOILET)
 

@@ -127,12 +127,17 @@ class EmbeddedGrounder:
         self._labels = dict(truth.labels or {}) if truth is not None else {}
         self._seed = seed % 2**64
         self._draws: dict[tuple[str, int], float] = {}
+        self._p_semantic: dict[tuple[str, str], float] = {}
 
     def semantic_probability(self, phrase: str, label: str) -> float:
-        """``p_semantic`` of the module docstring: how readily ``phrase`` fires on an instance labelled ``label``."""
-        similarity = self.embedder.similarity(normalize_phrase(phrase), normalize_phrase(label))
-        same = category_key(phrase, self._truth) == category_key(label, self._truth)
-        return self.config.semantic_probability(similarity, same)
+        """``p_semantic`` of the module docstring: how readily ``phrase`` fires on an instance labelled ``label``
+        (worked out once per pair and episode: the categories come from the episode's ground truth)."""
+        key = (phrase, label)
+        if key not in self._p_semantic:
+            similarity = self.embedder.similarity(normalize_phrase(phrase), normalize_phrase(label))
+            same = category_key(phrase, self._truth) == category_key(label, self._truth)
+            self._p_semantic[key] = self.config.semantic_probability(similarity, same)
+        return self._p_semantic[key]
 
     def segment(self, observation: Observation, phrase: str) -> list[Detection]:
         """The instances this detector returns for ``phrase`` in this frame, largest score first."""
