@@ -37,6 +37,7 @@ pose, is ignored whole.
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from dataclasses import dataclass
@@ -54,6 +55,20 @@ from drivenav.types import FREE_CELL, OCCUPIED_CELL, UNKNOWN_CELL, CameraIntrins
 
 Mask = NDArray[np.bool_]
 Box = tuple[int, int, int, int]  # row0, row1, col0, col1 (half-open)
+
+
+@functools.lru_cache(maxsize=8)
+def _sampled_pixels(
+    intrinsics: CameraIntrinsics, stride: int
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
+    """The depth pixels a frame is projected from -- every ``stride``-th row, every ``stride``-th column plus the
+    last -- and each sampled column's ray slope ``(cx - u) / fx`` (read-only; the same for every frame)."""
+    rows = np.arange(0, intrinsics.height, stride, dtype=np.int64)
+    cols = np.unique(np.r_[np.arange(0, intrinsics.width, stride), intrinsics.width - 1])
+    kx = (intrinsics.cx - cols) / intrinsics.fx
+    for array in (rows, cols, kx):
+        array.flags.writeable = False
+    return rows, cols, kx
 
 
 @dataclass(frozen=True)
@@ -165,9 +180,7 @@ class OccupancyMapper:
         """Fuse one depth frame taken at ``pose``; bad input is ignored (see :attr:`last_update`)."""
         start = time.perf_counter()
         cfg = self.config
-        rows = np.arange(0, intrinsics.height, cfg.pixel_stride, dtype=np.int64)
-        cols = np.unique(np.r_[np.arange(0, intrinsics.width, cfg.pixel_stride), intrinsics.width - 1])
-        kx = (intrinsics.cx - cols) / intrinsics.fx
+        rows, cols, kx = _sampled_pixels(intrinsics, cfg.pixel_stride)
         reach = cfg.max_depth * float(np.sqrt(1.0 + np.max(kx**2))) + cfg.resolution
         cover = reach + cfg.agent_radius + cfg.resolution  # obstacle hits and their inflation disks
         reason = _reject_reason(depth, intrinsics, pose) or self._too_far(pose, cover)
