@@ -150,10 +150,16 @@ class Observation:
     ) -> Observation:
         """An observation whose ``rgb`` is ``render_rgb()``, called on its first read (at most once)."""
         observation = object.__new__(cls)
-        values = (depth, semantic, pose, intrinsics, step, collided, occupancy)
-        for name, value in zip(_DEFERRED_FIELDS, values, strict=True):
-            object.__setattr__(observation, name, value)
-        object.__setattr__(observation, "_render_rgb", render_rgb)
+        observation.__dict__.update(
+            depth=depth,
+            semantic=semantic,
+            pose=pose,
+            intrinsics=intrinsics,
+            step=step,
+            collided=collided,
+            occupancy=occupancy,
+            _render_rgb=render_rgb,
+        )
         return observation
 
     def rgb_renderer(self) -> Callable[[], NDArray[np.uint8]] | None:
@@ -165,7 +171,7 @@ class Observation:
 
         def __getattr__(self, name: str) -> Any:
             """Only reached for attributes not set: a deferred ``rgb`` is rendered here, once."""
-            render = self.__dict__.get("_render_rgb") if name == "rgb" else None
+            render = self.rgb_renderer() if name == "rgb" else None
             if render is None:
                 raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
             rgb = render()
@@ -177,9 +183,6 @@ class Observation:
         """Pickles and copies carry the pixels, not the renderer of a deferred image."""
         self.rgb  # noqa: B018 -- renders a deferred image
         return dict(self.__dict__)
-
-
-_DEFERRED_FIELDS = ("depth", "semantic", "pose", "intrinsics", "step", "collided", "occupancy")
 
 
 SEMANTIC = "semantic"  # instance ids of the visible pixels and what each instance is
