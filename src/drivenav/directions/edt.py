@@ -16,33 +16,47 @@ from numpy.typing import NDArray
 
 
 @numba.njit(cache=True)
-def _column_pass(feature: NDArray[np.bool_]) -> tuple[NDArray[np.float64], NDArray[np.int32]]:
-    """Per column: squared row distance to the nearest feature cell and that cell's row (-1: none)."""
+def _column_pass(
+    feature: NDArray[np.bool_],
+    columns: NDArray[np.int64],
+    g: NDArray[np.float64],
+    near: NDArray[np.int32],
+    up: NDArray[np.int32],
+    compare: bool,
+) -> NDArray[np.bool_]:
+    """Per column in ``columns``: the squared row distance to the nearest feature cell into ``g`` and that cell's
+    row into ``near`` (-1: none; ties go to the cell above). ``up`` is scratch for the nearest feature row at or
+    above a cell (it may be ``near`` itself when ``compare`` is off). With ``compare``, the rows in which ``g`` or
+    ``near`` changed are flagged in the result (else nothing is)."""
     rows, cols = feature.shape
     big = np.int32(rows + cols + 1)
-    near = np.empty((rows, cols), np.int32)
-    for j in range(cols):
-        near[0, j] = 0 if feature[0, j] else -big
+    for j in columns:
+        up[0, j] = 0 if feature[0, j] else -big
     for i in range(1, rows):
-        for j in range(cols):
-            near[i, j] = i if feature[i, j] else near[i - 1, j]
-    sq = np.empty((rows, cols), np.float64)
-    below = np.full(cols, np.int32(2 * big), np.int32)
+        for j in columns:
+            up[i, j] = i if feature[i, j] else up[i - 1, j]
+    changed = np.zeros(rows, np.bool_)
+    below = np.full(columns.size, np.int32(2 * big), np.int32)
     for i in range(rows - 1, -1, -1):
-        for j in range(cols):
+        for k in range(columns.size):
+            j = columns[k]
             if feature[i, j]:
-                below[j] = i
-            up = i - near[i, j]
-            down = below[j] - i
-            if down < up:
-                near[i, j] = below[j]
-                up = down
-            if up < big:
-                sq[i, j] = up * up
-            else:
-                sq[i, j] = np.inf
-                near[i, j] = -1
-    return sq, near
+                below[k] = i
+            nearest = up[i, j]
+            dist = i - nearest
+            down = below[k] - i
+            if down < dist:
+                nearest = below[k]
+                dist = down
+            sq = np.float64(dist * dist)
+            if dist >= big:
+                sq = np.inf
+                nearest = -1
+            if compare and (sq != g[i, j] or nearest != near[i, j]):
+                changed[i] = True
+            g[i, j] = sq
+            near[i, j] = nearest
+    return changed
 
 
 @numba.njit(cache=True)
@@ -85,43 +99,71 @@ def _row_pass(
 
 
 @numba.njit(cache=True)
-def _squared_distances(feature: NDArray[np.bool_]) -> NDArray[np.float64]:
-    """The squared distances of :func:`_edt_kernel` without the feature cells: the row pass works on a copy of one
-    row and writes back into the column pass's distances, so no second grid-sized distance array is made."""
-    sq, _ = _column_pass(feature)
-    rows, cols = feature.shape
-    row = np.empty(cols, np.float64)
+def _row_passes(
+    g: NDArray[np.float64],
+    near: NDArray[np.int32],
+    rows_to_do: NDArray[np.bool_],
+    sq: NDArray[np.float64],
+    frow: NDArray[np.int32],
+    fcol: NDArray[np.int32],
+    compare: bool,
+) -> NDArray[np.bool_]:
+    """The row pass of every row in ``rows_to_do``: squared distances into ``sq`` (which may be ``g`` itself: a row
+    is read before it is written) and, unless ``fcol`` is empty, the nearest feature cell into ``frow``/``fcol``.
+    With ``compare``, the rows whose outputs changed are flagged in the result (else nothing is)."""
+    rows, cols = g.shape
+    features = fcol.size > 0
+    row_sq = np.empty(cols, np.float64)
+    row_col = np.empty(cols if features else 0, np.int32)
     v = np.empty(cols, np.int64)
     fv = np.empty(cols, np.float64)
-    none = np.empty(0, np.int32)
+    changed = np.zeros(rows, np.bool_)
     for i in range(rows):
-        row[:] = sq[i]
-        _row_pass(row, sq[i], none, v, fv)
-    return sq
+        if not rows_to_do[i]:
+            continue
+        _row_pass(g[i], row_sq, row_col, v, fv)
+        same = True
+        for q in range(cols):
+            if compare and row_sq[q] != sq[i, q]:
+                same = False
+            sq[i, q] = row_sq[q]
+        if features:
+            for q in range(cols):
+                c = row_col[q]
+                r = near[i, c] if c >= 0 else -1
+                if compare and (c != fcol[i, q] or r != frow[i, q]):
+                    same = False
+                fcol[i, q] = c
+                frow[i, q] = r
+        changed[i] = not same
+    return changed
 
 
 @numba.njit(cache=True)
-def _edt_kernel(
-    feature: NDArray[np.bool_],
-) -> tuple[NDArray[np.float64], NDArray[np.int32], NDArray[np.int32]]:
-    g, near = _column_pass(feature)
+def _changed_columns(feature: NDArray[np.bool_], kept: NDArray[np.bool_]) -> NDArray[np.int64]:
+    """The columns in which ``feature`` differs from ``kept``; ``kept`` is brought up to date."""
     rows, cols = feature.shape
-    sq = np.empty((rows, cols), np.float64)
-    fcol = np.empty((rows, cols), np.int32)
-    frow = np.empty((rows, cols), np.int32)
-    v = np.empty(cols, np.int64)
-    fv = np.empty(cols, np.float64)
+    changed = np.zeros(cols, np.bool_)
     for i in range(rows):
-        _row_pass(g[i], sq[i], fcol[i], v, fv)
         for j in range(cols):
-            c = fcol[i, j]
-            frow[i, j] = near[i, c] if c >= 0 else -1
-    return sq, frow, fcol
+            if feature[i, j] != kept[i, j]:
+                changed[j] = True
+                kept[i, j] = feature[i, j]
+    return np.nonzero(changed)[0].astype(np.int64)
 
 
 def squared_edt(feature: NDArray[np.bool_]) -> NDArray[np.float64]:
-    """Squared Euclidean distance (cells^2) from every cell to the nearest ``True`` cell; ``inf`` if none."""
-    return np.asarray(_squared_distances(np.ascontiguousarray(feature, dtype=np.bool_)), dtype=np.float64)
+    """Squared Euclidean distance (cells^2) from every cell to the nearest ``True`` cell; ``inf`` if none.
+
+    The row passes write back into the column pass's distances, so no second grid-sized distance array is made."""
+    feature = _contiguous(feature)
+    rows, cols = feature.shape
+    g = np.empty((rows, cols), np.float64)
+    near = np.empty((rows, cols), np.int32)
+    _column_pass(feature, np.arange(cols, dtype=np.int64), g, near, near, False)
+    none = np.empty((0, 0), np.int32)
+    _row_passes(g, near, np.ones(rows, np.bool_), g, none, none, False)
+    return g
 
 
 def edt(feature: NDArray[np.bool_]) -> NDArray[np.float64]:
@@ -141,5 +183,47 @@ def feature_transform(
     feature: NDArray[np.bool_],
 ) -> tuple[NDArray[np.float64], NDArray[np.int32], NDArray[np.int32]]:
     """Squared distance plus the ``(row, col)`` of the nearest feature cell (``-1`` where there is none)."""
-    sq, frow, fcol = _edt_kernel(np.ascontiguousarray(feature, dtype=np.bool_))
-    return np.asarray(sq), np.asarray(frow), np.asarray(fcol)
+    kept = IncrementalTransform(feature, features=True)
+    return kept.sq, kept.frow, kept.fcol
+
+
+class IncrementalTransform:
+    """The squared distance transform of a boolean grid (and, with ``features``, the nearest feature cell), kept
+    up to date as the grid changes a little between calls (issue 14: a depth frame adds obstacles in a few columns).
+
+    Felzenszwalb-Huttenlocher is separable and each pass is exact per whole line: a column's pass depends on that
+    column's cells only, a row's pass on that row's column-pass values only. :meth:`update` therefore redoes the
+    column pass of the columns whose cells changed and the row pass of the rows whose column-pass values changed,
+    and gives exactly the numbers, nearest cells and tie-breaks of a transform of the whole grid.
+    """
+
+    def __init__(self, feature: NDArray[np.bool_], features: bool) -> None:
+        self._feature = np.array(feature, dtype=np.bool_, order="C")
+        rows, cols = self._feature.shape
+        self._g = np.empty((rows, cols), np.float64)
+        self._near = np.empty((rows, cols), np.int32)
+        _column_pass(self._feature, np.arange(cols, dtype=np.int64), self._g, self._near, self._near, False)
+        self._up = np.empty((rows, cols), np.int32)
+        shape = (rows, cols) if features else (0, 0)
+        self.sq = np.empty((rows, cols), np.float64)
+        self.frow = np.empty(shape, np.int32)
+        self.fcol = np.empty(shape, np.int32)
+        _row_passes(self._g, self._near, np.ones(rows, np.bool_), self.sq, self.frow, self.fcol, False)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        rows, cols = self._feature.shape
+        return rows, cols
+
+    def update(self, feature: NDArray[np.bool_]) -> NDArray[np.bool_]:
+        """Bring the transform to ``feature`` (the shape given at construction); a flag per row: its outputs
+        (``sq``, and ``frow``/``fcol`` with features) changed."""
+        columns = _changed_columns(_contiguous(feature), self._feature)
+        if columns.size == 0:
+            return np.zeros(self.shape[0], np.bool_)
+        redo = _column_pass(self._feature, columns, self._g, self._near, self._up, True)
+        return np.asarray(_row_passes(self._g, self._near, redo, self.sq, self.frow, self.fcol, True))
+
+
+def _contiguous(feature: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    return np.ascontiguousarray(feature, dtype=np.bool_)

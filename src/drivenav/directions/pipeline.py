@@ -35,7 +35,7 @@ from drivenav.directions.bearings import Point, bearing_to, circle_crossing
 from drivenav.directions.clustering import build_clusters
 from drivenav.directions.fmm import travel_time
 from drivenav.directions.paths import backtrack, backtrack_walks
-from drivenav.directions.speed import SpeedField, build_speed_field
+from drivenav.directions.speed import SpeedField, SpeedFieldBuilder
 from drivenav.directions.timing import elapsed_ms
 from drivenav.directions.tracking import DirectionTracker
 from drivenav.directions.types import Cluster, DirectionResult, FrontierPath
@@ -101,11 +101,13 @@ class DirectionPipeline:
     def __init__(self, config: DriveNavConfig) -> None:
         self._config = config
         self._tracker = DirectionTracker(config.directions)
+        self._builder = SpeedFieldBuilder(config.speed)
         self._last_field: tuple[MapSnapshot, tuple[Frontier, ...], SpeedField] | None = None
         self._last_solve: _Solve | None = None
 
     def reset(self) -> None:
         self._tracker.reset()
+        self._builder.reset()
         self._last_field = None
         self._last_solve = None
 
@@ -118,7 +120,7 @@ class DirectionPipeline:
         last = self._last_field
         if last is not None and _same_field_inputs(last[0], last[1], snapshot, frontiers):
             return dataclasses.replace(last[2], timings_ms=dict.fromkeys(last[2].timings_ms, 0.0)), True
-        field = build_speed_field(snapshot, frontiers, self._config.speed)
+        field = self._builder.build(snapshot, frontiers)
         self._last_field = (snapshot, tuple(frontiers), field)
         return field, False
 

@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivenav.config import SpeedFieldConfig
-from drivenav.directions.edt import feature_transform, squared_edt
+from drivenav.directions.edt import IncrementalTransform, feature_transform, squared_edt
 from drivenav.directions.timing import elapsed_ms
 from drivenav.grid import GridSpec
 from drivenav.mapping.types import Frontier, MapSnapshot
@@ -106,23 +106,30 @@ def crop_window(grid: GridSpec, keep: NDArray[np.bool_], margin: int = CROP_MARG
 
 
 @numba.njit(cache=True)
-def _medial_axis_kernel(
+def _medial_axis_rows(
     inside: NDArray[np.bool_],
     sq: NDArray[np.float64],
     frow: NDArray[np.int32],
     fcol: NDArray[np.int32],
     min_sep: float,
     angle_ratio: float,
-) -> NDArray[np.bool_]:
+    rows_to_do: NDArray[np.bool_],
+    out: NDArray[np.bool_],
+) -> None:
+    """The skeleton marks of the rows in ``rows_to_do``, written into ``out`` (other rows are left alone)."""
     rows, cols = inside.shape
-    out = np.zeros((rows, cols), np.bool_)
     for i in range(rows):
+        if rows_to_do[i]:
+            out[i, :] = False
+    for i in range(rows):
+        if not (rows_to_do[i] or (i + 1 < rows and rows_to_do[i + 1])):
+            continue
         for j in range(cols):
             if not inside[i, j]:
                 continue
             for di, dj in ((0, 1), (1, 0)):
                 qi, qj = i + di, j + dj
-                if qi >= rows or qj >= cols or not inside[qi, qj]:
+                if qi >= rows or qj >= cols or not inside[qi, qj] or not (rows_to_do[i] or rows_to_do[qi]):
                     continue
                 dr = float(frow[i, j] - frow[qi, qj])
                 dc = float(fcol[i, j] - fcol[qi, qj])
@@ -132,11 +139,10 @@ def _medial_axis_kernel(
                     continue
                 # Mark the cell of the pair nearer the bisector of the two features (Hesselink & Roerdink).
                 side = (i + qi - frow[i, j] - frow[qi, qj]) * dr + (j + qj - fcol[i, j] - fcol[qi, qj]) * dc
-                if side <= 0:
+                if side <= 0 and rows_to_do[i]:
                     out[i, j] = True
-                if side >= 0:
+                if side >= 0 and rows_to_do[qi]:
                     out[qi, qj] = True
-    return out
 
 
 def medial_skeleton(
@@ -155,8 +161,10 @@ def medial_skeleton(
     (``|f(p) - f(q)| >= angle_ratio * distance``) straddle the medial axis; the one nearer the bisector of
     the two features is marked.
     """
-    out = _medial_axis_kernel(region, sq, frow, fcol, min_separation, angle_ratio)
-    return np.asarray(out, dtype=np.bool_)
+    out = np.zeros(region.shape, np.bool_)
+    every_row = np.ones(region.shape[0], np.bool_)
+    _medial_axis_rows(region, sq, frow, fcol, min_separation, angle_ratio, every_row, out)
+    return out
 
 
 def speed_from_distances(
@@ -191,26 +199,31 @@ def _squared_distance_table(
 
 
 @numba.njit(cache=True)
-def _speed_kernel(
+def _speed_rows(
     trav: NDArray[np.bool_],
     obstacle_sq: NDArray[np.float64],
     skeleton_sq: NDArray[np.float64],
     obs_table: NDArray[np.float64],
     vor_table: NDArray[np.float64],
-) -> NDArray[np.float64]:
+    rows_to_do: NDArray[np.bool_],
+    out: NDArray[np.float64],
+) -> None:
+    """The speed of the rows in ``rows_to_do``, written into ``out`` (0 off the traversable cells)."""
     rows, cols = trav.shape
-    out = np.zeros((rows, cols), np.float64)
     last_obs = obs_table.size - 1
     last_vor = vor_table.size - 1
     for i in range(rows):
+        if not rows_to_do[i]:
+            continue
         for j in range(cols):
+            speed = 0.0
             if trav[i, j]:
                 a = obstacle_sq[i, j]
                 b = skeleton_sq[i, j]
                 ka = last_obs if a >= last_obs else int(a)
                 kb = last_vor if b >= last_vor else int(b)
-                out[i, j] = obs_table[ka] * vor_table[kb]
-    return out
+                speed = obs_table[ka] * vor_table[kb]
+            out[i, j] = speed
 
 
 def weighted_speed(
@@ -224,7 +237,9 @@ def weighted_speed(
     and resolution (squared distances on a grid are integers, so a table lookup is exact and much cheaper than two
     exponentials)."""
     obs, vor = _speed_tables(config, resolution)
-    return np.asarray(_speed_kernel(trav, obstacle_sq, skeleton_sq, obs, vor), dtype=np.float64)
+    out = np.empty(trav.shape, np.float64)
+    _speed_rows(trav, obstacle_sq, skeleton_sq, obs, vor, np.ones(trav.shape[0], np.bool_), out)
+    return out
 
 
 @functools.lru_cache(maxsize=8)
@@ -266,3 +281,117 @@ def build_speed_field(snapshot: MapSnapshot, frontiers: Sequence[Frontier], conf
         "skeleton": (t2 - t1) * 1e3,
     }
     return SpeedField(window, trav, obstacle_sq, skeleton, skeleton_sq, speed, timings)
+
+
+CAPACITY_MARGIN = 32  # cells kept around the window by SpeedFieldBuilder, so that a growing map rarely outgrows them
+
+
+class SpeedFieldBuilder:
+    """:func:`build_speed_field` for the successive maps of one episode, kept up to date instead of recomputed
+    (issue 14): the same arrays, bit for bit.
+
+    The obstacle feature transform, the skeleton, the skeleton distance transform and the speed are kept on a
+    *capacity* window (the crop window grown by ``CAPACITY_MARGIN`` cells). Each build redoes only what the map's
+    change reaches: the transforms' changed columns and rows (:class:`IncrementalTransform`), the skeleton rows next
+    to rows whose feature transform or region changed, and the speed rows whose inputs changed. Computing on a larger
+    window than the crop gives the same numbers (every obstacle and traversable cell lies inside the crop, and the
+    transforms' integer arithmetic is exact under a shift), so the crop of the kept arrays is
+    :func:`build_speed_field`'s result. A new grid, or a crop outside the capacity window, starts over.
+    """
+
+    def __init__(self, config: SpeedFieldConfig) -> None:
+        self._config = config
+        self._kept: _KeptField | None = None
+
+    def reset(self) -> None:
+        """Forget the kept arrays (a new episode)."""
+        self._kept = None
+
+    def build(self, snapshot: MapSnapshot, frontiers: Sequence[Frontier]) -> SpeedField:
+        """The speed field of this map and frontiers (see :func:`build_speed_field`)."""
+        if not self._config.weighted:
+            return build_speed_field(snapshot, frontiers, self._config)
+        t0 = time.perf_counter()
+        trav_full = traversable_mask(snapshot, frontiers)
+        window = crop_window(snapshot.grid, trav_full | snapshot.obstacle)
+        kept = self._kept
+        if kept is None or not kept.holds(snapshot.grid, window):
+            kept = self._kept = _KeptField(snapshot.grid, _grown(snapshot.grid, window, CAPACITY_MARGIN))
+        field = kept.update(snapshot, trav_full, window, self._config)
+        field.timings_ms["distance_transforms"] = elapsed_ms(t0) - field.timings_ms["skeleton"]
+        return field
+
+
+def _grown(grid: GridSpec, window: Window, margin: int) -> Window:
+    """``window`` grown by ``margin`` cells and clipped to ``grid``."""
+    rows, cols = grid.shape
+    r0, c0 = max(window.r0 - margin, 0), max(window.c0 - margin, 0)
+    r1, c1 = min(window.r1 + margin, rows), min(window.c1 + margin, cols)
+    res = grid.resolution
+    origin = (grid.origin[0] + c0 * res, grid.origin[1] + r0 * res)
+    return Window(r0, c0, r1, c1, GridSpec(res, origin, (r1 - r0, c1 - c0)))
+
+
+class _KeptField:
+    """The arrays of :class:`SpeedFieldBuilder` on its capacity window ``area`` of ``grid``."""
+
+    def __init__(self, grid: GridSpec, area: Window) -> None:
+        self.grid = grid
+        self.area = area
+        shape = area.grid.shape
+        self.obstacles = IncrementalTransform(np.zeros(shape, np.bool_), features=True)
+        self.region = np.zeros(shape, np.bool_)
+        self.traversable = np.zeros(shape, np.bool_)
+        self.skeleton = np.zeros(shape, np.bool_)
+        self.skeleton_edt = IncrementalTransform(self.skeleton, features=False)
+        self.speed = np.zeros(shape, np.float64)
+
+    def holds(self, grid: GridSpec, window: Window) -> bool:
+        a = self.area
+        return grid == self.grid and a.r0 <= window.r0 and window.r1 <= a.r1 and a.c0 <= window.c0 and window.c1 <= a.c1
+
+    def update(
+        self, snapshot: MapSnapshot, trav_full: NDArray[np.bool_], window: Window, config: SpeedFieldConfig
+    ) -> SpeedField:
+        """Bring the kept arrays to this map and return the crop ``window`` of them (copies)."""
+        rs, cs = self.area.slices
+        trav = np.ascontiguousarray(trav_full[rs, cs])
+        region = trav & snapshot.navigable[rs, cs]
+        obstacle_rows = self.obstacles.update(snapshot.obstacle[rs, cs])
+        t1 = time.perf_counter()
+        skeleton_rows = obstacle_rows | _changed_rows(region, self.region)
+        skeleton_rows[1:] |= skeleton_rows[:-1].copy()  # a cell's marks also depend on the rows above and below
+        skeleton_rows[:-1] |= skeleton_rows[1:].copy()
+        o = self.obstacles
+        args = (config.skeleton_min_separation, config.skeleton_min_angle_ratio)
+        _medial_axis_rows(region, o.sq, o.frow, o.fcol, *args, skeleton_rows, self.skeleton)
+        t2 = time.perf_counter()
+        speed_rows = obstacle_rows | self.skeleton_edt.update(self.skeleton) | _changed_rows(trav, self.traversable)
+        obs, vor = _speed_tables(config, self.grid.resolution)
+        _speed_rows(trav, o.sq, self.skeleton_edt.sq, obs, vor, speed_rows, self.speed)
+        crop = (
+            slice(window.r0 - self.area.r0, window.r1 - self.area.r0),
+            slice(window.c0 - self.area.c0, window.c1 - self.area.c0),
+        )
+        return SpeedField(
+            window,
+            trav[crop].copy(),
+            o.sq[crop].copy(),
+            self.skeleton[crop].copy(),
+            self.skeleton_edt.sq[crop].copy(),
+            self.speed[crop].copy(),
+            {"distance_transforms": 0.0, "skeleton": (t2 - t1) * 1e3},
+        )
+
+
+@numba.njit(cache=True)
+def _changed_rows(mask: NDArray[np.bool_], kept: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """A flag per row: ``mask`` differs from ``kept`` there; ``kept`` is brought up to date."""
+    rows, cols = mask.shape
+    changed = np.zeros(rows, np.bool_)
+    for i in range(rows):
+        for j in range(cols):
+            if mask[i, j] != kept[i, j]:
+                changed[i] = True
+                kept[i, j] = mask[i, j]
+    return changed
