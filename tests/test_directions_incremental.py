@@ -3,6 +3,8 @@ tie-breaks after every change, on random grids, on a growing house map and along
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from hypothesis import example, given, settings
@@ -13,6 +15,7 @@ from drivenav.directions import bench
 from drivenav.directions.edt import IncrementalTransform, feature_transform, squared_edt
 from drivenav.directions.speed import SpeedField, SpeedFieldBuilder, build_speed_field
 from drivenav.directions.synthetic import extract_frontiers, make_snapshot, rect
+from drivenav.grid import GridSpec
 from drivenav.mapping.types import Frontier, MapSnapshot
 
 FIELD_ARRAYS = ("traversable", "obstacle_sq", "skeleton", "skeleton_sq", "speed")
@@ -26,19 +29,21 @@ def _outputs(kept: IncrementalTransform, features: bool) -> tuple[np.ndarray, ..
     return (kept.sq, kept.frow, kept.fcol) if features else (kept.sq,)
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(
     st.integers(0, 2**31 - 1),
     st.integers(1, 20),
     st.integers(1, 20),
     st.sampled_from([0.02, 0.1, 0.4]),
     st.booleans(),
+    st.booleans(),
 )
 def test_incremental_transform_equals_a_fresh_one_after_every_change(
-    seed: int, rows: int, cols: int, density: float, features: bool
+    seed: int, rows: int, cols: int, density: float, features: bool, grow_only: bool
 ) -> None:
-    """Cells appear and disappear (sparse grids tie a lot); after each update the outputs are a fresh transform's,
-    and the flagged rows are exactly those whose outputs changed."""
+    """Cells appear (and, unless ``grow_only``, disappear; sparse grids tie a lot); after each update the outputs are
+    a fresh transform's, and the flagged rows are exactly those whose outputs changed. Growing grids exercise the
+    patched rows (distances only fall), shrinking ones the redone rows."""
     rng = np.random.default_rng(seed)
     feature = rng.random((rows, cols)) < density
     kept = IncrementalTransform(feature, features)
@@ -48,7 +53,7 @@ def test_incremental_transform_equals_a_fresh_one_after_every_change(
     for _ in range(5):
         before = [a.copy() for a in _outputs(kept, features)]
         flips = rng.random((rows, cols)) < rng.choice([0.01, 0.05, 0.3])
-        feature = feature ^ flips
+        feature = feature | flips if grow_only else feature ^ flips
         changed = kept.update(feature)
         want = _transform(feature, features)
         for got, expected in zip(_outputs(kept, features), want, strict=True):
@@ -101,6 +106,28 @@ def test_builder_keeps_its_arrays_while_the_map_stays_inside_them() -> None:
     second = make_snapshot(free, explored, bench.RESOLUTION, inflation=0.15)
     frontiers = extract_frontiers(second)
     _assert_same_field(builder.build(second, frontiers), build_speed_field(second, frontiers, config))
+    assert builder._kept is kept
+
+
+def test_builder_keeps_its_arrays_when_the_grid_grows() -> None:
+    """The mapper grows its grid by whole cells around the map: the world cells, hence the kept arrays, stay."""
+    snapshot, frontiers = _house_steps()[1]
+    config = SpeedFieldConfig()
+    builder = SpeedFieldBuilder(config)
+    builder.build(snapshot, frontiers)
+    kept = builder._kept
+    pad = ((7, 3), (5, 11))
+    grid = snapshot.grid
+    grown = MapSnapshot(
+        GridSpec(
+            grid.resolution,
+            (grid.origin[0] - 5 * grid.resolution, grid.origin[1] - 7 * grid.resolution),
+            (grid.shape[0] + 10, grid.shape[1] + 16),
+        ),
+        *(np.pad(a, pad) for a in (snapshot.obstacle, snapshot.explored, snapshot.navigable)),
+    )
+    moved = [dataclasses.replace(f, cells=f.cells + np.array([7, 5])) for f in frontiers]
+    _assert_same_field(builder.build(grown, moved), build_speed_field(grown, moved, config))
     assert builder._kept is kept
 
 

@@ -14,6 +14,9 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+SAME, LOWERED, REDO = 0, 1, 2  # what a row's column-pass values did: nothing; changed, none grew; some grew
+MAX_LOWERED = 16  # changed columns up to which a LOWERED row is patched instead of redone
+
 
 @numba.njit(cache=True)
 def _column_pass(
@@ -23,11 +26,13 @@ def _column_pass(
     near: NDArray[np.int32],
     up: NDArray[np.int32],
     compare: bool,
-) -> NDArray[np.bool_]:
+) -> tuple[NDArray[np.int8], NDArray[np.bool_]]:
     """Per column in ``columns``: the squared row distance to the nearest feature cell into ``g`` and that cell's
     row into ``near`` (-1: none; ties go to the cell above). ``up`` is scratch for the nearest feature row at or
-    above a cell (it may be ``near`` itself when ``compare`` is off). With ``compare``, the rows in which ``g`` or
-    ``near`` changed are flagged in the result (else nothing is)."""
+    above a cell (it may be ``near`` itself when ``compare`` is off).
+
+    Returns each row's status (``REDO`` for every row unless ``compare``; else ``SAME``, ``LOWERED`` or ``REDO``)
+    and, with ``compare``, which of ``columns`` changed in each row (``changed[i, k]``; empty otherwise)."""
     rows, cols = feature.shape
     big = np.int32(rows + cols + 1)
     for j in columns:
@@ -35,7 +40,8 @@ def _column_pass(
     for i in range(1, rows):
         for j in columns:
             up[i, j] = i if feature[i, j] else up[i - 1, j]
-    changed = np.zeros(rows, np.bool_)
+    status = np.full(rows, SAME if compare else REDO, np.int8)
+    changed = np.zeros((rows, columns.size) if compare else (0, 0), np.bool_)
     below = np.full(columns.size, np.int32(2 * big), np.int32)
     for i in range(rows - 1, -1, -1):
         for k in range(columns.size):
@@ -53,10 +59,11 @@ def _column_pass(
                 sq = np.inf
                 nearest = -1
             if compare and (sq != g[i, j] or nearest != near[i, j]):
-                changed[i] = True
+                changed[i, k] = True
+                status[i] = max(status[i], REDO if sq > g[i, j] else LOWERED)
             g[i, j] = sq
             near[i, j] = nearest
-    return changed
+    return status, changed
 
 
 @numba.njit(cache=True)
@@ -102,16 +109,20 @@ def _row_pass(
 def _row_passes(
     g: NDArray[np.float64],
     near: NDArray[np.int32],
-    rows_to_do: NDArray[np.bool_],
+    status: NDArray[np.int8],
+    columns: NDArray[np.int64],
+    changed_at: NDArray[np.bool_],
     sq: NDArray[np.float64],
     frow: NDArray[np.int32],
     fcol: NDArray[np.int32],
-    compare: bool,
 ) -> NDArray[np.bool_]:
-    """The row pass of every row in ``rows_to_do``: squared distances into ``sq`` (which may be ``g`` itself: a row
-    is read before it is written) and, unless ``fcol`` is empty, the nearest feature cell into ``frow``/``fcol``.
-    With ``compare``, the rows whose outputs changed are flagged in the result (else nothing is)."""
+    """The row pass of every row whose ``status`` is not ``SAME`` (see :func:`_column_pass`): squared distances
+    into ``sq`` (which may be ``g`` itself: a row is read before it is written) and, unless ``fcol`` is empty, the
+    nearest feature cell into ``frow``/``fcol``. With ``changed_at`` (not empty), the outputs are compared and the
+    rows whose outputs changed are flagged in the result, and a ``LOWERED`` row with at most ``MAX_LOWERED``
+    changed columns is patched (:func:`_lower_row`) instead of redone."""
     rows, cols = g.shape
+    compare = changed_at.size > 0
     features = fcol.size > 0
     row_sq = np.empty(cols, np.float64)
     row_col = np.empty(cols if features else 0, np.int32)
@@ -119,7 +130,10 @@ def _row_passes(
     fv = np.empty(cols, np.float64)
     changed = np.zeros(rows, np.bool_)
     for i in range(rows):
-        if not rows_to_do[i]:
+        if status[i] == SAME:
+            continue
+        if status[i] == LOWERED and compare and changed_at[i].sum() <= MAX_LOWERED:
+            changed[i] = _lower_row(g, near, columns, changed_at, sq, frow, fcol, i)
             continue
         _row_pass(g[i], row_sq, row_col, v, fv)
         same = True
@@ -136,6 +150,53 @@ def _row_passes(
                 fcol[i, q] = c
                 frow[i, q] = r
         changed[i] = not same
+    return changed
+
+
+@numba.njit(cache=True)
+def _lower_row(
+    g: NDArray[np.float64],
+    near: NDArray[np.int32],
+    columns: NDArray[np.int64],
+    changed_at: NDArray[np.bool_],
+    sq: NDArray[np.float64],
+    frow: NDArray[np.int32],
+    fcol: NDArray[np.int32],
+    i: int,
+) -> bool:
+    """Patch row ``i`` of a transform whose column-pass values ``g`` only fell (or kept their value with a new
+    nearest row) in its flagged ``columns``; whether its outputs changed.
+
+    The row pass is the lower envelope of the parabolas ``(q - c)^2 + g[c]``; a lowered parabola lies below the one
+    it replaces, so the new envelope is the old one's minimum with the changed parabolas. Felzenszwalb-Huttenlocher
+    gives a tie to the leftmost parabola, so a changed column takes a cell on a tie if it lies left of the cell's
+    nearest column. Feature rows are then re-read through ``near``."""
+    cols = g.shape[1]
+    features = fcol.size > 0
+    changed = False
+    for k in range(columns.size):
+        if not changed_at[i, k]:
+            continue
+        c = columns[k]
+        gc = g[i, c]
+        for q in range(cols):
+            d = q - c
+            value = gc + d * d
+            if value < sq[i, q]:
+                sq[i, q] = value
+                changed = True
+                if features:
+                    fcol[i, q] = c
+            elif features and value == sq[i, q] and c < fcol[i, q]:
+                fcol[i, q] = c
+                changed = True
+    if features:
+        for q in range(cols):
+            c = fcol[i, q]
+            r = near[i, c] if c >= 0 else -1
+            if r != frow[i, q]:
+                frow[i, q] = r
+                changed = True
     return changed
 
 
@@ -160,9 +221,9 @@ def squared_edt(feature: NDArray[np.bool_]) -> NDArray[np.float64]:
     rows, cols = feature.shape
     g = np.empty((rows, cols), np.float64)
     near = np.empty((rows, cols), np.int32)
-    _column_pass(feature, np.arange(cols, dtype=np.int64), g, near, near, False)
+    status, changed_at = _column_pass(feature, np.arange(cols, dtype=np.int64), g, near, near, False)
     none = np.empty((0, 0), np.int32)
-    _row_passes(g, near, np.ones(rows, np.bool_), g, none, none, False)
+    _row_passes(g, near, status, np.empty(0, np.int64), changed_at, g, none, none)
     return g
 
 
@@ -202,13 +263,14 @@ class IncrementalTransform:
         rows, cols = self._feature.shape
         self._g = np.empty((rows, cols), np.float64)
         self._near = np.empty((rows, cols), np.int32)
-        _column_pass(self._feature, np.arange(cols, dtype=np.int64), self._g, self._near, self._near, False)
+        every = np.arange(cols, dtype=np.int64)
+        status, changed_at = _column_pass(self._feature, every, self._g, self._near, self._near, False)
         self._up = np.empty((rows, cols), np.int32)
         shape = (rows, cols) if features else (0, 0)
         self.sq = np.empty((rows, cols), np.float64)
         self.frow = np.empty(shape, np.int32)
         self.fcol = np.empty(shape, np.int32)
-        _row_passes(self._g, self._near, np.ones(rows, np.bool_), self.sq, self.frow, self.fcol, False)
+        _row_passes(self._g, self._near, status, every, changed_at, self.sq, self.frow, self.fcol)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -221,8 +283,9 @@ class IncrementalTransform:
         columns = _changed_columns(_contiguous(feature), self._feature)
         if columns.size == 0:
             return np.zeros(self.shape[0], np.bool_)
-        redo = _column_pass(self._feature, columns, self._g, self._near, self._up, True)
-        return np.asarray(_row_passes(self._g, self._near, redo, self.sq, self.frow, self.fcol, True))
+        status, changed_at = _column_pass(self._feature, columns, self._g, self._near, self._up, True)
+        changed = _row_passes(self._g, self._near, status, columns, changed_at, self.sq, self.frow, self.fcol)
+        return np.asarray(changed)
 
 
 def _contiguous(feature: NDArray[np.bool_]) -> NDArray[np.bool_]:

@@ -283,7 +283,8 @@ def build_speed_field(snapshot: MapSnapshot, frontiers: Sequence[Frontier], conf
     return SpeedField(window, trav, obstacle_sq, skeleton, skeleton_sq, speed, timings)
 
 
-CAPACITY_MARGIN = 32  # cells kept around the window by SpeedFieldBuilder, so that a growing map rarely outgrows them
+# Cells kept around the crop window by SpeedFieldBuilder, so that a growing map rarely outgrows them.
+CAPACITY_MARGIN = 16
 
 
 class SpeedFieldBuilder:
@@ -296,7 +297,8 @@ class SpeedFieldBuilder:
     to rows whose feature transform or region changed, and the speed rows whose inputs changed. Computing on a larger
     window than the crop gives the same numbers (every obstacle and traversable cell lies inside the crop, and the
     transforms' integer arithmetic is exact under a shift), so the crop of the kept arrays is
-    :func:`build_speed_field`'s result. A new grid, or a crop outside the capacity window, starts over.
+    :func:`build_speed_field`'s result. The capacity window is anchored in the world: a grid that grew (the mapper
+    adds cells around its map) keeps it; a crop outside it, or another resolution, starts over.
     """
 
     def __init__(self, config: SpeedFieldConfig) -> None:
@@ -315,9 +317,13 @@ class SpeedFieldBuilder:
         trav_full = traversable_mask(snapshot, frontiers)
         window = crop_window(snapshot.grid, trav_full | snapshot.obstacle)
         kept = self._kept
-        if kept is None or not kept.holds(snapshot.grid, window):
-            kept = self._kept = _KeptField(snapshot.grid, _grown(snapshot.grid, window, CAPACITY_MARGIN))
-        field = kept.update(snapshot, trav_full, window, self._config)
+        area = None if kept is None else kept.placed(snapshot.grid, window)
+        if kept is None or area is None:
+            area = _grown(snapshot.grid, window, CAPACITY_MARGIN)
+            kept = self._kept = _KeptField(area, snapshot, trav_full, self._config)
+        else:
+            kept.update(area, snapshot, trav_full, self._config)
+        field = kept.crop(window)
         field.timings_ms["distance_transforms"] = elapsed_ms(t0) - field.timings_ms["skeleton"]
         return field
 
@@ -332,32 +338,53 @@ def _grown(grid: GridSpec, window: Window, margin: int) -> Window:
     return Window(r0, c0, r1, c1, GridSpec(res, origin, (r1 - r0, c1 - c0)))
 
 
+def _area_inputs(
+    area: Window, snapshot: MapSnapshot, trav_full: NDArray[np.bool_]
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_], NDArray[np.bool_]]:
+    """The traversable, skeleton-region and obstacle cells of ``area``."""
+    rs, cs = area.slices
+    trav = np.ascontiguousarray(trav_full[rs, cs])
+    return trav, trav & snapshot.navigable[rs, cs], np.ascontiguousarray(snapshot.obstacle[rs, cs])
+
+
 class _KeptField:
-    """The arrays of :class:`SpeedFieldBuilder` on its capacity window ``area`` of ``grid``."""
+    """The arrays of :class:`SpeedFieldBuilder` on its capacity window ``area``, first computed in full."""
 
-    def __init__(self, grid: GridSpec, area: Window) -> None:
-        self.grid = grid
+    def __init__(
+        self, area: Window, snapshot: MapSnapshot, trav_full: NDArray[np.bool_], config: SpeedFieldConfig
+    ) -> None:
         self.area = area
-        shape = area.grid.shape
-        self.obstacles = IncrementalTransform(np.zeros(shape, np.bool_), features=True)
-        self.region = np.zeros(shape, np.bool_)
-        self.traversable = np.zeros(shape, np.bool_)
-        self.skeleton = np.zeros(shape, np.bool_)
+        self.traversable, self.region, obstacle = _area_inputs(area, snapshot, trav_full)
+        self.obstacles = o = IncrementalTransform(obstacle, features=True)
+        t1 = time.perf_counter()
+        args = (config.skeleton_min_separation, config.skeleton_min_angle_ratio)
+        self.skeleton = medial_skeleton(self.region, o.sq, o.frow, o.fcol, *args)
+        self.skeleton_ms = elapsed_ms(t1)
         self.skeleton_edt = IncrementalTransform(self.skeleton, features=False)
-        self.speed = np.zeros(shape, np.float64)
+        self.speed = weighted_speed(self.traversable, o.sq, self.skeleton_edt.sq, config, area.grid.resolution)
 
-    def holds(self, grid: GridSpec, window: Window) -> bool:
-        a = self.area
-        return grid == self.grid and a.r0 <= window.r0 and window.r1 <= a.r1 and a.c0 <= window.c0 and window.c1 <= a.c1
+    def placed(self, grid: GridSpec, window: Window) -> Window | None:
+        """The kept area in the cells of ``grid`` (the same world cells) if it holds ``window``, else None."""
+        kept = self.area.grid
+        if grid.resolution != kept.resolution:
+            return None
+        offsets = [(a - b) / grid.resolution for a, b in zip(kept.origin, grid.origin, strict=True)]
+        c0, r0 = (round(v) for v in offsets)
+        if any(abs(v - round(v)) > 1e-6 for v in offsets):
+            return None
+        r1, c1 = r0 + kept.shape[0], c0 + kept.shape[1]
+        inside = 0 <= r0 <= window.r0 and window.r1 <= r1 <= grid.shape[0]
+        if not (inside and 0 <= c0 <= window.c0 and window.c1 <= c1 <= grid.shape[1]):
+            return None
+        return Window(r0, c0, r1, c1, kept)
 
     def update(
-        self, snapshot: MapSnapshot, trav_full: NDArray[np.bool_], window: Window, config: SpeedFieldConfig
-    ) -> SpeedField:
-        """Bring the kept arrays to this map and return the crop ``window`` of them (copies)."""
-        rs, cs = self.area.slices
-        trav = np.ascontiguousarray(trav_full[rs, cs])
-        region = trav & snapshot.navigable[rs, cs]
-        obstacle_rows = self.obstacles.update(snapshot.obstacle[rs, cs])
+        self, area: Window, snapshot: MapSnapshot, trav_full: NDArray[np.bool_], config: SpeedFieldConfig
+    ) -> None:
+        """Bring the kept arrays to this map, the kept area being ``area`` of its grid (see :meth:`placed`)."""
+        self.area = area
+        trav, region, obstacle = _area_inputs(area, snapshot, trav_full)
+        obstacle_rows = self.obstacles.update(obstacle)
         t1 = time.perf_counter()
         skeleton_rows = obstacle_rows | _changed_rows(region, self.region)
         skeleton_rows[1:] |= skeleton_rows[:-1].copy()  # a cell's marks also depend on the rows above and below
@@ -365,22 +392,23 @@ class _KeptField:
         o = self.obstacles
         args = (config.skeleton_min_separation, config.skeleton_min_angle_ratio)
         _medial_axis_rows(region, o.sq, o.frow, o.fcol, *args, skeleton_rows, self.skeleton)
-        t2 = time.perf_counter()
+        self.skeleton_ms = elapsed_ms(t1)
         speed_rows = obstacle_rows | self.skeleton_edt.update(self.skeleton) | _changed_rows(trav, self.traversable)
-        obs, vor = _speed_tables(config, self.grid.resolution)
+        obs, vor = _speed_tables(config, area.grid.resolution)
         _speed_rows(trav, o.sq, self.skeleton_edt.sq, obs, vor, speed_rows, self.speed)
-        crop = (
-            slice(window.r0 - self.area.r0, window.r1 - self.area.r0),
-            slice(window.c0 - self.area.c0, window.c1 - self.area.c0),
-        )
+
+    def crop(self, window: Window) -> SpeedField:
+        """The speed field of ``window`` (inside the kept area): copies of the kept arrays' crop."""
+        a = self.area
+        rs, cs = slice(window.r0 - a.r0, window.r1 - a.r0), slice(window.c0 - a.c0, window.c1 - a.c0)
         return SpeedField(
             window,
-            trav[crop].copy(),
-            o.sq[crop].copy(),
-            self.skeleton[crop].copy(),
-            self.skeleton_edt.sq[crop].copy(),
-            self.speed[crop].copy(),
-            {"distance_transforms": 0.0, "skeleton": (t2 - t1) * 1e3},
+            self.traversable[rs, cs].copy(),
+            self.obstacles.sq[rs, cs].copy(),
+            self.skeleton[rs, cs].copy(),
+            self.skeleton_edt.sq[rs, cs].copy(),
+            self.speed[rs, cs].copy(),
+            {"distance_transforms": 0.0, "skeleton": self.skeleton_ms},
         )
 
 
