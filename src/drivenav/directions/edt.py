@@ -1,11 +1,12 @@
 """Exact Euclidean distance and feature transforms in linear time (Felzenszwalb & Huttenlocher, 2012).
 
-The speed field of Sec. IV-A(a) needs three distance transforms per mapping step (to obstacles, to the
-boundary of navigable space for the skeleton, and to the skeleton); ``scipy.ndimage.distance_transform_edt``
-costs ~10 ms each on a 480 x 480 grid, so this module provides a single-threaded numba version. Distances are
-in cells; multiply by the resolution for metres. The embedded world's scene loading (navigable grid, contact
-shadow, object placement) uses :func:`edt` for its memory: one and a half grid-sized arrays where scipy needs
-about five.
+The speed field of Sec. IV-A(a) needs two transforms per mapping step: the obstacle feature transform (``d_obs``,
+and the nearest obstacles from which the medial skeleton is read) and the distance to the skeleton (``d_vor``).
+``scipy.ndimage.distance_transform_edt`` costs ~10 ms each on a 480 x 480 grid, so this module provides a
+single-threaded numba version, and :class:`IncrementalTransform` keeps one up to date across steps by redoing only
+the columns and rows a change reaches. Distances are in cells; multiply by the resolution for metres. The embedded
+world's scene loading (navigable grid, contact shadow, object placement) uses :func:`edt` for its memory: one and a
+half grid-sized arrays where scipy needs about five.
 """
 
 from __future__ import annotations
@@ -28,18 +29,19 @@ def _column_pass(
     compare: bool,
 ) -> tuple[NDArray[np.int8], NDArray[np.bool_]]:
     """Per column in ``columns``: the squared row distance to the nearest feature cell into ``g`` and that cell's
-    row into ``near`` (-1: none; ties go to the cell above). ``up`` is scratch for the nearest feature row at or
-    above a cell (it may be ``near`` itself when ``compare`` is off).
+    row into ``near`` (-1: none; ties go to the cell above). ``up[i, k]`` is scratch for the nearest feature row at
+    or above cell ``(i, columns[k])`` (it may be ``near`` itself when ``columns`` are all columns and ``compare`` is
+    off).
 
     Returns each row's status (``REDO`` for every row unless ``compare``; else ``SAME``, ``LOWERED`` or ``REDO``)
     and, with ``compare``, which of ``columns`` changed in each row (``changed[i, k]``; empty otherwise)."""
     rows, cols = feature.shape
     big = np.int32(rows + cols + 1)
-    for j in columns:
-        up[0, j] = 0 if feature[0, j] else -big
+    for k in range(columns.size):
+        up[0, k] = 0 if feature[0, columns[k]] else -big
     for i in range(1, rows):
-        for j in columns:
-            up[i, j] = i if feature[i, j] else up[i - 1, j]
+        for k in range(columns.size):
+            up[i, k] = i if feature[i, columns[k]] else up[i - 1, k]
     status = np.full(rows, SAME if compare else REDO, np.int8)
     changed = np.zeros((rows, columns.size) if compare else (0, 0), np.bool_)
     below = np.full(columns.size, np.int32(2 * big), np.int32)
@@ -48,7 +50,7 @@ def _column_pass(
             j = columns[k]
             if feature[i, j]:
                 below[k] = i
-            nearest = up[i, j]
+            nearest = up[i, k]
             dist = i - nearest
             down = below[k] - i
             if down < dist:
@@ -265,7 +267,6 @@ class IncrementalTransform:
         self._near = np.empty((rows, cols), np.int32)
         every = np.arange(cols, dtype=np.int64)
         status, changed_at = _column_pass(self._feature, every, self._g, self._near, self._near, False)
-        self._up = np.empty((rows, cols), np.int32)
         shape = (rows, cols) if features else (0, 0)
         self.sq = np.empty((rows, cols), np.float64)
         self.frow = np.empty(shape, np.int32)
@@ -283,7 +284,8 @@ class IncrementalTransform:
         columns = _changed_columns(_contiguous(feature), self._feature)
         if columns.size == 0:
             return np.zeros(self.shape[0], np.bool_)
-        status, changed_at = _column_pass(self._feature, columns, self._g, self._near, self._up, True)
+        up = np.empty((self.shape[0], columns.size), np.int32)
+        status, changed_at = _column_pass(self._feature, columns, self._g, self._near, up, True)
         changed = _row_passes(self._g, self._near, status, columns, changed_at, self.sq, self.frow, self.fcol)
         return np.asarray(changed)
 
