@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import os
 import signal
@@ -18,8 +17,8 @@ from drivenav.envs.embedded import EmbeddedSpec
 from drivenav.envs.library import SceneLibrary
 from drivenav.eval.episodes import generate_episodes, load_episodes, save_episodes
 from drivenav.eval.executor import Executor
-from drivenav.eval.records import EpisodeRecord, read_records
-from drivenav.eval.runner import RunSpec, by_scene, evaluate
+from drivenav.eval.records import read_records
+from drivenav.eval.runner import RunSpec, evaluate
 from drivenav.settings import load_settings
 
 RECORD_KEYS = {
@@ -100,31 +99,6 @@ def test_resume_skips_finished_and_workers_do_not_change_results(tmp_path: Path)
     second = sorted(read_records(parallel / "episodes.jsonl"), key=lambda r: r.episode_id)
     assert [r.episode_id for r in first] == ["0", "1", "2", "3"]
     assert first == second
-
-
-def test_episodes_start_scene_by_scene_and_the_order_leaves_the_records_alone(tmp_path: Path) -> None:
-    """Round-robin episodes are grouped by scene (scenes by first appearance); drive-nav's records are the same
-    whichever episodes ran before in the process, and whether the world came from its cache or was loaded."""
-    episodes = generate_episodes(SceneLibrary("procedural:3", 5), 6, seed=5)
-    grouped = by_scene(episodes)
-    scenes = [e.scene_id for e in grouped]
-    assert sorted(grouped, key=lambda e: e.episode_id) == sorted(episodes, key=lambda e: e.episode_id)
-    assert scenes == sorted(scenes, key=[e.scene_id for e in episodes].index)
-    assert len(set(scenes)) > 1
-    spec = RunSpec(
-        EmbeddedSpec("procedural:3", 5), load_settings("drive-nav", options={"run.seed": 5, "sim.max_steps": 30})
-    )
-    forward, backward = tmp_path / "forward", tmp_path / "backward"
-    evaluate(episodes, spec, forward, show_progress=False)
-    evaluate(episodes[::-1], spec, backward, show_progress=False)
-    first, second = (_untimed(run / "episodes.jsonl") for run in (forward, backward))
-    assert first == second
-
-
-def _untimed(path: Path) -> list[EpisodeRecord]:
-    """The run's records by episode id, without the model latencies (wall-clock times)."""
-    records = sorted(read_records(path), key=lambda r: r.episode_id)
-    return [dataclasses.replace(r, stats=dataclasses.replace(r.stats, vlm_latency_ms={})) for r in records]
 
 
 def test_kill_minus_nine_loses_nothing_and_duplicates_nothing(tmp_path: Path) -> None:

@@ -248,20 +248,6 @@ class EpisodeTask:
     episode: Episode
 
 
-def by_scene(episodes: Sequence[Episode]) -> list[Episode]:
-    """The episodes grouped by scene, scenes in order of first appearance and episodes in their order within a scene.
-
-    A benchmark that goes round-robin over its scenes would otherwise load a scene for almost every episode (the
-    embedded world keeps the last two, habitat-lab reconfigures its simulator on every scene change); grouped, a
-    worker loads a scene once per run of its episodes. Each episode's record does not depend on which episodes ran
-    before it in the same process (the agent and the world are reset per episode), so the records are the same.
-    """
-    groups: dict[str, list[Episode]] = {}
-    for episode in episodes:
-        groups.setdefault(episode.scene_id, []).append(episode)
-    return [episode for group in groups.values() for episode in group]
-
-
 def run_task(task: EpisodeTask) -> tuple[EpisodeRecord, Trace]:
     """Run one episode in this process, building the world and the agent on first use."""
     return _worker_for(task.spec).run(task.episode)
@@ -313,11 +299,10 @@ def _advance(bar: tqdm[Any]) -> None:
 
 
 def run_all(todo: Sequence[Episode], spec: RunSpec, executor: Executor) -> Iterator[tuple[EpisodeRecord, Trace]]:
-    """Every episode's record and trace, in completion order, on ``executor``; episodes are started scene by scene
-    (:func:`by_scene`)."""
+    """Every episode's record and trace, in completion order, on ``executor``."""
     if not todo:
         return
-    tasks = [EpisodeTask(spec, episode) for episode in by_scene(todo)]
+    tasks = [EpisodeTask(spec, episode) for episode in todo]
     if executor.kind == "ray":
         from drivenav.eval.ray_executor import run_on_ray
 
