@@ -87,10 +87,20 @@ def _house_steps() -> list[tuple[MapSnapshot, list[Frontier]]]:
 
 
 def test_builder_gives_build_speed_field_at_every_step_of_a_growing_house_map() -> None:
+    """Each field's speed and traversable cells are its own (later builds leave them alone); the distances and the
+    skeleton are read-only views of the builder's arrays."""
     config = SpeedFieldConfig()
     builder = SpeedFieldBuilder(config)
+    fields = []
     for snapshot, frontiers in _house_steps():
-        _assert_same_field(builder.build(snapshot, frontiers), build_speed_field(snapshot, frontiers, config))
+        field = builder.build(snapshot, frontiers)
+        want = build_speed_field(snapshot, frontiers, config)
+        _assert_same_field(field, want)
+        assert not any(getattr(field, name).flags.writeable for name in ("obstacle_sq", "skeleton", "skeleton_sq"))
+        fields.append((field, want))
+    for field, want in fields:
+        np.testing.assert_array_equal(field.speed, want.speed)
+        np.testing.assert_array_equal(field.traversable, want.traversable)
 
 
 def test_builder_keeps_its_arrays_while_the_map_stays_inside_them() -> None:

@@ -204,7 +204,7 @@ class DirectionPipeline:
             return np.full(field.speed.shape, np.inf)
         labels = _target_labels(field.speed.shape, targets)
         res = field.window.grid.resolution
-        slowest = float(field.speed[field.traversable].min())
+        slowest = float(np.min(field.speed, where=field.traversable, initial=np.inf))
         return travel_time(
             field.speed,
             res,

@@ -23,6 +23,7 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numba
 import numpy as np
@@ -33,6 +34,8 @@ from drivenav.directions.edt import IncrementalTransform, feature_transform, squ
 from drivenav.directions.timing import elapsed_ms
 from drivenav.grid import GridSpec
 from drivenav.mapping.types import Frontier, MapSnapshot
+
+ScalarT = TypeVar("ScalarT", bound=np.generic)
 
 CROP_MARGIN = 2  # cells around the bounding box of the traversable and obstacle cells
 TABLE_TOLERANCE = 1e-6  # exponential terms below this are replaced by their asymptote
@@ -83,10 +86,12 @@ class SpeedField:
 def traversable_mask(snapshot: MapSnapshot, frontiers: Sequence[Frontier]) -> NDArray[np.bool_]:
     """Navigable cells plus in-grid frontier cells, minus obstacles (see the module docstring)."""
     trav = np.array(snapshot.navigable, dtype=np.bool_)
-    for frontier in frontiers:
-        cells = frontier.cells[snapshot.grid.contains(frontier.cells)]
+    if frontiers:
+        cells = np.concatenate([frontier.cells for frontier in frontiers])
+        cells = cells[snapshot.grid.contains(cells)]
         trav[cells[:, 0], cells[:, 1]] = True
-    return np.asarray(trav & ~snapshot.obstacle, dtype=np.bool_)
+    trav &= ~snapshot.obstacle
+    return trav
 
 
 def crop_window(grid: GridSpec, keep: NDArray[np.bool_], margin: int = CROP_MARGIN) -> Window:
@@ -310,7 +315,11 @@ class SpeedFieldBuilder:
         self._kept = None
 
     def build(self, snapshot: MapSnapshot, frontiers: Sequence[Frontier]) -> SpeedField:
-        """The speed field of this map and frontiers (see :func:`build_speed_field`)."""
+        """The speed field of this map and frontiers (see :func:`build_speed_field`).
+
+        ``speed`` and ``traversable`` are the field's own arrays; ``obstacle_sq``, ``skeleton`` and ``skeleton_sq``
+        are read-only views of the builder's arrays (the directions pipeline never reads them; copying them cost
+        ~0.2 ms a step), valid until the next :meth:`build`: copy them to keep them."""
         if not self._config.weighted:
             return build_speed_field(snapshot, frontiers, self._config)
         t0 = time.perf_counter()
@@ -398,18 +407,24 @@ class _KeptField:
         _speed_rows(trav, o.sq, self.skeleton_edt.sq, obs, vor, speed_rows, self.speed)
 
     def crop(self, window: Window) -> SpeedField:
-        """The speed field of ``window`` (inside the kept area): copies of the kept arrays' crop."""
+        """The speed field of ``window`` (inside the kept area): copies of the kept speed and traversable cells, and
+        read-only views of the kept distances and skeleton (see :meth:`SpeedFieldBuilder.build`)."""
         a = self.area
         rs, cs = slice(window.r0 - a.r0, window.r1 - a.r0), slice(window.c0 - a.c0, window.c1 - a.c0)
         return SpeedField(
             window,
             self.traversable[rs, cs].copy(),
-            self.obstacles.sq[rs, cs].copy(),
-            self.skeleton[rs, cs].copy(),
-            self.skeleton_edt.sq[rs, cs].copy(),
+            _read_only(self.obstacles.sq[rs, cs]),
+            _read_only(self.skeleton[rs, cs]),
+            _read_only(self.skeleton_edt.sq[rs, cs]),
             self.speed[rs, cs].copy(),
             {"distance_transforms": 0.0, "skeleton": self.skeleton_ms},
         )
+
+
+def _read_only(view: NDArray[ScalarT]) -> NDArray[ScalarT]:
+    view.flags.writeable = False
+    return view
 
 
 @numba.njit(cache=True)
