@@ -37,35 +37,61 @@ def _column_pass(
     and, with ``compare``, which of ``columns`` changed in each row (``changed[i, k]``; empty otherwise)."""
     rows, cols = feature.shape
     big = np.int32(rows + cols + 1)
+    if not compare:
+        _whole_column_pass(feature, g, near, big)
+        return np.full(rows, REDO, np.int8), np.zeros((0, 0), np.bool_)
     for k in range(columns.size):
         up[0, k] = 0 if feature[0, columns[k]] else -big
     for i in range(1, rows):
         for k in range(columns.size):
             up[i, k] = i if feature[i, columns[k]] else up[i - 1, k]
-    status = np.full(rows, SAME if compare else REDO, np.int8)
-    changed = np.zeros((rows, columns.size) if compare else (0, 0), np.bool_)
+    status = np.full(rows, SAME, np.int8)
+    changed = np.zeros((rows, columns.size), np.bool_)
     below = np.full(columns.size, np.int32(2 * big), np.int32)
     for i in range(rows - 1, -1, -1):
         for k in range(columns.size):
             j = columns[k]
             if feature[i, j]:
                 below[k] = i
-            nearest = up[i, k]
-            dist = i - nearest
-            down = below[k] - i
-            if down < dist:
-                nearest = below[k]
-                dist = down
-            sq = np.float64(dist * dist)
-            if dist >= big:
-                sq = np.inf
-                nearest = -1
-            if compare and (sq != g[i, j] or nearest != near[i, j]):
+            sq, nearest = _nearer(i, up[i, k], below[k], big)
+            if sq != g[i, j] or nearest != near[i, j]:
                 changed[i, k] = True
                 status[i] = max(status[i], REDO if sq > g[i, j] else LOWERED)
             g[i, j] = sq
             near[i, j] = nearest
     return status, changed
+
+
+@numba.njit(cache=True, inline="always")
+def _nearer(i: int, above: int, below: int, big: int) -> tuple[float, int]:
+    """The squared distance from row ``i`` to the nearer of the feature rows ``above`` and ``below`` (the one
+    above on a tie) and that row; ``(inf, -1)`` when neither is within ``big`` rows (there is none)."""
+    dist = i - above
+    nearest = above
+    if below - i < dist:
+        nearest = below
+        dist = below - i
+    if dist >= big:
+        return np.inf, -1
+    return float(dist * dist), nearest
+
+
+@numba.njit(cache=True)
+def _whole_column_pass(feature: NDArray[np.bool_], g: NDArray[np.float64], near: NDArray[np.int32], big: int) -> None:
+    """:func:`_column_pass` of every column, row-major so that each row's loop runs over contiguous cells
+    (``near`` holds the nearest feature row at or above a cell until the upward sweep replaces it)."""
+    rows, cols = feature.shape
+    for j in range(cols):
+        near[0, j] = 0 if feature[0, j] else -big
+    for i in range(1, rows):
+        for j in range(cols):
+            near[i, j] = i if feature[i, j] else near[i - 1, j]
+    below = np.full(cols, 2 * big, np.int32)
+    for i in range(rows - 1, -1, -1):
+        for j in range(cols):
+            if feature[i, j]:
+                below[j] = i
+            g[i, j], near[i, j] = _nearer(i, near[i, j], below[j], big)
 
 
 @numba.njit(cache=True)
@@ -137,17 +163,25 @@ def _row_passes(
         if status[i] == LOWERED and compare and changed_at[i].sum() <= MAX_LOWERED:
             changed[i] = _lower_row(g, near, columns, changed_at, sq, frow, fcol, i)
             continue
+        if not compare:  # straight into the outputs (a copy of the row first: ``sq`` may be ``g``)
+            row_sq[:] = g[i]
+            _row_pass(row_sq, sq[i], fcol[i] if features else row_col, v, fv)
+            if features:
+                for q in range(cols):
+                    c = fcol[i, q]
+                    frow[i, q] = near[i, c] if c >= 0 else -1
+            continue
         _row_pass(g[i], row_sq, row_col, v, fv)
         same = True
         for q in range(cols):
-            if compare and row_sq[q] != sq[i, q]:
+            if row_sq[q] != sq[i, q]:
                 same = False
             sq[i, q] = row_sq[q]
         if features:
             for q in range(cols):
                 c = row_col[q]
                 r = near[i, c] if c >= 0 else -1
-                if compare and (c != fcol[i, q] or r != frow[i, q]):
+                if c != fcol[i, q] or r != frow[i, q]:
                     same = False
                 fcol[i, q] = c
                 frow[i, q] = r
