@@ -237,16 +237,23 @@ def _lower_row(
 
 
 @numba.njit(cache=True)
-def _changed_columns(feature: NDArray[np.bool_], kept: NDArray[np.bool_]) -> NDArray[np.int64]:
-    """The columns in which ``feature`` differs from ``kept``; ``kept`` is brought up to date."""
-    rows, cols = feature.shape
-    changed = np.zeros(cols, np.bool_)
+def _sync(mask: NDArray[np.bool_], kept: NDArray[np.bool_]) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """A flag per row and one per column: ``mask`` differs from ``kept`` there; ``kept`` is brought up to date."""
+    rows, cols = mask.shape
+    row_changed = np.zeros(rows, np.bool_)
+    col_changed = np.zeros(cols, np.bool_)
     for i in range(rows):
         for j in range(cols):
-            if feature[i, j] != kept[i, j]:
-                changed[j] = True
-                kept[i, j] = feature[i, j]
-    return np.nonzero(changed)[0].astype(np.int64)
+            if mask[i, j] != kept[i, j]:
+                row_changed[i] = True
+                col_changed[j] = True
+                kept[i, j] = mask[i, j]
+    return row_changed, col_changed
+
+
+def changed_rows(mask: NDArray[np.bool_], kept: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """A flag per row: ``mask`` differs from ``kept`` (same shape) there; ``kept`` is brought up to date."""
+    return np.asarray(_sync(_contiguous(mask), kept)[0])
 
 
 def squared_edt(feature: NDArray[np.bool_]) -> NDArray[np.float64]:
@@ -315,7 +322,7 @@ class IncrementalTransform:
     def update(self, feature: NDArray[np.bool_]) -> NDArray[np.bool_]:
         """Bring the transform to ``feature`` (the shape given at construction); a flag per row: its outputs
         (``sq``, and ``frow``/``fcol`` with features) changed."""
-        columns = _changed_columns(_contiguous(feature), self._feature)
+        columns = np.flatnonzero(_sync(_contiguous(feature), self._feature)[1])
         if columns.size == 0:
             return np.zeros(self.shape[0], np.bool_)
         up = np.empty((self.shape[0], columns.size), np.int32)

@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivenav.config import SpeedFieldConfig
-from drivenav.directions.edt import IncrementalTransform, feature_transform, squared_edt
+from drivenav.directions.edt import IncrementalTransform, changed_rows, feature_transform, squared_edt
 from drivenav.directions.timing import elapsed_ms
 from drivenav.grid import GridSpec
 from drivenav.mapping.types import Frontier, MapSnapshot
@@ -395,14 +395,14 @@ class _KeptField:
         trav, region, obstacle = _area_inputs(area, snapshot, trav_full)
         obstacle_rows = self.obstacles.update(obstacle)
         t1 = time.perf_counter()
-        skeleton_rows = obstacle_rows | _changed_rows(region, self.region)
+        skeleton_rows = obstacle_rows | changed_rows(region, self.region)
         skeleton_rows[1:] |= skeleton_rows[:-1].copy()  # a cell's marks also depend on the rows above and below
         skeleton_rows[:-1] |= skeleton_rows[1:].copy()
         o = self.obstacles
         args = (config.skeleton_min_separation, config.skeleton_min_angle_ratio)
         _medial_axis_rows(region, o.sq, o.frow, o.fcol, *args, skeleton_rows, self.skeleton)
         self.skeleton_ms = elapsed_ms(t1)
-        speed_rows = obstacle_rows | self.skeleton_edt.update(self.skeleton) | _changed_rows(trav, self.traversable)
+        speed_rows = obstacle_rows | self.skeleton_edt.update(self.skeleton) | changed_rows(trav, self.traversable)
         obs, vor = _speed_tables(config, area.grid.resolution)
         _speed_rows(trav, o.sq, self.skeleton_edt.sq, obs, vor, speed_rows, self.speed)
 
@@ -425,16 +425,3 @@ class _KeptField:
 def _read_only(view: NDArray[ScalarT]) -> NDArray[ScalarT]:
     view.flags.writeable = False
     return view
-
-
-@numba.njit(cache=True)
-def _changed_rows(mask: NDArray[np.bool_], kept: NDArray[np.bool_]) -> NDArray[np.bool_]:
-    """A flag per row: ``mask`` differs from ``kept`` there; ``kept`` is brought up to date."""
-    rows, cols = mask.shape
-    changed = np.zeros(rows, np.bool_)
-    for i in range(rows):
-        for j in range(cols):
-            if mask[i, j] != kept[i, j]:
-                changed[i] = True
-                kept[i, j] = mask[i, j]
-    return changed
