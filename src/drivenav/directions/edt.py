@@ -26,20 +26,14 @@ def _column_pass(
     g: NDArray[np.float64],
     near: NDArray[np.int32],
     up: NDArray[np.int32],
-    compare: bool,
 ) -> tuple[NDArray[np.int8], NDArray[np.bool_]]:
-    """Per column in ``columns``: the squared row distance to the nearest feature cell into ``g`` and that cell's
-    row into ``near`` (-1: none; ties go to the cell above). ``up[i, k]`` is scratch for the nearest feature row at
-    or above cell ``(i, columns[k])`` (it may be ``near`` itself when ``columns`` are all columns and ``compare`` is
-    off).
+    """Redo the column pass (see :func:`_whole_column_pass`) of the columns ``columns`` in ``g`` and ``near``;
+    ``up[i, k]`` is scratch for the nearest feature row at or above cell ``(i, columns[k])``.
 
-    Returns each row's status (``REDO`` for every row unless ``compare``; else ``SAME``, ``LOWERED`` or ``REDO``)
-    and, with ``compare``, which of ``columns`` changed in each row (``changed[i, k]``; empty otherwise)."""
+    Returns each row's status (``SAME``, ``LOWERED`` or ``REDO``) and which of ``columns`` changed in each row
+    (``changed[i, k]``)."""
     rows, cols = feature.shape
     big = np.int32(rows + cols + 1)
-    if not compare:
-        _whole_column_pass(feature, g, near, big)
-        return np.full(rows, REDO, np.int8), np.zeros((0, 0), np.bool_)
     for k in range(columns.size):
         up[0, k] = 0 if feature[0, columns[k]] else -big
     for i in range(1, rows):
@@ -77,10 +71,12 @@ def _nearer(i: int, above: int, below: int, big: int) -> tuple[float, int]:
 
 
 @numba.njit(cache=True)
-def _whole_column_pass(feature: NDArray[np.bool_], g: NDArray[np.float64], near: NDArray[np.int32], big: int) -> None:
-    """:func:`_column_pass` of every column, row-major so that each row's loop runs over contiguous cells
-    (``near`` holds the nearest feature row at or above a cell until the upward sweep replaces it)."""
+def _whole_column_pass(feature: NDArray[np.bool_], g: NDArray[np.float64], near: NDArray[np.int32]) -> None:
+    """Per column: the squared row distance to the nearest feature cell into ``g`` and that cell's row into ``near``
+    (-1: none; ties go to the cell above). Row-major, so that each row's loop runs over contiguous cells (``near``
+    holds the nearest feature row at or above a cell until the upward sweep replaces it)."""
     rows, cols = feature.shape
+    big = np.int32(rows + cols + 1)
     for j in range(cols):
         near[0, j] = 0 if feature[0, j] else -big
     for i in range(1, rows):
@@ -144,7 +140,8 @@ def _row_passes(
     frow: NDArray[np.int32],
     fcol: NDArray[np.int32],
 ) -> NDArray[np.bool_]:
-    """The row pass of every row whose ``status`` is not ``SAME`` (see :func:`_column_pass`): squared distances
+    """The row pass of every row whose ``status`` is not ``SAME`` (see :func:`_column_pass`; ``REDO`` everywhere
+    for a whole transform, with ``changed_at`` empty): squared distances
     into ``sq`` (which may be ``g`` itself: a row is read before it is written) and, unless ``fcol`` is empty, the
     nearest feature cell into ``frow``/``fcol``. With ``changed_at`` (not empty), the outputs are compared and the
     rows whose outputs changed are flagged in the result, and a ``LOWERED`` row with at most ``MAX_LOWERED``
@@ -260,14 +257,7 @@ def squared_edt(feature: NDArray[np.bool_]) -> NDArray[np.float64]:
     """Squared Euclidean distance (cells^2) from every cell to the nearest ``True`` cell; ``inf`` if none.
 
     The row passes write back into the column pass's distances, so no second grid-sized distance array is made."""
-    feature = _contiguous(feature)
-    rows, cols = feature.shape
-    g = np.empty((rows, cols), np.float64)
-    near = np.empty((rows, cols), np.int32)
-    status, changed_at = _column_pass(feature, np.arange(cols, dtype=np.int64), g, near, near, False)
-    none = np.empty((0, 0), np.int32)
-    _row_passes(g, near, status, np.empty(0, np.int64), changed_at, g, none, none)
-    return g
+    return _whole_transform(_contiguous(feature), None, False)[0]
 
 
 def edt(feature: NDArray[np.bool_]) -> NDArray[np.float64]:
@@ -303,16 +293,8 @@ class IncrementalTransform:
 
     def __init__(self, feature: NDArray[np.bool_], features: bool) -> None:
         self._feature = np.array(feature, dtype=np.bool_, order="C")
-        rows, cols = self._feature.shape
-        self._g = np.empty((rows, cols), np.float64)
-        self._near = np.empty((rows, cols), np.int32)
-        every = np.arange(cols, dtype=np.int64)
-        status, changed_at = _column_pass(self._feature, every, self._g, self._near, self._near, False)
-        shape = (rows, cols) if features else (0, 0)
-        self.sq = np.empty((rows, cols), np.float64)
-        self.frow = np.empty(shape, np.int32)
-        self.fcol = np.empty(shape, np.int32)
-        _row_passes(self._g, self._near, status, every, changed_at, self.sq, self.frow, self.fcol)
+        self.sq = np.empty(self._feature.shape, np.float64)
+        self._g, self._near, self.frow, self.fcol = _whole_transform(self._feature, self.sq, features)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -326,9 +308,26 @@ class IncrementalTransform:
         if columns.size == 0:
             return np.zeros(self.shape[0], np.bool_)
         up = np.empty((self.shape[0], columns.size), np.int32)
-        status, changed_at = _column_pass(self._feature, columns, self._g, self._near, up, True)
+        status, changed_at = _column_pass(self._feature, columns, self._g, self._near, up)
         changed = _row_passes(self._g, self._near, status, columns, changed_at, self.sq, self.frow, self.fcol)
         return np.asarray(changed)
+
+
+def _whole_transform(
+    feature: NDArray[np.bool_], sq: NDArray[np.float64] | None, features: bool
+) -> tuple[NDArray[np.float64], NDArray[np.int32], NDArray[np.int32], NDArray[np.int32]]:
+    """The column-pass distances ``g`` and rows ``near`` of ``feature``, and its row passes written into ``sq``
+    (into ``g`` itself when None); then ``frow``/``fcol``, empty unless ``features``."""
+    rows, cols = feature.shape
+    g = np.empty((rows, cols), np.float64)
+    near = np.empty((rows, cols), np.int32)
+    _whole_column_pass(feature, g, near)
+    shape = (rows, cols) if features else (0, 0)
+    frow, fcol = np.empty(shape, np.int32), np.empty(shape, np.int32)
+    none = np.empty(0, np.int64)
+    redo = np.full(rows, REDO, np.int8)
+    _row_passes(g, near, redo, none, np.empty((0, 0), np.bool_), g if sq is None else sq, frow, fcol)
+    return g, near, frow, fcol
 
 
 def _contiguous(feature: NDArray[np.bool_]) -> NDArray[np.bool_]:

@@ -99,12 +99,14 @@ def crop_window(grid: GridSpec, keep: NDArray[np.bool_], margin: int = CROP_MARG
     rows_any = np.flatnonzero(keep.any(axis=1))
     cols_any = np.flatnonzero(keep.any(axis=0))
     if rows_any.size == 0:
-        r0, c0, r1, c1 = 0, 0, grid.shape[0], grid.shape[1]
-    else:
-        r0 = max(int(rows_any[0]) - margin, 0)
-        r1 = min(int(rows_any[-1]) + margin + 1, grid.shape[0])
-        c0 = max(int(cols_any[0]) - margin, 0)
-        c1 = min(int(cols_any[-1]) + margin + 1, grid.shape[1])
+        return _clipped(grid, 0, 0, grid.shape[0], grid.shape[1])
+    r0, r1 = int(rows_any[0]) - margin, int(rows_any[-1]) + margin + 1
+    return _clipped(grid, r0, int(cols_any[0]) - margin, r1, int(cols_any[-1]) + margin + 1)
+
+
+def _clipped(grid: GridSpec, r0: int, c0: int, r1: int, c1: int) -> Window:
+    """The window ``[r0:r1, c0:c1]`` of ``grid`` clipped to it, with its own grid spec."""
+    r0, c0, r1, c1 = max(r0, 0), max(c0, 0), min(r1, grid.shape[0]), min(c1, grid.shape[1])
     res = grid.resolution
     origin = (grid.origin[0] + c0 * res, grid.origin[1] + r0 * res)
     return Window(r0, c0, r1, c1, GridSpec(res, origin, (r1 - r0, c1 - c0)))
@@ -328,23 +330,14 @@ class SpeedFieldBuilder:
         kept = self._kept
         area = None if kept is None else kept.placed(snapshot.grid, window)
         if kept is None or area is None:
-            area = _grown(snapshot.grid, window, CAPACITY_MARGIN)
+            m = CAPACITY_MARGIN
+            area = _clipped(snapshot.grid, window.r0 - m, window.c0 - m, window.r1 + m, window.c1 + m)
             kept = self._kept = _KeptField(area, snapshot, trav_full, self._config)
         else:
             kept.update(area, snapshot, trav_full, self._config)
         field = kept.crop(window)
         field.timings_ms["distance_transforms"] = elapsed_ms(t0) - field.timings_ms["skeleton"]
         return field
-
-
-def _grown(grid: GridSpec, window: Window, margin: int) -> Window:
-    """``window`` grown by ``margin`` cells and clipped to ``grid``."""
-    rows, cols = grid.shape
-    r0, c0 = max(window.r0 - margin, 0), max(window.c0 - margin, 0)
-    r1, c1 = min(window.r1 + margin, rows), min(window.c1 + margin, cols)
-    res = grid.resolution
-    origin = (grid.origin[0] + c0 * res, grid.origin[1] + r0 * res)
-    return Window(r0, c0, r1, c1, GridSpec(res, origin, (r1 - r0, c1 - c0)))
 
 
 def _area_inputs(
