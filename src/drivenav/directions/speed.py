@@ -332,6 +332,7 @@ class SpeedFieldBuilder:
         if kept is None or area is None:
             m = CAPACITY_MARGIN
             area = _clipped(snapshot.grid, window.r0 - m, window.c0 - m, window.r1 + m, window.c1 + m)
+            self._kept = None  # the old arrays go before the new ones are made
             kept = self._kept = _KeptField(area, snapshot, trav_full, self._config)
         else:
             kept.update(area, snapshot, trav_full, self._config)

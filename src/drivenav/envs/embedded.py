@@ -140,6 +140,7 @@ class EmbeddedEnv:
     # -- Env protocol ---------------------------------------------------------------------------------
     def reset(self, episode: Episode) -> Observation:
         """Load the episode's scene and place the agent at its start (ValueError if not navigable)."""
+        self._measures = EmbeddedMeasures(self._config)  # the last goal field goes before a scene loads
         self._scene_id = episode.scene_id
         world = self._world()
         x, y = episode.start_xy
@@ -228,13 +229,13 @@ class EmbeddedEnv:
             raise RuntimeError("EmbeddedEnv: call reset() before using the scene")
         world = self._worlds.get(self._scene_id)
         if world is None:
+            while len(self._worlds) >= self._cache_size:  # evicted before loading: a lower memory peak
+                self._worlds.popitem(last=False)
             scene = self._loader(self._scene_id)
             cfg = self._config
             navigable = scene.navigable_grid(cfg.agent_radius, cfg.agent_height)
             world = _World(scene, navigable, largest_component(navigable), Renderer(scene, cfg))
             self._worlds[self._scene_id] = world
-            while len(self._worlds) > self._cache_size:
-                self._worlds.popitem(last=False)
         self._worlds.move_to_end(self._scene_id)
         return world
 

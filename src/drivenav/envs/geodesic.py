@@ -50,26 +50,7 @@ class GeodesicField:
 
     def __init__(self, navigable: NDArray[np.bool_], grid: GridSpec, goals: Sequence[tuple[float, float]]) -> None:
         self.grid = grid
-        self.distances = np.full(grid.shape, np.inf)
-        cells = grid.world_to_cell(np.asarray(goals, dtype=np.float64).reshape(-1, 2))
-        inside = grid.contains(cells)
-        cells = cells[inside]
-        cells = cells[navigable[cells[:, 0], cells[:, 1]]]
-        if len(cells) == 0:
-            return
-        rows, cols = np.nonzero(navigable)
-        r0, r1 = max(rows.min() - 1, 0), min(rows.max() + 2, grid.shape[0])
-        c0, c1 = max(cols.min() - 1, 0), min(cols.max() + 2, grid.shape[1])
-        window = navigable[r0:r1, c0:c1]
-        goal = np.zeros(window.shape, dtype=bool)
-        goal[cells[:, 0] - r0, cells[:, 1] - c0] = True
-        if not (ndimage.binary_dilation(goal) & window & ~goal).any():  # no free cell beside a goal: none to solve
-            self.distances[cells[:, 0], cells[:, 1]] = 0.0
-            return
-        phi = np.where(goal, -1.0, 1.0)
-        solved = skfmm.distance(np.ma.MaskedArray(phi, ~window), dx=grid.resolution)
-        values = np.ma.filled(solved, np.inf) + 0.5 * grid.resolution
-        self.distances[r0:r1, c0:c1] = np.maximum(values, 0.0)
+        self.distances = _goal_distances(navigable, grid, goals)
 
     def at(self, x: float, y: float) -> float:
         """Distance at a world point: bilinear over the finite ones of the four nearest cell centres."""
@@ -93,3 +74,44 @@ class GeodesicField:
                 total += w * value
                 weight_sum += w
         return total / weight_sum if weight_sum > 0.0 else math.inf
+
+
+def _goal_distances(
+    navigable: NDArray[np.bool_], grid: GridSpec, goals: Sequence[tuple[float, float]]
+) -> NDArray[np.float64]:
+    """:class:`GeodesicField`'s distances. The solve runs on the bounding box of the navigable cells, and the
+    grid-sized result is made after it, when scikit-fmm's temporaries are freed (issue 14's memory goal)."""
+    cells = grid.world_to_cell(np.asarray(goals, dtype=np.float64).reshape(-1, 2))
+    cells = cells[grid.contains(cells)]
+    cells = cells[navigable[cells[:, 0], cells[:, 1]]]
+    if len(cells) == 0:
+        return np.full(grid.shape, np.inf)
+    (r0, r1), (c0, c1) = _span(navigable, 0), _span(navigable, 1)
+    window = navigable[r0:r1, c0:c1]
+    goal = np.zeros(window.shape, dtype=bool)
+    goal[cells[:, 0] - r0, cells[:, 1] - c0] = True
+    solved = None
+    if (ndimage.binary_dilation(goal) & window & ~goal).any():  # else no free cell beside a goal: none to solve
+        solved = _solve(goal, window, grid.resolution)
+    distances = np.full(grid.shape, np.inf)
+    if solved is None:
+        distances[cells[:, 0], cells[:, 1]] = 0.0
+    else:
+        distances[r0:r1, c0:c1] = solved
+    return distances
+
+
+def _span(mask: NDArray[np.bool_], axis: int) -> tuple[int, int]:
+    """The range of indices along ``axis`` that hold a ``True`` cell, one wider on each side (clipped)."""
+    where = np.flatnonzero(mask.any(axis=1 - axis))
+    return max(int(where[0]) - 1, 0), min(int(where[-1]) + 2, mask.shape[axis])
+
+
+def _solve(goal: NDArray[np.bool_], window: NDArray[np.bool_], resolution: float) -> NDArray[np.float64]:
+    """scikit-fmm's distance from ``goal`` over ``window``'s cells (``inf`` off them), plus half a cell (to a goal
+    cell's centre rather than its edge), clipped at 0; computed in place once the solver's arrays are freed."""
+    solved = skfmm.distance(np.ma.MaskedArray(np.where(goal, -1.0, 1.0), ~window), dx=resolution)
+    values: NDArray[np.float64] = np.ma.filled(solved, np.inf)
+    del solved
+    values += 0.5 * resolution
+    return np.maximum(values, 0.0, out=values)

@@ -82,19 +82,22 @@ class _Placer:
         self.rng = rng
         self.vocab = vocab
         self.free = scene.structure == Material.FREE
-        distance, nearest = ndimage.distance_transform_edt(self.free, return_indices=True)
-        self.wall_dist: NDArray[np.float64] = distance * self.res
-        self.nearest: NDArray[np.int64] = nearest.astype(np.int64)
-        self.axis = _dominant_axis(self.free, self.wall_dist, self.nearest, self.res)
+        # scipy's arrays, scaled in place and kept as int32 (no grid-sized copies: issue 14's memory goal).
+        wall_dist: NDArray[np.float64]
+        self.nearest: NDArray[np.int32]
+        wall_dist, self.nearest = ndimage.distance_transform_edt(self.free, return_indices=True)
+        wall_dist *= self.res
+        self.axis = _dominant_axis(self.free, wall_dist, self.nearest, self.res)
         self.nav = replace(scene, objects=[]).navigable_grid(_AGENT.agent_radius, _AGENT.agent_height).copy()
         self.blocked = ~self.free | _near(scene.structure == Material.DOOR_FRAME, _DOOR_KEEPOUT, self.res)
         self.room_index = scene.room_index if scene.rooms else np.zeros(self.grid.shape, dtype=np.int16)
+        self.objects: list[ObjectInstance] = []
+        self.spec_index = {spec.name: k for k, spec in enumerate(vocab.specs)}
+        self.regions = self._regions(scene, self._reachable(), wall_dist)
+        del wall_dist  # the regions keep their cells' distances; the grids below are made after it goes
         self.floor_top = np.zeros(self.grid.shape, dtype=np.float64)
         self.mounted_bottom = np.full(self.grid.shape, np.inf)
         self.on_surface = np.zeros(self.grid.shape, dtype=bool)
-        self.objects: list[ObjectInstance] = []
-        self.spec_index = {spec.name: k for k, spec in enumerate(vocab.specs)}
-        self.regions = self._regions(scene, self._reachable())
 
     def _reachable(self) -> NDArray[np.bool_]:
         """Free cells near the main navigable component and in the same piece of free space (no sealed rooms)."""
@@ -103,16 +106,19 @@ class _Placer:
         connected = np.isin(pieces, np.unique(pieces[main]))
         return connected & _near(main, _REACH, self.res)
 
-    def _regions(self, scene: Scene, allowed: NDArray[np.bool_]) -> list[_Region]:
+    def _regions(self, scene: Scene, allowed: NDArray[np.bool_], wall_dist: NDArray[np.float64]) -> list[_Region]:
         if not scene.rooms:
-            return [self._region(0, None, allowed)]
+            return [self._region(0, None, allowed, wall_dist)]
         return [
-            self._region(k + 1, room.name, allowed & (self.room_index == k + 1)) for k, room in enumerate(scene.rooms)
+            self._region(k + 1, room.name, allowed & (self.room_index == k + 1), wall_dist)
+            for k, room in enumerate(scene.rooms)
         ]
 
-    def _region(self, index: int, room_type: str | None, mask: NDArray[np.bool_]) -> _Region:
+    def _region(
+        self, index: int, room_type: str | None, mask: NDArray[np.bool_], wall_dist: NDArray[np.float64]
+    ) -> _Region:
         cells = np.flatnonzero(mask)
-        dist = self.wall_dist.ravel()[cells]
+        dist = wall_dist.ravel()[cells]
         order = np.argsort(dist, kind="stable")
         room = room_type if room_type in self.vocab.room_types else None
         return _Region(index, room, cells[order], dist[order], np.zeros(len(self.vocab.specs), dtype=np.int64))
@@ -203,7 +209,7 @@ class _Placer:
     def _cell_xy(self, cell: int) -> NDArray[np.float64]:
         return self.grid.cell_to_world(np.array(divmod(cell, self.grid.shape[1])))
 
-    def _nearest_wall(self, cell: int) -> NDArray[np.int64]:
+    def _nearest_wall(self, cell: int) -> NDArray[np.int32]:
         r, c = divmod(cell, self.grid.shape[1])
         return self.nearest[:, r, c]
 
@@ -350,7 +356,7 @@ def _near(mask: NDArray[np.bool_], radius: float, res: float) -> NDArray[np.bool
 
 
 def _dominant_axis(
-    free: NDArray[np.bool_], wall_dist: NDArray[np.float64], nearest: NDArray[np.int64], res: float
+    free: NDArray[np.bool_], wall_dist: NDArray[np.float64], nearest: NDArray[np.int32], res: float
 ) -> float:
     """The map's wall orientation modulo 90 degrees, in ``[-45, 45)`` degrees (0 for axis-aligned plans).
 
