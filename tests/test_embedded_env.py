@@ -146,6 +146,29 @@ def test_scene_cache_and_pickling() -> None:
     assert obs.pose.x == pytest.approx(0.5)
 
 
+class CacheWatchingLoader(CountingLoader):
+    """Records, at every load, how many scenes the environment still held (``env`` is set after construction)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.env: EmbeddedEnv | None = None
+        self.held_at_load: list[int] = []
+
+    def __call__(self, scene_id: str) -> Scene:
+        assert self.env is not None
+        self.held_at_load.append(len(self.env._worlds))
+        return super().__call__(scene_id)
+
+
+def test_scene_cache_keeps_the_most_recent_scenes_and_evicts_before_loading() -> None:
+    loader = CacheWatchingLoader()
+    env = loader.env = EmbeddedEnv(loader, cache_size=2)
+    for scene_id in ("a", "b", "a", "c", "a", "b"):  # c evicts b (a was used last); b evicts c
+        env.reset(episode(2.0, 2.0, 0.0, scene_id))
+    assert loader.calls == 4 and list(env._worlds) == ["a", "b"]
+    assert loader.held_at_load == [0, 1, 1, 1]  # a full cache drops its oldest scene before the next one loads
+
+
 def test_render_any_world_pose() -> None:
     env = make_env()
     env.reset(episode(2.0, 2.0, 0.0))
