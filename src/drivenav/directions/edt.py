@@ -141,11 +141,11 @@ def _row_passes(
     fcol: NDArray[np.int32],
 ) -> NDArray[np.bool_]:
     """The row pass of every row whose ``status`` is not ``SAME`` (see :func:`_column_pass`; ``REDO`` everywhere
-    for a whole transform, with ``changed_at`` empty): squared distances
-    into ``sq`` (which may be ``g`` itself: a row is read before it is written) and, unless ``fcol`` is empty, the
-    nearest feature cell into ``frow``/``fcol``. With ``changed_at`` (not empty), the outputs are compared and the
-    rows whose outputs changed are flagged in the result, and a ``LOWERED`` row with at most ``MAX_LOWERED``
-    changed columns is patched (:func:`_lower_row`) instead of redone."""
+    for a whole transform, with ``changed_at`` empty): squared distances into ``sq`` (which may be ``g`` itself: a
+    row is read before it is written) and, unless ``fcol`` is empty, the nearest feature cell into ``frow``/``fcol``.
+    With ``changed_at`` (not empty), the outputs are compared and the rows whose outputs changed are flagged in the
+    result, and a ``LOWERED`` row with at most ``MAX_LOWERED`` changed columns is patched (:func:`_lower_row`)
+    instead of redone."""
     rows, cols = g.shape
     compare = changed_at.size > 0
     features = fcol.size > 0

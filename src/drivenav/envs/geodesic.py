@@ -15,6 +15,7 @@ import skfmm
 from numpy.typing import NDArray
 from scipy import ndimage
 
+from drivenav.directions.speed import crop_window
 from drivenav.grid import GridSpec
 
 
@@ -79,32 +80,26 @@ class GeodesicField:
 def _goal_distances(
     navigable: NDArray[np.bool_], grid: GridSpec, goals: Sequence[tuple[float, float]]
 ) -> NDArray[np.float64]:
-    """:class:`GeodesicField`'s distances. The solve runs on the bounding box of the navigable cells, and the
-    grid-sized result is made after it, when scikit-fmm's temporaries are freed (issue 14's memory goal)."""
+    """:class:`GeodesicField`'s distances. The solve runs on the bounding box of the navigable cells (one cell
+    wider), and the grid-sized result is made after it, when scikit-fmm's temporaries are freed (issue 14's memory
+    goal)."""
     cells = grid.world_to_cell(np.asarray(goals, dtype=np.float64).reshape(-1, 2))
     cells = cells[grid.contains(cells)]
     cells = cells[navigable[cells[:, 0], cells[:, 1]]]
     if len(cells) == 0:
         return np.full(grid.shape, np.inf)
-    (r0, r1), (c0, c1) = _span(navigable, 0), _span(navigable, 1)
-    window = navigable[r0:r1, c0:c1]
+    box = crop_window(grid, navigable, margin=1)
+    window = navigable[box.r0 : box.r1, box.c0 : box.c1]
     goal = np.zeros(window.shape, dtype=bool)
-    goal[cells[:, 0] - r0, cells[:, 1] - c0] = True
-    solved = None
-    if (ndimage.binary_dilation(goal) & window & ~goal).any():  # else no free cell beside a goal: none to solve
-        solved = _solve(goal, window, grid.resolution)
-    distances = np.full(grid.shape, np.inf)
-    if solved is None:
+    goal[cells[:, 0] - box.r0, cells[:, 1] - box.c0] = True
+    if not (ndimage.binary_dilation(goal) & window & ~goal).any():  # no free cell beside a goal: none to solve
+        distances = np.full(grid.shape, np.inf)
         distances[cells[:, 0], cells[:, 1]] = 0.0
-    else:
-        distances[r0:r1, c0:c1] = solved
+        return distances
+    solved = _solve(goal, window, grid.resolution)
+    distances = np.full(grid.shape, np.inf)
+    distances[box.r0 : box.r1, box.c0 : box.c1] = solved
     return distances
-
-
-def _span(mask: NDArray[np.bool_], axis: int) -> tuple[int, int]:
-    """The range of indices along ``axis`` that hold a ``True`` cell, one wider on each side (clipped)."""
-    where = np.flatnonzero(mask.any(axis=1 - axis))
-    return max(int(where[0]) - 1, 0), min(int(where[-1]) + 2, mask.shape[axis])
 
 
 def _solve(goal: NDArray[np.bool_], window: NDArray[np.bool_], resolution: float) -> NDArray[np.float64]:
