@@ -122,12 +122,12 @@ def test_early_termination_keeps_exact_values_up_to_the_targets() -> None:
     labels = np.full((n, n), -1, np.int32)
     labels[10, 5:8] = 0
     labels[30, 60] = 1
-    early = travel_time(speed, 0.05, np.array([[20, 40]]), np.zeros(1), target_label=labels, margin=0.2)
+    early = travel_time(speed, 0.05, np.array([[20, 40]]), np.zeros(1), target_label=labels, margin_cells=2.0)
     reached = np.isfinite(early)
     assert reached[10, 5:8].all() and reached[30, 60]
     np.testing.assert_allclose(early[reached], full[reached], rtol=1e-12)
     assert np.isinf(early[70, 40])  # beyond the wall: far past the last target, not marched
-    horizon = max(full[10, 5:8].min(), full[30, 60]) + 0.2
+    horizon = max(full[10, 5:8].min(), full[30, 60]) + 2.0 * 0.05 / speed[speed > 0].min()
     assert reached[full < horizon - 0.05].all()
 
 
@@ -136,5 +136,5 @@ def test_unreachable_target_label_falls_back_to_a_full_solve() -> None:
     speed[:, 10] = 0.0
     labels = np.full((20, 20), -1, np.int32)
     labels[5, 15] = 0  # behind the wall
-    got = travel_time(speed, 1.0, np.array([[5, 2]]), np.zeros(1), target_label=labels, margin=1.0)
+    got = travel_time(speed, 1.0, np.array([[5, 2]]), np.zeros(1), target_label=labels, margin_cells=1.0)
     np.testing.assert_allclose(got[:, :10], travel_time(speed, 1.0, np.array([[5, 2]]), np.zeros(1))[:, :10])

@@ -203,15 +203,13 @@ class DirectionPipeline:
         if source is None or not targets:
             return np.full(field.speed.shape, np.inf)
         labels = _target_labels(field.speed.shape, targets)
-        res = field.window.grid.resolution
-        slowest = float(np.min(field.speed, where=field.traversable, initial=np.inf))
         return travel_time(
             field.speed,
-            res,
+            field.window.grid.resolution,
             np.array([source], dtype=np.int64),
             np.zeros(1),
             target_label=labels,
-            margin=self._config.directions.margin_cells * res / slowest,
+            margin_cells=self._config.directions.margin_cells,
         )
 
     def _frontier_paths(
@@ -299,7 +297,7 @@ def _to_world(field: SpeedField, rc: NDArray[np.float64]) -> NDArray[np.float64]
 def _from_robot(world: NDArray[np.float64], robot: NDArray[np.float64]) -> NDArray[np.float64]:
     """A walk's world points, source first, as a polyline from the robot (a new array): the robot is prepended
     unless it stands on the source cell's centre."""
-    return np.ascontiguousarray(world) if _same_point(world[0], robot) else np.vstack([robot, world])
+    return np.ascontiguousarray(world) if _same_point(world[0], robot) else np.concatenate((robot[None], world))
 
 
 def _world_path(field: SpeedField, rc: NDArray[np.float64], robot: NDArray[np.float64]) -> NDArray[np.float64]:
