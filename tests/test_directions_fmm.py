@@ -138,3 +138,9 @@ def test_unreachable_target_label_falls_back_to_a_full_solve() -> None:
     labels[5, 15] = 0  # behind the wall
     got = travel_time(speed, 1.0, np.array([[5, 2]]), np.zeros(1), target_label=labels, margin_cells=1.0)
     np.testing.assert_allclose(got[:, :10], travel_time(speed, 1.0, np.array([[5, 2]]), np.zeros(1))[:, :10])
+
+
+def test_a_grid_too_large_for_the_32_bit_queue_is_refused() -> None:
+    huge = np.broadcast_to(np.float64(1.0), (30_000, 20_000))  # 600 M cells, no memory behind them
+    with pytest.raises(ValueError, match="too large"):
+        travel_time(huge, 0.05, np.array([[1, 1]]), np.zeros(1))
