@@ -216,6 +216,7 @@ def test_bench_reports_the_contract_fields() -> None:
     explored = report["mostly_explored"]
     assert explored["explored_cells"] > 1.5 * report["explored_cells"]
     assert explored["median_ms"] > 0.0 and explored["directions"] >= 1
+    assert set(explored["breakdown_ms"]) == set(report["breakdown_ms"])
 
 
 def _copy_snapshot(snapshot: MapSnapshot) -> MapSnapshot:

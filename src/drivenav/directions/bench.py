@@ -128,6 +128,11 @@ def _time_pipeline(
     return result, wall, runs
 
 
+def _stage_medians(runs: list[dict[str, float]]) -> dict[str, float]:
+    """The median ms of each stage over the timed runs."""
+    return {key: float(np.median([r[key] for r in runs])) for key in TIMING_KEYS if key != "total"}
+
+
 def skfmm_ms(
     scene: tuple[MapSnapshot, list[Frontier], tuple[float, float]], config: DriveNavConfig, repeats: int
 ) -> float:
@@ -156,16 +161,17 @@ def bench_directions(repeats: int = 50, config: DriveNavConfig | None = None) ->
     """Time :meth:`DirectionPipeline.update` (map -> labelled directions for all frontiers) on one core.
 
     Returns the map size, frontier and direction counts, the median total in ms and the median of each stage, the
-    same for the ``mostly_explored`` map, and scikit-fmm's time on the main case's grid and speed field.
+    same for the ``mostly_explored`` map (its stages in its own ``breakdown_ms``), and scikit-fmm's time on the main
+    case's grid and speed field.
     """
     numba.set_num_threads(1)
     config = config or DriveNavConfig()
     scene = bench_scene()
     snapshot, frontiers, _ = scene
     result, wall, runs = _time_pipeline(DirectionPipeline(config), scene, repeats)
-    breakdown = {key: float(np.median([r[key] for r in runs])) for key in TIMING_KEYS if key != "total"}
+    breakdown = _stage_medians(runs)
     explored_scene = bench_scene(mostly_explored=True)
-    explored_result, explored_wall, _ = _time_pipeline(DirectionPipeline(config), explored_scene, repeats)
+    explored_result, explored_wall, explored_runs = _time_pipeline(DirectionPipeline(config), explored_scene, repeats)
     reference = skfmm_ms(scene, config, max(3, repeats // 5))
     return {
         "map_cells": int(snapshot.obstacle.size),
@@ -186,5 +192,6 @@ def bench_directions(repeats: int = 50, config: DriveNavConfig | None = None) ->
             "frontiers": len(explored_scene[1]),
             "directions": len(explored_result.directions),
             "median_ms": float(np.median(explored_wall)),
+            "breakdown_ms": _stage_medians(explored_runs),
         },
     }
