@@ -179,7 +179,6 @@ class EmbeddedReasoner:
         if not candidates:
             return Selection(label=None, note="no candidates")
         shown = [self.visible(c.view.semantic) if c.view is not None else [] for c in candidates]
-        self._prefetch(goal, [label for labels in shown for label, _ in labels])
         assessed = [self._assess(goal, c, labels) for c, labels in zip(candidates, shown, strict=True)]
         showing = [a for a in assessed if a.target_area > 0]
         descriptions = {a.candidate.label: a.description for a in assessed if a.description is not None}
@@ -198,10 +197,6 @@ class EmbeddedReasoner:
     @staticmethod
     def _tie_break(candidate: Candidate) -> tuple[float, int]:
         return -abs(candidate.turn), -candidate.label
-
-    def _prefetch(self, goal: str, labels: Sequence[str]) -> None:
-        """Embed the goal and the labels in one batch, so the similarities that follow hit the cache."""
-        self.embedder.embed(list(dict.fromkeys(normalize_phrase(text) for text in (goal, *labels))))
 
     def _assess(self, goal: str, candidate: Candidate, shown: list[tuple[str, int]]) -> _Assessment:
         exploration = self._exploration(candidate)
@@ -231,7 +226,6 @@ class EmbeddedReasoner:
     def _propose(self, goal: str, view: View, failed: Sequence[str]) -> str:
         tried = {normalize_phrase(phrase) for phrase in failed}
         fresh = [label for label, _ in self.visible(view.semantic) if normalize_phrase(label) not in tried]
-        self._prefetch(goal, fresh)
         scored = [(self.relatedness(label, goal), label) for label in fresh]
         good = [(r, label) for r, label in scored if r >= self.config.uncertain_similarity]
         if good:

