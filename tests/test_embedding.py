@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from drivenav.semantics import embedding
 from drivenav.semantics.embedding import EmbeddingModelMissingError, TextEmbedder, default_embedder
@@ -31,12 +33,29 @@ def test_matches_sentence_transformers(embedder: TextEmbedder) -> None:
     np.testing.assert_allclose(np.linalg.norm(got, axis=1), 1.0, atol=1e-5)
 
 
-def test_batching_and_padding_do_not_change_embeddings(embedder: TextEmbedder) -> None:
-    long_text = "a kitchen with a refrigerator"
-    alone = TextEmbedder().embed([long_text])[0]
-    batched = TextEmbedder().embed(["sofa", long_text, "tv"])
-    np.testing.assert_allclose(batched[1], alone, atol=1e-6)
-    np.testing.assert_allclose(batched[0], embedder.embed(["sofa"])[0], atol=1e-6)
+WORDS = ("sofa", "tv", "a kitchen with a refrigerator", "fire extinguisher", "chest of drawers", "bed", "toilet")
+
+
+@pytest.fixture(scope="module")
+def alone() -> dict[str, np.ndarray]:
+    """Each word's vector from an embedder that has seen nothing else."""
+    return {word: TextEmbedder().embed([word])[0] for word in WORDS}
+
+
+@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    before=st.lists(st.sampled_from(WORDS), max_size=4),
+    batch=st.lists(st.sampled_from(WORDS), min_size=1, max_size=6),
+)
+def test_a_texts_vector_depends_on_the_text_alone(
+    alone: dict[str, np.ndarray], before: list[str], batch: list[str]
+) -> None:
+    """Bit for bit, whatever batch it comes in and whatever the embedder saw before: a worker's results must not
+    depend on the episodes it happened to run first (texts encoded together differed in their last bits)."""
+    embedder = TextEmbedder()
+    embedder.embed(before)
+    for word, vector in zip(batch, embedder.embed(batch), strict=True):
+        np.testing.assert_array_equal(vector, alone[word])
 
 
 def test_similarity_orders_related_words(embedder: TextEmbedder) -> None:
