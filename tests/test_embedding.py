@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from drivenav.semantics import embedding
@@ -42,7 +42,7 @@ def alone() -> dict[str, np.ndarray]:
     return {word: TextEmbedder().embed([word])[0] for word in WORDS}
 
 
-@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=20, deadline=None)
 @given(
     before=st.lists(st.sampled_from(WORDS), max_size=4),
     batch=st.lists(st.sampled_from(WORDS), min_size=1, max_size=6),
