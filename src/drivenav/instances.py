@@ -7,14 +7,22 @@ builds a lookup table per call, which cost two to four times the counting itself
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
+
+from drivenav.kernels import jit
 
 MAX_TABLE_ID = 1 << 20  # larger (or negative) instance ids are counted by sorting, not with a table this long
 
 
-@numba.njit(cache=True)
+@jit(
+    "i8[::1](i4[::1], i8)",
+    "i8[::1](i8[::1], i8)",
+    "i8[::1](u1[::1], i8)",
+    "i8[::1](u2[::1], i8)",
+    "i8[::1](u4[::1], i8)",
+    "i8[::1](i2[::1], i8)",
+)
 def _count_ids(flat: NDArray[np.integer], size: int) -> NDArray[np.int64]:
     counts = np.zeros(size, np.int64)
     for v in flat:
@@ -22,7 +30,14 @@ def _count_ids(flat: NDArray[np.integer], size: int) -> NDArray[np.int64]:
     return counts
 
 
-@numba.njit(cache=True)
+@jit(
+    "i8(i4[::1], b1[::1])",
+    "i8(i8[::1], b1[::1])",
+    "i8(u1[::1], b1[::1])",
+    "i8(u2[::1], b1[::1])",
+    "i8(u4[::1], b1[::1])",
+    "i8(i2[::1], b1[::1])",
+)
 def _count_listed(flat: NDArray[np.integer], listed: NDArray[np.bool_]) -> int:
     n = 0
     top = listed.size

@@ -6,9 +6,10 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
+
+from drivenav.kernels import jit
 
 TWO_PI = 2.0 * math.pi
 
@@ -28,7 +29,7 @@ def bearing_to(origin: Point, point: Point) -> float:
     return normalize_angle(math.atan2(point[1] - origin[1], point[0] - origin[0]))
 
 
-@numba.njit(cache=True)
+@jit("UniTuple(f8, 2)(f8[:, ::1], f8, f8, f8)")
 def _crossing_kernel(path: NDArray[np.float64], cx: float, cy: float, radius: float) -> tuple[float, float]:
     r2 = radius * radius
     px, py = path[0, 0] - cx, path[0, 1] - cy

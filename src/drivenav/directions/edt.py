@@ -11,15 +11,16 @@ half grid-sized arrays where scipy needs about five.
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
+
+from drivenav.kernels import jit
 
 SAME, LOWERED, REDO = 0, 1, 2  # what a row's column-pass values did: nothing; changed, none grew; some grew
 MAX_LOWERED = 16  # changed columns up to which a LOWERED row is patched instead of redone
 
 
-@numba.njit(cache=True)
+@jit("Tuple((i1[::1], b1[:, ::1]))(b1[:, ::1], i8[::1], f8[:, ::1], i4[:, ::1], i4[:, ::1])")
 def _column_pass(
     feature: NDArray[np.bool_],
     columns: NDArray[np.int64],
@@ -56,7 +57,7 @@ def _column_pass(
     return status, changed
 
 
-@numba.njit(cache=True, inline="always")
+@jit(inline=True)
 def _nearer(i: int, above: int, below: int, big: int) -> tuple[float, int]:
     """The squared distance from row ``i`` to the nearer of the feature rows ``above`` and ``below`` (the one
     above on a tie) and that row; ``(inf, -1)`` when neither is within ``big`` rows (there is none)."""
@@ -70,7 +71,7 @@ def _nearer(i: int, above: int, below: int, big: int) -> tuple[float, int]:
     return float(dist * dist), nearest
 
 
-@numba.njit(cache=True)
+@jit("void(b1[:, ::1], f8[:, ::1], i4[:, ::1])")
 def _whole_column_pass(feature: NDArray[np.bool_], g: NDArray[np.float64], near: NDArray[np.int32]) -> None:
     """Per column: the squared row distance to the nearest feature cell into ``g`` and that cell's row into ``near``
     (-1: none; ties go to the cell above). Row-major, so that each row's loop runs over contiguous cells (``near``
@@ -90,7 +91,7 @@ def _whole_column_pass(feature: NDArray[np.bool_], g: NDArray[np.float64], near:
             g[i, j], near[i, j] = _nearer(i, near[i, j], below[j], big)
 
 
-@numba.njit(cache=True)
+@jit()
 def _row_pass(
     g: NDArray[np.float64],
     out_sq: NDArray[np.float64],
@@ -129,7 +130,7 @@ def _row_pass(
             out_col[q] = v[m]
 
 
-@numba.njit(cache=True)
+@jit("b1[::1](f8[:, ::1], i4[:, ::1], i1[::1], i8[::1], b1[:, ::1], f8[:, ::1], i4[:, ::1], i4[:, ::1])")
 def _row_passes(
     g: NDArray[np.float64],
     near: NDArray[np.int32],
@@ -186,7 +187,7 @@ def _row_passes(
     return changed
 
 
-@numba.njit(cache=True)
+@jit()
 def _lower_row(
     g: NDArray[np.float64],
     near: NDArray[np.int32],
@@ -233,7 +234,7 @@ def _lower_row(
     return changed
 
 
-@numba.njit(cache=True)
+@jit("UniTuple(b1[::1], 2)(b1[:, ::1], b1[:, ::1])")
 def _sync(mask: NDArray[np.bool_], kept: NDArray[np.bool_]) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
     """A flag per row and one per column: ``mask`` differs from ``kept`` there; ``kept`` is brought up to date."""
     rows, cols = mask.shape

@@ -26,12 +26,13 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from drivenav.kernels import jit
 
-@numba.njit(cache=True, error_model="numpy")
+
+@jit(error_model="numpy")
 def _godunov_update(T: NDArray[np.float64], idx: int, cols: int, step: float) -> float:
     """First-order upwind solution at flat cell ``idx`` from its 4-neighbours' current values.
 
@@ -51,7 +52,7 @@ def _godunov_update(T: NDArray[np.float64], idx: int, cols: int, step: float) ->
 _FREE, _TOP, _PENDING = 0, 1, 2
 
 
-@numba.njit(cache=True, error_model="numpy")
+@jit(error_model="numpy")
 def _push(
     head: NDArray[np.int32],
     links: NDArray[np.int32],
@@ -82,7 +83,7 @@ def _push(
     counters[_PENDING] += 1
 
 
-@numba.njit(cache=True, error_model="numpy")
+@jit(error_model="numpy")
 def _pop(
     head: NDArray[np.int32],
     links: NDArray[np.int32],
@@ -99,7 +100,7 @@ def _pop(
     return int(e)
 
 
-@numba.njit(cache=True, error_model="numpy")
+@jit(error_model="numpy")
 def _one_cell_times(sp: NDArray[np.float64], h: float) -> tuple[NDArray[np.float64], float, float]:
     """Per cell, the one-cell travel time ``h / F`` (``-1`` where ``F <= 0``), and the largest and smallest
     positive speeds (``0`` and ``inf`` if there is none)."""
@@ -117,7 +118,7 @@ def _one_cell_times(sp: NDArray[np.float64], h: float) -> tuple[NDArray[np.float
     return cost, f_max, f_min
 
 
-@numba.njit(cache=True, error_model="numpy")
+@jit("f8[:, ::1](f8[:, ::1], f8, i8[:, ::1], f8[::1], i4[:, ::1], i8, f8)", error_model="numpy")
 def _march(
     speed: NDArray[np.float64],
     h: float,

@@ -16,20 +16,21 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
+
+from drivenav.kernels import jit
 
 STEP = 1.0  # cells per continuous step (<= 1, so that a step crosses at most one boundary per axis)
 MAX_SAME_CELL = 2  # continuous steps allowed without changing cell before a discrete step is forced
 
 
-@numba.njit(cache=True, inline="always")
+@jit(inline=True)
 def _finite(T: NDArray[np.float64], i: int, j: int) -> bool:
     return bool(0 <= i < T.shape[0] and 0 <= j < T.shape[1] and T[i, j] < np.inf)
 
 
-@numba.njit(cache=True, inline="always")
+@jit(inline=True)
 def _upwind_derivative(T: NDArray[np.float64], i: int, j: int, di: int, dj: int) -> float:
     """One-sided derivative of ``T`` at cell ``(i, j)`` along axis ``(di, dj)`` towards its smaller neighbour."""
     lo = float(T[i - di, j - dj]) if _finite(T, i - di, j - dj) else np.inf
@@ -42,7 +43,7 @@ def _upwind_derivative(T: NDArray[np.float64], i: int, j: int, di: int, dj: int)
     return 0.0
 
 
-@numba.njit(cache=True, inline="always")
+@jit(inline=True)
 def _gradient(T: NDArray[np.float64], r: float, c: float) -> tuple[float, float]:
     """Bilinear interpolation of the per-cell upwind gradient over the finite-``T`` cells around ``(r, c)``."""
     i0 = math.floor(r)
@@ -62,12 +63,12 @@ def _gradient(T: NDArray[np.float64], r: float, c: float) -> tuple[float, float]
     return gr, gc
 
 
-@numba.njit(cache=True, inline="always")
+@jit(inline=True)
 def _free(trav: NDArray[np.bool_], i: int, j: int) -> bool:
     return bool(0 <= i < trav.shape[0] and 0 <= j < trav.shape[1] and trav[i, j])
 
 
-@numba.njit(cache=True, inline="always")
+@jit(inline=True)
 def _continuous_ok(T: NDArray[np.float64], trav: NDArray[np.bool_], ci: int, cj: int, ni: int, nj: int) -> bool:
     """Whether a short step from cell ``(ci, cj)`` into cell ``(ni, nj)`` is safe and makes progress."""
     if not _free(trav, ni, nj) or not T[ni, nj] < T[ci, cj]:
@@ -75,7 +76,7 @@ def _continuous_ok(T: NDArray[np.float64], trav: NDArray[np.bool_], ci: int, cj:
     return ni == ci or nj == cj or (_free(trav, ci, nj) and _free(trav, ni, cj))
 
 
-@numba.njit(cache=True, inline="always")
+@jit(inline=True)
 def _steepest_neighbour(T: NDArray[np.float64], trav: NDArray[np.bool_], ci: int, cj: int) -> tuple[int, int]:
     """The 8-neighbour with least ``T`` below ``T[ci, cj]`` (no corner cutting); ``(-1, -1)`` if none."""
     best = T[ci, cj]
@@ -93,7 +94,7 @@ def _steepest_neighbour(T: NDArray[np.float64], trav: NDArray[np.bool_], ci: int
     return bi, bj
 
 
-@numba.njit(cache=True, inline="always")
+@jit(inline=True)
 def _append(buf: NDArray[np.float64], k: int, r: float, c: float) -> NDArray[np.float64]:
     if k == buf.shape[0]:
         grown = np.empty((2 * k, 2), np.float64)
@@ -104,7 +105,7 @@ def _append(buf: NDArray[np.float64], k: int, r: float, c: float) -> NDArray[np.
     return buf
 
 
-@numba.njit(cache=True)
+@jit()
 def _walk(
     T: NDArray[np.float64],
     trav: NDArray[np.bool_],
@@ -148,7 +149,7 @@ def _walk(
     return buf, k + 1, True
 
 
-@numba.njit(cache=True)
+@jit("Tuple((f8[:, ::1], i8[::1], i8))(f8[:, ::1], b1[:, ::1], i8[:, ::1], i8, i8)")
 def _backtrack_many_kernel(
     T: NDArray[np.float64], trav: NDArray[np.bool_], starts: NDArray[np.int64], src_i: int, src_j: int
 ) -> tuple[NDArray[np.float64], NDArray[np.int64], int]:

@@ -25,7 +25,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TypeVar
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -33,6 +32,7 @@ from drivenav.config import SpeedFieldConfig
 from drivenav.directions.edt import IncrementalTransform, changed_rows, feature_transform, squared_edt
 from drivenav.directions.timing import elapsed_ms
 from drivenav.grid import GridSpec
+from drivenav.kernels import jit
 from drivenav.mapping.types import Frontier, MapSnapshot
 
 ScalarT = TypeVar("ScalarT", bound=np.generic)
@@ -112,7 +112,7 @@ def _clipped(grid: GridSpec, r0: int, c0: int, r1: int, c1: int) -> Window:
     return Window(r0, c0, r1, c1, GridSpec(res, origin, (r1 - r0, c1 - c0)))
 
 
-@numba.njit(cache=True)
+@jit("void(b1[:, ::1], f8[:, ::1], i4[:, ::1], i4[:, ::1], f8, f8, b1[::1], b1[:, ::1])")
 def _medial_axis_rows(
     inside: NDArray[np.bool_],
     sq: NDArray[np.float64],
@@ -205,7 +205,7 @@ def _squared_distance_table(
     return table
 
 
-@numba.njit(cache=True)
+@jit("void(b1[:, ::1], f8[:, ::1], f8[:, ::1], f8[::1], f8[::1], b1[::1], f8[:, ::1])")
 def _speed_rows(
     trav: NDArray[np.bool_],
     obstacle_sq: NDArray[np.float64],

@@ -26,13 +26,13 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
 from drivenav.directions.edt import edt
 from drivenav.envs import palette
 from drivenav.envs.scene import Material, Scene
+from drivenav.kernels import jit
 from drivenav.types import Pose, SimConfig
 
 Images = tuple[NDArray[np.uint8], NDArray[np.float32], NDArray[np.int32]]
@@ -169,7 +169,7 @@ def render_views(scene: Scene, pose: Pose, config: SimConfig) -> Images:
 # ----------------------------------------------------------------------------------------------- kernels
 
 
-@numba.njit(cache=True, inline="always")
+@jit(inline=True)
 def _structure_hit(
     structure: NDArray[np.uint8], ox: float, oy: float, res: float, px: float, py: float, dx: float, dy: float
 ) -> tuple[float, int, int]:
@@ -211,7 +211,7 @@ def _structure_hit(
             row += step_r
 
 
-@numba.njit(cache=True, inline="always")
+@jit(inline=True)
 def _box_interval(geom: NDArray[np.float64], px: float, py: float, dx: float, dy: float) -> tuple[float, float, int]:
     """Slab test of the ray against one box footprint in the box frame: ``(d_in, d_out, entry face)``.
 
@@ -240,7 +240,7 @@ def _box_interval(geom: NDArray[np.float64], px: float, py: float, dx: float, dy
     return lo, hi, face
 
 
-@numba.njit(cache=True, inline="always")
+@jit(inline=True)
 def _hash01(i: int, j: int) -> float:
     """A deterministic pseudo-random value in ``[0, 1)`` for an integer pair (texture variation)."""
     h = (i * 73856093) ^ (j * 19349663)
@@ -248,14 +248,14 @@ def _hash01(i: int, j: int) -> float:
     return float((h >> 8) & 1023) / 1024.0
 
 
-@numba.njit(cache=True, inline="always")
+@jit(inline=True)
 def _line_weight(frac: float, width: float) -> float:
     """1 on a periodic line of ``width`` (in units of the period) centred at integer positions, else 0."""
     f = frac - math.floor(frac)
     return 1.0 if (f < width * 0.5 or f > 1.0 - width * 0.5) else 0.0
 
 
-@numba.njit(cache=True, inline="always")
+@jit(inline=True)
 def _floor_shade(pattern: int, x: float, y: float, d: float, texel: float) -> float:
     """Brightness factor of the floor texture at world ``(x, y)``; line contrast fades with distance ``d``."""
     fade = min(1.0, max(0.0, 1.0 - (d - 2.5) / 3.0))
@@ -274,7 +274,7 @@ def _floor_shade(pattern: int, x: float, y: float, d: float, texel: float) -> fl
     return 1.0
 
 
-@numba.njit(cache=True, inline="always")
+@jit(inline=True)
 def _bilinear(grid: NDArray[np.float32], gx: float, gy: float) -> float:
     """Bilinear sample of a cell-centred grid at fractional cell coordinates (clamped to the grid)."""
     rows, cols = grid.shape
@@ -289,7 +289,7 @@ def _bilinear(grid: NDArray[np.float32], gx: float, gy: float) -> float:
     return float(top * (1.0 - ay) + bottom * ay)
 
 
-@numba.njit(cache=True, inline="always")
+@jit(inline=True)
 def _box_edge_distance(geom: NDArray[np.float64], face: int, x: float, y: float, z: float) -> float:
     """Distance from a point on a box face to the nearest edge of that face (for outlines)."""
     c, s = geom[2], geom[3]
@@ -306,7 +306,10 @@ def _box_edge_distance(geom: NDArray[np.float64], face: int, x: float, y: float,
     return float(min(eu, ev))
 
 
-@numba.njit(cache=True)
+@jit(
+    "void(u1[:, ::1], f8, f8, f8, f8, i2[:, ::1], f4[:, ::1], i8[::1], f4[:, ::1], f4[:, ::1], f8[:, ::1], i4[::1],"
+    " f4[:, ::1], f8, f8, f8, f8[::1], u1[:, :, ::1], f4[:, ::1], i4[:, ::1])",
+)
 def _render_kernel(
     structure: NDArray[np.uint8],
     ox: float,

@@ -6,26 +6,20 @@ All grids follow :mod:`drivenav.grid`: ``[row, col]``, row along world ``y``, co
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from typing import Any, TypeVar, cast
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
-_F = TypeVar("_F", bound=Callable[..., Any])
+from drivenav.kernels import jit
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
 Mask = NDArray[np.bool_]
 
 
-def _jit(fn: _F) -> _F:
-    """``numba.njit(cache=True)`` keeping the Python signature visible to the type checker."""
-    return cast(_F, numba.njit(cache=True)(fn))
-
-
-@_jit
+@jit(
+    "i8(f4[:, ::1], i8[::1], i8[::1], f8[::1], f8[::1], f8[::1], f8[::1], b1[:, ::1], b1[:, ::1], i8[:, ::1], f8[::1])",
+)
 def project_depth(
     depth: NDArray[np.float32],
     rows: I64,
@@ -91,7 +85,7 @@ def project_depth(
     return added
 
 
-@_jit
+@jit("void(b1[:, ::1], i8, i8, i8[:, ::1])")
 def stamp(mask: Mask, i: int, j: int, disk: I64) -> None:
     """Set ``mask`` at cell ``(i, j)`` plus each ``disk`` offset, skipping cells outside the grid."""
     n_rows, n_cols = mask.shape
@@ -102,7 +96,7 @@ def stamp(mask: Mask, i: int, j: int, disk: I64) -> None:
             mask[ii, jj] = True
 
 
-@_jit
+@jit("void(f8[::1], f8[::1], f8[::1], f8[::1], b1[:, ::1])")
 def cast_rays(origin: F64, angles: F64, ranges: F64, grid: F64, explored: Mask) -> None:
     """Mark the cells along 2-D rays from ``origin`` = (x, y) at world ``angles`` out to ``ranges`` (metres).
 
@@ -126,7 +120,7 @@ def cast_rays(origin: F64, angles: F64, ranges: F64, grid: F64, explored: Mask) 
                 explored[i, j] = True
 
 
-@_jit
+@jit("i8(b1[:, ::1], i8[:, ::1], i8[::1])")
 def pocket_size(passable: Mask, cells: I64, window: I64) -> int:
     """Count the ``passable`` cells 4-connected to the 4-neighbours of ``cells`` inside ``window``.
 
@@ -149,7 +143,7 @@ def pocket_size(passable: Mask, cells: I64, window: I64) -> int:
     return size
 
 
-@_jit
+@jit("i8[::1](b1[:, ::1], i8[:, ::1], i8[::1], i8)")
 def pocket_sizes(passable: Mask, cells: I64, starts: I64, margin: int) -> I64:
     """:func:`pocket_size` of every group ``cells[starts[k]:starts[k + 1]]``, each in its bounding box grown by
     ``margin`` cells and clipped to ``passable`` (one call for all the frontiers of a step)."""
@@ -166,7 +160,7 @@ def pocket_sizes(passable: Mask, cells: I64, starts: I64, margin: int) -> I64:
     return sizes
 
 
-@_jit
+@jit()
 def _flood(mask: Mask, visited: Mask, i: int, j: int, eight: bool, queue: I64) -> int:
     """Mark in ``visited`` the 4- or 8-connected component of ``mask`` holding the set, unvisited cell ``(i, j)``,
     breadth-first; its cells' flat indices end up in ``queue[:n]`` (one slot per cell), and ``n`` is returned."""
@@ -189,7 +183,7 @@ def _flood(mask: Mask, visited: Mask, i: int, j: int, eight: bool, queue: I64) -
     return tail
 
 
-@_jit
+@jit()
 def _fill_runs(mask: Mask, visited: Mask, i: int, j: int, eight: bool, stack: I64) -> tuple[int, I64]:
     """Mark in ``visited`` the 4- or 8-connected component of ``mask`` holding the set, unvisited cell ``(i, j)``,
     a whole row run at a time (scan-line fill): the number of cells marked and the (possibly grown) seed stack.
@@ -234,7 +228,7 @@ def _fill_runs(mask: Mask, visited: Mask, i: int, j: int, eight: bool, stack: I6
     return count, stack
 
 
-@_jit
+@jit("b1[:, ::1](b1[:, ::1], i8, i8, b1)")
 def flood_fill(mask: Mask, i: int, j: int, eight: bool) -> Mask:
     """The 4- or 8-connected component of ``mask`` holding cell ``(i, j)``, which must be set.
 
@@ -246,7 +240,7 @@ def flood_fill(mask: Mask, i: int, j: int, eight: bool) -> Mask:
     return visited
 
 
-@_jit
+@jit("Tuple((i8[:, ::1], i8[::1]))(b1[:, ::1])")
 def raster_components(mask: Mask) -> tuple[I64, I64]:
     """The 8-connected components of ``mask``, numbered in raster order of their first cell (as
     ``scipy.ndimage.label`` numbers them): every set cell as ``(row, col)`` grouped by component, each group in
