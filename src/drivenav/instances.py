@@ -13,16 +13,10 @@ from numpy.typing import NDArray
 from drivenav.kernels import jit
 
 MAX_TABLE_ID = 1 << 20  # larger (or negative) instance ids are counted by sorting, not with a table this long
+ID_DTYPES = ("i4", "i8", "u1", "u2", "u4", "i2")  # id image dtypes the counters are compiled for; others go as int64
 
 
-@jit(
-    "i8[::1](i4[::1], i8)",
-    "i8[::1](i8[::1], i8)",
-    "i8[::1](u1[::1], i8)",
-    "i8[::1](u2[::1], i8)",
-    "i8[::1](u4[::1], i8)",
-    "i8[::1](i2[::1], i8)",
-)
+@jit(*(f"i8[::1]({t}[::1], i8)" for t in ID_DTYPES))
 def _count_ids(flat: NDArray[np.integer], size: int) -> NDArray[np.int64]:
     counts = np.zeros(size, np.int64)
     for v in flat:
@@ -30,14 +24,7 @@ def _count_ids(flat: NDArray[np.integer], size: int) -> NDArray[np.int64]:
     return counts
 
 
-@jit(
-    "i8(i4[::1], b1[::1])",
-    "i8(i8[::1], b1[::1])",
-    "i8(u1[::1], b1[::1])",
-    "i8(u2[::1], b1[::1])",
-    "i8(u4[::1], b1[::1])",
-    "i8(i2[::1], b1[::1])",
-)
+@jit(*(f"i8({t}[::1], b1[::1])" for t in ID_DTYPES))
 def _count_listed(flat: NDArray[np.integer], listed: NDArray[np.bool_]) -> int:
     n = 0
     top = listed.size
@@ -52,7 +39,7 @@ def instance_areas(semantic: NDArray[np.integer]) -> dict[int, int]:
 
     Counted in one pass into a table when the ids are small non-negative integers, else by sorting.
     """
-    flat = np.ascontiguousarray(semantic).ravel()
+    flat = _flat_ids(semantic)
     top = int(flat.max()) if flat.size else -1
     if top >= 0 and int(flat.min()) >= 0 and top <= MAX_TABLE_ID:
         counts = _count_ids(flat, top + 1)
@@ -73,4 +60,10 @@ def count_pixels_of(semantic: NDArray[np.integer], ids: NDArray[np.integer]) -> 
         return int(np.count_nonzero(np.isin(semantic, wanted)))
     listed = np.zeros(int(wanted.max()) + 1, np.bool_)
     listed[wanted] = True
-    return int(_count_listed(np.ascontiguousarray(semantic).ravel(), listed))
+    return int(_count_listed(_flat_ids(semantic), listed))
+
+
+def _flat_ids(semantic: NDArray[np.integer]) -> NDArray[np.integer]:
+    """The image as one contiguous row of a dtype the counters are compiled for (others as int64: the same ids)."""
+    flat = np.ascontiguousarray(semantic).ravel()
+    return flat if flat.dtype.str[1:] in ID_DTYPES else flat.astype(np.int64)
