@@ -8,17 +8,19 @@ import signal
 import subprocess
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
 
 from conftest import REPO, run_cli
+from drivenav.agent.drivenav import DriveNavAgent
 from drivenav.envs.embedded import EmbeddedSpec
 from drivenav.envs.library import SceneLibrary
 from drivenav.eval.episodes import generate_episodes, load_episodes, save_episodes
 from drivenav.eval.executor import Executor
 from drivenav.eval.records import read_records
-from drivenav.eval.runner import RunSpec, evaluate
+from drivenav.eval.runner import RunSpec, _Worker, build_agent, evaluate, run_episode
 from drivenav.settings import load_settings
 
 RECORD_KEYS = {
@@ -193,3 +195,22 @@ def test_other_agents_run_to_the_end(tmp_path: Path, agent: str) -> None:
     assert result.returncode == 0, result.stderr
     [record] = _records(out)
     assert record["steps"] == 30 and record["stop_reason"] == "timeout" and record["success"] == 0
+
+
+def test_a_worker_releases_the_agents_maps_between_episodes_and_changes_no_record() -> None:
+    """The runner's worker asks the agent to end each episode (its maps go before the next scene loads): the records
+    are those of a fresh agent per episode."""
+    episodes = generate_episodes(SceneLibrary("procedural:2", 5), 3, seed=5)
+    spec = RunSpec(EmbeddedSpec("procedural:2", 5), load_settings("drive-nav", options={"run.seed": 5}))
+    worker = _Worker(spec)
+    for episode in episodes:
+        record, _ = worker.run(episode)
+        agent = worker.agent
+        assert isinstance(agent, DriveNavAgent)
+        assert agent._pipeline._builder._kept is None and not agent._views.has_view(0)
+        blank = build_agent(spec)
+        blank.reset(episode.object_category, 0)
+        assert isinstance(blank, DriveNavAgent)
+        assert agent._mapper.snapshot().obstacle.shape == blank._mapper.snapshot().obstacle.shape
+        fresh, _ = run_episode(worker.env, build_agent(spec), episode, spec.seed, spec.max_steps)
+        assert replace(record, stats=fresh.stats) == fresh  # model latencies aside

@@ -85,6 +85,13 @@ class Agent(ABC):
         self.step = 0
         self.step_timings = []
 
+    def end_episode(self) -> None:
+        """Release what only the finished episode needed (its trace and step timings here; subclasses add their maps),
+        once its record and trace are taken, so that the next scene loads beside as little as possible;
+        :meth:`reset` builds it again."""
+        self.trace = Trace()
+        self.step_timings = []
+
     @property
     def model_calls(self) -> int:
         """Reasoning-model (VLM) calls made this episode."""

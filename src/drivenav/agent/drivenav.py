@@ -181,6 +181,14 @@ class DriveNavAgent(Agent):
         self._stats = _Counts()
         self.trace.add(ScanStarted(0, self._scan_turns))
 
+    def end_episode(self) -> None:
+        """The mapper, the directions pipeline and the views start over: their grids and kept transforms (tens of MB
+        on a large floor plan) go before the next scene loads, not after (issue 14: worker memory)."""
+        super().end_episode()
+        self._mapper.reset()
+        self._pipeline.reset()
+        self._views = RepresentativeViews(self.paper.inspection.view_tolerance)
+
     @property
     def model_calls(self) -> int:
         return len(self._reasoner.calls)

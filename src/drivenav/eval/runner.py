@@ -224,7 +224,11 @@ class _Worker:
         self.agent = build_agent(spec)
 
     def run(self, episode: Episode) -> tuple[EpisodeRecord, Trace]:
-        return run_episode(self.env, self.agent, episode, self.spec.seed, self.spec.max_steps)
+        """One episode; then the agent releases its episode state before the next scene loads."""
+        try:
+            return run_episode(self.env, self.agent, episode, self.spec.seed, self.spec.max_steps)
+        finally:
+            self.agent.end_episode()
 
 
 _WORKER: _Worker | None = None
