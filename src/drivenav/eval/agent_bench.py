@@ -8,8 +8,6 @@ from __future__ import annotations
 
 from typing import Any
 
-import numba
-
 from drivenav.agent.registry import make_agent
 from drivenav.envs.embedded import EmbeddedEnv
 from drivenav.envs.library import SceneLibrary
@@ -23,7 +21,6 @@ def bench_agent(
     episodes: int = 4, max_steps: int = 150, seed: int = 0, agent_name: str = "drive-nav"
 ) -> dict[str, Any]:
     """Run a few embedded episodes and report per-step compute and the per-module breakdown."""
-    numba.set_num_threads(1)
     settings = load_settings(agent_name)
     sim = settings.sim
     library = SceneLibrary(f"procedural:{episodes}", seed)
