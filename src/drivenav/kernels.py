@@ -240,16 +240,17 @@ def _arg_spec(numba_type: Any) -> dict[str, Any]:
     raise TypeError(f"a kernel argument of type {numba_type} cannot be checked")
 
 
-def build(output_dir: Path = _PACKAGE) -> Path:
-    """Compile every declared kernel for its signatures into :data:`COMPILED` in ``output_dir`` and write its index;
-    returns the index's path. Runs the kernel modules under numba's JIT (``DRIVENAV_KERNELS=jit``)."""
+def build() -> Path:
+    """Compile every declared kernel for its signatures into :data:`COMPILED` beside this module and write its index
+    (where :func:`compiled_build` reads them); returns the index's path. Runs the kernel modules under numba's JIT
+    (``DRIVENAV_KERNELS=jit``)."""
     os.environ[MODE_VARIABLE] = "jit"
     compiled_build.cache_clear()
     normalize_signature: Any = importlib.import_module("numba.core.sigutils").normalize_signature
     for module in MODULES:
         importlib.import_module(module)
     cc: Any = importlib.import_module("numba.pycc").CC(COMPILED)
-    cc.output_dir = str(output_dir)
+    cc.output_dir = str(_PACKAGE)
     cc.target_cpu = "host"  # as numba's JIT compiles: this CPU's instructions (part of the build key)
     index: dict[str, list[dict[str, Any]]] = {}
     for n, declared in enumerate(sorted(DECLARED.values(), key=lambda d: d.name)):
@@ -259,9 +260,8 @@ def build(output_dir: Path = _PACKAGE) -> Path:
             cc.export(export, signature)(_trampoline(declared.dispatcher, len(args)))
             index.setdefault(declared.name, []).append({"export": export, "args": [_arg_spec(a) for a in args]})
     cc.compile()
-    path = output_dir / f"{COMPILED}.json"
-    path.write_text(json.dumps({"key": build_key(), "kernels": index}, indent=1) + "\n", encoding="utf-8")
-    return path
+    _INDEX.write_text(json.dumps({"key": build_key(), "kernels": index}, indent=1) + "\n", encoding="utf-8")
+    return _INDEX
 
 
 def _trampoline(dispatcher: Any, arity: int) -> Callable[..., Any]:

@@ -11,12 +11,10 @@ vocabulary and matches the model).
 from __future__ import annotations
 
 import sys
-from importlib import resources
-from pathlib import Path
 
 from drivenav.envs.vocabulary import VOCABULARY
 from drivenav.semantics.embedded import normalize_phrase
-from drivenav.semantics.embedding import PACKAGED_TABLE, TextEmbedder, packaged_model_dir, write_table
+from drivenav.semantics.embedding import TextEmbedder, packaged_model_dir, packaged_table, write_table
 
 
 def vocabulary_texts() -> list[str]:
@@ -27,7 +25,7 @@ def vocabulary_texts() -> list[str]:
 
 def main() -> int:
     """Rewrite the packaged table from the packaged model (every vector from an encoder pass of its own)."""
-    path = Path(str(resources.files("drivenav") / PACKAGED_TABLE))
+    path = packaged_table()
     texts = vocabulary_texts()
     write_table(path, texts, TextEmbedder(packaged_model_dir()))
     print(f"{path}: {len(texts)} texts")

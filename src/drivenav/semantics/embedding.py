@@ -276,13 +276,18 @@ class TextEmbedder:
         return self._encoder.encode(text)
 
 
+def packaged_table() -> Path:
+    """Where :data:`PACKAGED_TABLE` lies in the installed package."""
+    return Path(str(resources.files("drivenav") / PACKAGED_TABLE))
+
+
 @cache
 def packaged_vectors() -> dict[str, FloatArray]:
     """The read-only vectors of :data:`PACKAGED_TABLE` by text (none if the file is absent)."""
-    path = resources.files("drivenav") / PACKAGED_TABLE
+    path = packaged_table()
     if not path.is_file():
         return {}
-    with path.open("rb") as file, np.load(file) as table:
+    with np.load(path) as table:
         texts, vectors = table["texts"], np.asarray(table["vectors"], dtype=np.float32)
     vectors.setflags(write=False)
     return {str(text): vector for text, vector in zip(texts, vectors, strict=True)}
