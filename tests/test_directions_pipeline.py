@@ -213,6 +213,10 @@ def test_bench_reports_the_contract_fields() -> None:
     assert report["median_ms"] > 0.0
     assert report["skfmm_ms"] > 0.0
     assert report["ratio_vs_skfmm"] == report["breakdown_ms"]["fmm"] / report["skfmm_ms"]
+    # The early-stopping solve settles part of what scikit-fmm solves (the whole region reachable from the robot).
+    assert 0 < report["fmm_cells"] <= report["skfmm_cells"] <= report["explored_cells"]
+    assert report["fmm_ns_per_cell"] == pytest.approx(report["breakdown_ms"]["fmm"] * 1e6 / report["fmm_cells"])
+    assert report["skfmm_ns_per_cell"] == pytest.approx(report["skfmm_ms"] * 1e6 / report["skfmm_cells"])
     explored = report["mostly_explored"]
     assert explored["explored_cells"] > 1.5 * report["explored_cells"]
     assert explored["median_ms"] > 0.0 and explored["directions"] >= 1

@@ -6,20 +6,22 @@ at doorways and in shadows; in the ``mostly_explored`` case the sensor also look
 solve covers most of the house and few frontiers are left. Each timed run recomputes everything from the map (no
 caching across runs). The same grid and speed field are also solved with scikit-fmm's ``travel_time`` (the solver
 of SemExp, L3MVN and home-robot), which solves the whole reachable region: ``ratio_vs_skfmm`` is our FMM stage's
-median over its median.
+median over its median. ``fmm_cells`` / ``skfmm_cells`` are the cells each solve settles and ``*_ns_per_cell`` their
+cost per settled cell, so the ratio reads as the product of a work ratio and a per-cell cost ratio.
 """
 
 from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from drivenav.config import DriveNavConfig
-from drivenav.directions.pipeline import TIMING_KEYS, DirectionPipeline, source_cell
+from drivenav.directions.pipeline import TIMING_KEYS, DirectionPipeline, arrival_times, source_cell
 from drivenav.directions.speed import build_speed_field
 from drivenav.directions.synthetic import extract_frontiers, make_snapshot, rect
 from drivenav.directions.types import DirectionResult
@@ -132,10 +134,20 @@ def _stage_medians(runs: list[dict[str, float]]) -> dict[str, float]:
     return {key: float(np.median([r[key] for r in runs])) for key in TIMING_KEYS if key != "total"}
 
 
-def skfmm_ms(
+@dataclass(frozen=True)
+class SolverCells:
+    """The cells each solver settles on the main case: ``fmm`` by our early-stopping solve (finite ``T``), ``skfmm``
+    by scikit-fmm, which solves the whole region it can reach from the robot."""
+
+    fmm: int
+    skfmm: int
+
+
+def skfmm_reference(
     scene: tuple[MapSnapshot, list[Frontier], tuple[float, float]], config: DriveNavConfig, repeats: int
-) -> float:
-    """Median ms of scikit-fmm's ``travel_time`` from the robot's cell on the pipeline's own grid and speed field."""
+) -> tuple[float, SolverCells]:
+    """Median ms of scikit-fmm's ``travel_time`` from the robot's cell on the pipeline's own grid and speed field, and
+    the cells both solvers settle there."""
     import skfmm
 
     snapshot, frontiers, robot = scene
@@ -151,9 +163,11 @@ def skfmm_ms(
     times = []
     for _ in range(repeats):
         start = time.perf_counter()
-        skfmm.travel_time(phi_masked, speed_masked, dx=field.window.grid.resolution)
+        reference = skfmm.travel_time(phi_masked, speed_masked, dx=field.window.grid.resolution)
         times.append((time.perf_counter() - start) * 1e3)
-    return float(np.median(times))
+    ours = arrival_times(field, frontiers, robot, config.directions)
+    cells = SolverCells(int(np.isfinite(ours).sum()), int(np.ma.count(reference)))
+    return float(np.median(times)), cells
 
 
 def bench_directions(repeats: int = 50, config: DriveNavConfig | None = None) -> dict[str, Any]:
@@ -161,7 +175,8 @@ def bench_directions(repeats: int = 50, config: DriveNavConfig | None = None) ->
 
     Returns the map size, frontier and direction counts, the median total in ms and the median of each stage, the
     same for the ``mostly_explored`` map (its stages in its own ``breakdown_ms``), and scikit-fmm's time on the main
-    case's grid and speed field.
+    case's grid and speed field, with the cells each solver settles and the time per settled cell (our FMM stage's
+    median over its cells).
     """
     config = config or DriveNavConfig()
     scene = bench_scene()
@@ -170,7 +185,7 @@ def bench_directions(repeats: int = 50, config: DriveNavConfig | None = None) ->
     breakdown = _stage_medians(runs)
     explored_scene = bench_scene(mostly_explored=True)
     explored_result, explored_wall, explored_runs = _time_pipeline(DirectionPipeline(config), explored_scene, repeats)
-    reference = skfmm_ms(scene, config, max(3, repeats // 5))
+    reference, cells = skfmm_reference(scene, config, max(3, repeats // 5))
     return {
         "map_cells": int(snapshot.obstacle.size),
         "map_shape": [int(s) for s in snapshot.obstacle.shape],
@@ -185,6 +200,10 @@ def bench_directions(repeats: int = 50, config: DriveNavConfig | None = None) ->
         "breakdown_ms": breakdown,
         "skfmm_ms": reference,
         "ratio_vs_skfmm": breakdown["fmm"] / reference,
+        "fmm_cells": cells.fmm,
+        "skfmm_cells": cells.skfmm,
+        "fmm_ns_per_cell": breakdown["fmm"] * 1e6 / max(cells.fmm, 1),
+        "skfmm_ns_per_cell": reference * 1e6 / max(cells.skfmm, 1),
         "mostly_explored": {
             "explored_cells": int(explored_scene[0].explored.sum()),
             "frontiers": len(explored_scene[1]),

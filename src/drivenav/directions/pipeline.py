@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.config import DriveNavConfig
+from drivenav.config import DirectionConfig, DriveNavConfig
 from drivenav.directions.bearings import Point, bearing_to, circle_crossing
 from drivenav.directions.clustering import build_clusters
 from drivenav.directions.fmm import travel_time
@@ -172,7 +172,7 @@ class DirectionPipeline:
         source = source_cell(field, robot_xy, cfg.source_snap_radius)
         cells = _frontier_cells(field, frontiers)
         goal_cells = [nearest_traversable(field, goal, cfg.goal_snap_radius) for goal in goals]
-        T = self._solve(field, source, cells, [g for g in goal_cells if g is not None])
+        T = _solve(field, source, cells, [g for g in goal_cells if g is not None], cfg.margin_cells)
         timings["fmm"] = elapsed_ms(t)
 
         t = time.perf_counter()
@@ -189,28 +189,6 @@ class DirectionPipeline:
         timings["clustering"] = elapsed_ms(t)
         paths_by_id = {p.frontier_id: p for p in paths}
         return _Solve(robot_xy, goals, tuple(frontiers), paths_by_id, unreachable, goal_paths, tuple(clusters))
-
-    def _solve(
-        self,
-        field: SpeedField,
-        source: tuple[int, int] | None,
-        cells: Sequence[NDArray[np.int64]],
-        goal_cells: Sequence[tuple[int, int]],
-    ) -> NDArray[np.float64]:
-        """One FMM solve from ``source`` that stops shortly after every frontier with cells and every goal
-        cell is reached."""
-        targets = [c for c in cells if c.size] + [np.array([g], dtype=np.int64) for g in goal_cells]
-        if source is None or not targets:
-            return np.full(field.speed.shape, np.inf)
-        labels = _target_labels(field.speed.shape, targets)
-        return travel_time(
-            field.speed,
-            field.window.grid.resolution,
-            np.array([source], dtype=np.int64),
-            np.zeros(1),
-            target_label=labels,
-            margin_cells=self._config.directions.margin_cells,
-        )
 
     def _frontier_paths(
         self,
@@ -270,6 +248,38 @@ class DirectionPipeline:
             bearing_to(robot, point),
             farthest,
         )
+
+
+def _solve(
+    field: SpeedField,
+    source: tuple[int, int] | None,
+    cells: Sequence[NDArray[np.int64]],
+    goal_cells: Sequence[tuple[int, int]],
+    margin_cells: float,
+) -> NDArray[np.float64]:
+    """One FMM solve from ``source`` that stops shortly after every frontier with cells and every goal
+    cell is reached (``margin_cells``: ``DirectionConfig.margin_cells``)."""
+    targets = [c for c in cells if c.size] + [np.array([g], dtype=np.int64) for g in goal_cells]
+    if source is None or not targets:
+        return np.full(field.speed.shape, np.inf)
+    labels = _target_labels(field.speed.shape, targets)
+    return travel_time(
+        field.speed,
+        field.window.grid.resolution,
+        np.array([source], dtype=np.int64),
+        np.zeros(1),
+        target_label=labels,
+        margin_cells=margin_cells,
+    )
+
+
+def arrival_times(
+    field: SpeedField, frontiers: Sequence[Frontier], robot_xy: Sequence[float], config: DirectionConfig
+) -> NDArray[np.float64]:
+    """The arrival times ``T`` of :meth:`DirectionPipeline.update`'s solve for these frontiers and no goals: ``inf``
+    on the cells the early-stopping marching did not settle (``drivenav bench directions`` counts them)."""
+    source = source_cell(field, robot_xy, config.source_snap_radius)
+    return _solve(field, source, _frontier_cells(field, frontiers), [], config.margin_cells)
 
 
 def _target_labels(shape: tuple[int, int], targets: Sequence[NDArray[np.int64]]) -> NDArray[np.int32]:
