@@ -214,3 +214,17 @@ def test_a_worker_releases_the_agents_maps_between_episodes_and_changes_no_recor
         assert agent._mapper.snapshot().obstacle.shape == blank._mapper.snapshot().obstacle.shape
         fresh, _ = run_episode(worker.env, build_agent(spec), episode, spec.seed, spec.max_steps)
         assert replace(record, stats=fresh.stats) == fresh  # model latencies aside
+
+
+def test_a_world_that_fails_the_workers_first_reset_gives_an_error_record(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The agent was never reset, yet ending the episode releases nothing it lacks: the failure is recorded as an
+    error, not lost to the worker."""
+    [episode] = generate_episodes(SceneLibrary("procedural:1", 5), 1, seed=5)
+    worker = _Worker(RunSpec(EmbeddedSpec("procedural:1", 5), load_settings("drive-nav", options={"run.seed": 5})))
+
+    def broken_reset(_: object) -> None:
+        raise RuntimeError("the world is gone")
+
+    monkeypatch.setattr(worker.env, "reset", broken_reset)
+    record, _ = worker.run(episode)
+    assert record.stop_reason == "error" and record.steps == 0

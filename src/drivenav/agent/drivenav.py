@@ -136,15 +136,14 @@ class DriveNavAgent(Agent):
         self._reasoner_factory = reasoner_factory
         self._grounder_factory = grounder_factory
         self._turn = math.radians(sim.turn_angle_deg)
+        self._start_maps()
 
     # ----------------------------------------------------------------- episode set-up
 
     def reset(self, goal_text: str, seed: int, truth: GroundTruth | None = None) -> None:
         super().reset(goal_text, seed, truth)
         paper = self.paper
-        self._mapper = OccupancyMapper(MappingConfig.from_sim(self.sim, self.mapping))
-        self._pipeline = DirectionPipeline(paper)
-        self._views = RepresentativeViews(paper.inspection.view_tolerance)
+        self._start_maps()
         self._planner = LocalPlanner.from_config(self.sim, self.config.planner)
         self._reasoner = self._reasoner_factory()
         self._reasoner.begin_episode(goal_text, truth)
@@ -183,10 +182,15 @@ class DriveNavAgent(Agent):
 
     def end_episode(self) -> None:
         """The mapper, the directions pipeline and the views start over: their grids and kept transforms (tens of MB
-        on a large floor plan) go before the next scene loads, not after (issue 14: worker memory)."""
+        on a large floor plan) go before the next scene loads, not after (issue 14: worker memory). Safe before any
+        :meth:`reset` (a world that failed to reset the worker's first episode)."""
         super().end_episode()
-        self._mapper.reset()
-        self._pipeline.reset()
+        self._start_maps()
+
+    def _start_maps(self) -> None:
+        """An empty mapper, directions pipeline and set of representative views."""
+        self._mapper = OccupancyMapper(MappingConfig.from_sim(self.sim, self.mapping))
+        self._pipeline = DirectionPipeline(self.paper)
         self._views = RepresentativeViews(self.paper.inspection.view_tolerance)
 
     @property
