@@ -1,4 +1,4 @@
-"""Shared fixtures: the shared maps folder and a command-line runner."""
+"""Shared fixtures: the packaged floor plans and a command-line runner."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from drivenav.envs.rosmap import default_shared_maps_dir
+from drivenav.envs.rosmap import packaged_maps_dir
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -32,10 +32,8 @@ collect_ignore = [] if _has_habitat_lab() else ["habitat"]
 
 @pytest.fixture
 def maps_dir() -> Path:
-    found = default_shared_maps_dir()
-    if found is None:
-        pytest.skip("shared/data/maps not found")
-    return found
+    """The nine real floor plans shipped with drivenav (the ``--scenes`` part ``maps``)."""
+    return packaged_maps_dir()
 
 
 def run_cli(*args: str, timeout: float = 600.0) -> subprocess.CompletedProcess[str]:

@@ -11,8 +11,9 @@ import pytest
 
 from drivenav.cli import main
 from drivenav.envs.library import SceneLibrary
+from drivenav.envs.rosmap import is_map_scene_dir
 from drivenav.eval.ablation_report import ordering_differences
-from drivenav.eval.benchmark import BENCHMARK_V1, BenchmarkDefinition, generate_benchmark, resolve_scenes
+from drivenav.eval.benchmark import BENCHMARK_V1, BenchmarkDefinition, generate_benchmark
 from drivenav.eval.episodes import save_episodes, validate_for_scenes
 from drivenav.eval.stats import bootstrap_mean_interval, wilson_interval
 from drivenav.methods import ALL_METHODS
@@ -162,12 +163,15 @@ def test_benchmark_generate_command_repeats_bytes(tmp_path: Path, maps_dir: Path
     assert outputs[0].read_bytes() == outputs[1].read_bytes()
 
 
-def test_v1_covers_40_houses_and_every_floor_plan(maps_dir: Path) -> None:
-    library = SceneLibrary(resolve_scenes(BENCHMARK_V1.scenes), BENCHMARK_V1.seed)
+def test_v1_covers_40_houses_and_every_packaged_floor_plan(maps_dir: Path) -> None:
+    library = SceneLibrary(BENCHMARK_V1.scenes, BENCHMARK_V1.seed)
     houses = [s for s in library.scene_ids if s.startswith("procedural/")]
     assert len(houses) == 40
-    assert set(library.scene_ids) - set(houses) == {d.name for d in maps_dir.iterdir() if d.is_dir()}
+    plans = {d.name for d in maps_dir.iterdir() if is_map_scene_dir(d)}
+    assert set(library.scene_ids) - set(houses) == plans and len(plans) == 9
     assert BENCHMARK_V1.episodes >= 200
+    # the frozen episodes name the packaged plans by the ids they had when v1 was published
+    assert {e.scene_id for e in generate_benchmark(BENCHMARK_V1)} == set(library.scene_ids)
 
 
 def test_benchmark_v1_is_frozen_as_published(tmp_path: Path) -> None:
@@ -176,5 +180,5 @@ def test_benchmark_v1_is_frozen_as_published(tmp_path: Path) -> None:
     assert hashlib.sha256(path.read_bytes()).hexdigest().startswith("3de8fb637e73")  # docs/benchmarks.md
     first = generate_benchmark(BENCHMARK_V1, 12)
     assert [e.episode_id for e in first] == [str(i) for i in range(12)]
-    library = SceneLibrary(resolve_scenes(BENCHMARK_V1.scenes), BENCHMARK_V1.seed)
+    library = SceneLibrary(BENCHMARK_V1.scenes, BENCHMARK_V1.seed)
     validate_for_scenes(first, library, path, SimConfig())  # still valid in today's worlds

@@ -8,11 +8,12 @@ from pathlib import Path
 import pytest
 
 from drivenav.envs.library import SceneLibrary, procedural_scene_id
+from drivenav.envs.rosmap import is_map_scene_dir
 from drivenav.errors import InputError
 
 
 def _map_names(maps_dir: Path) -> list[str]:
-    return sorted(child.name for child in maps_dir.iterdir() if child.is_dir())
+    return sorted(child.name for child in maps_dir.iterdir() if is_map_scene_dir(child))
 
 
 def test_single_procedural_part_is_unchanged() -> None:
@@ -52,3 +53,22 @@ def test_two_scenes_with_one_name_are_refused(maps_dir: Path, tmp_path: Path) ->
         shutil.copytree(maps_dir / "mit_building_31", tmp_path / folder / "mit_building_31")
     with pytest.raises(InputError, match="distinct names"):
         SceneLibrary(f"{tmp_path / 'a'},{tmp_path / 'b'}")
+
+
+def test_maps_part_names_the_packaged_floor_plans_by_name(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)  # wherever the command runs, with no folder of that name there
+    library = SceneLibrary("procedural:1,maps")
+    plans = library.scene_ids[1:]
+    assert plans == sorted(plans) and len(plans) == 9 and "uos_avz" in plans
+    assert library.load("aws_small_house").scene_id == "aws_small_house"
+    (tmp_path / "maps").mkdir()  # a folder of one's own named maps is ./maps
+    with pytest.raises(InputError, match="no map found"):
+        SceneLibrary("./maps")
+
+
+def test_packaged_floor_plans_ship_their_sources_and_licences(maps_dir: Path) -> None:
+    assert (maps_dir / "SOURCES.md").is_file()
+    licences = {path.name for path in (maps_dir / "LICENSES").iterdir()}
+    for spdx in ("BSD-3-Clause", "MIT-racecar", "MIT-0", "Apache-2.0"):
+        assert any(name.startswith(spdx) for name in licences), spdx
+    assert all(is_map_scene_dir(maps_dir / name) for name in SceneLibrary("maps").scene_ids)

@@ -18,11 +18,11 @@ from scipy import ndimage
 
 from drivenav.envs import placement
 from drivenav.envs.rosmap import (
-    default_shared_maps_dir,
     find_map_yaml,
     is_map_scene_dir,
     load_map_scene,
     load_structure,
+    packaged_maps_dir,
     read_map_image,
     read_map_yaml,
     read_objects_json,
@@ -545,9 +545,9 @@ def test_real_placement_puts_objects_in_free_space(tmp_path: Path) -> None:
     assert (scene.structure[cells[:, 0], cells[:, 1]] == F).all()
 
 
-# ------------------------ shared maps
+# ------------------------ the packaged floor plans
 
-SHARED_MAPS = default_shared_maps_dir()
+PACKAGED = packaged_maps_dir()
 MAP_NAMES = [
     "aws_small_house",
     "ipa_apartment",
@@ -562,18 +562,16 @@ MAP_NAMES = [
 
 
 @pytest.fixture(params=MAP_NAMES)
-def shared_map(request: pytest.FixtureRequest) -> Path:
-    if SHARED_MAPS is None or not (SHARED_MAPS / request.param).is_dir():
-        pytest.skip("shared floor plans not found (set DRIVENAV_SHARED)")
-    return SHARED_MAPS / str(request.param)
+def packaged_map(request: pytest.FixtureRequest) -> Path:
+    return PACKAGED / str(request.param)
 
 
-def test_shared_map_loads_with_sensible_navigable_space(shared_map: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_packaged_map_loads_with_sensible_navigable_space(packaged_map: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     no_placement(monkeypatch)
-    assert is_map_scene_dir(shared_map)
-    scene = load_map_scene(shared_map)
-    assert scene.scene_id == shared_map.name and scene.grid.resolution == 0.05
-    meta = read_map_yaml(find_map_yaml(shared_map))
+    assert is_map_scene_dir(packaged_map)
+    scene = load_map_scene(packaged_map)
+    assert scene.scene_id == packaged_map.name and scene.grid.resolution == 0.05
+    meta = read_map_yaml(find_map_yaml(packaged_map))
     assert scene.grid.origin == meta.origin
     structure = scene.structure
     for edge in (structure[0], structure[-1], structure[:, 0], structure[:, -1]):
@@ -587,13 +585,11 @@ def test_shared_map_loads_with_sensible_navigable_space(shared_map: Path, monkey
     assert sizes.max() >= 0.8 * sizes.sum()
 
 
-def test_shared_native_resolution_map_matches_the_image(monkeypatch: pytest.MonkeyPatch) -> None:
-    if SHARED_MAPS is None:
-        pytest.skip("shared floor plans not found (set DRIVENAV_SHARED)")
-    grey = np.asarray(Image.open(SHARED_MAPS / "uos_avz" / "avz.pgm"), dtype=np.float64)
+def test_packaged_native_resolution_map_matches_the_image(monkeypatch: pytest.MonkeyPatch) -> None:
+    grey = np.asarray(Image.open(PACKAGED / "uos_avz" / "avz.pgm"), dtype=np.float64)
     occ = (255.0 - grey) / 255.0
     expected = np.where(occ > 0.65, W, np.where(occ < 0.196, F, U))
-    _, structure = load_structure(SHARED_MAPS / "uos_avz")
+    _, structure = load_structure(PACKAGED / "uos_avz")
     np.testing.assert_array_equal(structure[::-1][1:-1, 1:-1], expected[1:-1, 1:-1])
 
 
@@ -606,22 +602,11 @@ def test_shared_native_resolution_map_matches_the_image(monkeypatch: pytest.Monk
         ("willow_garage", (1216, 1132)),
     ],
 )
-def test_shared_resampled_map_shapes(name: str, shape: tuple[int, int]) -> None:
-    if SHARED_MAPS is None:
-        pytest.skip("shared floor plans not found (set DRIVENAV_SHARED)")
-    assert load_structure(SHARED_MAPS / name)[1].shape == shape
+def test_packaged_resampled_map_shapes(name: str, shape: tuple[int, int]) -> None:
+    assert load_structure(PACKAGED / name)[1].shape == shape
 
 
-def test_shared_rgba_map_ignores_alpha() -> None:
-    if SHARED_MAPS is None:
-        pytest.skip("shared floor plans not found (set DRIVENAV_SHARED)")
-    _, structure = load_structure(SHARED_MAPS / "uos_cic")
+def test_packaged_rgba_map_ignores_alpha() -> None:
+    _, structure = load_structure(PACKAGED / "uos_cic")
     # RGB-only: about 62 % unknown (map_server's alpha averaging would give 0.1 %)
     assert 0.55 < (structure == U).mean() < 0.7
-
-
-def test_shared_maps_dir_follows_the_environment(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setenv("DRIVENAV_SHARED", str(tmp_path))
-    assert default_shared_maps_dir() is None
-    (tmp_path / "data" / "maps").mkdir(parents=True)
-    assert default_shared_maps_dir() == tmp_path / "data" / "maps"

@@ -649,7 +649,7 @@ def _cmd_bench_agent(args: argparse.Namespace) -> int:
 
 def _cmd_bench_ablations(args: argparse.Namespace) -> int:
     from drivenav.eval.ablations import parse_methods, run_ablations
-    from drivenav.eval.benchmark import BENCHMARK_V1, generate_benchmark, resolve_scenes
+    from drivenav.eval.benchmark import BENCHMARK_V1, generate_benchmark
     from drivenav.eval.report import shown
 
     methods = parse_methods(args.methods)
@@ -657,7 +657,6 @@ def _cmd_bench_ablations(args: argparse.Namespace) -> int:
     if args.pictures < 0:
         raise InputError("command line", "--pictures", "a number of episodes >= 0", args.pictures)
     benchmark_v1 = (args.scenes, args.seed) == (BENCHMARK_V1.scenes, BENCHMARK_V1.seed) and not _is_habitat(args)
-    args.scenes = resolve_scenes(args.scenes)
     specs = [_run_spec(args, method) for method in methods]
     if benchmark_v1 and str(args.episodes).isdigit():  # v1's frozen episodes, not today's generator's
         episodes = generate_benchmark(BENCHMARK_V1, _positive(int(args.episodes), "--episodes"))

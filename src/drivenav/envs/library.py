@@ -1,9 +1,11 @@
 """Scene sets named on the command line (``--scenes SPEC``) and loading scenes by id.
 
-SPEC is one part or several joined by commas (``procedural:40,../shared/data/maps``). A part is ``procedural``
-(procedural houses; ``procedural:K`` picks K houses for episode generation), a scene directory (a ROS map YAML plus
-optional objects.json), or a folder of scene directories. Procedural scene ids (``procedural/house_00042``) carry
-their seed, so any of them can be rebuilt from the id alone; a map scene's id is its directory name.
+SPEC is one part or several joined by commas (``procedural:40,maps``). A part is ``procedural`` (procedural
+houses; ``procedural:K`` picks K houses for episode generation), ``maps`` (the nine real floor plans shipped with
+drivenav, :func:`drivenav.envs.rosmap.packaged_maps_dir`), a scene directory (a ROS map YAML plus optional
+objects.json), or a folder of scene directories (a folder of your own named ``maps`` is ``./maps``). Procedural scene
+ids (``procedural/house_00042``) carry their seed, so any of them can be rebuilt from the id alone; a map scene's id
+is its directory name (the packaged plans' too: ``uos_avz``).
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from drivenav.errors import InputError
 
 PROCEDURAL_ID = re.compile(r"^procedural/house_(\d+)$")
 DEFAULT_PROCEDURAL_HOUSES = 8
+PACKAGED_MAPS_PART = "maps"  # the SPEC part naming the floor plans shipped with drivenav
 
 
 def procedural_scene_id(seed: int) -> str:
@@ -91,11 +94,13 @@ def _parse_house_count(part: str) -> int:
 
 def _find_map_dirs(part: str) -> dict[str, Path]:
     """The map scenes of one SPEC part by id, in name order."""
-    from drivenav.envs.rosmap import find_map_yaml, is_map_scene_dir, read_map_yaml
+    from drivenav.envs.rosmap import find_map_yaml, is_map_scene_dir, packaged_maps_dir, read_map_yaml
 
-    path = Path(part)
+    path = packaged_maps_dir() if part == PACKAGED_MAPS_PART else Path(part)
     if not path.exists():
-        raise InputError(path, "--scenes", "'procedural', a scene directory, or a folder of scene directories", part)
+        raise InputError(
+            path, "--scenes", "'procedural', 'maps', a scene directory, or a folder of scene directories", part
+        )
     path = path.resolve()
     if path.is_file() or is_map_scene_dir(path) or any(path.glob("*.yaml")):
         read_map_yaml(find_map_yaml(path))  # a broken map names its own file and field

@@ -31,9 +31,9 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import zlib
 from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -48,6 +48,7 @@ from drivenav.grid import GridSpec
 from drivenav.validation import Fields, read_json, read_yaml
 
 OBJECTS_FILE = "objects.json"
+PACKAGED_MAPS = "data/maps"  # under the drivenav package
 MAP_MODES = ("trinary", "scale", "raw")
 IMAGE_MODES = ("1", "L", "LA", "P", "RGB", "RGBA", "I;16", "I;16L", "I;16B", "I;16N", "I")
 """Pillow image modes the loader accepts; any other mode (F, CMYK, PA, LAB, YCbCr, ...) is an input error."""
@@ -84,15 +85,10 @@ class MapYaml:
 # Locating maps
 
 
-def default_shared_maps_dir() -> Path | None:
-    """The shared folder of test floor plans, ``<shared>/data/maps``, or None if it does not exist.
-
-    ``<shared>`` is ``$DRIVENAV_SHARED`` if set, else the ``shared`` folder beside the repository root.
-    """
-    env = os.environ.get("DRIVENAV_SHARED")
-    shared = Path(env) if env else Path(__file__).resolve().parents[3].parent / "shared"
-    maps = shared / "data" / "maps"
-    return maps if maps.is_dir() else None
+def packaged_maps_dir() -> Path:
+    """The nine real floor plans shipped with drivenav (``drivenav/data/maps``, the ``--scenes`` part ``maps``),
+    byte for byte from their sources, with ``SOURCES.md`` and each source's licence under ``LICENSES/``."""
+    return Path(str(resources.files("drivenav") / PACKAGED_MAPS))
 
 
 def is_map_scene_dir(path: str | Path) -> bool:

@@ -7,7 +7,8 @@ driver in completion order and the driver alone writes the run directory (kill-s
 
 ``address`` None starts a private local Ray instance for this run (``workers`` CPUs) and stops it afterwards;
 otherwise it is passed to ``ray.init`` (``auto``, ``HOST:6379`` or ``ray://HOST:10001``). Every node of a
-cluster needs drivenav installed and the scenes at the same paths (``$DRIVENAV_SHARED`` for the floor plans).
+cluster needs drivenav installed and the scenes at the same paths (the packaged floor plans, ``maps``, travel
+with drivenav).
 """
 
 from __future__ import annotations
