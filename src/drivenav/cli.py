@@ -15,7 +15,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from drivenav.errors import InputError, WorkerDiedError
+from drivenav.errors import InputError, RunStoppedError, WorkerDiedError
 from drivenav.threads import limit_blas_threads
 
 if TYPE_CHECKING:
@@ -732,7 +732,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except InputError as error:
         print(f"drivenav: error: {error}", file=sys.stderr)
         return 2
-    except WorkerDiedError as error:
+    except (WorkerDiedError, RunStoppedError) as error:
         print(f"drivenav: error: {error}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:

@@ -44,3 +44,10 @@ class WorkerDiedError(Exception):
             f"the worker running episode {', '.join(episodes) or '(unknown)'} died{codes}; "
             "finished episodes are saved, rerun the same command to resume"
         )
+
+
+class RunStoppedError(Exception):
+    """A run that cannot go on: its world or agent cannot start, or its first episodes all failed alike.
+
+    The command line prints the message on one line and exits with status 1; finished episodes stay saved.
+    """

@@ -29,7 +29,7 @@ from drivenav.agent.base import Agent, DecisionStats, ModelStats
 from drivenav.agent.registry import make_agent
 from drivenav.envs.base import Env, EnvSpec, EpisodeMeasures
 from drivenav.envs.episode import Episode
-from drivenav.errors import InputError
+from drivenav.errors import InputError, RunStoppedError
 from drivenav.eval.executor import Executor
 from drivenav.eval.records import ERROR, EpisodeRecord, failure_cause
 from drivenav.eval.report import Summary, summarize
@@ -41,6 +41,7 @@ from drivenav.types import SEMANTIC, Action, Observation
 log = logging.getLogger(__name__)
 
 Trace = dict[str, Any]
+FAIL_FAST_EPISODES = 4  # a run stops when its first max(workers, this) episodes all fail with one exception type
 
 
 @dataclass(frozen=True)
@@ -244,6 +245,41 @@ def _worker_for(spec: RunSpec) -> _Worker:
     return _WORKER
 
 
+def _in_process(executor: Executor, episodes: int) -> bool:
+    """Whether :func:`run_all` runs the episodes in this process (one worker, no Ray)."""
+    return executor.kind != "ray" and min(executor.workers or 1, episodes) == 1
+
+
+def preflight(spec: RunSpec, executor: Executor, episodes: int) -> None:
+    """Build the run's world and agent once here, before any worker starts, and refuse an agent that needs ground
+    truth the world cannot give. A world or model that cannot start stops the run with one line
+    (:class:`RunStoppedError`), not with one error record per episode. A run in this process keeps what was built."""
+    try:
+        worker = _worker_for(spec)
+    except (InputError, KeyboardInterrupt):
+        raise
+    except Exception as exc:
+        raise RunStoppedError(
+            f"the {spec.env.name} world or the {spec.agent} agent cannot start: {_one_line(exc)}"
+        ) from exc
+    check_world_supports(spec, worker.agent)
+    if not _in_process(executor, episodes):
+        _release_worker()
+
+
+def _release_worker() -> None:
+    global _WORKER
+    if _WORKER is not None:
+        _WORKER.env.close()
+        _WORKER = None
+
+
+def _one_line(exc: BaseException) -> str:
+    """``Type: first line of the message``."""
+    lines = str(exc).splitlines()
+    return f"{type(exc).__name__}: {lines[0]}" if lines else type(exc).__name__
+
+
 @dataclass(frozen=True)
 class EpisodeTask:
     """One episode of one run, as sent to a pool process or a Ray task."""
@@ -270,7 +306,8 @@ def evaluate(
     started with the same settings and episodes (else an :class:`InputError` names the first difference).
     A progress bar goes to standard error.
     """
-    check_world_supports(spec, build_agent(spec))
+    executor = executor or Executor()
+    preflight(spec, executor, len(episodes))
     with RunDirectory.open(out, spec.to_config(), episodes) as run:
         done = {r.episode_id for r in run.records()}
         todo = [e for e in episodes if e.episode_id not in done]
@@ -278,10 +315,12 @@ def evaluate(
         bar = tqdm(
             total=len(episodes), initial=len(done), desc=label, unit="ep", disable=not show_progress, mininterval=1.0
         )
+        first: list[EpisodeRecord] = []
         with bar, logging_redirect_tqdm():
-            for record, trace in run_all(todo, spec, executor or Executor()):
+            for record, trace in run_all(todo, spec, executor):
                 run.save(record, trace)
                 _advance(bar)
+                _stop_if_failing_alike(first, record, max(executor.workers or 1, FAIL_FAST_EPISODES), out)
         summary = summarize(run.records())
         run.write_summary(summary)
     if summary.errors:
@@ -292,6 +331,22 @@ def evaluate(
             out / "traces",
         )
     return summary
+
+
+def _stop_if_failing_alike(first: list[EpisodeRecord], record: EpisodeRecord, count: int, out: Path) -> None:
+    """Collect this session's first ``count`` records; if they all ended in one exception type, stop the run
+    (:class:`RunStoppedError`): the same missing package or broken world would fail every episode. Errors after a
+    success are only recorded."""
+    if len(first) >= count:
+        return
+    first.append(record)
+    kinds = {r.error.split(":", 1)[0] if r.stop_reason == ERROR else "" for r in first}
+    if len(first) == count and len(kinds) == 1 and "" not in kinds:
+        where = f"records in {out / 'episodes.jsonl'}, tracebacks under traces/"
+        raise RunStoppedError(
+            f"the first {count} episodes all ended in {record.error.splitlines()[0]} ({where}); "
+            "fix it and rerun the same command to resume"
+        )
 
 
 def _advance(bar: tqdm[Any]) -> None:
