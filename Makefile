@@ -4,6 +4,7 @@ HABITAT_VENV ?= .venv-habitat
 HABITAT_LAB ?= 0.3.320260507
 PY := $(VENV)/bin/python
 PYTHON ?= python3
+WHEELHOUSE ?= build/wheelhouse
 DEMO_OUT ?= demo-output
 ABLATIONS_OUT ?= ablations
 WORKERS ?= 2
@@ -51,8 +52,16 @@ lint: $(VENV)/.dev-installed
 # Both environments install side by side (mostly downloads), then lint, the Habitat suite and the main suite.
 test:
 	$(MAKE) -j2 $(VENV)/.dev-installed $(HABITAT_VENV)/.installed
-	$(MAKE) $(VENV)/.kernels lint test-habitat
+	$(MAKE) $(VENV)/.kernels $(WHEELHOUSE)/.downloaded lint test-habitat
 	$(PY) -m pytest -n 2 -q
+
+# tests/test_wheel.py builds drivenav's wheel and installs it into a fresh venv offline: the wheels of its
+# dependencies and of its build backend come from this folder (downloaded here, like the venvs' packages).
+$(WHEELHOUSE)/.downloaded: pyproject.toml $(VENV)/.installed
+	mkdir -p $(WHEELHOUSE)
+	$(PY) -c "$$DEPENDENCIES" > $(WHEELHOUSE)/requirements.txt
+	$(PY) -m pip wheel -q -w $(WHEELHOUSE) -r $(WHEELHOUSE)/requirements.txt "setuptools>=68" wheel
+	touch $@
 
 # The Habitat adapter's tests, against habitat-lab's real Env, task, sensors, measures and dataset readers (its own
 # venv: habitat-lab pins numpy 1.26); habitat-sim's compiled modules get test-only import stand-ins (tests/habitat).
@@ -74,4 +83,4 @@ test-habitat: $(HABITAT_VENV)/.installed
 	$(HABITAT_VENV)/bin/python -m pytest -n 2 -q -p no:cacheprovider tests/habitat
 
 clean:
-	rm -rf $(VENV) $(HABITAT_VENV) $(DEMO_OUT) src/drivenav/_compiled_kernels* $(ABLATIONS_OUT) .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) $(HABITAT_VENV) $(DEMO_OUT) src/drivenav/_compiled_kernels* $(ABLATIONS_OUT) build .pytest_cache .mypy_cache .ruff_cache
