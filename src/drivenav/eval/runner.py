@@ -256,7 +256,7 @@ def preflight(spec: RunSpec, executor: Executor, episodes: int) -> None:
     (:class:`RunStoppedError`), not with one error record per episode. A run in this process keeps what was built."""
     try:
         worker = _worker_for(spec)
-    except (InputError, KeyboardInterrupt):
+    except InputError:
         raise
     except Exception as exc:
         raise RunStoppedError(
