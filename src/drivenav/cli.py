@@ -435,6 +435,8 @@ def _run_spec(args: argparse.Namespace, agent: str) -> RunSpec:
     habitat = _habitat_overrides(args)
     settings = _settings(args, agent)
     check_models(settings.models)
+    if getattr(args, "robot", None) and not _is_robot(args):
+        raise InputError("command line", "--robot", "only with --env robot", args.robot)
     if _is_robot(args):
         return RunSpec(_robot_spec(args, settings), settings)
     if not _is_habitat(args):
@@ -452,9 +454,11 @@ def _robot_spec(args: argparse.Namespace, settings: Settings) -> RobotSpec:
     if importlib.util.find_spec("zmq") is None:
         raise InputError("command line", "--env", "pyzmq installed for --env robot: pip install 'drivenav[robot]'")
     from drivenav.envs.robot import RobotSpec, probe
+    from drivenav.robot.security import check_endpoint
 
     if not args.robot:
         raise InputError("command line", "--robot", "the robot's endpoint with --env robot, e.g. tcp://HOST:5555")
+    check_endpoint(args.robot, "--robot")
     if getattr(args, "workers", None) not in (None, 1):
         raise InputError("command line", "--workers", "1 with --env robot (one robot runs one episode at a time)")
     keys = "" if args.robot_keys is None else str(args.robot_keys.resolve())

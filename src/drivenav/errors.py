@@ -26,6 +26,13 @@ class InputError(Exception):
         return InputError, (self.source, self.field, self.expected, self.got)
 
 
+def one_line(error: BaseException, limit: int = 200) -> str:
+    """``Type: first line of the message`` (at most ``limit`` characters of it): an exception for a log line or a
+    reply."""
+    lines = str(error).splitlines()
+    return f"{type(error).__name__}: {lines[0][:limit]}" if lines else type(error).__name__
+
+
 def _short(value: object, limit: int = 80) -> str:
     text = repr(value)
     return text if len(text) <= limit else text[: limit - 3] + "..."

@@ -29,7 +29,7 @@ from drivenav.agent.base import Agent, DecisionStats, ModelStats
 from drivenav.agent.registry import make_agent
 from drivenav.envs.base import Env, EnvSpec, EpisodeMeasures
 from drivenav.envs.episode import Episode
-from drivenav.errors import InputError, RunStoppedError
+from drivenav.errors import InputError, RunStoppedError, one_line
 from drivenav.eval.executor import Executor
 from drivenav.eval.records import ERROR, EpisodeRecord, failure_cause
 from drivenav.eval.report import Summary, summarize
@@ -260,7 +260,7 @@ def preflight(spec: RunSpec, executor: Executor, episodes: int) -> None:
         raise
     except Exception as exc:
         raise RunStoppedError(
-            f"the {spec.env.name} world or the {spec.agent} agent cannot start: {_one_line(exc)}"
+            f"the {spec.env.name} world or the {spec.agent} agent cannot start: {one_line(exc)}"
         ) from exc
     check_world_supports(spec, worker.agent)
     if not _in_process(executor, episodes):
@@ -272,12 +272,6 @@ def _release_worker() -> None:
     if _WORKER is not None:
         _WORKER.env.close()
         _WORKER = None
-
-
-def _one_line(exc: BaseException) -> str:
-    """``Type: first line of the message``."""
-    lines = str(exc).splitlines()
-    return f"{type(exc).__name__}: {lines[0]}" if lines else type(exc).__name__
 
 
 @dataclass(frozen=True)

@@ -46,6 +46,9 @@ VERSION = 1
 REQUESTS = ("HELLO", "RESET", "OBSERVE", "STEP", "STOP", "BYE", "PING")
 REPLIES = ("WELCOME", "OBSERVATION", "STOPPED", "GOODBYE", "PONG", "ERROR")
 MAX_HEADER_BYTES = 65_536
+MAX_HEADER_DEPTH = 16  # JSON nesting: a header is a flat object whose body holds at most a few levels
+MAX_INTEGER_DIGITS = 16  # an integer in a header is a count, an id or a size: never more than 16 digits
+MAX_ARRAY_BYTES = 64 * 2**20  # one array frame (the server's per-frame limit, ServerConfig.max_message_bytes)
 DEPTH_SCALE = 1000.0  # depth on the wire: uint16 millimetres
 _DTYPES = frozenset({"|u1", "|i1", "<u2", "<i2", "<i4", "<u4", "<f4", "<f8"})
 
@@ -112,7 +115,7 @@ class RobotInfo:
                 raise ProtocolError(f"body.{item.name}", "a value")
             values[item.name] = body[item.name]
         _check_info_types(values)
-        values["provides"] = tuple(str(p) for p in values.get("provides", ()))
+        values["provides"] = tuple(values.get("provides", ()))
         return RobotInfo(**values)
 
 
@@ -130,6 +133,11 @@ def _check_info_types(values: Mapping[str, Any]) -> None:
             raise ProtocolError(f"body.{name}", "a finite number", value)
     if values.get("rgb_encoding", "raw") not in ("raw", "jpeg"):
         raise ProtocolError("body.rgb_encoding", "raw or jpeg", values.get("rgb_encoding"))
+    provides = values.get("provides", [])
+    if not isinstance(provides, list) or not all(isinstance(p, str) for p in provides):
+        raise ProtocolError("body.provides", "a list of strings (the ground truth the robot gives)", provides)
+    if not isinstance(values.get("lidar", False), bool):
+        raise ProtocolError("body.lidar", "true or false", values.get("lidar"))
 
 
 @dataclass(frozen=True)
@@ -253,20 +261,48 @@ def decode(frames: Sequence[bytes | memoryview], kinds: Sequence[str]) -> Messag
 
 
 def _header(frame: bytes | memoryview) -> dict[str, JSON]:
-    raw = bytes(frame)
-    if len(raw) > MAX_HEADER_BYTES:
-        raise ProtocolError("header", f"at most {MAX_HEADER_BYTES} bytes", len(raw))
+    """The header frame as a JSON object, checked before anything is built from it: its size, then (while parsing)
+    each integer's digits, then its nesting depth."""
+    if len(frame) > MAX_HEADER_BYTES:
+        raise ProtocolError("header", f"at most {MAX_HEADER_BYTES} bytes", len(frame))
     try:
-        header = json.loads(raw.decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        header = json.loads(bytes(frame).decode("utf-8"), parse_int=_bounded_int)
+    except ProtocolError:
+        raise  # an integer with too many digits
+    except RecursionError:
+        raise ProtocolError("header", f"JSON nested at most {MAX_HEADER_DEPTH} deep", "deeper") from None
+    except (UnicodeDecodeError, ValueError) as error:  # json.JSONDecodeError is a ValueError
         raise ProtocolError("header", "a UTF-8 JSON object", str(error)) from None
     if not isinstance(header, dict):
         raise ProtocolError("header", "a JSON object", type(header).__name__)
+    if _depth(header) > MAX_HEADER_DEPTH:
+        raise ProtocolError("header", f"JSON nested at most {MAX_HEADER_DEPTH} deep", "deeper")
     if header.get("protocol") != PROTOCOL:
         raise ProtocolError("protocol", repr(PROTOCOL), header.get("protocol"))
     if header.get("version") != VERSION:
         raise ProtocolError("version", f"protocol version {VERSION}", header.get("version"))
     return header
+
+
+def _bounded_int(digits: str) -> int:
+    """An integer of the header, refused before conversion when it has more than :data:`MAX_INTEGER_DIGITS`."""
+    if len(digits.lstrip("-")) > MAX_INTEGER_DIGITS:
+        raise ProtocolError("header", f"integers of at most {MAX_INTEGER_DIGITS} digits", f"{len(digits)} digits")
+    return int(digits)
+
+
+def _depth(value: JSON) -> int:
+    """The nesting depth of a parsed JSON value (an object or a list counts one level), without recursion."""
+    deepest, stack = 0, [(value, 1)]
+    while stack:
+        item, level = stack.pop()
+        children = item.values() if isinstance(item, dict) else item if isinstance(item, list) else None
+        if children is None:
+            continue
+        deepest = max(deepest, level)
+        if level <= MAX_HEADER_DEPTH:
+            stack.extend((child, level + 1) for child in children)
+    return deepest
 
 
 def _text(header: Mapping[str, JSON], name: str) -> str:
@@ -340,7 +376,9 @@ def _arrays(specs: JSON, frames: Sequence[bytes | memoryview]) -> dict[str, NDAr
     arrays: dict[str, NDArray[Any]] = {}
     for spec, frame in zip(specs, frames, strict=False):
         name, dtype, shape = _array_spec(spec)
-        expected = int(np.prod(shape, dtype=np.int64)) * dtype.itemsize
+        expected = math.prod(shape) * dtype.itemsize  # Python integers: no overflow
+        if expected > MAX_ARRAY_BYTES:
+            raise ProtocolError(f"arrays.{name}.shape", f"at most {MAX_ARRAY_BYTES} bytes an array", expected)
         if len(frame) != expected:
             raise ProtocolError(f"arrays.{name}", f"{expected} bytes for {dtype.str} {tuple(shape)}", len(frame))
         arrays[name] = np.frombuffer(frame, dtype=dtype).reshape(shape)
@@ -355,9 +393,13 @@ def _array_spec(spec: JSON) -> tuple[str, np.dtype[Any], list[int]]:
         raise ProtocolError("arrays.name", "a non-empty string", name)
     if dtype not in _DTYPES:
         raise ProtocolError(f"arrays.{name}.dtype", f"one of {sorted(_DTYPES)}", dtype)
-    if not isinstance(shape, list) or len(shape) > 4 or not all(isinstance(n, int) and n >= 0 for n in shape):
+    if not isinstance(shape, list) or len(shape) > 4 or not all(_is_count(n) for n in shape):
         raise ProtocolError(f"arrays.{name}.shape", "a list of at most 4 integers >= 0", shape)
     return name, np.dtype(str(dtype)), shape
+
+
+def _is_count(value: JSON) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= 0
 
 
 # -- payload conversions ------------------------------------------------------------------------------------------

@@ -106,10 +106,23 @@ def _resolves_to_loopback(host: str) -> bool:
     return bool(infos) and all(ipaddress.ip_address(str(info[4][0])).is_loopback for info in infos)
 
 
+def check_endpoint(address: str, option: str, bind: bool = False) -> None:
+    """Refuse, before any socket is made, an endpoint that is not ``tcp://HOST:PORT`` with a port in 1-65535 (``*``
+    for a free one, when binding), ``ipc://PATH`` or ``inproc://NAME`` (libzmq would bind an out-of-range port as
+    a random one, silently)."""
+    scheme, _, rest = address.partition("://")
+    if scheme in ("ipc", "inproc") and rest:
+        return
+    host, _, port = rest.rpartition(":")
+    in_range = port.isdigit() and 1 <= int(port) <= 65535
+    if scheme != "tcp" or not host or not (in_range or (bind and port == "*")):
+        ports = "1-65535 (or * for a free port)" if bind else "1-65535"
+        raise InputError("command line", option, f"an endpoint tcp://HOST:PORT with PORT {ports}", address)
+
+
 def check_bind(address: str, keys: Path | None) -> None:
-    """Refuse to serve on a non-loopback address without CURVE keys (one line, exit 2)."""
-    if not address.startswith(("tcp://", "ipc://", "inproc://")):
-        raise InputError("command line", "--bind", "an endpoint tcp://HOST:PORT", address)
+    """Refuse a malformed endpoint, and to serve on a non-loopback address without CURVE keys (one line, exit 2)."""
+    check_endpoint(address, "--bind", bind=True)
     if keys is None and not is_loopback(address):
         raise InputError(
             "command line",

@@ -25,8 +25,11 @@ import zmq
 from zmq.utils.monitor import recv_monitor_message
 
 from drivenav.envs.base import EpisodeMeasures, episode_pose
+from drivenav.errors import InputError, one_line
 from drivenav.robot.parts import MotionExecutor, MotionResult, SensorFrame, SensorSource
 from drivenav.robot.protocol import (
+    MAX_ARRAY_BYTES,
+    MAX_HEADER_BYTES,
     REQUESTS,
     Message,
     ProtocolError,
@@ -56,7 +59,7 @@ class ServerConfig:
     request ids are remembered for retries; ``rgb_encoding`` is ``raw`` or ``jpeg``."""
 
     deadman_s: float = 1.0
-    max_message_bytes: int = 64 * 2**20
+    max_message_bytes: int = MAX_ARRAY_BYTES
     reply_cache: int = 256
     rgb_encoding: str = "raw"
     jpeg_quality: int = 90
@@ -125,11 +128,15 @@ class RobotSession:
 
     # -- requests answered at once --------------------------------------------------------------------------------
     def answer(self, request: Message) -> Message:
-        """The reply to any request but STEP (see :meth:`start_step`); an ERROR names what was wrong."""
+        """The reply to any request but STEP (see :meth:`start_step`); an ERROR names what was wrong, and a fault
+        of the robot's own parts (a sensor, the simulator) is an ERROR too: the session goes on."""
         try:
             return self._answer(request)
         except ProtocolError as error:
             return error_reply(request.request_id, str(error))
+        except Exception as error:
+            log.exception("%s failed", request.type)
+            return error_reply(request.request_id, f"{request.type} failed on the robot: {one_line(error)}")
 
     def _answer(self, request: Message) -> Message:
         if request.type == "PING":
@@ -254,18 +261,22 @@ class RobotServer:
         check_bind(bind, keys)
         self.session = session
         self.config = session.config
+        self._replies: OrderedDict[str, Frames] = OrderedDict()
+        self._motion: _Motion | None = None
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="drivenav-motion")
+        self._last_heard = time.monotonic()
         self._context: zmq.Context[Any] = zmq.Context()
         self._socket = self._context.socket(zmq.ROUTER)
         self._socket.setsockopt(zmq.LINGER, 0)
         self._socket.setsockopt(zmq.MAXMSGSIZE, self.config.max_message_bytes)
         self._auth = secure_server(self._context, self._socket, keys) if keys is not None else None
         self._monitor = self._socket.get_monitor_socket()
-        self._socket.bind(bind)
+        try:
+            self._socket.bind(bind)
+        except zmq.ZMQError as error:  # in use, or a host this machine does not have
+            self.close()
+            raise InputError("command line", "--bind", "an address free to serve on", f"{bind}: {error}") from None
         self.endpoint = str(self._socket.getsockopt_string(zmq.LAST_ENDPOINT))
-        self._replies: OrderedDict[str, Frames] = OrderedDict()
-        self._motion: _Motion | None = None
-        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="drivenav-motion")
-        self._last_heard = time.monotonic()
 
     def serve(self, stop: threading.Event | None = None) -> None:
         """Answer requests until ``stop`` is set (or Ctrl-C); the robot is stopped on the way out."""
@@ -295,12 +306,21 @@ class RobotServer:
         self._context.term()
 
     def _receive(self) -> None:
+        """One message from a brain, answered; nothing in it can stop the server (an unexpected fault is logged
+        and answered as an ERROR)."""
         frames = self._socket.recv_multipart(copy=False)
         self._last_heard = time.monotonic()
         identity = frames[0].bytes
         body = frames[1:]
         if body and len(body[0]) == 0:  # a REQ client's (or our DEALER client's) empty delimiter
             body = body[1:]
+        try:
+            self._answer(identity, body)
+        except Exception as error:
+            log.exception("a request could not be answered")
+            self._send(identity, encode(error_reply(_loose_id(body), f"the robot failed: {one_line(error)}")))
+
+    def _answer(self, identity: bytes, body: list[Any]) -> None:
         try:
             request = decode([f.buffer for f in body], REQUESTS)
         except ProtocolError as error:
@@ -382,13 +402,15 @@ class RobotServer:
 
 
 def _loose_id(frames: list[Any]) -> str:
-    """The request id of a message that failed to decode, where its header still says one."""
+    """The request id of a message that failed to decode, where its header still says one (a short string)."""
+    if not frames or len(frames[0]) > MAX_HEADER_BYTES:
+        return "?"
     try:
         header = json.loads(bytes(frames[0].buffer))
-        value = header.get("id") if isinstance(header, dict) else None
-        return value if isinstance(value, str) and value else "?"
-    except (IndexError, ValueError, UnicodeDecodeError):
+    except (ValueError, UnicodeDecodeError, RecursionError):
         return "?"
+    value = header.get("id") if isinstance(header, dict) else None
+    return value if isinstance(value, str) and 0 < len(value) <= 128 else "?"
 
 
 @contextlib.contextmanager
