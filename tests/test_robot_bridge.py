@@ -26,6 +26,7 @@ from drivenav.errors import InputError
 from drivenav.eval.episodes import generate_episodes, save_episodes
 from drivenav.eval.records import EpisodeRecord
 from drivenav.eval.runner import RunSpec, build_agent, run_episode
+from drivenav.robot.client import RobotUnavailableError
 from drivenav.robot.parts import HeldStill, MotionResult
 from drivenav.robot.protocol import REPLIES, Message, RobotInfo, decode, encode
 from drivenav.robot.security import check_bind, write_keys
@@ -422,3 +423,18 @@ def test_ctrl_c_during_a_live_episode_stops_the_robot_and_ends_the_episode() -> 
             live.step(Action.MOVE_FORWARD)
         assert motion.stopped.is_set() and motion.executed == 1  # STOP sent, the second step never ran
         env.close()
+
+
+def test_a_reset_for_another_episode_under_a_served_id_is_refused(settings: Settings, episodes: list[Episode]) -> None:
+    """The brain read another episodes file than serve-sim: same ids, other scenes. The metrics would belong to
+    the served episode, recorded under the brain's scene and target; the RESET is refused naming the field."""
+    other = generate_episodes(SceneLibrary("procedural:2", 9), 2, 9, settings.sim)
+    assert [e.episode_id for e in other] == [e.episode_id for e in episodes]
+    with served(sim_session(settings, episodes)) as endpoint:
+        env = RobotSpec(endpoint, "", ("semantic",)).build(settings.sim)
+        try:
+            with pytest.raises(RobotUnavailableError, match=r"body\.scene_id.*procedural/house"):
+                env.reset(other[0])
+            assert env.reset(episodes[0]).step == 0  # the right episode still starts
+        finally:
+            env.close()

@@ -26,6 +26,7 @@ from drivenav.robot.protocol import (
     RobotInfo,
     depth_from_wire,
     occupancy_from,
+    reset_body,
     rgb_from_jpeg,
 )
 from drivenav.types import SEMANTIC, Action, GroundTruth, Observation, Pose, SimConfig
@@ -102,8 +103,7 @@ class RobotEnv:
         return self._config
 
     def reset(self, episode: Episode) -> Observation:
-        body = {"episode_id": episode.episode_id, "target": episode.object_category}
-        reply = self._request("RESET", body)
+        reply = self._request("RESET", reset_body(episode))
         labels = reply.body.get("labels") or {}
         self._labels = {int(k): str(v) for k, v in labels.items()}
         return self._observation(reply)

@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from drivenav.envs.episode import Episode
 from drivenav.types import CameraIntrinsics, LocalOccupancy, Pose, SimConfig
 
 PROTOCOL = "drivenav-robot"
@@ -400,6 +401,33 @@ def _array_spec(spec: JSON) -> tuple[str, np.dtype[Any], list[int]]:
 
 def _is_count(value: JSON) -> bool:
     return isinstance(value, int) and not isinstance(value, bool) and value >= 0
+
+
+# -- episodes -------------------------------------------------------------------------------------------------------
+
+
+def reset_body(episode: Episode) -> dict[str, JSON]:
+    """A RESET's body: the episode's id and target text, with its scene and start, so that a robot that knows the
+    episodes (``serve-sim``) can refuse one that is not the episode it serves under that id."""
+    return {
+        "episode_id": episode.episode_id,
+        "target": episode.object_category,
+        "scene_id": episode.scene_id,
+        "start_position": list(episode.start_position),
+    }
+
+
+def check_claimed_episode(episode: Episode, claimed: Mapping[str, JSON]) -> None:
+    """Refuse a RESET whose scene, target or start differ from ``episode`` (the one served under its id): the brain
+    would record this episode's metrics under another episode's scene and target. Fields left out are not checked
+    (an older brain)."""
+    served = reset_body(episode)
+    for name in ("scene_id", "target", "start_position"):
+        if name in claimed and claimed[name] != served[name]:
+            expected = (
+                f"{served[name]!r}, episode {episode.episode_id}'s on this robot (run the brain on its episodes file)"
+            )
+            raise ProtocolError(f"body.{name}", expected, claimed[name])
 
 
 # -- payload conversions ------------------------------------------------------------------------------------------

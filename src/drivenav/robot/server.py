@@ -69,8 +69,10 @@ class ServerConfig:
 class EpisodeWorld(Protocol):
     """A simulated robot that knows the episodes: it places itself at an episode's start and measures it."""
 
-    def start(self, episode_id: str) -> None:
-        """Place the robot at the start of ``episode_id`` (KeyError: an unknown episode)."""
+    def start(self, episode_id: str, claimed: Mapping[str, Any]) -> None:
+        """Place the robot at the start of ``episode_id`` (KeyError: an unknown episode); a
+        :class:`~drivenav.robot.protocol.ProtocolError` when what the brain ``claimed`` of it (the RESET body's
+        ``scene_id``, ``target``, ``start_position``) is not this episode's: the two sides read other episode files."""
         ...
 
     def measures(self) -> EpisodeMeasures:
@@ -171,7 +173,7 @@ class RobotSession:
         episode_id = str(request.body.get("episode_id", ""))
         if self.episodes is not None:
             try:
-                self.episodes.start(episode_id)
+                self.episodes.start(episode_id, request.body)
             except KeyError:
                 raise ProtocolError("body.episode_id", "an episode this robot knows", episode_id) from None
         self.executor.stop()

@@ -20,7 +20,7 @@ from drivenav.envs.embedded import EmbeddedEnv
 from drivenav.envs.episode import Episode
 from drivenav.grid import GridSpec
 from drivenav.robot.parts import MotionResult, SensorFrame
-from drivenav.robot.protocol import RobotInfo
+from drivenav.robot.protocol import JSON, RobotInfo, check_claimed_episode
 from drivenav.types import SEMANTIC, Action, Observation, Pose
 
 
@@ -69,8 +69,9 @@ class SimulatedRobot:
         return RobotInfo.from_sim(self._env.config, provides=(SEMANTIC,), lidar=self._lidar is not None)
 
     # -- EpisodeWorld -------------------------------------------------------------------------------------------------
-    def start(self, episode_id: str) -> None:
+    def start(self, episode_id: str, claimed: Mapping[str, JSON]) -> None:
         episode = self._episodes[episode_id]
+        check_claimed_episode(episode, claimed)
         self._observation = self._env.reset(episode)
         self._blocked = None
 
