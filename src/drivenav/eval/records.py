@@ -5,8 +5,10 @@ Every key issue 2 named (``episode_id``, ``scene_id``, ``object_category``, ``su
 ``vlm_calls``) keeps its name. The world's measures may be ``None`` (a robot has no ground truth: they are
 ``null``, never 0). The agent's model statistics (:class:`~drivenav.agent.base.ModelStats`) and decision counters
 (:class:`~drivenav.agent.base.DecisionStats`) are written flat, beside the other keys; ``retraced_revisits`` and
-``retraced_m`` are the segmentation-free revisit count (:func:`drivenav.metrics.retraced`). ``schema_version`` 1
-is the untyped record written before it existed, 2 the record before the decision counters: both read the same.
+``retraced_m`` are the segmentation-free revisit count (:func:`drivenav.metrics.retraced`); ``trace`` names the
+episode's trace file in the run directory ("" when it could not be written). ``schema_version`` 1 is the untyped
+record written before it existed, 2 the record before the decision counters, 3 the record before ``trace``: all read
+the same. Every value is checked against its field's type when read (``success: "yes"`` names the line and field).
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ from typing import Any
 from drivenav.agent.base import DecisionStats, ModelStats
 from drivenav.errors import InputError
 
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 ERROR = "error"  # the stop reason and failure cause of an episode that an exception ended
 
 _STATS_KEYS = tuple(f.name for f in fields(ModelStats))
@@ -53,6 +55,7 @@ class EpisodeRecord:
     privileged: tuple[str, ...] = ()
     stats: ModelStats = field(default_factory=ModelStats)
     decisions: DecisionStats = field(default_factory=DecisionStats)
+    trace: str = ""
     schema_version: int = SCHEMA_VERSION
 
     @property
@@ -70,20 +73,56 @@ class EpisodeRecord:
 
     @staticmethod
     def from_json(data: Any, source: str | Path = "episodes.jsonl") -> EpisodeRecord:
-        """Read a record (either schema version); a missing key or a wrong type is an :class:`InputError`."""
+        """Read a record (any schema version); a missing key or a value of the wrong type is an
+        :class:`InputError` naming the field."""
         if not isinstance(data, dict):
             raise InputError(source, "record", "a JSON object", type(data).__name__)
-        stats = ModelStats(**{k: data[k] for k in _STATS_KEYS if k in data})
-        decisions = DecisionStats(**{k: data[k] for k in _DECISION_KEYS if k in data})
-        known = {f.name for f in fields(EpisodeRecord)} - {"stats", "decisions"}
-        values = {k: v for k, v in data.items() if k in known}
-        values["privileged"] = tuple(values.get("privileged", ()))
+        stats = ModelStats(**_typed(ModelStats, data, source))
+        decisions = DecisionStats(**_typed(DecisionStats, data, source))
+        data = {**data, "privileged": data.get("privileged", [])}
+        values = _typed(EpisodeRecord, data, source, skip=frozenset({"stats", "decisions"}))
+        values["privileged"] = tuple(values["privileged"])
         values.setdefault("schema_version", 1)
         values.setdefault("canonical_category", data.get("object_category", ""))
         try:
             return EpisodeRecord(**values, stats=stats, decisions=decisions)
         except TypeError as error:
             raise InputError(source, "record", "the keys of an episode record", str(error)) from None
+
+
+_SCALARS: dict[str, tuple[type, ...]] = {"str": (str,), "int": (int,), "bool": (bool,), "float": (int, float)}
+
+
+def _typed(kind: type, data: dict[str, Any], source: str | Path, skip: frozenset[str] = frozenset()) -> dict[str, Any]:
+    """The keys of ``data`` that are fields of the dataclass ``kind``, each checked against its annotation."""
+    values = {}
+    for item in fields(kind):
+        if item.name in skip or item.name not in data:
+            continue
+        annotation = str(item.type)
+        if not _has_type(data[item.name], annotation):
+            raise InputError(source, f"record.{item.name}", annotation, data[item.name])
+        values[item.name] = data[item.name]
+    return values
+
+
+def _has_type(value: Any, annotation: str) -> bool:
+    """Whether a JSON value fits a field annotation of the record (``int | None``, ``dict[str, float]``,
+    ``tuple[str, ...]``; a boolean is no number)."""
+    return any(_fits(value, option.strip()) for option in annotation.split("|"))
+
+
+def _fits(value: Any, option: str) -> bool:
+    if option == "None":
+        return value is None
+    if option.startswith("dict["):
+        inner = option[len("dict[") : -1].split(",", 1)[1].strip()
+        return isinstance(value, dict) and all(isinstance(k, str) and _has_type(v, inner) for k, v in value.items())
+    if option.startswith("tuple["):
+        return isinstance(value, list) and all(isinstance(v, str) for v in value)
+    if option not in _SCALARS or (isinstance(value, bool) and option != "bool"):
+        return False
+    return isinstance(value, _SCALARS[option])
 
 
 def failure_cause(success: int | None, stop_reason: str, target_seen: bool | None) -> str:
@@ -130,21 +169,41 @@ def missed_cause(record: EpisodeRecord) -> str:
     return "detected_not_accepted"
 
 
-def read_records(path: Path) -> list[EpisodeRecord]:
-    """The records of ``episodes.jsonl``; a torn last line (from a kill) is cut off the file."""
+def read_records(path: Path, episode_ids: frozenset[str] | None = None) -> list[EpisodeRecord]:
+    """The records of ``episodes.jsonl``, read only (a torn last line, from a kill or a run still writing it, is
+    left out, never cut: only the run's own writer repairs it, under its lock). A second record of one episode, or
+    one of an episode not in ``episode_ids`` (when given: the run's), is an :class:`InputError` naming its line."""
     if not path.exists():
         return []
+    data = path.read_bytes()
+    records: list[EpisodeRecord] = []
+    first_line: dict[str, int] = {}
+    for number, line in enumerate(data[: data.rfind(b"\n") + 1].splitlines(), start=1):
+        if not line.strip():
+            continue
+        try:
+            record = EpisodeRecord.from_json(json.loads(line), f"{path}:{number}")
+        except ValueError:
+            raise InputError(path, f"line {number}", "one JSON object per line") from None
+        first = first_line.get(record.episode_id)
+        if first is not None:
+            got = f"a second record of episode {record.episode_id!r} (the first is on line {first})"
+            raise InputError(path, f"line {number}", "one record per episode", got)
+        if episode_ids is not None and record.episode_id not in episode_ids:
+            got = f"a record of episode {record.episode_id!r}, which is not in this run"
+            raise InputError(path, f"line {number}", "records of this run's episodes only", got)
+        first_line[record.episode_id] = number
+        records.append(record)
+    return records
+
+
+def cut_torn_tail(path: Path) -> None:
+    """Cut a torn last line (an append a kill interrupted) off ``episodes.jsonl``: for the run's writer alone, under
+    its lock, before it appends."""
+    if not path.exists():
+        return
     data = path.read_bytes()
     keep = data.rfind(b"\n") + 1
     if keep < len(data):
         with path.open("r+b") as handle:
             handle.truncate(keep)
-    records = []
-    for number, line in enumerate(data[:keep].splitlines(), start=1):
-        if not line.strip():
-            continue
-        try:
-            records.append(EpisodeRecord.from_json(json.loads(line), f"{path}:{number}"))
-        except ValueError:
-            raise InputError(path, f"line {number}", "one JSON object per line") from None
-    return records

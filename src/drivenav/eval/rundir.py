@@ -4,7 +4,10 @@
 refused at once, and a lock left by a dead process is free again (the kernel drops it with the process).
 ``DIR/run.json`` records the resolved settings, the episodes' sha256, the package version, and the git commit
 and whether its tree was dirty; resuming with other settings or other episodes is refused, naming the first
-differing key (or ``episodes``).
+differing key (or ``episodes``), and so is resuming records without their ``run.json``. On resume the writer cuts a
+torn last line off ``episodes.jsonl`` (readers never write) and refuses a second record of an episode or a record of
+an episode outside the run, naming its line. ``DIR/traces/`` holds one trace per episode under a bounded name that
+no two ids share (:func:`trace_path`); the record names it, and a trace that cannot be written never costs the record.
 """
 
 from __future__ import annotations
@@ -12,10 +15,11 @@ from __future__ import annotations
 import fcntl
 import hashlib
 import json
+import logging
 import os
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import IO, Any
 
@@ -23,7 +27,7 @@ from drivenav.envs.episode import Episode
 from drivenav.errors import InputError
 from drivenav.eval.episodes import episode_to_dict, save_episodes
 from drivenav.eval.provenance import package_version, source_state
-from drivenav.eval.records import EpisodeRecord, read_records
+from drivenav.eval.records import EpisodeRecord, cut_torn_tail, read_records
 from drivenav.eval.report import Summary
 from drivenav.settings import first_difference
 
@@ -33,6 +37,9 @@ RUN_FILE = "run.json"
 TRACES_DIR = "traces"
 LOCK_FILE = ".lock"
 EPISODES_COPY = "episodes.json.gz"  # the run's episodes, for pictures and reruns
+READABLE_ID = 64  # an episode id of at most this many file-name-safe characters is its own trace name
+
+log = logging.getLogger(__name__)
 
 
 def episodes_sha256(episodes: Sequence[Episode]) -> str:
@@ -42,8 +49,14 @@ def episodes_sha256(episodes: Sequence[Episode]) -> str:
 
 
 def trace_path(out: Path, episode_id: str) -> Path:
-    safe = "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in episode_id)
-    return out / TRACES_DIR / f"{safe}.json"
+    """The trace file of ``episode_id``: ``ID.json`` for an id of at most :data:`READABLE_ID` letters, digits and
+    ``-_.`` (as before), else a readable prefix and a hash of the whole id, ``PREFIX~HASH.json`` (``~`` is in no
+    plain id, so no two ids share a name, and the name stays short whatever the id's length)."""
+    plain = "".join(ch if ch.isascii() and (ch.isalnum() or ch in "-_.") else "_" for ch in episode_id)
+    if plain == episode_id and 0 < len(episode_id) <= READABLE_ID and episode_id.strip(".") != "":
+        return out / TRACES_DIR / f"{episode_id}.json"
+    digest = hashlib.sha256(episode_id.encode("utf-8", "surrogatepass")).hexdigest()[:16]
+    return out / TRACES_DIR / f"{plain[:READABLE_ID]}~{digest}.json"
 
 
 def write_json_atomic(path: Path, payload: Any) -> None:
@@ -88,9 +101,10 @@ def make_directory(out: Path) -> None:
 class RunDirectory:
     """An open, locked run directory (see the module docstring); records are appended kill-safely."""
 
-    def __init__(self, out: Path) -> None:
+    def __init__(self, out: Path, episode_ids: frozenset[str]) -> None:
         self.out = out
         self.results = out / EPISODES_FILE
+        self._episode_ids = episode_ids
 
     @staticmethod
     @contextmanager
@@ -101,21 +115,41 @@ class RunDirectory:
             commit, dirty = source_state()
             info = RunInfo(config, episodes_sha256(episodes), package_version(), commit, dirty)
             run_file = out / RUN_FILE
+            results = out / EPISODES_FILE
             if run_file.exists():
                 info.check_resume(_read_json(run_file), run_file)
+            elif results.exists() and results.stat().st_size:
+                raise InputError(
+                    run_file,
+                    "run.json",
+                    "the run.json of the run whose records are in episodes.jsonl, to resume it "
+                    "(without it the settings cannot be checked: start a new --out)",
+                    "missing",
+                )
             else:
                 save_episodes(list(episodes), out / EPISODES_COPY)
                 write_json_atomic(run_file, info.__dict__)
-            yield RunDirectory(out)
+            cut_torn_tail(results)
+            run = RunDirectory(out, frozenset(e.episode_id for e in episodes))
+            run.records()  # a duplicate or a foreign record is refused before any episode runs
+            yield run
 
     def records(self) -> list[EpisodeRecord]:
-        return read_records(self.results)
+        """The run's records (a duplicate, or a record of an episode outside the run, is an :class:`InputError`)."""
+        return read_records(self.results, self._episode_ids)
 
     def save(self, record: EpisodeRecord, trace: Mapping[str, Any]) -> None:
-        """The trace first, then the record appended, flushed and fsync'ed (the record marks it finished)."""
-        trace_path(self.out, record.episode_id).write_text(json.dumps(trace), encoding="utf-8")
+        """The trace first, then the record (naming the trace) appended, flushed and fsync'ed: the record marks the
+        episode finished. A trace that cannot be written is logged and the record kept, with no trace named."""
+        path = trace_path(self.out, record.episode_id)
+        try:
+            path.write_text(json.dumps(trace), encoding="utf-8")
+            named = replace(record, trace=f"{TRACES_DIR}/{path.name}")
+        except (OSError, TypeError, ValueError) as error:
+            log.warning("episode %r: its trace could not be written (%s); the record is kept", record.episode_id, error)
+            named = replace(record, trace="")
         with self.results.open("a", encoding="utf-8") as handle:
-            handle.write(json.dumps(record.to_json(), sort_keys=True) + "\n")
+            handle.write(json.dumps(named.to_json(), sort_keys=True) + "\n")
             handle.flush()
             os.fsync(handle.fileno())
 

@@ -225,11 +225,15 @@ class _Worker:
         self.agent = build_agent(spec)
 
     def run(self, episode: Episode) -> tuple[EpisodeRecord, Trace]:
-        """One episode; then the agent releases its episode state before the next scene loads."""
+        """One episode; then the agent releases its episode state before the next scene loads. An exception there
+        never replaces the episode's result: it is logged (the next episode's reset starts the agent anew)."""
         try:
             return run_episode(self.env, self.agent, episode, self.spec.seed, self.spec.max_steps)
         finally:
-            self.agent.end_episode()
+            try:
+                self.agent.end_episode()
+            except Exception as exc:
+                log.warning("episode %r: the agent failed to end it: %s", episode.episode_id, one_line(exc))
 
 
 _WORKER: _Worker | None = None
