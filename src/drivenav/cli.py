@@ -44,7 +44,7 @@ def _add_eval(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
     )
     _add_world_options(parser)
     _add_run_seed(parser)
-    parser.add_argument("--out", required=True, type=Path, help="run directory (rerun to resume)")
+    parser.add_argument("--out", required=True, type=_path, help="run directory (rerun to resume)")
     _add_max_steps(parser)
     _add_execution_options(parser)
     _add_model_options(parser)
@@ -65,7 +65,7 @@ def _add_run(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> N
     parser.add_argument("--env", default="robot", choices=("robot",), help="the world: a robot")
     parser.add_argument("--target", required=True, help='what to find, e.g. "fire extinguisher"')
     parser.add_argument("--agent", default="drive-nav", help="agent name (default drive-nav)")
-    parser.add_argument("--out", type=Path, default=None, help="run directory (default runs/live-DATE-TIME)")
+    parser.add_argument("--out", type=_path, default=None, help="run directory (default runs/live-DATE-TIME)")
     parser.add_argument(
         "--episode-id", default=None, help="the episode id sent with RESET (serve-sim: one of its episodes)"
     )
@@ -82,13 +82,13 @@ def _add_robot(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     parser = commands.add_parser("robot", help="the robot side: keys, serve a robot, serve the embedded world")
     sub = parser.add_subparsers(dest="robot_command", required=True)
     keys = sub.add_parser("keys", help="write CURVE key pairs and the allow-list (DIR/server.key, DIR/client.key, ...)")
-    keys.add_argument("dir", type=Path)
+    keys.add_argument("dir", type=_path)
     keys.set_defaults(handler=_cmd_robot_keys)
     serve = sub.add_parser("serve", help="serve this robot's sensors and motion (ROS 2 topics or a ROS 2 bag)")
     serve.add_argument("--bind", default="tcp://127.0.0.1:5555", help="endpoint (default tcp://127.0.0.1:5555)")
-    serve.add_argument("--keys", type=Path, default=None, help="CURVE keys (required off loopback)")
+    serve.add_argument("--keys", type=_path, default=None, help="CURVE keys (required off loopback)")
     serve.add_argument("--source", default="ros2", choices=("ros2", "bag"), help="ROS 2 topics or a bag")
-    serve.add_argument("--bag", type=Path, default=None, help="with --source bag: the ROS 2 bag folder")
+    serve.add_argument("--bag", type=_path, default=None, help="with --source bag: the ROS 2 bag folder")
     serve.add_argument("--motion", default="cmd-vel", choices=("cmd-vel", "none"), help="cmd_vel on odometry, or none")
     serve.add_argument("--lidar", action="store_true", help="send LiDAR occupancy in the camera's field of view")
     serve.add_argument("--jpeg", action="store_true", help="RGB as JPEG (default raw)")
@@ -96,9 +96,9 @@ def _add_robot(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     serve.set_defaults(handler=_cmd_robot_serve)
     sim = sub.add_parser("serve-sim", help="the embedded world served as a robot, with metrics per episode")
     sim.add_argument("--scenes", default="procedural", help="a --scenes SPEC")
-    sim.add_argument("--episodes", required=True, type=Path, help="the episodes file the brain will run")
+    sim.add_argument("--episodes", required=True, type=_path, help="the episodes file the brain will run")
     sim.add_argument("--bind", default="tcp://127.0.0.1:5555", help="endpoint (default tcp://127.0.0.1:5555)")
-    sim.add_argument("--keys", type=Path, default=None, help="CURVE keys (required off loopback)")
+    sim.add_argument("--keys", type=_path, default=None, help="CURVE keys (required off loopback)")
     sim.add_argument("--seed", type=int, default=0, help="the scenes' seed (procedural scenes)")
     sim.add_argument("--lidar", action="store_true", help="simulate a 2-D LiDAR and send its occupancy")
     _add_config_options(sim)
@@ -113,7 +113,7 @@ def _add_world_options(parser: argparse.ArgumentParser) -> None:
     group.add_argument(
         "--split", default=None, help="habitat: the benchmark split (--config names the benchmark: hm3d-ovon, ...)"
     )
-    group.add_argument("--data-dir", type=Path, default=None, help="habitat: habitat's data/ folder")
+    group.add_argument("--data-dir", type=_path, default=None, help="habitat: habitat's data/ folder")
     group.add_argument(
         "--habitat-plugin",
         action="append",
@@ -128,7 +128,7 @@ def _add_world_options(parser: argparse.ArgumentParser) -> None:
 def _add_robot_address(group: argparse._ArgumentGroup) -> None:
     group.add_argument("--robot", default=None, metavar="ADDR", help="robot: its endpoint, e.g. tcp://10.0.0.2:5555")
     group.add_argument(
-        "--robot-keys", type=Path, default=None, metavar="DIR", help="robot: the brain's CURVE keys (robot keys DIR)"
+        "--robot-keys", type=_path, default=None, metavar="DIR", help="robot: the brain's CURVE keys (robot keys DIR)"
     )
 
 
@@ -256,13 +256,13 @@ def _add_episodes(commands: argparse._SubParsersAction[argparse.ArgumentParser])
     generate.add_argument("--scenes", default="procedural")
     generate.add_argument("--num", type=int, required=True)
     generate.add_argument("--seed", type=int, default=0)
-    generate.add_argument("--out", type=Path, required=True)
+    generate.add_argument("--out", type=_path, required=True)
     generate.set_defaults(handler=_cmd_episodes_generate)
     export = sub.add_parser("export", help="write an episodes file in a Habitat layout (ObjectNav v1 or HM3D-OVON)")
-    export.add_argument("--episodes", required=True, type=Path, help="an episodes file (drivenav's json.gz)")
+    export.add_argument("--episodes", required=True, type=_path, help="an episodes file (drivenav's json.gz)")
     export.add_argument("--format", required=True, choices=LAYOUTS, help="the Habitat dataset layout")
     export.add_argument("--split", default="val", help="the split's name (default val)")
-    export.add_argument("--out", required=True, type=Path, help="the dataset folder: writes OUT/SPLIT/SPLIT.json.gz")
+    export.add_argument("--out", required=True, type=_path, help="the dataset folder: writes OUT/SPLIT/SPLIT.json.gz")
     export.set_defaults(handler=_cmd_episodes_export)
 
 
@@ -273,7 +273,7 @@ def _add_doctor(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -
     parser.add_argument("--env", default="embedded", choices=WORLDS)
     parser.add_argument("--config", default=None, choices=sorted(BENCHMARKS), help="with --env habitat: benchmark")
     parser.add_argument("--split", default=None, help="one split (default: every split of the benchmark)")
-    parser.add_argument("--data-dir", type=Path, default=None, help="habitat's data/ folder")
+    parser.add_argument("--data-dir", type=_path, default=None, help="habitat's data/ folder")
     _add_model_options(parser)
     parser.set_defaults(handler=_cmd_doctor)
 
@@ -316,7 +316,7 @@ def _add_bench_ablations(sub: argparse._SubParsersAction[argparse.ArgumentParser
         help="a number (with the default --scenes and --seed: the first N of benchmark v1), or a file",
     )
     parser.add_argument("--seed", type=int, default=BENCHMARK_V1.seed)
-    parser.add_argument("--out", required=True, type=Path, help="output directory (rerun to resume)")
+    parser.add_argument("--out", required=True, type=_path, help="output directory (rerun to resume)")
     parser.add_argument("--methods", default=",".join(ALL_METHODS), help="comma-separated agent names")
     parser.add_argument("--scenes", default=BENCHMARK_V1.scenes, help="a --scenes SPEC (default: benchmark v1's)")
     _add_max_steps(parser)
@@ -335,23 +335,23 @@ def _add_benchmark(commands: argparse._SubParsersAction[argparse.ArgumentParser]
     sub = parser.add_subparsers(dest="benchmark_command", required=True)
     generate = sub.add_parser("generate", help="write a benchmark version's episodes (json.gz, same bytes each time)")
     generate.add_argument("--version", default="v1", choices=sorted(BENCHMARKS))
-    generate.add_argument("--out", type=Path, required=True)
+    generate.add_argument("--out", type=_path, required=True)
     generate.add_argument("--episodes", type=int, default=None, help="only the first N episodes (quick checks)")
     generate.set_defaults(handler=_cmd_benchmark_generate)
 
 
 def _add_viz(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     parser = commands.add_parser("viz", help="pictures of a finished episode")
-    parser.add_argument("run_dir", type=Path)
+    parser.add_argument("run_dir", type=_path)
     parser.add_argument("episode_id")
-    parser.add_argument("--out", type=Path, default=None, help="output folder (default RUN_DIR/viz)")
+    parser.add_argument("--out", type=_path, default=None, help="output folder (default RUN_DIR/viz)")
     parser.add_argument("--rerun", action="store_true", help="also a Rerun recording (.rrd) of the same streams")
     parser.set_defaults(handler=_cmd_viz)
 
 
 def _add_compare(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     parser = commands.add_parser("compare", help="compare runs; steps and revisits on commonly solved long episodes")
-    parser.add_argument("run_dirs", type=Path, nargs="+")
+    parser.add_argument("run_dirs", type=_path, nargs="+")
     parser.add_argument("--min-distance", type=float, default=10.0, help="Table II: geodesic distance above this")
     parser.add_argument("--json", action="store_true")
     parser.set_defaults(handler=_cmd_compare)
@@ -359,7 +359,7 @@ def _add_compare(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 def _add_demo(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     parser = commands.add_parser("demo", help="a short embedded benchmark with pictures")
-    parser.add_argument("--out", type=Path, default=Path("demo-output"))
+    parser.add_argument("--out", type=_path, default=Path("demo-output"))
     parser.add_argument("--episodes", type=int, default=4)
     parser.add_argument("--seed", type=int, default=0)
     parser.set_defaults(handler=_cmd_demo)
@@ -391,6 +391,13 @@ def build_parser() -> argparse.ArgumentParser:
     for add in (*adders, _add_demo, _add_robot, _add_doctor):
         add(commands)
     return parser
+
+
+def _path(text: str) -> Path:
+    """A path option's value; an empty one (which would mean the current folder) is refused."""
+    if not text:
+        raise argparse.ArgumentTypeError("expected a path, got an empty string")
+    return Path(text)
 
 
 def _positive(value: int, option: str) -> int:
@@ -582,8 +589,11 @@ def _cmd_episodes_generate(args: argparse.Namespace) -> int:
     from drivenav.eval.episodes import generate_episodes, save_episodes
     from drivenav.types import SimConfig
 
-    library = SceneLibrary(args.scenes, args.seed)
-    episodes = generate_episodes(library, _positive(args.num, "--num"), args.seed, SimConfig())
+    count = _positive(args.num, "--num")
+    if count > MAX_EPISODES:
+        raise InputError("command line", "--num", f"a number of episodes up to {MAX_EPISODES:,}", count)
+    library = SceneLibrary(args.scenes, _seed(args.seed))
+    episodes = generate_episodes(library, count, args.seed, SimConfig())
     save_episodes(episodes, args.out)
     synonyms = sum(bool(e.info.get("synonym")) for e in episodes)
     scenes = len({e.scene_id for e in episodes})
@@ -739,6 +749,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (WorkerDiedError, RunStoppedError) as error:
         print(f"drivenav: error: {error}", file=sys.stderr)
         return 1
+    except OSError as error:  # a path given that cannot be written or read (a folder, too long, under /proc)
+        if error.filename is None:
+            raise
+        print(f"drivenav: error: {error.filename}: {error.strerror or error}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print("drivenav: interrupted (finished episodes are saved; rerun to resume)", file=sys.stderr)
         return 130

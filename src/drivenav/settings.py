@@ -123,7 +123,10 @@ def _config_layer(config: str) -> DictConfig:
     if config in preset_names():
         text = resources.files("drivenav").joinpath(f"{PRESETS}/{config}.yaml").read_text(encoding="utf-8")
     elif path.suffix in (".yaml", ".yml") and path.is_file():
-        text = path.read_text(encoding="utf-8")
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as error:
+            raise InputError(config, "<file>", "a readable UTF-8 YAML file", str(error)) from None
     else:
         raise InputError("command line", "--config", f"a preset ({', '.join(preset_names())}) or a YAML file", config)
     try:

@@ -25,26 +25,39 @@ import yaml
 from drivenav.errors import InputError
 
 DOCUMENT = "<document>"  # the field of errors about a whole file
+MAX_DOCUMENT_BYTES = 256 << 20  # a JSON document after decompression (100,000 episodes take about 100 MiB)
 _GZIP_MAGIC = b"\x1f\x8b"
 
 
 def read_json(path: Path) -> Any:
-    """The JSON content of a file, plain or gzip-compressed (recognised by its first bytes)."""
+    """The JSON content of a file, plain or gzip-compressed (recognised by its first bytes), refused before it is
+    read past :data:`MAX_DOCUMENT_BYTES` (a gzip stream is unpacked only that far) or nested too deep to parse."""
     try:
-        raw = path.read_bytes()
+        with path.open("rb") as handle:
+            compressed = handle.read(2) == _GZIP_MAGIC
+            handle.seek(0)
+            raw = _read_limited(gzip.GzipFile(fileobj=handle) if compressed else handle, path)
     except OSError as exc:
         raise InputError(path, DOCUMENT, "a readable file", exc.strerror or str(exc)) from None
-    if raw[:2] == _GZIP_MAGIC:
-        try:
-            raw = gzip.decompress(raw)
-        except (OSError, EOFError, zlib.error) as exc:
-            raise InputError(path, DOCUMENT, "gzip-compressed JSON (a complete gzip stream)", str(exc)) from None
+    except (EOFError, zlib.error) as exc:
+        raise InputError(path, DOCUMENT, "gzip-compressed JSON (a complete gzip stream)", str(exc)) from None
     try:
         return json.loads(raw.decode("utf-8"))
     except UnicodeDecodeError as exc:
         raise InputError(path, DOCUMENT, "UTF-8 text", str(exc)) from None
     except json.JSONDecodeError as exc:
         raise InputError(path, DOCUMENT, "valid JSON", f"{exc.msg} at line {exc.lineno}, column {exc.colno}") from None
+    except RecursionError:
+        raise InputError(path, DOCUMENT, "JSON nested less deeply", "nesting past Python's recursion limit") from None
+
+
+def _read_limited(stream: Any, path: Path) -> bytes:
+    """All of ``stream``, or an :class:`InputError` once it passes :data:`MAX_DOCUMENT_BYTES`."""
+    raw: bytes = stream.read(MAX_DOCUMENT_BYTES + 1)
+    if len(raw) > MAX_DOCUMENT_BYTES:
+        limit = f"at most {MAX_DOCUMENT_BYTES >> 20} MiB of JSON (after decompression)"
+        raise InputError(path, DOCUMENT, limit, "more")
+    return raw
 
 
 class _Yaml12Loader(yaml.SafeLoader):

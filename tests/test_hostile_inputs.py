@@ -1,0 +1,101 @@
+"""Hostile input on the command line: each answer is one line naming what and where, exit 2, no traceback, and
+no unbounded work (huge counts, gzip bombs, deep nesting, empty or impossible output paths)."""
+
+from __future__ import annotations
+
+import gzip
+from pathlib import Path
+
+import pytest
+
+from drivenav import validation
+from drivenav.cli import main
+from drivenav.errors import InputError
+from drivenav.eval.episodes import load_episodes
+
+
+def _one_line_exit_2(capsys: pytest.CaptureFixture[str], args: list[str], *words: str) -> str:
+    try:
+        status = main(args)
+    except SystemExit as exit_:  # argparse's own refusals exit from inside main
+        status = int(exit_.code or 0)
+    assert status == 2
+    err = capsys.readouterr().err.strip()
+    assert "Traceback" not in err, err
+    message = err.splitlines()[-1]  # argparse's refusals come after its usage lines
+    assert message.startswith("drivenav") and "error:" in message, err
+    for word in words:
+        assert word in message, err
+    return message
+
+
+def test_a_gzip_bomb_is_refused_before_it_is_unpacked(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(validation, "MAX_DOCUMENT_BYTES", 1 << 20)
+    bomb = tmp_path / "bomb.json.gz"
+    bomb.write_bytes(gzip.compress(b'{"episodes": [' + b" " * (4 << 20) + b"]}"))
+    with pytest.raises(InputError, match="at most 1 MiB of JSON"):
+        load_episodes(bomb)
+
+
+def test_an_episodes_file_nested_30000_deep_is_one_line(tmp_path: Path) -> None:
+    deep = tmp_path / "deep.json"
+    deep.write_text('{"episodes": ' + "[" * 30_000 + "]" * 30_000 + "}")
+    with pytest.raises(InputError, match="nested"):
+        load_episodes(deep)
+
+
+def test_a_config_that_is_not_utf8_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    config = tmp_path / "bad.yaml"
+    config.write_bytes(b"\xff\xfe run:\n")
+    _one_line_exit_2(capsys, ["config", "show", "--config", str(config)], "UTF-8")
+
+
+@pytest.mark.parametrize(
+    ("args", "word"),
+    [
+        (["--num", "1000000000000"], "--num"),
+        (["--num", "1", "--seed", "-1"], "--seed"),
+    ],
+)
+def test_episode_generation_refuses_unbounded_or_negative_values_at_once(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], word: str
+) -> None:
+    _one_line_exit_2(capsys, ["episodes", "generate", *args, "--out", str(tmp_path / "e.json.gz")], word)
+
+
+def test_an_empty_output_path_is_refused(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    _one_line_exit_2(capsys, ["episodes", "generate", "--num", "1", "--out", ""], "empty")
+    _one_line_exit_2(capsys, ["robot", "keys", ""], "empty")
+
+
+def _paths(tmp_path: Path) -> dict[str, str]:
+    folder = tmp_path / "a-folder"
+    folder.mkdir()
+    file = tmp_path / "a-file"
+    file.write_text("x")
+    return {
+        "a folder": str(folder),
+        "under a file": str(file / "inside.json.gz"),
+        "too long": str(tmp_path / ("n" * 300)),
+        "under /proc": "/proc/drivenav-cannot/e.json.gz",
+    }
+
+
+@pytest.mark.parametrize("kind", ["a folder", "under a file", "too long", "under /proc"])
+def test_an_episodes_file_that_cannot_be_written_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], kind: str
+) -> None:
+    out = _paths(tmp_path)[kind]
+    for args in (["episodes", "generate", "--num", "1"], ["benchmark", "generate", "--episodes", "1"]):
+        _one_line_exit_2(capsys, [*args, "--out", out])
+
+
+@pytest.mark.parametrize("kind", ["under a file", "too long", "under /proc"])
+def test_an_output_folder_that_cannot_be_made_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], kind: str
+) -> None:
+    out = _paths(tmp_path)[kind]
+    _one_line_exit_2(capsys, ["robot", "keys", out])
+    episodes = tmp_path / "e.json.gz"
+    assert main(["episodes", "generate", "--num", "1", "--out", str(episodes)]) == 0
+    _one_line_exit_2(capsys, ["episodes", "export", "--episodes", str(episodes), "--format", "ovon", "--out", out])
