@@ -99,3 +99,30 @@ def test_an_output_folder_that_cannot_be_made_is_one_line(
     episodes = tmp_path / "e.json.gz"
     assert main(["episodes", "generate", "--num", "1", "--out", str(episodes)]) == 0
     _one_line_exit_2(capsys, ["episodes", "export", "--episodes", str(episodes), "--format", "ovon", "--out", out])
+
+
+@pytest.mark.parametrize(
+    ("setting", "word"),
+    [
+        ("mapping.max_size=10", "mapping.max_size"),
+        ("paper.directions.cluster_span_deg=1000", "cluster_span_deg"),
+        ("paper.directions.association_gate_deg=270", "association_gate_deg"),
+    ],
+)
+def test_settings_that_contradict_each_other_are_refused(
+    capsys: pytest.CaptureFixture[str], setting: str, word: str
+) -> None:
+    _one_line_exit_2(capsys, ["config", "show", "--set", setting], word)
+
+
+def test_compare_refuses_nan_distances_and_runs_sharing_no_episode(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    for name, seed in (("a", "1"), ("b", "2")):
+        args = ["eval", "--agent", "random", "--scenes", "procedural:1", "--episodes", "1", "--seed", seed]
+        assert main([*args, "--max-steps", "5", "--out", str(tmp_path / name)]) == 0
+    runs = [str(tmp_path / "a"), str(tmp_path / "b")]
+    _one_line_exit_2(capsys, ["compare", *runs[:1], "--min-distance", "nan"], "--min-distance")
+    assert main(["compare", runs[0], runs[0]]) == 0
+    capsys.readouterr()
+    _one_line_exit_2(capsys, ["compare", *runs], "share none")  # both have an episode "0", in other scenes

@@ -9,6 +9,7 @@ import argparse
 import importlib.util
 import json
 import logging
+import math
 import signal
 import sys
 from collections.abc import Callable, Sequence
@@ -699,12 +700,16 @@ def _cmd_benchmark_generate(args: argparse.Namespace) -> int:
 def _cmd_compare(args: argparse.Namespace) -> int:
     from drivenav.eval.compare import compare, format_comparison
 
+    if not (math.isfinite(args.min_distance) and args.min_distance >= 0.0):
+        raise InputError("command line", "--min-distance", "a distance in metres >= 0", args.min_distance)
     dirs = {}
     for path in args.run_dirs:
         if not (path / "episodes.jsonl").is_file():
             raise InputError(path, "RUN_DIR", "a run directory written by 'drivenav eval'")
         dirs[path.name] = path
     result = compare(dirs, args.min_distance)
+    if len(dirs) > 1 and result["shared_episodes"] == 0:
+        raise InputError("command line", "RUN_DIR", "runs over the same episodes (these share none)")
     print(json.dumps(result) if args.json else format_comparison(result))
     return 0
 

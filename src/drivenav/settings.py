@@ -260,6 +260,17 @@ def check_values(settings: Settings) -> None:
         ("sim.min_depth", settings.sim.min_depth < settings.sim.max_depth, "less than sim.max_depth"),
         ("paper.speed.lam", settings.paper.speed.lam < 1.0, "lambda < 1 (the speed field stays positive, Eq. 1)"),
         ("paper.inspection.forward_range_deg", settings.paper.inspection.forward_range_deg <= 360.0, "<= 360"),
+        (
+            "mapping.max_size",
+            settings.mapping.max_size >= settings.mapping.initial_size,
+            "at least mapping.initial_size (the grid starts that large and only grows)",
+        ),
+        (
+            "paper.directions.cluster_span_deg",
+            settings.paper.directions.cluster_span_deg < 360.0,
+            "a circular gap < 360 degrees (Sec. IV-A b)",
+        ),
+        ("paper.directions.association_gate_deg", settings.paper.directions.association_gate_deg <= 180.0, "<= 180"),
     )
     for key, holds, expected in rules:
         if not holds:

@@ -17,9 +17,18 @@ def load_runs(run_dirs: dict[str, Path]) -> dict[str, dict[str, EpisodeRecord]]:
     return {name: {r.episode_id: r for r in read_records(d / EPISODES_FILE)} for name, d in run_dirs.items()}
 
 
+def shared_ids(runs: dict[str, dict[str, EpisodeRecord]]) -> set[str]:
+    """Episode ids every run has a record of, for the same episode (same scene and target text in every run: runs
+    over other episode files reuse ids such as ``0``)."""
+    if not runs:
+        return set()
+    ids = set.intersection(*(set(records) for records in runs.values()))
+    return {i for i in ids if len({(r[i].scene_id, r[i].object_category) for r in runs.values()}) == 1}
+
+
 def common_successes(runs: dict[str, dict[str, EpisodeRecord]], min_distance: float) -> list[str]:
     """Episode ids that every method solved and whose geodesic distance exceeds ``min_distance``."""
-    ids = set.intersection(*(set(records) for records in runs.values())) if runs else set()
+    ids = shared_ids(runs)
     first = next(iter(runs.values()), {})
     return sorted(
         i for i in ids if all(runs[m][i].success for m in runs) and (first[i].geodesic_distance or 0.0) > min_distance
@@ -43,7 +52,12 @@ def compare_runs(
             "overall": summarize(list(records.values())).to_json(),
             "common": summarize(subset).to_json() if subset else None,
         }
-    return {"min_distance": min_distance, "common_episodes": len(common), "methods": table}
+    return {
+        "min_distance": min_distance,
+        "shared_episodes": len(shared_ids(runs)),
+        "common_episodes": len(common),
+        "methods": table,
+    }
 
 
 def format_comparison(result: dict[str, Any]) -> str:
