@@ -433,7 +433,7 @@ def test_a_reset_for_another_episode_under_a_served_id_is_refused(settings: Sett
     with served(sim_session(settings, episodes)) as endpoint:
         env = RobotSpec(endpoint, "", ("semantic",)).build(settings.sim)
         try:
-            with pytest.raises(RobotUnavailableError, match=r"body\.scene_id.*procedural/house"):
+            with pytest.raises(RobotUnavailableError, match=r"body\.episode\.scene_id.*procedural/house"):
                 env.reset(other[0])
             assert env.reset(episodes[0]).step == 0  # the right episode still starts
         finally:

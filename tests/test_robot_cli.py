@@ -114,3 +114,26 @@ def test_robot_options_are_checked_before_any_work(tmp_path: Path, episodes_file
     assert workers.returncode == 2 and "--workers" in workers.stderr
     keys = run_cli(*base, "--env", "robot", "--robot", free_endpoint(), "--robot-keys", str(tmp_path / "none"))
     assert keys.returncode == 2 and "client.key_secret" in keys.stderr
+
+
+def test_a_live_run_the_robot_refuses_is_recorded_and_said_in_one_line(
+    tmp_path: Path, serve_sim: tuple[str, Path]
+) -> None:
+    endpoint, keys = serve_sim
+    robot = ["--robot", endpoint, "--robot-keys", str(keys), "--max-steps", "5", "--out", str(tmp_path / "live")]
+    result = run_cli("run", *robot, "--episode-id", "nope", "--target", "chair")
+    assert result.returncode == 1 and "Traceback" not in result.stderr, result.stderr
+    assert "an episode this robot knows" in result.stdout and "picture: none" in result.stdout
+    (record,) = records(tmp_path / "live")
+    assert record["stop_reason"] == "error"
+    empty = run_cli("run", *robot, "--target", " ")
+    assert empty.returncode == 2 and "--target" in empty.stderr
+
+
+def test_habitat_options_on_another_world_are_refused(tmp_path: Path, episodes_file: Path) -> None:
+    base = ["eval", "--agent", "random", "--episodes", "1", "--out", str(tmp_path / "r")]
+    for extra, option in ((["--split", "val"], "--split"), (["--data-dir", str(tmp_path)], "--data-dir")):
+        result = run_cli(*base, *extra)
+        assert result.returncode == 2 and option in result.stderr and "--env habitat" in result.stderr
+    named = run_cli(*base, "--env", "habitat", "--config", "hm3d-v9")
+    assert named.returncode == 2 and "got 'hm3d-v9'" in named.stderr

@@ -206,7 +206,7 @@ def _benchmark(args: argparse.Namespace) -> str:
     named = [c for c in args.config if c in args.benchmarks]
     if len(named) != 1:
         expected = f"exactly one Habitat benchmark with --env habitat ({', '.join(args.benchmarks)})"
-        raise InputError("command line", "--config", expected, ", ".join(named) or "none")
+        raise InputError("command line", "--config", expected, ", ".join(named or args.config) or "none")
     return str(named[0])
 
 
@@ -445,6 +445,9 @@ def _run_spec(args: argparse.Namespace, agent: str) -> RunSpec:
     check_models(settings.models)
     if getattr(args, "robot", None) and not _is_robot(args):
         raise InputError("command line", "--robot", "only with --env robot", args.robot)
+    for option, value in (("--split", getattr(args, "split", None)), ("--data-dir", getattr(args, "data_dir", None))):
+        if value is not None and not _is_habitat(args):
+            raise InputError("command line", option, "only with --env habitat", str(value))
     if _is_robot(args):
         return RunSpec(_robot_spec(args, settings), settings)
     if not _is_habitat(args):
@@ -544,12 +547,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     from drivenav.robot.live import run_live
 
+    if not args.target.strip():
+        raise InputError("command line", "--target", "the object to find, e.g. 'fire extinguisher'", args.target)
     spec = _run_spec(args, args.agent)
     out = args.out or Path("runs") / time.strftime("live-%Y%m%d-%H%M%S")
     record, picture = run_live(spec, args.target, out, args.episode_id)
     print(f"{record.stop_reason} after {record.steps} steps{': ' + record.error if record.error else ''}")
-    print(f"run: {out}  picture: {picture}")
-    return 0
+    print(f"run: {out}  picture: {picture or 'none (the episode ended before it started)'}")
+    return 1 if record.error else 0
 
 
 def _cmd_robot_keys(args: argparse.Namespace) -> int:

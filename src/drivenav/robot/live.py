@@ -113,10 +113,10 @@ def operator_stop(live: LiveEnv) -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
 
 
-def run_live(spec: RunSpec, target: str, out: Path, episode_id: str | None = None) -> tuple[EpisodeRecord, Path]:
+def run_live(spec: RunSpec, target: str, out: Path, episode_id: str | None = None) -> tuple[EpisodeRecord, Path | None]:
     """Run one live episode towards ``target`` on the robot of ``spec``, save it in the run directory ``out``
     (``episode_id``: the id its RESET carries, by default ``live-DATE-TIME``) and draw its trace; returns the record
-    and the picture."""
+    and the picture (None for an episode that ended before its start, e.g. a RESET the robot refused)."""
     assert isinstance(spec.env, RobotSpec)
     agent = build_agent(spec)
     check_world_supports(spec, agent)
@@ -130,5 +130,6 @@ def run_live(spec: RunSpec, target: str, out: Path, episode_id: str | None = Non
             run.write_summary(summarize(run.records()))
     finally:
         env.close()
-    picture = trace_picture(episode, SavedTrace.from_json(trace, episode), record, out / "viz")
-    return record, picture
+    if not trace["positions"]:
+        return record, None
+    return record, trace_picture(episode, SavedTrace.from_json(trace, episode), record, out / "viz")

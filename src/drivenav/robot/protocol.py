@@ -407,27 +407,36 @@ def _is_count(value: JSON) -> bool:
 
 
 def reset_body(episode: Episode) -> dict[str, JSON]:
-    """A RESET's body: the episode's id and target text, with its scene and start, so that a robot that knows the
-    episodes (``serve-sim``) can refuse one that is not the episode it serves under that id."""
+    """A RESET's body: the episode's id and target text and, for an episode of an episodes file (one with goals),
+    what it claims of the episode (``episode``: scene, target, start), so that a robot that knows the episodes
+    (``serve-sim``) can refuse one that is not the episode it serves under that id. A live episode (no goals: a
+    target of the operator's, wherever the robot stands) claims nothing."""
+    body: dict[str, JSON] = {"episode_id": episode.episode_id, "target": episode.object_category}
+    if episode.goals:
+        body["episode"] = _claims(episode)
+    return body
+
+
+def _claims(episode: Episode) -> dict[str, JSON]:
     return {
-        "episode_id": episode.episode_id,
-        "target": episode.object_category,
         "scene_id": episode.scene_id,
+        "target": episode.object_category,
         "start_position": list(episode.start_position),
     }
 
 
-def check_claimed_episode(episode: Episode, claimed: Mapping[str, JSON]) -> None:
-    """Refuse a RESET whose scene, target or start differ from ``episode`` (the one served under its id): the brain
-    would record this episode's metrics under another episode's scene and target. Fields left out are not checked
-    (an older brain)."""
-    served = reset_body(episode)
-    for name in ("scene_id", "target", "start_position"):
-        if name in claimed and claimed[name] != served[name]:
-            expected = (
-                f"{served[name]!r}, episode {episode.episode_id}'s on this robot (run the brain on its episodes file)"
-            )
-            raise ProtocolError(f"body.{name}", expected, claimed[name])
+def check_claimed_episode(episode: Episode, body: Mapping[str, JSON]) -> None:
+    """Refuse a RESET whose claimed scene, target or start differ from ``episode`` (the one served under its id):
+    the brain would record this episode's metrics under another episode's scene and target."""
+    claimed = body.get("episode")
+    if claimed is None:
+        return
+    if not isinstance(claimed, dict):
+        raise ProtocolError("body.episode", "an object with scene_id, target, start_position", claimed)
+    for name, value in _claims(episode).items():
+        if claimed.get(name) != value:
+            expected = f"{value!r}, episode {episode.episode_id}'s on this robot (run the brain on its episodes file)"
+            raise ProtocolError(f"body.episode.{name}", expected, claimed.get(name))
 
 
 # -- payload conversions ------------------------------------------------------------------------------------------

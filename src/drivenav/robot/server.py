@@ -69,10 +69,10 @@ class ServerConfig:
 class EpisodeWorld(Protocol):
     """A simulated robot that knows the episodes: it places itself at an episode's start and measures it."""
 
-    def start(self, episode_id: str, claimed: Mapping[str, Any]) -> None:
+    def start(self, episode_id: str, body: Mapping[str, Any]) -> None:
         """Place the robot at the start of ``episode_id`` (KeyError: an unknown episode); a
-        :class:`~drivenav.robot.protocol.ProtocolError` when what the brain ``claimed`` of it (the RESET body's
-        ``scene_id``, ``target``, ``start_position``) is not this episode's: the two sides read other episode files."""
+        :class:`~drivenav.robot.protocol.ProtocolError` when what the RESET ``body`` claims of it (``episode``: its
+        scene, target and start) is not this episode's: the two sides read other episode files."""
         ...
 
     def measures(self) -> EpisodeMeasures:

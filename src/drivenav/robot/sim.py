@@ -69,9 +69,9 @@ class SimulatedRobot:
         return RobotInfo.from_sim(self._env.config, provides=(SEMANTIC,), lidar=self._lidar is not None)
 
     # -- EpisodeWorld -------------------------------------------------------------------------------------------------
-    def start(self, episode_id: str, claimed: Mapping[str, JSON]) -> None:
+    def start(self, episode_id: str, body: Mapping[str, JSON]) -> None:
         episode = self._episodes[episode_id]
-        check_claimed_episode(episode, claimed)
+        check_claimed_episode(episode, body)
         self._observation = self._env.reset(episode)
         self._blocked = None
 
