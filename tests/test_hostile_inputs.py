@@ -4,6 +4,7 @@ no unbounded work (huge counts, gzip bombs, deep nesting, empty or impossible ou
 from __future__ import annotations
 
 import gzip
+import json
 from pathlib import Path
 
 import pytest
@@ -126,3 +127,27 @@ def test_compare_refuses_nan_distances_and_runs_sharing_no_episode(
     assert main(["compare", runs[0], runs[0]]) == 0
     capsys.readouterr()
     _one_line_exit_2(capsys, ["compare", *runs], "share none")  # both have an episode "0", in other scenes
+
+
+@pytest.mark.parametrize(
+    ("change", "field"),
+    [
+        ({"start_rotation": [0.0, 0.0, 0.0, 0.0]}, "start_rotation"),
+        ({"start_position": "lift"}, "start_position"),
+    ],
+)
+def test_an_episode_with_an_impossible_start_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], change: dict[str, object], field: str
+) -> None:
+    source = tmp_path / "e.json.gz"
+    assert main(["episodes", "generate", "--scenes", "procedural:1", "--num", "1", "--out", str(source)]) == 0
+    data = json.loads(gzip.decompress(source.read_bytes()))
+    episode = data["episodes"][0]
+    if change.get("start_position") == "lift":
+        episode["start_position"][1] = 1000.0  # 1000 m above the floor
+    else:
+        episode.update(change)
+    edited = tmp_path / "edited.json"
+    edited.write_text(json.dumps(data))
+    args = ["eval", "--agent", "random", "--scenes", "procedural:1", "--episodes", str(edited)]
+    _one_line_exit_2(capsys, [*args, "--out", str(tmp_path / "run")], f"episodes[0].{field}")

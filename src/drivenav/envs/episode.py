@@ -127,8 +127,15 @@ def parse_vec3(fields: Fields, name: str, value: Any) -> Vec3:
     return (x, y, z)
 
 
+QUATERNION_NORM_TOLERANCE = 0.01  # a rotation is a unit quaternion; datasets round their components
+
+
 def parse_quat(fields: Fields, name: str, value: Any) -> Quat:
+    """A rotation ``[x, y, z, w]``: a unit quaternion (within :data:`QUATERNION_NORM_TOLERANCE`; a zero one is no
+    rotation)."""
     x, y, z, w = fields.numbers(value, name, 4)
+    if abs(math.sqrt(x * x + y * y + z * z + w * w) - 1.0) > QUATERNION_NORM_TOLERANCE:
+        raise fields.error(name, "a unit quaternion [x, y, z, w]", list(value))
     return (x, y, z, w)
 
 

@@ -235,6 +235,9 @@ def _refuse_duplicates(fields: Fields, episodes: list[Episode]) -> None:
 GEODESIC_TOLERANCE = 0.10  # an episode's info.geodesic_distance may differ this much from the world's own
 
 
+FLOOR_TOLERANCE = 0.25  # metres: the embedded world's floor is at height 0 (Habitat's one-floor step limit)
+
+
 def validate_for_scenes(episodes: list[Episode], library: SceneLibrary, source: str | Path, sim: SimConfig) -> None:
     """Every episode fits the world: its scene is in ``library``; its start and view points lie on the scene's one
     connected navigable area (:func:`largest_component`), so a goal is reachable from the start; and
@@ -259,8 +262,8 @@ def _validate_episode(episode: Episode, name: str, context: SceneGoals, fields: 
         cell = grid.world_to_cell(xy)
         return bool(grid.contains(cell) and reachable[cell[0], cell[1]])
 
-    if not on_reachable(episode.start_xy):
-        raise fields.error(f"{name}.start_position", where, list(episode.start_position))
+    if not on_reachable(episode.start_xy) or abs(episode.start_position[1]) > FLOOR_TOLERANCE:
+        raise fields.error(f"{name}.start_position", f"{where}, on its floor (height 0)", list(episode.start_position))
     for k, goal in enumerate(episode.goals):
         for m, point in enumerate(goal.view_points):
             if not on_reachable(point.xy):
