@@ -67,7 +67,7 @@ def test_layers_apply_in_order(tmp_path: Path) -> None:
         (["paper.speed.lam=abc"], ["'paper.speed.lam'", "a float", "'abc'"]),
         (["agent.enrich=maybe"], ["'agent.enrich'", "a bool", "'maybe'"]),
         (["paper.speed.lam=1.5"], ["'paper.speed.lam'", "lambda < 1", "1.5"]),
-        (["sim.width=-3"], ["'sim.width'", ">= 0", "-3"]),
+        (["sim.width=-3"], ["'sim.width'", "a finite number > 0", "-3"]),
         (["sim.max_steps=0"], ["'sim.max_steps'", "> 0"]),
         (["sim.min_depth=6"], ["'sim.min_depth'", "less than sim.max_depth"]),
         (["sim=3"], ["'sim'", "a mapping with keys width", "3"]),

@@ -151,3 +151,8 @@ def test_an_episode_with_an_impossible_start_is_refused(
     edited.write_text(json.dumps(data))
     args = ["eval", "--agent", "random", "--scenes", "procedural:1", "--episodes", str(edited)]
     _one_line_exit_2(capsys, [*args, "--out", str(tmp_path / "run")], f"episodes[0].{field}")
+
+
+def test_a_negative_size_names_the_bound_that_holds(capsys: pytest.CaptureFixture[str]) -> None:
+    message = _one_line_exit_2(capsys, ["config", "show", "--set", "sim.width=-5"], "sim.width")
+    assert "> 0" in message and ">= 0" not in message  # 0 is refused too

@@ -137,3 +137,13 @@ def test_habitat_options_on_another_world_are_refused(tmp_path: Path, episodes_f
         assert result.returncode == 2 and option in result.stderr and "--env habitat" in result.stderr
     named = run_cli(*base, "--env", "habitat", "--config", "hm3d-v9")
     assert named.returncode == 2 and "got 'hm3d-v9'" in named.stderr
+
+
+def test_serve_sim_stopped_by_sigterm_says_it_stopped_serving(episodes_file: Path) -> None:
+    command = [sys.executable, "-m", "drivenav.cli", "robot", "serve-sim", "--scenes", SCENES, "--seed", "5"]
+    command += ["--episodes", str(episodes_file), "--bind", free_endpoint()]
+    server = subprocess.Popen(command, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert server.stdout is not None and server.stdout.readline().startswith("serving on")
+    server.terminate()
+    _, err = server.communicate(timeout=30)
+    assert err.strip().splitlines()[-1] == "drivenav: interrupted (stopped serving (the robot is halted))"

@@ -152,3 +152,15 @@ def test_a_record_of_the_wrong_type_names_its_line_and_field(finished: Path, key
     (finished / EPISODES_FILE).write_text("".join(lines))
     with pytest.raises(InputError, match=rf"{EPISODES_FILE}:3: field 'record\.{key}'"):
         read_records(finished / EPISODES_FILE)
+
+
+@pytest.mark.parametrize("damage", ["deleted", "garbage"])
+def test_a_resume_repairs_the_runs_copy_of_its_episodes(finished: Path, damage: str) -> None:
+    copy = finished / "episodes.json.gz"
+    intact = copy.read_bytes()
+    if damage == "deleted":
+        copy.unlink()
+    else:
+        copy.write_bytes(b"\x1f\x8bnot gzip at all")
+    evaluate(_episodes(), _spec(), finished, show_progress=False)
+    assert copy.read_bytes() == intact

@@ -765,7 +765,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"drivenav: error: {error.filename}: {error.strerror or error}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("drivenav: interrupted (finished episodes are saved; rerun to resume)", file=sys.stderr)
+        serving = handler in (_cmd_robot_serve, _cmd_robot_serve_sim)
+        said = "stopped serving (the robot is halted)" if serving else "finished episodes are saved; rerun to resume"
+        print(f"drivenav: interrupted ({said})", file=sys.stderr)
         return 130
 
 

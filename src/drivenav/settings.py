@@ -246,10 +246,10 @@ def check_values(settings: Settings) -> None:
     leaves = dict(_leaves(settings))
     for key, value in leaves.items():
         is_number = isinstance(value, (int, float)) and not isinstance(value, bool)
+        if key in _POSITIVE and not (math.isfinite(value) and value > 0):
+            raise InputError("settings", key, "a finite number > 0", value)
         if is_number and not (math.isfinite(value) and value >= 0):
             raise InputError("settings", key, "a finite number >= 0", value)
-        if key in _POSITIVE and value <= 0:
-            raise InputError("settings", key, "a number > 0", value)
     rules = (
         ("sim.hfov_deg", settings.sim.hfov_deg < 180.0, "a field of view < 180 degrees"),
         (

@@ -25,7 +25,7 @@ from typing import IO, Any
 
 from drivenav.envs.episode import Episode
 from drivenav.errors import InputError
-from drivenav.eval.episodes import episode_to_dict, save_episodes
+from drivenav.eval.episodes import episode_to_dict, load_episodes, save_episodes
 from drivenav.eval.provenance import package_version, source_state
 from drivenav.eval.records import EpisodeRecord, cut_torn_tail, read_records
 from drivenav.eval.report import Summary
@@ -118,6 +118,7 @@ class RunDirectory:
             results = out / EPISODES_FILE
             if run_file.exists():
                 info.check_resume(_read_json(run_file), run_file)
+                _repair_episodes_copy(out / EPISODES_COPY, episodes, info.episodes_sha256)
             elif results.exists() and results.stat().st_size:
                 raise InputError(
                     run_file,
@@ -155,6 +156,18 @@ class RunDirectory:
 
     def write_summary(self, summary: Summary) -> None:
         write_json_atomic(self.out / SUMMARY_FILE, summary.to_json())
+
+
+def _repair_episodes_copy(path: Path, episodes: Sequence[Episode], sha256: str) -> None:
+    """Rewrite the run's copy of its episodes when it is gone or is not these episodes (pictures and reruns read
+    it); the resume itself was checked against ``run.json``."""
+    try:
+        intact = episodes_sha256(load_episodes(path)) == sha256
+    except InputError:
+        intact = False
+    if not intact:
+        log.warning("%s was missing or damaged: written again from the run's episodes", path)
+        save_episodes(list(episodes), path)
 
 
 def _read_json(path: Path) -> dict[str, Any]:

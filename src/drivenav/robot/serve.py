@@ -19,13 +19,12 @@ T = TypeVar("T")
 
 
 def run_server(session: RobotSession, bind: str, keys: Path | None) -> None:
-    """Serve ``session`` at ``bind`` until Ctrl-C (or SIGTERM); the robot is stopped on the way out."""
+    """Serve ``session`` at ``bind`` until Ctrl-C (or SIGTERM: the command line says it stopped serving); the
+    robot is stopped on the way out."""
     server = RobotServer(session, bind, keys)
     print(f"serving on {server.endpoint}{' with CURVE' if keys else ''} (Ctrl-C stops)", flush=True)
     try:
         server.serve(threading.Event())
-    except KeyboardInterrupt:
-        pass
     finally:
         server.close()
         session.source.close()
