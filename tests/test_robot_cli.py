@@ -104,6 +104,11 @@ def test_a_live_run_prints_progress_and_writes_its_trace_and_picture(
     assert record["episode_id"] == "0" and record["steps"] == len(progress) and record["error"] == ""
     assert record["success"] in (0, 1)  # serve-sim knows the episode and measures it
     assert (out / "viz" / "0_topdown.png").is_file()
+    drawn = run_cli("viz", str(out), "0", "--out", str(tmp_path / "drawn"))  # the live run's own directory
+    assert drawn.returncode == 0 and (tmp_path / "drawn" / "0_topdown.png").is_file(), drawn.stderr
+    (out / "episodes.json.gz").unlink()
+    gone = run_cli("viz", str(out), "0")
+    assert gone.returncode == 2 and "RUN_DIR" in gone.stderr and "--episodes" not in gone.stderr
 
 
 def test_robot_options_are_checked_before_any_work(tmp_path: Path, episodes_file: Path) -> None:

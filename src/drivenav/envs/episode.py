@@ -146,9 +146,10 @@ def parse_identifier(fields: Fields, name: str, value: Any) -> str:
     return fields.text(value, name)
 
 
-def parse_episode(fields: Fields, name: str, item: Any) -> Episode:
+def parse_episode(fields: Fields, name: str, item: Any, require_goals: bool = True) -> Episode:
+    """One episode; ``require_goals`` False also reads a live run's episode (a target on a robot, no goals)."""
     item = fields.mapping(item, name)
-    goals = fields.sequence(item.get("goals"), f"{name}.goals", 1)
+    goals = fields.sequence(item.get("goals"), f"{name}.goals", 1 if require_goals else 0)
     return Episode(
         episode_id=parse_identifier(fields, f"{name}.episode_id", item.get("episode_id")),
         scene_id=parse_identifier(fields, f"{name}.scene_id", item.get("scene_id")),

@@ -192,8 +192,9 @@ def save_episodes(episodes: list[Episode], path: str | Path) -> None:
         gz.write(payload.encode())
 
 
-def load_episodes(path: str | Path) -> list[Episode]:
-    """Read and validate an episode file (json.gz, or plain .json)."""
+def load_episodes(path: str | Path, require_goals: bool = True) -> list[Episode]:
+    """Read and validate an episode file (json.gz, or plain .json); ``require_goals`` False also reads a live run's
+    copy of its episode (``drivenav run``: a target, no goals)."""
     source = Path(path)
     if not source.is_file():
         raise InputError(source, "--episodes", "an episode count or an existing .json.gz file")
@@ -201,7 +202,7 @@ def load_episodes(path: str | Path) -> list[Episode]:
     data = fields.mapping(read_json(source), "", required=("episodes",))
     _refuse_habitat_layout(fields, data)
     items = fields.sequence(data["episodes"], "episodes", 1, "a non-empty list of episodes")
-    episodes = [parse_episode(fields, f"episodes[{i}]", item) for i, item in enumerate(items)]
+    episodes = [parse_episode(fields, f"episodes[{i}]", item, require_goals) for i, item in enumerate(items)]
     _refuse_duplicates(fields, episodes)
     return episodes
 

@@ -24,7 +24,7 @@ from drivenav.envs.scene import Material, Scene
 from drivenav.errors import InputError
 from drivenav.eval.episodes import load_episodes
 from drivenav.eval.records import EpisodeRecord, read_records
-from drivenav.eval.rundir import EPISODES_FILE, RUN_FILE, trace_path
+from drivenav.eval.rundir import EPISODES_COPY, EPISODES_FILE, RUN_FILE, trace_path
 from drivenav.grid import GridSpec
 from drivenav.types import Pose, SimConfig
 from drivenav.viz.coverage import explored_cells
@@ -89,9 +89,12 @@ def trace_picture(episode: Episode, trace: SavedTrace, record: EpisodeRecord | N
 
 def _load_episode(run_dir: Path, episode_id: str) -> tuple[Scene | None, Episode, SavedTrace, EpisodeRecord | None]:
     run = _read_json(run_dir / RUN_FILE, "run")
-    episodes = {e.episode_id: e for e in load_episodes(run_dir / "episodes.json.gz")}
+    copy = run_dir / EPISODES_COPY
+    if not copy.is_file():
+        raise InputError(copy, "RUN_DIR", "the run's copy of its episodes (written with run.json)", "missing")
+    episodes = {e.episode_id: e for e in load_episodes(copy, require_goals=False)}
     if episode_id not in episodes:
-        raise InputError(run_dir / "episodes.json.gz", "EPISODE_ID", "an episode id of this run", episode_id)
+        raise InputError(copy, "EPISODE_ID", "an episode id of this run", episode_id)
     episode = episodes[episode_id]
     path = trace_path(run_dir, episode_id)
     try:
