@@ -156,3 +156,16 @@ def test_an_episode_with_an_impossible_start_is_refused(
 def test_a_negative_size_names_the_bound_that_holds(capsys: pytest.CaptureFixture[str]) -> None:
     message = _one_line_exit_2(capsys, ["config", "show", "--set", "sim.width=-5"], "sim.width")
     assert "> 0" in message and ">= 0" not in message  # 0 is refused too
+
+
+@pytest.mark.parametrize("kind", ["garbage metadata", "no metadata", "a file"])
+def test_a_bag_rosbags_cannot_read_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str], kind: str) -> None:
+    bag = tmp_path / "bag"
+    if kind == "a file":
+        bag.write_text("not a bag")
+    else:
+        bag.mkdir()
+        if kind == "garbage metadata":
+            (bag / "metadata.yaml").write_text("x\n")
+    args = ["robot", "serve", "--source", "bag", "--bag", str(bag), "--bind", "tcp://127.0.0.1:*"]
+    _one_line_exit_2(capsys, args, "--bag")

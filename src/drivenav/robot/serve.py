@@ -7,7 +7,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TypeVar
 
-from drivenav.errors import InputError
+from drivenav.errors import InputError, one_line
 from drivenav.robot.lidar import LidarConfig, LidarOccupancy
 from drivenav.robot.parts import MotionExecutor, SensorSource
 from drivenav.robot.protocol import RobotInfo
@@ -80,14 +80,26 @@ def robot_parts(source: str, bag: Path | None, motion: str) -> tuple[SensorSourc
     from drivenav.robot.parts import HeldStill
 
     if source == "bag":
-        if bag is None or not bag.exists():
+        if bag is None or not bag.is_dir():
             raise InputError("command line", "--bag", "a ROS 2 bag folder with --source bag", bag)
-        sensors: SensorSource = ros.BagSource(bag, ros.RosTopics())
+        sensors: SensorSource = _open_bag(bag)
     else:
         sensors = _with_ros(ros.RosSensorSource, "--source", "ros2")
     if motion == "none":
         return sensors, HeldStill()
     return sensors, _with_ros(ros.RosMotionExecutor, "--motion", "cmd-vel")
+
+
+def _open_bag(bag: Path) -> SensorSource:
+    """The bag's sensor source; a folder rosbags cannot read (no or broken metadata, another storage) is one line."""
+    from drivenav.robot import ros
+
+    try:
+        return ros.BagSource(bag, ros.RosTopics())
+    except InputError:
+        raise
+    except Exception as error:  # rosbags' errors (AnyReaderError, FileNotFoundError, ...) share no base class
+        raise InputError(bag, "--bag", "a ROS 2 bag folder rosbags can read", one_line(error)) from None
 
 
 def _with_ros(part: Callable[[], T], option: str, value: str) -> T:
