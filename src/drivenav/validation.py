@@ -25,7 +25,7 @@ import yaml
 from drivenav.errors import InputError
 
 DOCUMENT = "<document>"  # the field of errors about a whole file
-MAX_DOCUMENT_BYTES = 256 << 20  # a JSON document after decompression (100,000 episodes take about 100 MiB)
+MAX_DOCUMENT_BYTES = 1 << 30  # a JSON document after decompression (100,000 HM3D-style episodes: about 770 MB)
 _GZIP_MAGIC = b"\x1f\x8b"
 
 
