@@ -196,10 +196,12 @@ def test_missed_targets_are_broken_down_by_what_the_agent_did() -> None:
 def test_records_carry_the_decision_counters_and_read_older_schemas() -> None:
     record = _missed(inspection_events=3, labels_created=7)
     data = record.to_json()
-    assert data["schema_version"] == 3 and data["inspection_events"] == 3 and data["labels_created"] == 7
+    assert data["schema_version"] == 4 and data["inspection_events"] == 3 and data["labels_created"] == 7
     assert "decisions" not in data and "decisions_by_reason" in data  # flat beside the other keys
     old = {k: v for k, v in data.items() if k not in ("inspection_events", "labels_created", "retraced_m")}
     assert EpisodeRecord.from_json({**old, "schema_version": 2}).decisions.inspection_events == 0
+    before_traces = {k: v for k, v in data.items() if k != "trace"}
+    assert EpisodeRecord.from_json({**before_traces, "schema_version": 3}).trace == ""
 
 
 # ----------------------------------------------------------------------------------------------- revisits
