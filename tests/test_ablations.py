@@ -13,8 +13,10 @@ from drivenav.cli import main
 from drivenav.envs.library import SceneLibrary
 from drivenav.envs.rosmap import is_map_scene_dir
 from drivenav.eval.ablation_report import ordering_differences
+from drivenav.eval.ablations import method_entry
 from drivenav.eval.benchmark import BENCHMARK_V1, BenchmarkDefinition, generate_benchmark
 from drivenav.eval.episodes import save_episodes, validate_for_scenes
+from drivenav.eval.records import EpisodeRecord
 from drivenav.eval.stats import bootstrap_mean_interval, wilson_interval
 from drivenav.methods import ALL_METHODS
 from drivenav.types import SimConfig
@@ -182,3 +184,12 @@ def test_benchmark_v1_is_frozen_as_published(tmp_path: Path) -> None:
     assert [e.episode_id for e in first] == [str(i) for i in range(12)]
     library = SceneLibrary(BENCHMARK_V1.scenes, BENCHMARK_V1.seed)
     validate_for_scenes(first, library, path, SimConfig())  # still valid in today's worlds
+
+
+def test_a_methods_intervals_do_not_depend_on_the_order_its_records_finished_in() -> None:
+    records = [
+        EpisodeRecord(str(k), "s", "chair", "drive-nav", 10, 0, "timeout", "", success=k % 3 == 0, spl=(k % 7) / 7)
+        for k in range(40)
+    ]
+    entries = [method_entry(order) for order in (records, records[::-1], records[1::2] + records[::2])]
+    assert entries[0]["spl_ci95"] == entries[1]["spl_ci95"] == entries[2]["spl_ci95"]

@@ -95,7 +95,7 @@ def method_entry(records: list[EpisodeRecord]) -> dict[str, Any]:
         "avg_steps": summary.avg_steps,
         "avg_revisits": summary.avg_revisits,
         "sr_ci95": _rounded(wilson_interval(successes, len(measured))) if measured else None,
-        "spl_ci95": _rounded(bootstrap_mean_interval([float(r.spl or 0.0) for r in measured])) if measured else None,
+        "spl_ci95": _rounded(bootstrap_mean_interval(_spls_by_episode(measured))) if measured else None,
         "avg_retraced_revisits": summary.avg_retraced_revisits,
         "vlm_calls": summary.avg_vlm_calls,
         "median_vlm_calls": summary.median_vlm_calls,
@@ -122,6 +122,12 @@ def decision_means(records: list[EpisodeRecord]) -> dict[str, float]:
         totals.update({f"steps.{k}": v for k, v in stats.steps_by_activity.items()})
         totals["decisions"] += sum(stats.decisions_by_reason.values())
     return {key: round(value / len(started), 3) for key, value in sorted(totals.items())}
+
+
+def _spls_by_episode(records: list[EpisodeRecord]) -> list[float]:
+    """The SPLs in episode-id order: the bootstrap resamples by position, so records in completion order (which
+    depends on the workers) would move its interval from run to run."""
+    return [float(r.spl or 0.0) for r in sorted(records, key=lambda r: r.episode_id)]
 
 
 def _rounded(interval: tuple[float, float]) -> list[float]:
