@@ -440,19 +440,24 @@ def _run_spec(args: argparse.Namespace, agent: str) -> RunSpec:
     from drivenav.eval.runner import RunSpec
     from drivenav.semantics.registry import check_models
 
+    _check_world_options(args)
     habitat = _habitat_overrides(args)
     settings = _settings(args, agent)
     check_models(settings.models)
-    if getattr(args, "robot", None) and not _is_robot(args):
-        raise InputError("command line", "--robot", "only with --env robot", args.robot)
-    for option, value in (("--split", getattr(args, "split", None)), ("--data-dir", getattr(args, "data_dir", None))):
-        if value is not None and not _is_habitat(args):
-            raise InputError("command line", option, "only with --env habitat", str(value))
     if _is_robot(args):
         return RunSpec(_robot_spec(args, settings), settings)
     if not _is_habitat(args):
         return RunSpec(EmbeddedSpec(args.scenes, settings.run.seed), settings)
     return RunSpec(_habitat_spec(args, settings, habitat), settings)
+
+
+def _check_world_options(args: argparse.Namespace) -> None:
+    """A world's own options only with that world (before any model loads)."""
+    if getattr(args, "robot", None) and not _is_robot(args):
+        raise InputError("command line", "--robot", "only with --env robot", args.robot)
+    for option, value in (("--split", getattr(args, "split", None)), ("--data-dir", getattr(args, "data_dir", None))):
+        if value is not None and not _is_habitat(args):
+            raise InputError("command line", option, "only with --env habitat", str(value))
 
 
 def _is_robot(args: argparse.Namespace) -> bool:
