@@ -169,3 +169,10 @@ def test_a_bag_rosbags_cannot_read_is_one_line(tmp_path: Path, capsys: pytest.Ca
             (bag / "metadata.yaml").write_text("x\n")
     args = ["robot", "serve", "--source", "bag", "--bag", str(bag), "--bind", "tcp://127.0.0.1:*"]
     _one_line_exit_2(capsys, args, "--bag")
+
+
+def test_a_gzip_stream_with_a_broken_header_names_gzip(tmp_path: Path) -> None:
+    broken = tmp_path / "broken.json.gz"
+    broken.write_bytes(b"\x1f\x8b\x09\x00" + b"not deflate at all")  # gzip magic, an unknown method
+    with pytest.raises(InputError, match="gzip-compressed JSON"):
+        load_episodes(broken)

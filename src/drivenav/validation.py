@@ -37,10 +37,10 @@ def read_json(path: Path) -> Any:
             compressed = handle.read(2) == _GZIP_MAGIC
             handle.seek(0)
             raw = _read_limited(gzip.GzipFile(fileobj=handle) if compressed else handle, path)
+    except (gzip.BadGzipFile, EOFError, zlib.error) as exc:  # BadGzipFile is an OSError: before that clause
+        raise InputError(path, DOCUMENT, "gzip-compressed JSON (a complete gzip stream)", str(exc)) from None
     except OSError as exc:
         raise InputError(path, DOCUMENT, "a readable file", exc.strerror or str(exc)) from None
-    except (EOFError, zlib.error) as exc:
-        raise InputError(path, DOCUMENT, "gzip-compressed JSON (a complete gzip stream)", str(exc)) from None
     try:
         return json.loads(raw.decode("utf-8"))
     except UnicodeDecodeError as exc:

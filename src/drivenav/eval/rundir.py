@@ -102,9 +102,12 @@ class RunDirectory:
     """An open, locked run directory (see the module docstring); records are appended kill-safely."""
 
     def __init__(self, out: Path, episode_ids: frozenset[str]) -> None:
+        """Open the run's records: ``finished`` holds the episodes they finished (a duplicate or foreign record is
+        an :class:`InputError` here, before any episode runs)."""
         self.out = out
         self.results = out / EPISODES_FILE
         self._episode_ids = episode_ids
+        self.finished = frozenset(r.episode_id for r in self.records())  # checked before any episode runs
 
     @staticmethod
     @contextmanager
@@ -131,9 +134,7 @@ class RunDirectory:
                 save_episodes(list(episodes), out / EPISODES_COPY)
                 write_json_atomic(run_file, info.__dict__)
             cut_torn_tail(results)
-            run = RunDirectory(out, frozenset(e.episode_id for e in episodes))
-            run.records()  # a duplicate or a foreign record is refused before any episode runs
-            yield run
+            yield RunDirectory(out, frozenset(e.episode_id for e in episodes))
 
     def records(self) -> list[EpisodeRecord]:
         """The run's records (a duplicate, or a record of an episode outside the run, is an :class:`InputError`)."""

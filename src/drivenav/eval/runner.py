@@ -307,7 +307,7 @@ def evaluate(
     executor = executor or Executor()
     preflight(spec, executor, len(episodes))
     with RunDirectory.open(out, spec.to_config(), episodes) as run:
-        done = {r.episode_id for r in run.records()}
+        done = run.finished
         todo = [e for e in episodes if e.episode_id not in done]
         label = f"{spec.agent} (resuming)" if done else spec.agent
         bar = tqdm(
