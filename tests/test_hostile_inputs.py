@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from drivenav import validation
+from drivenav import jsonstream
 from drivenav.cli import main
 from drivenav.errors import InputError
 from drivenav.eval.episodes import load_episodes
@@ -31,7 +31,7 @@ def _one_line_exit_2(capsys: pytest.CaptureFixture[str], args: list[str], *words
 
 
 def test_a_gzip_bomb_is_refused_before_it_is_unpacked(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(validation, "MAX_DOCUMENT_BYTES", 1 << 20)
+    monkeypatch.setattr(jsonstream, "MAX_DOCUMENT_BYTES", 1 << 20)
     bomb = tmp_path / "bomb.json.gz"
     bomb.write_bytes(gzip.compress(b'{"episodes": [' + b" " * (4 << 20) + b"]}"))
     with pytest.raises(InputError, match="at most 1 MiB of JSON"):

@@ -10,11 +10,8 @@ between fields) stay with the reader of each schema, and raise through :meth:`Fi
 
 from __future__ import annotations
 
-import gzip
-import json
 import math
 import re
-import zlib
 from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,41 +20,10 @@ from typing import Any
 import yaml
 
 from drivenav.errors import InputError
+from drivenav.jsonstream import DOCUMENT, read_document
 
-DOCUMENT = "<document>"  # the field of errors about a whole file
-MAX_DOCUMENT_BYTES = 1 << 30  # a JSON document after decompression (100,000 HM3D-style episodes: about 770 MB)
-_GZIP_MAGIC = b"\x1f\x8b"
-
-
-def read_json(path: Path) -> Any:
-    """The JSON content of a file, plain or gzip-compressed (recognised by its first bytes), refused before it is
-    read past :data:`MAX_DOCUMENT_BYTES` (a gzip stream is unpacked only that far) or nested too deep to parse."""
-    try:
-        with path.open("rb") as handle:
-            compressed = handle.read(2) == _GZIP_MAGIC
-            handle.seek(0)
-            raw = _read_limited(gzip.GzipFile(fileobj=handle) if compressed else handle, path)
-    except (gzip.BadGzipFile, EOFError, zlib.error) as exc:  # BadGzipFile is an OSError: before that clause
-        raise InputError(path, DOCUMENT, "gzip-compressed JSON (a complete gzip stream)", str(exc)) from None
-    except OSError as exc:
-        raise InputError(path, DOCUMENT, "a readable file", exc.strerror or str(exc)) from None
-    try:
-        return json.loads(raw.decode("utf-8"))
-    except UnicodeDecodeError as exc:
-        raise InputError(path, DOCUMENT, "UTF-8 text", str(exc)) from None
-    except json.JSONDecodeError as exc:
-        raise InputError(path, DOCUMENT, "valid JSON", f"{exc.msg} at line {exc.lineno}, column {exc.colno}") from None
-    except RecursionError:
-        raise InputError(path, DOCUMENT, "JSON nested less deeply", "nesting past Python's recursion limit") from None
-
-
-def _read_limited(stream: Any, path: Path) -> bytes:
-    """All of ``stream``, or an :class:`InputError` once it passes :data:`MAX_DOCUMENT_BYTES`."""
-    raw: bytes = stream.read(MAX_DOCUMENT_BYTES + 1)
-    if len(raw) > MAX_DOCUMENT_BYTES:
-        limit = f"at most {MAX_DOCUMENT_BYTES >> 20} MiB of JSON (after decompression)"
-        raise InputError(path, DOCUMENT, limit, "more")
-    return raw
+read_json = read_document
+"""The JSON content of a file, plain or gzip-compressed: see :mod:`drivenav.jsonstream` for what is refused."""
 
 
 class _Yaml12Loader(yaml.SafeLoader):
@@ -93,6 +59,12 @@ def read_yaml(path: Path) -> Any:
 
 def _is_number(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _finite_floats(values: list[Any]) -> bool:
+    """Whether every value is a float and none is infinite or NaN (their sum is finite; one that overflows sends
+    the values down the number-by-number path)."""
+    return set(map(type, values)) == {float} and math.isfinite(sum(values))
 
 
 def _bounds_text(minimum: float | None, maximum: float | None, positive: bool) -> str:
@@ -173,6 +145,8 @@ class Fields:
         self, value: Any, field: str, count: int, expected: str | None = None, positive: bool = False
     ) -> tuple[float, ...]:
         """A JSON array of ``count`` finite numbers (each ``> 0`` if ``positive``)."""
+        if not positive and type(value) is list and len(value) == count and _finite_floats(value):
+            return tuple(value)  # the common case, read without a call per number (100,000-episode files)
         kind = "positive numbers" if positive else "finite numbers"
         wanted = expected or f"a list of {count} {kind}"
         if not isinstance(value, list) or len(value) != count:

@@ -10,6 +10,7 @@ sense. A world yaw ``psi`` (counter-clockwise from +X) is a rotation about Habit
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -149,16 +150,27 @@ def parse_identifier(fields: Fields, name: str, value: Any) -> str:
 def parse_episode(fields: Fields, name: str, item: Any, require_goals: bool = True) -> Episode:
     """One episode; ``require_goals`` False also reads a live run's episode (a target on a robot, no goals)."""
     item = fields.mapping(item, name)
-    goals = fields.sequence(item.get("goals"), f"{name}.goals", 1 if require_goals else 0)
+    goals = parse_goals(fields, f"{name}.goals", item.get("goals"), require_goals)
+    return parse_episode_with(fields, name, item, goals)
+
+
+def parse_episode_with(fields: Fields, name: str, item: dict[str, Any], goals: tuple[ObjectGoal, ...]) -> Episode:
+    """An episode whose ``goals`` were read already (a streamed file reads a repeated goals text once)."""
     return Episode(
         episode_id=parse_identifier(fields, f"{name}.episode_id", item.get("episode_id")),
-        scene_id=parse_identifier(fields, f"{name}.scene_id", item.get("scene_id")),
+        scene_id=sys.intern(parse_identifier(fields, f"{name}.scene_id", item.get("scene_id"))),
         start_position=parse_vec3(fields, f"{name}.start_position", item.get("start_position")),
         start_rotation=parse_quat(fields, f"{name}.start_rotation", item.get("start_rotation")),
-        object_category=parse_identifier(fields, f"{name}.object_category", item.get("object_category")),
-        goals=tuple(parse_goal(fields, f"{name}.goals[{k}]", g) for k, g in enumerate(goals)),
+        object_category=sys.intern(parse_identifier(fields, f"{name}.object_category", item.get("object_category"))),
+        goals=goals,
         info=parse_info(fields, f"{name}.info", item.get("info", {})),
     )
+
+
+def parse_goals(fields: Fields, name: str, value: Any, require_goals: bool = True) -> tuple[ObjectGoal, ...]:
+    """An episode's ``goals``: at least one unless ``require_goals`` is False."""
+    items = fields.sequence(value, name, 1 if require_goals else 0)
+    return tuple(parse_goal(fields, f"{name}[{k}]", goal) for k, goal in enumerate(items))
 
 
 def parse_info(fields: Fields, name: str, value: Any) -> dict[str, Any]:

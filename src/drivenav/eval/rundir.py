@@ -17,15 +17,17 @@ import hashlib
 import json
 import logging
 import os
-from collections.abc import Iterator, Mapping, Sequence
+import threading
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 from typing import IO, Any
 
 from drivenav.envs.episode import Episode
-from drivenav.errors import InputError
-from drivenav.eval.episodes import episode_to_dict, load_episodes, save_episodes
+from drivenav.errors import InputError, RunStoppedError, one_line
+from drivenav.eval.episodes import episode_texts, load_episodes, save_episodes
 from drivenav.eval.provenance import package_version, source_state
 from drivenav.eval.records import EpisodeRecord, cut_torn_tail, read_records
 from drivenav.eval.report import Summary
@@ -44,8 +46,11 @@ log = logging.getLogger(__name__)
 
 def episodes_sha256(episodes: Sequence[Episode]) -> str:
     """A digest of the episodes as written to an episodes file (order included)."""
-    text = json.dumps([episode_to_dict(e) for e in episodes], sort_keys=True, separators=(",", ":"))
-    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+    digest = hashlib.sha256(b"[")
+    for i, text in enumerate(episode_texts(episodes, sort_keys=True)):
+        digest.update(f",{text}".encode() if i else text.encode())
+    digest.update(b"]")
+    return digest.hexdigest()
 
 
 def trace_path(out: Path, episode_id: str) -> Path:
@@ -101,27 +106,28 @@ def make_directory(out: Path) -> None:
 class RunDirectory:
     """An open, locked run directory (see the module docstring); records are appended kill-safely."""
 
-    def __init__(self, out: Path, episode_ids: frozenset[str]) -> None:
+    def __init__(self, out: Path, episode_ids: frozenset[str], setup: _Setup) -> None:
         """Open the run's records: ``finished`` holds the episodes they finished (a duplicate or foreign record is
         an :class:`InputError` here, before any episode runs)."""
         self.out = out
         self.results = out / EPISODES_FILE
         self._episode_ids = episode_ids
+        self._setup = setup
         self.finished = frozenset(r.episode_id for r in self.records())  # checked before any episode runs
 
     @staticmethod
     @contextmanager
     def open(out: Path, config: dict[str, Any], episodes: Sequence[Episode]) -> Iterator[RunDirectory]:
-        """Create or resume ``out`` for a run with ``config`` over ``episodes``; held locked until left."""
+        """Create or resume ``out`` for a run with ``config`` over ``episodes``; held locked until left. A new run
+        writes ``run.json`` and the copy of its episodes while its first episodes run (:class:`_Setup`)."""
         make_directory(out)
         with _locked(out / LOCK_FILE):
-            commit, dirty = source_state()
-            info = RunInfo(config, episodes_sha256(episodes), package_version(), commit, dirty)
             run_file = out / RUN_FILE
             results = out / EPISODES_FILE
             if run_file.exists():
+                info = _run_info(config, episodes)
                 info.check_resume(_read_json(run_file), run_file)
-                _repair_episodes_copy(out / EPISODES_COPY, episodes, info.episodes_sha256)
+                setup = _Setup(partial(_repair_episodes_copy, out / EPISODES_COPY, episodes, info.episodes_sha256))
             elif results.exists() and results.stat().st_size:
                 raise InputError(
                     run_file,
@@ -131,10 +137,11 @@ class RunDirectory:
                     "missing",
                 )
             else:
-                save_episodes(list(episodes), out / EPISODES_COPY)
-                write_json_atomic(run_file, info.__dict__)
+                copy = partial(save_episodes, episodes, out / EPISODES_COPY)
+                setup = _Setup(copy, run_file=partial(_write_run_file, out, config, episodes))
             cut_torn_tail(results)
-            yield RunDirectory(out, frozenset(e.episode_id for e in episodes))
+            with setup.alongside():
+                yield RunDirectory(out, frozenset(e.episode_id for e in episodes), setup)
 
     def records(self) -> list[EpisodeRecord]:
         """The run's records (a duplicate, or a record of an episode outside the run, is an :class:`InputError`)."""
@@ -143,6 +150,7 @@ class RunDirectory:
     def save(self, record: EpisodeRecord, trace: Mapping[str, Any]) -> None:
         """The trace first, then the record (naming the trace) appended, flushed and fsync'ed: the record marks the
         episode finished. A trace that cannot be written is logged and the record kept, with no trace named."""
+        self._setup.wait_ready()
         path = trace_path(self.out, record.episode_id)
         try:
             path.write_text(json.dumps(trace), encoding="utf-8")
@@ -159,6 +167,63 @@ class RunDirectory:
         write_json_atomic(self.out / SUMMARY_FILE, summary.to_json())
 
 
+JOIN_ON_ERROR_S = 2.0  # how long a run that stops on an error waits for its set-up
+
+
+def _run_info(config: dict[str, Any], episodes: Sequence[Episode]) -> RunInfo:
+    commit, dirty = source_state()
+    return RunInfo(config, episodes_sha256(episodes), package_version(), commit, dirty)
+
+
+def _write_run_file(out: Path, config: dict[str, Any], episodes: Sequence[Episode]) -> None:
+    write_json_atomic(out / RUN_FILE, _run_info(config, episodes).__dict__)
+
+
+class _Setup:
+    """What a run writes besides its records, done in a thread while the first episodes run: a new run's
+    ``run.json`` (the episodes' digest takes seconds for 100,000 episodes), then the copy of its episodes (half a
+    minute to compress). No record is written before ``run.json`` (:meth:`wait_ready`), so a run killed meanwhile
+    leaves no record without it; a copy cut short is written to a temporary name, and a resume writes it again."""
+
+    def __init__(self, copy: Callable[[], None], run_file: Callable[[], None] | None = None) -> None:
+        self._copy = copy
+        self._run_file = run_file
+        self._ready = threading.Event()
+        if run_file is None:
+            self._ready.set()
+        self._failure = ""
+
+    def _run(self) -> None:
+        try:
+            if self._run_file is not None:
+                self._run_file()
+                self._ready.set()
+            self._copy()
+        except Exception as error:  # a full disk must not stop the run here: wait_ready reports a missing run.json
+            self._failure = one_line(error)
+            log.warning("the run directory's set-up failed (%s); rerun the same command to repair it", self._failure)
+
+    @contextmanager
+    def alongside(self) -> Iterator[None]:
+        """Run the set-up while the body runs; wait for it when the body ends, at most :data:`JOIN_ON_ERROR_S`
+        when it ends in an error or an interrupt."""
+        thread = threading.Thread(target=self._run, name="run-setup", daemon=True)
+        thread.start()
+        try:
+            yield
+        except BaseException:
+            thread.join(JOIN_ON_ERROR_S)
+            raise
+        thread.join()
+        self.wait_ready()
+
+    def wait_ready(self) -> None:
+        """Block until ``run.json`` is written; a :class:`RunStoppedError` if it could not be."""
+        while not self._ready.wait(0.1):
+            if self._failure:
+                raise RunStoppedError(f"the run's run.json could not be written ({self._failure}); no record was")
+
+
 def _repair_episodes_copy(path: Path, episodes: Sequence[Episode], sha256: str) -> None:
     """Rewrite the run's copy of its episodes when it is gone or is not these episodes (pictures and reruns read
     it); the resume itself was checked against ``run.json``."""
@@ -168,7 +233,7 @@ def _repair_episodes_copy(path: Path, episodes: Sequence[Episode], sha256: str) 
         intact = False
     if not intact:
         log.warning("%s was missing or damaged: written again from the run's episodes", path)
-        save_episodes(list(episodes), path)
+        save_episodes(episodes, path)
 
 
 def _read_json(path: Path) -> dict[str, Any]:
