@@ -363,7 +363,7 @@ def run_all(todo: Sequence[Episode], spec: RunSpec, executor: Executor) -> Itera
     if executor.kind == "ray":
         from drivenav.eval.ray_executor import run_on_ray
 
-        yield from run_on_ray(tasks, run_task, executor.workers, executor.ray_address)
+        yield from run_on_ray(tasks, run_task, executor.workers, executor.ray_address, _task_key)
         return
     workers = min(executor.workers or 1, len(tasks))
     if workers == 1:
@@ -372,4 +372,8 @@ def run_all(todo: Sequence[Episode], spec: RunSpec, executor: Executor) -> Itera
         return
     from drivenav.eval.pool import run_in_pool
 
-    yield from run_in_pool(tasks, run_task, workers, lambda task: task.episode.episode_id)
+    yield from run_in_pool(tasks, run_task, workers, _task_key)
+
+
+def _task_key(task: EpisodeTask) -> str:
+    return task.episode.episode_id
