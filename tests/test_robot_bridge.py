@@ -22,7 +22,7 @@ from drivenav.envs.embedded import EmbeddedSpec
 from drivenav.envs.episode import Episode
 from drivenav.envs.library import SceneLibrary
 from drivenav.envs.robot import RobotSpec
-from drivenav.errors import InputError
+from drivenav.errors import InputError, RunStoppedError
 from drivenav.eval.episodes import generate_episodes, save_episodes
 from drivenav.eval.records import EpisodeRecord
 from drivenav.eval.runner import RunSpec, build_agent, run_episode
@@ -182,6 +182,47 @@ def test_a_server_killed_mid_episode_ends_it_as_an_error_after_the_timeout(
     assert record.error.startswith("RobotUnavailableError: no reply from the robot at tcp://127.0.0.1:")
     assert "\n" not in record.error
     assert record.steps == 2  # the two steps the robot answered
+
+
+class Requests:
+    """The types of the requests an env's client sends."""
+
+    def __init__(self, env: Any) -> None:
+        self.types: list[str] = []
+        client, send = env._client, env._client.request
+
+        def counted(message: Message) -> Message:
+            self.types.append(message.type)
+            return send(message)
+
+        client.request = counted
+
+
+def test_a_robot_gone_for_good_stops_the_run_instead_of_a_wait_per_episode(
+    tmp_path: Path, settings: Settings, episodes: list[Episode]
+) -> None:
+    """The episode the robot dies in ends after one wait (no BYE into the silence); the next episode's RESET gets
+    one more chance, then the run stops: not an error record per episode left, each after the full wait."""
+    file = tmp_path / "episodes.json.gz"
+    save_episodes(episodes, file)
+    endpoint = f"tcp://127.0.0.1:{free_port()}"
+    command = [sys.executable, "-m", "drivenav.cli", "robot", "serve-sim", "--scenes", SCENES, "--seed", "5"]
+    server = subprocess.Popen([*command, "--episodes", str(file), "--bind", endpoint], cwd=REPO)
+    try:
+        wait_for_robot(endpoint, settings)
+        robot_spec = RobotSpec(endpoint, "", ("semantic",), timeout_s=0.3, retries=1)
+        env = KilledAtStep(robot_spec.build(settings.sim), server, at=3)
+        requests = Requests(env.env)
+        agent = build_agent(RunSpec(robot_spec, settings))
+        record, _ = run_episode(env, agent, episodes[0], 0, settings.sim.max_steps)  # type: ignore[arg-type]
+        assert record.stop_reason == "error" and requests.types[-1] == "STEP"  # no BYE after the silent STEP
+        with pytest.raises(RunStoppedError, match=r"stopped answering.*rerun the same command to resume"):
+            run_episode(env, agent, episodes[1], 0, settings.sim.max_steps)  # type: ignore[arg-type]
+        assert requests.types[-1] == "RESET"  # one more chance, then the run stops
+        env.close()
+    finally:
+        if server.poll() is None:
+            server.kill()
 
 
 class CountingMotion(HeldStill):

@@ -18,7 +18,7 @@ import numpy as np
 from drivenav.envs.base import EpisodeMeasures
 from drivenav.envs.episode import Episode
 from drivenav.envs.vocabulary import VOCABULARY
-from drivenav.errors import InputError
+from drivenav.errors import InputError, RunStoppedError
 from drivenav.robot.client import ClientConfig, RobotClient, RobotUnavailableError
 from drivenav.robot.protocol import (
     Message,
@@ -84,6 +84,7 @@ class RobotEnv:
         self._client = spec.client()
         self._odom = Pose(0.0, 0.0, 0.0)
         self._labels: dict[int, str] = {}
+        self._silent = False  # the last request went unanswered through every retry
         self.last: Message | None = None
         self.info = self._hello()
 
@@ -103,7 +104,19 @@ class RobotEnv:
         return self._config
 
     def reset(self, episode: Episode) -> Observation:
-        reply = self._request("RESET", reset_body(episode))
+        """Start ``episode`` on the robot. A robot silent through the last episode's end and this RESET too is gone:
+        a :class:`RunStoppedError` stops the run (finished episodes saved) instead of an error record per episode
+        left, each after the full wait."""
+        was_silent = self._silent
+        try:
+            reply = self._request("RESET", reset_body(episode))
+        except RobotUnavailableError as error:
+            if not was_silent:
+                raise
+            raise RunStoppedError(
+                f"the robot at {self._spec.address} stopped answering ({error}); finished episodes are saved, "
+                "rerun the same command to resume once it answers"
+            ) from None
         labels = reply.body.get("labels") or {}
         self._labels = {int(k): str(v) for k, v in labels.items()}
         return self._observation(reply)
@@ -115,7 +128,10 @@ class RobotEnv:
         return self._odom
 
     def measures(self) -> EpisodeMeasures:
-        """The robot's metrics of the episode (a simulated robot's; ``None`` everywhere on a real one)."""
+        """The robot's metrics of the episode (a simulated robot's; ``None`` everywhere on a real one); none, at
+        once, from a robot that did not answer the episode's last request (not a second full wait)."""
+        if self._silent:
+            raise RobotUnavailableError(f"no measures: the robot at {self._spec.address} did not answer")
         reply = self._request("BYE", {})
         measures = reply.body.get("measures")
         if not isinstance(measures, dict):
@@ -137,7 +153,12 @@ class RobotEnv:
         self._client.close()
 
     def _request(self, kind: str, body: dict[str, Any]) -> Message:
-        reply = self._client.request(Message(kind, self._client.next_id(), body=body))
+        try:
+            reply = self._client.request(Message(kind, self._client.next_id(), body=body))
+        except RobotUnavailableError:
+            self._silent = True
+            raise
+        self._silent = False
         self.last = reply
         return reply
 

@@ -142,8 +142,8 @@ def run_episode(env: Env, agent: Agent, episode: Episode, run_seed: int, max_ste
     called_stop = False
     try:
         called_stop = _drive(env, agent, episode, run_seed, max_steps, path)
-    except InputError:
-        raise  # e.g. a replay that does not match the run: the run stops with its message
+    except (InputError, RunStoppedError):
+        raise  # e.g. a replay that does not match the run, a robot gone: the run stops with its message
     except Exception as exc:
         error = _error(exc)
     measures = EpisodeMeasures()  # a failed reset measured nothing
