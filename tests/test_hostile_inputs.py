@@ -88,7 +88,10 @@ def test_an_episodes_file_that_cannot_be_written_is_one_line(
 ) -> None:
     out = _paths(tmp_path)[kind]
     for args in (["episodes", "generate", "--num", "1"], ["benchmark", "generate", "--episodes", "1"]):
-        _one_line_exit_2(capsys, [*args, "--out", out])
+        message = _one_line_exit_2(capsys, [*args, "--out", out])
+        named = [str(path)[:100] for path in (Path(out), *Path(out).parents)]  # the path asked for, or its folder
+        assert any(name in message for name in named) and ".partial" not in message
+    assert not list(tmp_path.rglob("*.partial"))
 
 
 @pytest.mark.parametrize("kind", ["under a file", "too long", "under /proc"])

@@ -767,7 +767,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except OSError as error:  # a path given that cannot be written or read (a folder, too long, under /proc)
         if error.filename is None:
             raise
-        print(f"drivenav: error: {error.filename}: {error.strerror or error}", file=sys.stderr)
+        name = str(error.filename)
+        shown = name if len(name) <= 200 else f"{name[:100]}...{name[-60:]} ({len(name)} characters)"
+        print(f"drivenav: error: {shown}: {error.strerror or error}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         serving = handler in (_cmd_robot_serve, _cmd_robot_serve_sim)

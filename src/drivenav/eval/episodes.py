@@ -9,6 +9,7 @@ val_seen_synonyms), ``goals`` (every instance of the category with ``position`` 
 
 from __future__ import annotations
 
+import errno
 import gc
 import gzip
 import json
@@ -17,7 +18,7 @@ import os
 import secrets
 from collections import Counter
 from collections.abc import Iterable, Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -227,9 +228,21 @@ def save_episodes(episodes: Iterable[Episode], path: str | Path) -> None:
     """Write a json.gz episode file, byte-identical for identical episodes; written to a temporary file and moved
     into place, so a reader sees the old file or the whole new one."""
     target = Path(path)
+    if target.is_dir():
+        raise IsADirectoryError(errno.EISDIR, "is a directory (an episodes file is expected)", str(target))
     target.parent.mkdir(parents=True, exist_ok=True)
     partial = target.with_name(target.name + ".partial")
-    with partial.open("wb") as raw, gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0) as gz:
+    try:
+        _write_gzip(partial, episodes)
+        os.replace(partial, target)
+    except OSError as error:  # named by the path asked for, not the temporary one
+        with suppress(OSError):
+            partial.unlink(missing_ok=True)
+        raise OSError(error.errno, error.strerror, str(target)) from None
+
+
+def _write_gzip(path: Path, episodes: Iterable[Episode]) -> None:
+    with path.open("wb") as raw, gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0) as gz:
         pending = ['{"episodes":[']
         size = 0
         for i, text in enumerate(episode_texts(episodes)):
@@ -240,7 +253,6 @@ def save_episodes(episodes: Iterable[Episode], path: str | Path) -> None:
                 pending, size = [], 0
         pending.append("]}")
         gz.write("".join(pending).encode())
-    os.replace(partial, target)
 
 
 def load_episodes(path: str | Path, require_goals: bool = True) -> list[Episode]:
