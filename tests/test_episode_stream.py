@@ -140,3 +140,13 @@ def test_the_written_file_and_digest_are_those_of_the_plain_json_form(tmp_path: 
     assert (tmp_path / "saved.json.gz").read_bytes() == (tmp_path / "plain.json.gz").read_bytes()
     sorted_text = json.dumps([episode_to_dict(e) for e in episodes], sort_keys=True, separators=(",", ":"))
     assert episodes_sha256(episodes) == hashlib.sha256(sorted_text.encode()).hexdigest()
+
+
+def test_bench_episodes_reports_the_costs_before_the_first_episode(capsys: pytest.CaptureFixture[str]) -> None:
+    from drivenav.cli import main
+
+    assert main(["bench", "episodes", "--num", "250", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["episodes"] == 250
+    keys = ("read_s", "check_s", "digest_s", "copy_s", "held_bytes_per_episode", "peak_bytes_per_episode")
+    assert all(result[key] >= 0 for key in keys)

@@ -300,6 +300,10 @@ def _add_bench(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     agent.add_argument("--json", action="store_true", help="print one JSON object")
     agent.set_defaults(handler=_cmd_bench_agent)
     _add_bench_ablations(sub)
+    episodes = sub.add_parser("episodes", help="a large episodes file: read, check, digest, copy, memory per episode")
+    episodes.add_argument("--num", type=int, default=100_000)
+    episodes.add_argument("--json", action="store_true", help="print one JSON object")
+    episodes.set_defaults(handler=_cmd_bench_episodes)
     robot = sub.add_parser("robot", help="robot protocol round trip of one 640x480 observation, plain and CURVE")
     robot.add_argument("--repeats", type=int, default=200)
     robot.add_argument("--json", action="store_true", help="print one JSON object")
@@ -410,6 +414,13 @@ def _positive(value: int, option: str) -> int:
 MAX_EPISODES = 1_000_000  # more episodes than any benchmark split: a typo, not a run
 
 
+def _episode_count(value: int, option: str) -> int:
+    count = _positive(value, option)
+    if count > MAX_EPISODES:
+        raise InputError("command line", option, f"a number of episodes up to {MAX_EPISODES:,}", count)
+    return count
+
+
 def _seed(value: int) -> int:
     if value < 0:
         raise InputError("command line", "--seed", "an integer >= 0", value)
@@ -425,9 +436,7 @@ def _load_or_generate(args: argparse.Namespace, settings: Settings) -> list[Epis
     seed = settings.run.seed
     library = SceneLibrary(args.scenes, seed)
     if str(args.episodes).isdigit():
-        count = _positive(int(args.episodes), "--episodes")
-        if count > MAX_EPISODES:
-            raise InputError("command line", "--episodes", f"a number of episodes up to {MAX_EPISODES:,}", count)
+        count = _episode_count(int(args.episodes), "--episodes")
         return generate_episodes(library, count, seed, settings.sim)
     episodes = load_episodes(args.episodes)
     validate_for_scenes(episodes, library, args.episodes, settings.sim)
@@ -595,14 +604,18 @@ def _cmd_bench_robot(args: argparse.Namespace) -> int:
     return _print_bench(bench_robot(_positive(args.repeats, "--repeats")), args.json)
 
 
+def _cmd_bench_episodes(args: argparse.Namespace) -> int:
+    from drivenav.eval.episodes_bench import bench_episodes
+
+    return _print_bench(bench_episodes(_episode_count(args.num, "--num")), args.json)
+
+
 def _cmd_episodes_generate(args: argparse.Namespace) -> int:
     from drivenav.envs.library import SceneLibrary
     from drivenav.eval.episodes import generate_episodes, save_episodes
     from drivenav.types import SimConfig
 
-    count = _positive(args.num, "--num")
-    if count > MAX_EPISODES:
-        raise InputError("command line", "--num", f"a number of episodes up to {MAX_EPISODES:,}", count)
+    count = _episode_count(args.num, "--num")
     library = SceneLibrary(args.scenes, _seed(args.seed))
     episodes = generate_episodes(library, count, args.seed, SimConfig())
     save_episodes(episodes, args.out)
