@@ -5,6 +5,8 @@ use only the neutral modules (types, config, grid, errors, metrics) and each oth
 from __future__ import annotations
 
 import ast
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -43,3 +45,13 @@ def test_the_check_sees_a_violation(tmp_path: Path) -> None:
     module = tmp_path / "bad.py"
     module.write_text("def f():\n    from drivenav.envs.embedded import EmbeddedEnv\n", encoding="utf-8")
     assert imported_modules(module) == {"drivenav.envs.embedded"}
+
+
+def test_the_settings_read_the_agents_config_without_importing_the_agent() -> None:
+    """``drivenav config show`` and every settings check read ``AgentConfig`` from ``agent/config.py``: the
+    settings floor imports no agent behaviour (it used to import the 658-line agent module)."""
+    agent_imports = {m for m in imported_modules(PACKAGE / "settings.py") if m.startswith("drivenav.agent")}
+    assert agent_imports == {"drivenav.agent.config"}
+    code = "import sys, drivenav.settings; print(sorted(m for m in sys.modules if m.startswith('drivenav.agent.')))"
+    loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert loaded.strip() == "['drivenav.agent.config']"

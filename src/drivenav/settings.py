@@ -28,7 +28,7 @@ import yaml
 from omegaconf import DictConfig, ListConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from drivenav.agent.drivenav import AgentConfig
+from drivenav.agent.config import AgentConfig
 from drivenav.config import DriveNavConfig
 from drivenav.errors import InputError
 from drivenav.mapping.config import MapTuning

@@ -38,7 +38,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivenav.agent.base import Agent, DecisionStats, ModelStats
-from drivenav.agent.planner import LocalPlanner, PlannerConfig
+from drivenav.agent.config import AgentConfig
+from drivenav.agent.planner import LocalPlanner
 from drivenav.agent.target import SearchConfig, TargetSearch
 from drivenav.agent.trace import DirectionSelected, InspectionStarted, ScanStarted, ViewCaptured
 from drivenav.config import DriveNavConfig
@@ -65,27 +66,6 @@ class Mode(Enum):
     FOLLOW = "follow"
     ENRICH = "enrich"
     APPROACH = "approach"
-
-
-@dataclass(frozen=True)
-class AgentConfig:
-    """Switches composing DRIVE-Nav and its baselines (paper Tables II, V, VI), and the agent's own tuning (ours:
-    the paper does not give these); the paper's constants are a :class:`~drivenav.config.DriveNavConfig` beside
-    them."""
-
-    use_reasoner: bool = True  # False: greedy nearest frontier, no views, no reasoner
-    enrich: bool = True  # prompt enrichment (Sec. IV-B)
-    verify: bool = True  # cross-frame verification (Sec. IV-C)
-    decision_scan: bool = False  # True: a full 360 deg scan at every decision point
-    stop_distance: float = 0.9  # metres from the target's nearest observed point within which to STOP ...
-    # ... once the target is in the current frame (goal view points are positions that see the object).
-    give_up_distance: float = 1.0  # a stuck approach this close to the target still STOPs
-    blacklist_steps: int = 40  # steps a direction (or greedy goal) that could not be followed is left out
-    min_goal_distance: float = 1.0  # greedy baseline: frontier points nearer than this (metres) are not goals
-    replan_shift: float = 0.3  # metres the approach goal may move before this step's path is re-planned
-    reidentify_steps: int = 500  # steps a removed direction is remembered, to recognise it under a fresh label
-    approach_detour_steps: int = 60  # steps an approach may go through frontiers before the target is set aside
-    planner: PlannerConfig = field(default_factory=PlannerConfig)
 
 
 @dataclass

@@ -31,11 +31,11 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
+from drivenav.agent.config import PlannerConfig
 from drivenav.directions.bearings import circle_crossing
 from drivenav.grid import wrap_angle
 from drivenav.types import Action, Pose, SimConfig
@@ -45,17 +45,6 @@ FreeSpace = Callable[[float, float], bool]
 """Whether a world point (episode frame) is free space on the robot's map."""
 
 Polyline = NDArray[np.float64]  # (N, 2) world (x, y), from the robot to the goal
-
-
-@dataclass(frozen=True)
-class PlannerConfig:
-    """The local planner's tuning (ours: the paper names a low-level planner but not its parameters)."""
-
-    lookahead: float = 0.8  # metres: radius of the pursuit circle
-    stuck_steps: int = 16  # forward steps over which progress is measured
-    stuck_progress: float = 0.15  # metres of net progress below which those steps count as stuck
-    escape_turns: int = 2  # turns per blocked forward step in a row before the escape step
-    max_turns: int = 12  # turns in a row after which the planner reports spinning
 
 
 def reached(path: Polyline | None, pose: Pose, tolerance: float) -> bool:

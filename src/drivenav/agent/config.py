@@ -1,0 +1,39 @@
+"""The agent's own settings: the switches that compose DRIVE-Nav and its baselines, and the tuning the paper does
+not give (the paper's constants are :class:`~drivenav.config.DriveNavConfig`). Plain frozen dataclasses, so the
+settings layer reads them without importing the agent."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """The local planner's tuning (ours: the paper names a low-level planner but not its parameters)."""
+
+    lookahead: float = 0.8  # metres: radius of the pursuit circle
+    stuck_steps: int = 16  # forward steps over which progress is measured
+    stuck_progress: float = 0.15  # metres of net progress below which those steps count as stuck
+    escape_turns: int = 2  # turns per blocked forward step in a row before the escape step
+    max_turns: int = 12  # turns in a row after which the planner reports spinning
+
+
+@dataclass(frozen=True)
+class AgentConfig:
+    """Switches composing DRIVE-Nav and its baselines (paper Tables II, V, VI), and the agent's own tuning (ours:
+    the paper does not give these); the paper's constants are a :class:`~drivenav.config.DriveNavConfig` beside
+    them."""
+
+    use_reasoner: bool = True  # False: greedy nearest frontier, no views, no reasoner
+    enrich: bool = True  # prompt enrichment (Sec. IV-B)
+    verify: bool = True  # cross-frame verification (Sec. IV-C)
+    decision_scan: bool = False  # True: a full 360 deg scan at every decision point
+    stop_distance: float = 0.9  # metres from the target's nearest observed point within which to STOP ...
+    # ... once the target is in the current frame (goal view points are positions that see the object).
+    give_up_distance: float = 1.0  # a stuck approach this close to the target still STOPs
+    blacklist_steps: int = 40  # steps a direction (or greedy goal) that could not be followed is left out
+    min_goal_distance: float = 1.0  # greedy baseline: frontier points nearer than this (metres) are not goals
+    replan_shift: float = 0.3  # metres the approach goal may move before this step's path is re-planned
+    reidentify_steps: int = 500  # steps a removed direction is remembered, to recognise it under a fresh label
+    approach_detour_steps: int = 60  # steps an approach may go through frontiers before the target is set aside
+    planner: PlannerConfig = field(default_factory=PlannerConfig)
