@@ -6,7 +6,6 @@ from __future__ import annotations
 import gzip
 import hashlib
 import json
-import tracemalloc
 from pathlib import Path
 from typing import Any
 
@@ -19,6 +18,7 @@ from drivenav.envs.episode import parse_episode
 from drivenav.envs.library import SceneLibrary
 from drivenav.errors import InputError
 from drivenav.eval.episodes import episode_to_dict, generate_episodes, load_episodes, save_episodes
+from drivenav.eval.episodes_bench import traced_read, write_repeated
 from drivenav.eval.rundir import episodes_sha256
 from drivenav.validation import Fields
 
@@ -71,18 +71,10 @@ def test_a_repeated_goals_text_is_read_once_and_shared(tmp_path: Path) -> None:
 
 def test_a_large_file_holds_a_few_kilobytes_per_episode(tmp_path: Path) -> None:
     count = 4000  # read whole, such a file held about 80 KB per episode (5.5 GB for 100,000)
-    items = [{**EPISODES[k % len(EPISODES)], "episode_id": f"ep{k:05d}"} for k in range(count)]
     path = tmp_path / "large.json.gz"
-    path.write_bytes(gzip.compress(json.dumps({"episodes": items}, separators=(",", ":")).encode(), 1))
-    del items
-    tracemalloc.start()
-    try:
-        episodes = load_episodes(path)
-        _, peak = tracemalloc.get_traced_memory()
-    finally:
-        tracemalloc.stop()
-    assert len(episodes) == count
-    assert peak / count < 5_000, f"{peak / count:.0f} bytes per episode at the peak"
+    write_repeated(path, count, distinct=12)
+    held, peak = traced_read(path)
+    assert held <= peak < 5_000 * count, f"{peak / count:.0f} bytes per episode at the peak"
 
 
 @pytest.mark.parametrize("chunk", [16, 1 << 20])

@@ -10,6 +10,8 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -159,9 +161,10 @@ class KilledAtStep:
         return self.env.step(action)
 
 
-def test_a_server_killed_mid_episode_ends_it_as_an_error_after_the_timeout(
-    tmp_path: Path, settings: Settings, episodes: list[Episode]
-) -> None:
+@contextmanager
+def killed_at_step_3(tmp_path: Path, settings: Settings, episodes: list[Episode]) -> Iterator[tuple[Any, Any]]:
+    """A ``serve-sim`` process and a robot env (0.3 s timeout, one retry) whose server is killed before step 3,
+    with the agent; the env is closed and the server gone on leaving."""
     file = tmp_path / "episodes.json.gz"
     save_episodes(episodes, file)
     endpoint = f"tcp://127.0.0.1:{free_port()}"
@@ -171,13 +174,22 @@ def test_a_server_killed_mid_episode_ends_it_as_an_error_after_the_timeout(
         wait_for_robot(endpoint, settings)
         robot_spec = RobotSpec(endpoint, "", ("semantic",), timeout_s=0.3, retries=1)
         env = KilledAtStep(robot_spec.build(settings.sim), server, at=3)
-        agent = build_agent(RunSpec(robot_spec, settings))
-        started = time.monotonic()
-        record, _ = run_episode(env, agent, episodes[0], 0, settings.sim.max_steps)  # type: ignore[arg-type]
-        assert time.monotonic() - started < 10.0
+        try:
+            yield env, build_agent(RunSpec(robot_spec, settings))
+        finally:
+            env.close()
     finally:
         if server.poll() is None:
             server.kill()
+
+
+def test_a_server_killed_mid_episode_ends_it_as_an_error_after_the_timeout(
+    tmp_path: Path, settings: Settings, episodes: list[Episode]
+) -> None:
+    with killed_at_step_3(tmp_path, settings, episodes) as (env, agent):
+        started = time.monotonic()
+        record, _ = run_episode(env, agent, episodes[0], 0, settings.sim.max_steps)  # type: ignore[arg-type]
+        assert time.monotonic() - started < 10.0
     assert record.stop_reason == "error"
     assert record.error.startswith("RobotUnavailableError: no reply from the robot at tcp://127.0.0.1:")
     assert "\n" not in record.error
@@ -203,26 +215,13 @@ def test_a_robot_gone_for_good_stops_the_run_instead_of_a_wait_per_episode(
 ) -> None:
     """The episode the robot dies in ends after one wait (no BYE into the silence); the next episode's RESET gets
     one more chance, then the run stops: not an error record per episode left, each after the full wait."""
-    file = tmp_path / "episodes.json.gz"
-    save_episodes(episodes, file)
-    endpoint = f"tcp://127.0.0.1:{free_port()}"
-    command = [sys.executable, "-m", "drivenav.cli", "robot", "serve-sim", "--scenes", SCENES, "--seed", "5"]
-    server = subprocess.Popen([*command, "--episodes", str(file), "--bind", endpoint], cwd=REPO)
-    try:
-        wait_for_robot(endpoint, settings)
-        robot_spec = RobotSpec(endpoint, "", ("semantic",), timeout_s=0.3, retries=1)
-        env = KilledAtStep(robot_spec.build(settings.sim), server, at=3)
+    with killed_at_step_3(tmp_path, settings, episodes) as (env, agent):
         requests = Requests(env.env)
-        agent = build_agent(RunSpec(robot_spec, settings))
         record, _ = run_episode(env, agent, episodes[0], 0, settings.sim.max_steps)  # type: ignore[arg-type]
         assert record.stop_reason == "error" and requests.types[-1] == "STEP"  # no BYE after the silent STEP
         with pytest.raises(RunStoppedError, match=r"stopped answering.*rerun the same command to resume"):
             run_episode(env, agent, episodes[1], 0, settings.sim.max_steps)  # type: ignore[arg-type]
         assert requests.types[-1] == "RESET"  # one more chance, then the run stops
-        env.close()
-    finally:
-        if server.poll() is None:
-            server.kill()
 
 
 class CountingMotion(HeldStill):

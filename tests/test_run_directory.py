@@ -15,9 +15,9 @@ from drivenav.cli import main
 from drivenav.envs.embedded import EmbeddedSpec
 from drivenav.envs.episode import Episode
 from drivenav.envs.library import SceneLibrary
-from drivenav.errors import InputError
-from drivenav.eval import runner
-from drivenav.eval.episodes import generate_episodes
+from drivenav.errors import InputError, RunStoppedError
+from drivenav.eval import rundir, runner
+from drivenav.eval.episodes import episode_to_dict, generate_episodes, load_episodes
 from drivenav.eval.records import read_records
 from drivenav.eval.rundir import EPISODES_FILE, RUN_FILE, RunDirectory, trace_path
 from drivenav.eval.runner import RunSpec, evaluate
@@ -164,3 +164,34 @@ def test_a_resume_repairs_the_runs_copy_of_its_episodes(finished: Path, damage: 
         copy.write_bytes(b"\x1f\x8bnot gzip at all")
     evaluate(_episodes(), _spec(), finished, show_progress=False)
     assert copy.read_bytes() == intact
+
+
+def test_a_copy_that_cannot_be_written_costs_no_record_and_a_resume_writes_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The episodes copy is written alongside the episodes: its failure (a full disk) is logged, the run goes on."""
+    monkeypatch.setattr(runner, "_WORKER", None)
+
+    def full_disk(*_: object) -> None:
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(rundir, "save_episodes", full_disk)
+    evaluate(_episodes(), _spec(), tmp_path / "run", show_progress=False)
+    assert len(read_records(tmp_path / "run" / EPISODES_FILE)) == 3
+    assert not (tmp_path / "run" / "episodes.json.gz").exists()
+    monkeypatch.undo()
+    evaluate(_episodes(), _spec(), tmp_path / "run", show_progress=False)
+    copy = load_episodes(tmp_path / "run" / "episodes.json.gz")
+    assert [episode_to_dict(e) for e in copy] == [episode_to_dict(e) for e in _episodes()]
+
+
+def test_no_record_is_written_without_run_json(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(runner, "_WORKER", None)
+
+    def full_disk(*_: object) -> None:
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(rundir, "_write_run_file", full_disk)
+    with pytest.raises(RunStoppedError, match=r"run.json could not be written.*No space left"):
+        evaluate(_episodes(), _spec(), tmp_path / "run", show_progress=False)
+    assert not (tmp_path / "run" / EPISODES_FILE).exists() or not (tmp_path / "run" / EPISODES_FILE).read_text()

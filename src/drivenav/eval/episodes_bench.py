@@ -31,9 +31,9 @@ DISTINCT = 200  # generated episodes the file repeats
 SCENES = "procedural"
 
 
-def write_repeated(path: Path, count: int, seed: int = 0) -> None:
-    """An episodes file of ``count`` episodes: :data:`DISTINCT` generated ones repeated under new ids."""
-    base = [episode_to_dict(e) for e in generate_episodes(SceneLibrary(SCENES, seed), min(count, DISTINCT), seed)]
+def write_repeated(path: Path, count: int, distinct: int = DISTINCT, seed: int = 0) -> None:
+    """An episodes file of ``count`` episodes: ``distinct`` generated ones repeated under new ids."""
+    base = [episode_to_dict(e) for e in generate_episodes(SceneLibrary(SCENES, seed), min(count, distinct), seed)]
     with gzip.open(path, "wt", encoding="utf-8", compresslevel=6) as out:
         out.write('{"episodes":[')
         for k in range(count):
@@ -52,7 +52,7 @@ def bench_episodes(count: int) -> dict[str, object]:
     with tempfile.TemporaryDirectory() as folder:
         source = Path(folder) / "episodes.json.gz"
         write_repeated(source, count)
-        held, peak = _traced_read(source)
+        held, peak = traced_read(source)
         start = time.perf_counter()
         episodes = load_episodes(source)
         read_s = _seconds(start)
@@ -78,7 +78,7 @@ def bench_episodes(count: int) -> dict[str, object]:
     }
 
 
-def _traced_read(source: Path) -> tuple[int, int]:
+def traced_read(source: Path) -> tuple[int, int]:
     """Bytes the read episodes hold, and the peak while reading (tracemalloc)."""
     gc.collect()
     tracemalloc.start()
