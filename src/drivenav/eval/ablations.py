@@ -27,7 +27,7 @@ from drivenav.eval.pictures import render_pictures
 from drivenav.eval.provenance import git_commit
 from drivenav.eval.records import ERROR, MISSED_CAUSES, EpisodeRecord, missed_cause
 from drivenav.eval.report import summarize
-from drivenav.eval.rundir import trace_path
+from drivenav.eval.rundir import EPISODES_COPY, trace_path
 from drivenav.eval.runner import RunSpec, evaluate
 from drivenav.eval.stats import bootstrap_mean_interval, wilson_interval
 from drivenav.eval.timings import runtime_table, traced_steps
@@ -36,7 +36,6 @@ from drivenav.types import SimConfig
 
 FAILURE_CAUSES = ("false_positive_stop", "missed_target", "timeout", "no_frontier", "target_never_seen")
 RUNS_DIR = "runs"
-EPISODES_COPY = "episodes.json.gz"
 
 
 def parse_methods(text: str) -> list[str]:

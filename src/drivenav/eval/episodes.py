@@ -258,7 +258,7 @@ def _write_gzip(path: Path, episodes: Iterable[Episode]) -> None:
 def load_episodes(path: str | Path, require_goals: bool = True) -> list[Episode]:
     """Read and validate an episode file (json.gz, or plain .json), streamed: the episodes are read one at a time
     and a goals text that episodes repeat is read once (one shared tuple), so a file of 100,000 episodes is read in
-    seconds and held in about 1.5 KB per episode. ``require_goals`` False also reads a live run's copy of its
+    seconds and held in about 1 KB per episode. ``require_goals`` False also reads a live run's copy of its
     episode (``drivenav run``: a target, no goals)."""
     source = Path(path)
     if not source.is_file():

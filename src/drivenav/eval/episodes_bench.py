@@ -1,4 +1,4 @@
-"""``drivenav bench episodes``: what a large episode file costs before its first episode runs (issue 33's goal: a
+"""``drivenav bench episodes``: what a large episode file costs before its first episode runs (the goal: a
 100,000-episode file starts within about 10 s and holds under 5 KB per episode).
 
 The file repeats 200 generated episodes under new ids, as a large benchmark repeats a scene's goals: the cost of

@@ -91,7 +91,8 @@ def _load_episode(run_dir: Path, episode_id: str) -> tuple[Scene | None, Episode
     run = _read_json(run_dir / RUN_FILE, "run")
     copy = run_dir / EPISODES_COPY
     if not copy.is_file():
-        raise InputError(copy, "RUN_DIR", "the run's copy of its episodes (written with run.json)", "missing")
+        expected = "the run's copy of its episodes (written as its first episodes run; a resume writes it again)"
+        raise InputError(copy, "RUN_DIR", expected, "missing")
     episodes = {e.episode_id: e for e in load_episodes(copy, require_goals=False)}
     if episode_id not in episodes:
         raise InputError(copy, "EPISODE_ID", "an episode id of this run", episode_id)
