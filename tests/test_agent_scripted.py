@@ -9,9 +9,9 @@ import pytest
 from agent_scenes import carved_scene, episode_for, t_junction
 from drivenav.agent.drivenav import DriveNavAgent
 from drivenav.agent.registry import make_agent
-from drivenav.envs.embedded import EmbeddedEnv
-from drivenav.envs.library import SceneLibrary
-from drivenav.envs.scene import ObjectInstance, Scene
+from drivenav.envs.embedded.env import EmbeddedEnv
+from drivenav.envs.embedded.library import SceneLibrary
+from drivenav.envs.embedded.scene import ObjectInstance, Scene
 from drivenav.eval.episodes import generate_episodes
 from drivenav.eval.runner import run_episode
 from drivenav.inspection import sweep_turns

@@ -7,7 +7,7 @@ import json
 from pathlib import Path
 
 from conftest import run_cli
-from drivenav.envs.library import SceneLibrary
+from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.eval.episodes import episode_to_dict, generate_episodes
 
 

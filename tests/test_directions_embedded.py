@@ -7,13 +7,13 @@ from pathlib import Path
 
 import numpy as np
 
-from drivenav.config import DriveNavConfig
 from drivenav.directions import DirectionPipeline
-from drivenav.envs.embedded import EmbeddedEnv
-from drivenav.envs.library import SceneLibrary
+from drivenav.envs.embedded.env import EmbeddedEnv
+from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.eval.episodes import generate_episodes
 from drivenav.mapping.config import MappingConfig
 from drivenav.mapping.occupancy import OccupancyMapper
+from drivenav.paper import DriveNavConfig
 from drivenav.types import Action, SimConfig
 from drivenav.viz.directions import draw_directions
 

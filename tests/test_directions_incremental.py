@@ -10,13 +10,13 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from drivenav.config import SpeedFieldConfig
 from drivenav.directions import bench
 from drivenav.directions.edt import IncrementalTransform, feature_transform, squared_edt
 from drivenav.directions.speed import SpeedField, SpeedFieldBuilder, build_speed_field
 from drivenav.directions.synthetic import extract_frontiers, make_snapshot, rect
 from drivenav.grid import GridSpec
 from drivenav.mapping.types import Frontier, MapSnapshot
+from drivenav.paper import SpeedFieldConfig
 
 FIELD_ARRAYS = ("traversable", "obstacle_sq", "skeleton", "skeleton_sq", "speed")
 

@@ -9,7 +9,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from drivenav.config import DirectionConfig, DriveNavConfig, SpeedFieldConfig
 from drivenav.directions.bench import bench_directions
 from drivenav.directions.clustering import circular_distance
 from drivenav.directions.pipeline import DirectionPipeline, _frontier_cells
@@ -17,6 +16,7 @@ from drivenav.directions.speed import build_speed_field
 from drivenav.directions.synthetic import extract_frontiers, make_snapshot, rect
 from drivenav.directions.types import DirectionResult
 from drivenav.mapping.types import Frontier, MapSnapshot
+from drivenav.paper import DirectionConfig, DriveNavConfig, SpeedFieldConfig
 from drivenav.viz.directions import draw_directions
 
 RES = 0.05

@@ -9,7 +9,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from drivenav.config import SpeedFieldConfig
 from drivenav.directions.edt import feature_transform
 from drivenav.directions.speed import (
     build_speed_field,
@@ -21,6 +20,7 @@ from drivenav.directions.speed import (
 )
 from drivenav.grid import GridSpec
 from drivenav.mapping.types import Frontier, MapSnapshot
+from drivenav.paper import SpeedFieldConfig
 
 CFG = SpeedFieldConfig()
 

@@ -9,9 +9,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from drivenav.config import DirectionConfig
 from drivenav.directions.tracking import DirectionTracker, coinciding, waypoints_coincide
 from drivenav.directions.types import Cluster
+from drivenav.paper import DirectionConfig
 
 
 def cluster(bearing_deg: float, *waypoints: tuple[float, float]) -> Cluster:

@@ -8,9 +8,9 @@ import pickle
 import numpy as np
 import pytest
 
-from drivenav.envs.embedded import EmbeddedEnv
+from drivenav.envs.embedded.env import EmbeddedEnv
+from drivenav.envs.embedded.scene import Material, ObjectInstance, Scene
 from drivenav.envs.episode import Episode, world_to_habitat, yaw_to_quaternion
-from drivenav.envs.scene import Material, ObjectInstance, Scene
 from drivenav.grid import GridSpec
 from drivenav.types import Action, Pose, SimConfig
 

@@ -15,8 +15,8 @@ import pytest
 
 from conftest import REPO, run_cli
 from drivenav.agent.drivenav import DriveNavAgent
-from drivenav.envs.embedded import EmbeddedSpec
-from drivenav.envs.library import SceneLibrary
+from drivenav.envs.embedded.env import EmbeddedSpec
+from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.eval.episodes import generate_episodes, load_episodes, save_episodes
 from drivenav.eval.executor import Executor
 from drivenav.eval.records import read_records

@@ -14,8 +14,8 @@ import pytest
 
 from drivenav.agent.base import Agent
 from drivenav.cli import main
-from drivenav.envs.embedded import EmbeddedEnv, EmbeddedSpec
-from drivenav.envs.library import SceneLibrary
+from drivenav.envs.embedded.env import EmbeddedEnv, EmbeddedSpec
+from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.errors import RunStoppedError
 from drivenav.eval import runner
 from drivenav.eval.episodes import generate_episodes, save_episodes

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from drivenav.envs.geodesic import GeodesicField, largest_component
+from drivenav.envs.embedded.geodesic import GeodesicField, largest_component
 from drivenav.grid import GridSpec
 
 RES = 0.05

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from drivenav.envs.embedded import EmbeddedSpec
+from drivenav.envs.embedded.env import EmbeddedSpec
 from drivenav.eval.episodes import load_episodes
 from drivenav.eval.records import read_records
 from drivenav.eval.rundir import trace_path

@@ -21,8 +21,8 @@ from conftest import run_cli
 from drivenav.agent.base import Agent
 from drivenav.cli import main
 from drivenav.envs.base import EpisodeMeasures
-from drivenav.envs.embedded import EmbeddedEnv, EmbeddedSpec
-from drivenav.envs.library import SceneLibrary
+from drivenav.envs.embedded.env import EmbeddedEnv, EmbeddedSpec
+from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.errors import InputError
 from drivenav.eval import runner
 from drivenav.eval.episodes import generate_episodes

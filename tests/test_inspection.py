@@ -10,7 +10,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from drivenav.config import InspectionConfig
 from drivenav.directions.types import Direction
 from drivenav.grid import wrap_angle
 from drivenav.inspection import (
@@ -22,6 +21,7 @@ from drivenav.inspection import (
     turn_toward,
 )
 from drivenav.packing import DeferredImage, PackedImage
+from drivenav.paper import InspectionConfig
 from drivenav.types import Action, CameraIntrinsics, Observation, Pose
 
 TURN = math.radians(30.0)

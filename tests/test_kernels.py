@@ -1,4 +1,4 @@
-"""Kernels compiled ahead of time (drivenav.kernels): used only when built for this key, checked argument by argument,
+"""Kernels compiled ahead of time (drivenav.jit): used only when built for this key, checked argument by argument,
 the same numbers as numba's JIT, and no numba (nor LLVM) in a process that runs episodes."""
 
 from __future__ import annotations
@@ -13,20 +13,20 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import drivenav.jit as kernels
 from conftest import REPO
-from drivenav import kernels
 from drivenav.directions import bearings
 
 BUILT = kernels.compiled_build() is not None
 needs_build = pytest.mark.skipif(
-    not BUILT and not os.environ.get("CI"), reason="no ahead-of-time build here (python -m drivenav.kernels)"
+    not BUILT and not os.environ.get("CI"), reason="no ahead-of-time build here (python -m drivenav.jit)"
 )
 
 EPISODE = """
 import json, sys
 from pathlib import Path
-from drivenav.envs.embedded import EmbeddedSpec
-from drivenav.envs.library import SceneLibrary
+from drivenav.envs.embedded.env import EmbeddedSpec
+from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.eval.episodes import generate_episodes
 from drivenav.eval.runner import RunSpec, evaluate
 from drivenav.settings import load_settings
@@ -53,7 +53,7 @@ def _episodes(out: Path, mode: str) -> dict[str, object]:
 
 @needs_build
 def test_the_build_is_used_here() -> None:
-    assert BUILT, "CI builds the kernels (make test): python -m drivenav.kernels"
+    assert BUILT, "CI builds the kernels (make test): python -m drivenav.jit"
 
 
 @needs_build
@@ -107,7 +107,7 @@ def test_a_stale_build_or_the_jit_switch_means_no_build(
 
 
 def test_the_build_key_follows_every_kernel_source(monkeypatch: pytest.MonkeyPatch) -> None:
-    assert {kernels._source(m).name for m in kernels.MODULES} >= {"fmm.py", "render.py", "edt.py", "paths.py"}
+    assert {kernels._source(m).name for m in kernels.kernel_modules()} >= {"fmm.py", "render.py", "edt.py", "paths.py"}
     key = kernels.build_key()
     assert key == kernels.build_key()
     real = kernels._source

@@ -43,8 +43,8 @@ def test_core_package_imports_no_world(package: str) -> None:
 
 def test_the_check_sees_a_violation(tmp_path: Path) -> None:
     module = tmp_path / "bad.py"
-    module.write_text("def f():\n    from drivenav.envs.embedded import EmbeddedEnv\n", encoding="utf-8")
-    assert imported_modules(module) == {"drivenav.envs.embedded"}
+    module.write_text("def f():\n    from drivenav.envs.embedded.env import EmbeddedEnv\n", encoding="utf-8")
+    assert imported_modules(module) == {"drivenav.envs.embedded.env"}
 
 
 def test_the_settings_read_the_agents_config_without_importing_the_agent() -> None:

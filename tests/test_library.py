@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from drivenav.envs.library import SceneLibrary, procedural_scene_id
-from drivenav.envs.rosmap import is_map_scene_dir
+from drivenav.envs.embedded.library import SceneLibrary, procedural_scene_id
+from drivenav.envs.embedded.rosmap import is_map_scene_dir
 from drivenav.errors import InputError
 
 

@@ -7,8 +7,8 @@ import math
 import numpy as np
 from scipy import ndimage
 
-from drivenav.envs.render import Renderer
-from drivenav.envs.scene import Material, ObjectInstance, Scene
+from drivenav.envs.embedded.render import Renderer
+from drivenav.envs.embedded.scene import Material, ObjectInstance, Scene
 from drivenav.grid import GridSpec
 from drivenav.mapping.config import MappingConfig
 from drivenav.mapping.occupancy import OccupancyMapper

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from drivenav.envs.motion import apply_action, forward_step, is_navigable, turn
+from drivenav.envs.embedded.motion import apply_action, forward_step, is_navigable, turn
 from drivenav.grid import GridSpec
 from drivenav.types import Action, Pose, SimConfig
 

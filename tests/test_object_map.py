@@ -8,8 +8,8 @@ import warnings
 import numpy as np
 import pytest
 
-from drivenav.envs.render import render_views
-from drivenav.envs.scene import Material, ObjectInstance, Room, Scene
+from drivenav.envs.embedded.render import render_views
+from drivenav.envs.embedded.scene import Material, ObjectInstance, Room, Scene
 from drivenav.envs.vocabulary import VOCABULARY
 from drivenav.grid import GridSpec
 from drivenav.mapping.kernels import project_depth

@@ -13,9 +13,9 @@ from hypothesis import strategies as st
 from numpy.typing import NDArray
 from scipy import ndimage
 
-from drivenav.envs.placement import place_objects
-from drivenav.envs.procedural import generate_house
-from drivenav.envs.scene import Material, ObjectInstance, Room, Scene
+from drivenav.envs.embedded.placement import place_objects
+from drivenav.envs.embedded.procedural import generate_house
+from drivenav.envs.embedded.scene import Material, ObjectInstance, Room, Scene
 from drivenav.envs.vocabulary import VOCABULARY, PlacementStyle, category_spec
 from drivenav.errors import InputError
 from drivenav.grid import GridSpec

@@ -12,16 +12,16 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from drivenav.agent.planner import LocalPlanner, heading_error, reached
-from drivenav.config import DriveNavConfig
 from drivenav.directions.pipeline import DirectionPipeline
 from drivenav.directions.synthetic import extract_frontiers, make_snapshot, rect
-from drivenav.envs.embedded import EmbeddedEnv
+from drivenav.envs.embedded.env import EmbeddedEnv
+from drivenav.envs.embedded.motion import turn
+from drivenav.envs.embedded.procedural import generate_house
 from drivenav.envs.episode import Episode, world_to_habitat, yaw_to_quaternion
-from drivenav.envs.motion import turn
-from drivenav.envs.procedural import generate_house
 from drivenav.mapping.config import MappingConfig
 from drivenav.mapping.occupancy import OccupancyMapper
 from drivenav.mapping.types import Frontier, MapSnapshot
+from drivenav.paper import DriveNavConfig
 from drivenav.types import Action, Pose, SimConfig
 
 RES = 0.05

@@ -9,8 +9,8 @@ import pytest
 from numpy.typing import NDArray
 from scipy import ndimage
 
-from drivenav.envs.procedural import HALLWAY, MAX_ROOMS, generate_house
-from drivenav.envs.scene import Material, Scene
+from drivenav.envs.embedded.procedural import HALLWAY, MAX_ROOMS, generate_house
+from drivenav.envs.embedded.scene import Material, Scene
 from drivenav.envs.vocabulary import VOCABULARY
 from drivenav.errors import InputError
 

@@ -7,8 +7,8 @@ from typing import Any
 
 import pytest
 
-from drivenav.envs.embedded import EmbeddedSpec
-from drivenav.envs.library import SceneLibrary
+from drivenav.envs.embedded.env import EmbeddedSpec
+from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.eval.ablations import run_methods
 from drivenav.eval.episodes import generate_episodes
 from drivenav.eval.executor import Executor

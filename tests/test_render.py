@@ -9,10 +9,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from drivenav.envs import palette
-from drivenav.envs.bench import bench_sim, demo_house
-from drivenav.envs.render import Renderer
-from drivenav.envs.scene import Material, ObjectInstance, Room, Scene
+from drivenav.envs.embedded import palette
+from drivenav.envs.embedded.bench import bench_sim, demo_house
+from drivenav.envs.embedded.render import Renderer
+from drivenav.envs.embedded.scene import Material, ObjectInstance, Room, Scene
 from drivenav.grid import GridSpec
 from drivenav.types import Pose, SimConfig
 

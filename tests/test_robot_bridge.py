@@ -20,22 +20,22 @@ import pytest
 import zmq
 
 from conftest import REPO, run_cli
-from drivenav.envs.embedded import EmbeddedSpec
+from drivenav.envs.embedded.env import EmbeddedSpec
+from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.episode import Episode
-from drivenav.envs.library import SceneLibrary
 from drivenav.envs.robot import RobotSpec
 from drivenav.errors import InputError, RunStoppedError
 from drivenav.eval.episodes import generate_episodes, save_episodes
 from drivenav.eval.records import EpisodeRecord
 from drivenav.eval.runner import RunSpec, build_agent, run_episode
-from drivenav.robot.client import RobotUnavailableError
 from drivenav.robot.parts import HeldStill, MotionResult
-from drivenav.robot.protocol import REPLIES, Message, RobotInfo, decode, encode
-from drivenav.robot.security import check_bind, write_keys
 from drivenav.robot.server import RobotSession, ServerConfig, served
 from drivenav.robot.sim import SimulatedLidar, SimulatedRobot
 from drivenav.settings import Settings, load_settings
 from drivenav.types import Action, Pose
+from drivenav.wire.client import RobotUnavailableError
+from drivenav.wire.protocol import REPLIES, Message, RobotInfo, decode, encode
+from drivenav.wire.security import check_bind, write_keys
 
 SCENES = "procedural:2"
 MEASURED = ("success", "spl", "steps", "path_length", "distance_to_goal", "collisions", "stop_reason", "revisits")
@@ -244,7 +244,7 @@ class CountingMotion(HeldStill):
 
 
 def still_session(motion: CountingMotion, config: ServerConfig | None = None) -> RobotSession:
-    from drivenav.robot.bench import StillCamera
+    from drivenav.brain.bench import StillCamera
     from drivenav.types import SimConfig
 
     sim = SimConfig(width=64, height=48)
@@ -396,7 +396,7 @@ def test_the_deadman_stops_a_robot_that_hears_nothing_while_moving(raw: Any) -> 
 
 
 def test_heartbeats_keep_the_deadman_quiet_during_a_long_motion() -> None:
-    from drivenav.robot.live import live_episode
+    from drivenav.brain.live import live_episode
     from drivenav.types import SimConfig
 
     motion = CountingMotion(seconds=1.5)
@@ -447,7 +447,7 @@ def test_lidar_occupancy_travels_with_observations_and_is_fused_when_switched_on
 
 
 def test_ctrl_c_during_a_live_episode_stops_the_robot_and_ends_the_episode() -> None:
-    from drivenav.robot.live import LiveEnv, OperatorStopError, live_episode
+    from drivenav.brain.live import LiveEnv, OperatorStopError, live_episode
     from drivenav.types import SimConfig
 
     motion = CountingMotion()

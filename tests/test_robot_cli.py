@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from conftest import REPO, run_cli
-from drivenav.envs.library import SceneLibrary
+from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.eval.episodes import generate_episodes, save_episodes
 from drivenav.settings import load_settings
 

@@ -14,13 +14,13 @@ import zmq
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from drivenav.brain.bench import StillCamera
 from drivenav.errors import InputError
-from drivenav.robot.bench import StillCamera
 from drivenav.robot.parts import HeldStill, SensorFrame
-from drivenav.robot.protocol import REQUESTS, Message, ProtocolError, RobotInfo, decode
-from drivenav.robot.security import check_bind, check_endpoint
 from drivenav.robot.server import RobotServer, RobotSession, served
 from drivenav.types import SimConfig
+from drivenav.wire.protocol import REQUESTS, Message, ProtocolError, RobotInfo, decode
+from drivenav.wire.security import check_bind, check_endpoint
 from test_robot_bridge import RawClient, hello
 
 SIM = SimConfig(width=64, height=48)

@@ -11,7 +11,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from drivenav.robot.protocol import (
+from drivenav.types import CameraIntrinsics, LocalOccupancy, Pose, SimConfig
+from drivenav.wire.protocol import (
     REPLIES,
     REQUESTS,
     Message,
@@ -27,7 +28,6 @@ from drivenav.robot.protocol import (
     rgb_from_jpeg,
     rgb_to_jpeg,
 )
-from drivenav.types import CameraIntrinsics, LocalOccupancy, Pose, SimConfig
 
 
 def observation_message() -> Message:

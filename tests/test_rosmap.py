@@ -1,4 +1,4 @@
-"""Tests for the ROS map_server scene loader and objects.json (drivenav.envs.rosmap)."""
+"""Tests for the ROS map_server scene loader and objects.json (drivenav.envs.embedded.rosmap)."""
 
 from __future__ import annotations
 
@@ -16,8 +16,8 @@ from numpy.typing import NDArray
 from PIL import Image
 from scipy import ndimage
 
-from drivenav.envs import placement
-from drivenav.envs.rosmap import (
+from drivenav.envs.embedded import placement
+from drivenav.envs.embedded.rosmap import (
     find_map_yaml,
     is_map_scene_dir,
     load_map_scene,
@@ -30,7 +30,7 @@ from drivenav.envs.rosmap import (
     scene_rng,
     write_objects_json,
 )
-from drivenav.envs.scene import Material, ObjectInstance, Room, Scene
+from drivenav.envs.embedded.scene import Material, ObjectInstance, Room, Scene
 from drivenav.errors import InputError
 from drivenav.grid import GridSpec
 from drivenav.types import SimConfig
@@ -539,7 +539,7 @@ def test_real_placement_puts_objects_in_free_space(tmp_path: Path) -> None:
     try:
         scene = load_map_scene(write_map(tmp_path, image))
     except NotImplementedError:
-        pytest.skip("drivenav.envs.placement.place_objects is not implemented yet")
+        pytest.skip("drivenav.envs.embedded.placement.place_objects is not implemented yet")
     assert scene.objects
     cells = scene.grid.world_to_cell(np.array([o.center for o in scene.objects]))
     assert (scene.structure[cells[:, 0], cells[:, 1]] == F).all()

@@ -12,9 +12,9 @@ import pytest
 
 from drivenav.agent.base import Agent
 from drivenav.cli import main
-from drivenav.envs.embedded import EmbeddedSpec
+from drivenav.envs.embedded.env import EmbeddedSpec
+from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.episode import Episode
-from drivenav.envs.library import SceneLibrary
 from drivenav.errors import InputError, RunStoppedError
 from drivenav.eval import rundir, runner
 from drivenav.eval.episodes import episode_to_dict, generate_episodes, load_episodes

@@ -8,7 +8,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from drivenav.envs.scene import Material, ObjectInstance, Room, Scene
+from drivenav.envs.embedded.scene import Material, ObjectInstance, Room, Scene
 from drivenav.grid import GridSpec
 
 GRID = GridSpec(0.05, (-1.3, 0.7), (90, 120))

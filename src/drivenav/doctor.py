@@ -22,7 +22,7 @@ import numpy as np
 
 from drivenav import __version__
 from drivenav.errors import InputError
-from drivenav.kernels import compiled_build
+from drivenav.jit import compiled_build
 from drivenav.semantics.registry import ModelSpec
 from drivenav.types import Observation, Pose, SimConfig
 
@@ -55,7 +55,7 @@ def kernels_check() -> Check:
     """Which numba kernels this process runs: the ahead-of-time build, or numba's JIT (more memory a process)."""
     if compiled_build() is not None:
         return Check("kernels", True, "compiled ahead of time (no numba JIT in the workers)")
-    return Check("kernels", True, "numba's JIT: no build for these sources and versions", "python -m drivenav.kernels")
+    return Check("kernels", True, "numba's JIT: no build for these sources and versions", "python -m drivenav.jit")
 
 
 def run_checks(request: DoctorRequest) -> list[Check]:

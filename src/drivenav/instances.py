@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.kernels import jit
+from drivenav.jit import jit
 
 MAX_TABLE_ID = 1 << 20  # larger (or negative) instance ids are counted by sorting, not with a table this long
 ID_DTYPES = ("i4", "i8", "u1", "u2", "u4", "i2")  # id image dtypes the counters are compiled for; others go as int64

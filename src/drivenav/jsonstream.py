@@ -27,6 +27,10 @@ from typing import Any, Protocol
 
 from drivenav.errors import InputError
 
+JsonObject = dict[str, Any]
+"""A JSON object as ``json.loads`` returns it or ``json.dumps`` takes it. Only the JSON edges use it -- reading and
+writing files and wire messages -- and hand typed records to the rest of the code."""
+
 DOCUMENT = "<document>"  # the field of errors about a whole file
 MAX_DOCUMENT_BYTES = 1 << 30  # a JSON document after decompression (100,000 HM3D-style episodes: about 650 MB)
 CHUNK_BYTES = 1 << 20  # bytes read at a time; a value longer than the window doubles it
@@ -215,7 +219,7 @@ class _RepeatedMember:
     def _members(self, text: str, pos: int) -> tuple[Any, int]:
         if not text.startswith("{", pos):
             return _SCAN(text, pos)
-        item: dict[str, Any] = {}
+        item: JsonObject = {}
         pos = _after_space(text, pos + 1)
         if text.startswith("}", pos):
             return item, pos + 1
@@ -267,7 +271,7 @@ class ArrayStream:
     def __init__(self, path: Path, key: str, member: str = "", convert: Convert = lambda value, _: value) -> None:
         self.path = path
         self.key = key
-        self.members: dict[str, Any] = {}
+        self.members: JsonObject = {}
         self.found = False
         self.document: Any = None
         self._items = _RepeatedMember(member, convert) if member else None

@@ -7,7 +7,7 @@ were given (``--seed``, ``--max-steps``, ``--reasoner``, ...), then each ``--set
 ``drivenav config show`` prints the result; ``run.json`` records it. A wrong key, type or value is one
 :class:`~drivenav.errors.InputError` line naming the key, what was given and what is allowed.
 
-Units: lengths in metres, angles in degrees (the ``*_deg`` fields; :class:`~drivenav.config.DriveNavConfig` reads
+Units: lengths in metres, angles in degrees (the ``*_deg`` fields; :class:`~drivenav.paper.DriveNavConfig` reads
 them in radians through properties). The step budget is ``sim.max_steps`` (one value, the world's and the agent's).
 ``mapping`` holds only the mapper's own tuning (:class:`~drivenav.mapping.config.MapTuning`); depth range, camera
 height, agent radius and grid resolution follow from ``sim`` (:meth:`~drivenav.mapping.config.MappingConfig.from_sim`),
@@ -29,10 +29,10 @@ from omegaconf import DictConfig, ListConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from drivenav.agent.config import AgentConfig
-from drivenav.config import DriveNavConfig
 from drivenav.errors import InputError
 from drivenav.mapping.config import MapTuning
 from drivenav.methods import PRESETS, agent_names, method_named, preset_names
+from drivenav.paper import DriveNavConfig
 from drivenav.semantics.registry import DETECTORS, REASONERS, ModelSpec
 from drivenav.types import SimConfig
 

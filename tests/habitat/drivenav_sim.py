@@ -28,10 +28,10 @@ from habitat.core.registry import registry
 from habitat.core.simulator import AgentState, SensorSuite, Simulator
 from habitat.sims.habitat_simulator.actions import HabitatSimActions
 
-from drivenav.envs.embedded import EmbeddedEnv
+from drivenav.envs.embedded.env import EmbeddedEnv
+from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.episode import Episode, habitat_to_world, world_to_habitat, yaw_to_quaternion
 from drivenav.envs.habitat.benchmarks import SCENES_DIR
-from drivenav.envs.library import SceneLibrary
 from drivenav.types import Action, Observation, SimConfig
 
 SIM_NAME = "DriveNavSim-v0"

@@ -15,8 +15,8 @@ from pathlib import Path
 import pytest
 from worlds import BothWorlds, export, settings_for
 
+from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.episode import Episode
-from drivenav.envs.library import SceneLibrary
 from drivenav.eval.episodes import generate_episodes, load_episodes, save_episodes
 from drivenav.eval.records import EpisodeRecord
 from drivenav.eval.runner import Trace

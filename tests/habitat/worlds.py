@@ -9,13 +9,13 @@ from pathlib import Path
 from drivenav_sim import SCENES, SIM_NAME
 
 from drivenav.agent.registry import make_agent
-from drivenav.envs.embedded import EmbeddedEnv
+from drivenav.envs.embedded.env import EmbeddedEnv
+from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.episode import Episode
 from drivenav.envs.habitat.benchmarks import BENCHMARKS
 from drivenav.envs.habitat.env import HabitatEnv
 from drivenav.envs.habitat.layouts import write_split
 from drivenav.envs.habitat.spec import HabitatSpec
-from drivenav.envs.library import SceneLibrary
 from drivenav.eval.records import EpisodeRecord
 from drivenav.eval.runner import Trace, run_episode
 from drivenav.settings import Settings, load_settings

@@ -1,5 +1,5 @@
 """The agent's own settings: the switches that compose DRIVE-Nav and its baselines, and the tuning the paper does
-not give (the paper's constants are :class:`~drivenav.config.DriveNavConfig`). Plain frozen dataclasses, so the
+not give (the paper's constants are :class:`~drivenav.paper.DriveNavConfig`). Plain frozen dataclasses, so the
 settings layer reads them without importing the agent."""
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ class PlannerConfig:
 @dataclass(frozen=True)
 class AgentConfig:
     """Switches composing DRIVE-Nav and its baselines (paper Tables II, V, VI), and the agent's own tuning (ours:
-    the paper does not give these); the paper's constants are a :class:`~drivenav.config.DriveNavConfig` beside
+    the paper does not give these); the paper's constants are a :class:`~drivenav.paper.DriveNavConfig` beside
     them."""
 
     use_reasoner: bool = True  # False: greedy nearest frontier, no views, no reasoner

@@ -42,7 +42,6 @@ from drivenav.agent.config import AgentConfig
 from drivenav.agent.planner import LocalPlanner
 from drivenav.agent.target import SearchConfig, TargetSearch
 from drivenav.agent.trace import DirectionSelected, InspectionStarted, ScanStarted, ViewCaptured
-from drivenav.config import DriveNavConfig
 from drivenav.directions import Direction, DirectionPipeline, DirectionResult
 from drivenav.directions.tracking import waypoints_coincide
 from drivenav.grid import wrap_angle
@@ -52,6 +51,7 @@ from drivenav.mapping.config import MappingConfig, MapTuning
 from drivenav.mapping.objects import nearest_point
 from drivenav.mapping.occupancy import OccupancyMapper
 from drivenav.mapping.types import Frontier, MapSnapshot
+from drivenav.paper import DriveNavConfig
 from drivenav.semantics.geometric import GeometricReasoner
 from drivenav.semantics.ground_truth import GroundTruthGrounder
 from drivenav.semantics.protocols import Candidate, Grounder, Reasoner, Selection, View

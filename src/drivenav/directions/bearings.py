@@ -9,7 +9,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.kernels import jit
+from drivenav.jit import jit
 
 TWO_PI = 2.0 * math.pi
 

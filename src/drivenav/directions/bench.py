@@ -20,12 +20,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.config import DriveNavConfig
 from drivenav.directions.pipeline import TIMING_KEYS, DirectionPipeline, arrival_times, source_cell
 from drivenav.directions.speed import build_speed_field
 from drivenav.directions.synthetic import extract_frontiers, make_snapshot, rect
 from drivenav.directions.types import DirectionResult
 from drivenav.mapping.types import Frontier, MapSnapshot
+from drivenav.paper import DriveNavConfig
 
 RESOLUTION = 0.05
 SIZE = 480

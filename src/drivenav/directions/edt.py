@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.kernels import jit
+from drivenav.jit import jit
 
 SAME, LOWERED, REDO = 0, 1, 2  # what a row's column-pass values did: nothing; changed, none grew; some grew
 MAX_LOWERED = 16  # changed columns up to which a LOWERED row is patched instead of redone

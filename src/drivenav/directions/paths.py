@@ -19,7 +19,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.kernels import jit
+from drivenav.jit import jit
 
 STEP = 1.0  # cells per continuous step (<= 1, so that a step crosses at most one boundary per axis)
 MAX_SAME_CELL = 2  # continuous steps allowed without changing cell before a discrete step is forced

@@ -30,7 +30,6 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.config import DirectionConfig, DriveNavConfig
 from drivenav.directions.bearings import Point, bearing_to, circle_crossing
 from drivenav.directions.clustering import build_clusters
 from drivenav.directions.fmm import travel_time
@@ -40,6 +39,7 @@ from drivenav.directions.timing import elapsed_ms
 from drivenav.directions.tracking import DirectionTracker
 from drivenav.directions.types import Cluster, DirectionResult, FrontierPath
 from drivenav.mapping.types import Frontier, MapSnapshot
+from drivenav.paper import DirectionConfig, DriveNavConfig
 
 TIMING_KEYS = ("distance_transforms", "skeleton", "fmm", "backtracking", "clustering", "tracking", "total")
 

@@ -28,12 +28,12 @@ from typing import TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.config import SpeedFieldConfig
 from drivenav.directions.edt import IncrementalTransform, changed_rows, feature_transform, squared_edt
 from drivenav.directions.timing import elapsed_ms
 from drivenav.grid import GridSpec
-from drivenav.kernels import jit
+from drivenav.jit import jit
 from drivenav.mapping.types import Frontier, MapSnapshot
+from drivenav.paper import SpeedFieldConfig
 
 ScalarT = TypeVar("ScalarT", bound=np.generic)
 

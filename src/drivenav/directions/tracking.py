@@ -19,9 +19,9 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.config import DirectionConfig
 from drivenav.directions.clustering import circular_distance
 from drivenav.directions.types import Cluster, Direction, TrackingUpdate
+from drivenav.paper import DirectionConfig
 
 
 def waypoints_coincide(a: NDArray[np.float64], b: NDArray[np.float64], tolerance: float) -> bool:

@@ -12,7 +12,11 @@ import math
 from dataclasses import Field, dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
+import numpy as np
+from numpy.typing import NDArray
+
 from drivenav.grid import wrap_angle
+from drivenav.instances import count_pixels_of
 from drivenav.types import Action, GroundTruth, Observation, Pose, SimConfig
 
 if TYPE_CHECKING:
@@ -122,3 +126,13 @@ class EnvSpec(Protocol):
     def build(self, sim: SimConfig) -> Env:
         """A fresh world with these sensor and body settings."""
         ...
+
+
+TARGET_SEEN_PIXELS = 150  # goal-instance pixels in one frame for the target to count as seen
+
+
+def shows_goal(observation: Observation, goal_ids: NDArray[np.int64]) -> bool:
+    """Whether an observation's ground-truth instance ids show a goal instance clearly (``target_seen``)."""
+    if observation.semantic is None:
+        return False
+    return count_pixels_of(observation.semantic, goal_ids) >= TARGET_SEEN_PIXELS

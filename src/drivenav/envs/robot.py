@@ -19,8 +19,9 @@ from drivenav.envs.base import EpisodeMeasures
 from drivenav.envs.episode import Episode
 from drivenav.envs.vocabulary import VOCABULARY
 from drivenav.errors import InputError, RunStoppedError
-from drivenav.robot.client import ClientConfig, RobotClient, RobotUnavailableError
-from drivenav.robot.protocol import (
+from drivenav.types import SEMANTIC, Action, GroundTruth, Observation, Pose, SimConfig
+from drivenav.wire.client import ClientConfig, RobotClient, RobotUnavailableError
+from drivenav.wire.protocol import (
     Message,
     ProtocolError,
     RobotInfo,
@@ -29,7 +30,6 @@ from drivenav.robot.protocol import (
     reset_body,
     rgb_from_jpeg,
 )
-from drivenav.types import SEMANTIC, Action, GroundTruth, Observation, Pose, SimConfig
 
 
 @dataclass(frozen=True)

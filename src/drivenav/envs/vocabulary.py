@@ -2,7 +2,7 @@
 
 Each category carries its synonyms (the open-vocabulary task may name a target by any of them, Sec. III),
 realistic box sizes, a mounting height, a placement style and per-room-type priors used by
-:mod:`drivenav.envs.placement`. The data live in ``drivenav/data/vocabulary.json``; :func:`load_vocabulary`
+:mod:`drivenav.envs.embedded.placement`. The data live in ``drivenav/data/vocabulary.json``; :func:`load_vocabulary`
 validates a file of that schema and raises :class:`~drivenav.errors.InputError` on the first bad field.
 
 Size convention (used by placement): ``sx`` is the extent along the wall the object stands against, ``sy``

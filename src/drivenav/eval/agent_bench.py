@@ -9,8 +9,8 @@ from __future__ import annotations
 from typing import Any
 
 from drivenav.agent.registry import make_agent
-from drivenav.envs.embedded import EmbeddedEnv
-from drivenav.envs.library import SceneLibrary
+from drivenav.envs.embedded.env import EmbeddedEnv
+from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.eval.episodes import generate_episodes
 from drivenav.eval.runner import run_episode
 from drivenav.eval.timings import DECISION_EVENT, runtime_table

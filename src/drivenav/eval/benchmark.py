@@ -33,7 +33,7 @@ BENCHMARKS: dict[str, BenchmarkDefinition] = {"v1": BENCHMARK_V1}
 def generate_benchmark(definition: BenchmarkDefinition, episodes: int | None = None) -> list[Episode]:
     """The definition's episodes, the first ``episodes`` of them if given: its frozen file where it has one, else
     generated (generation is sequential, so a prefix is the same episodes)."""
-    from drivenav.envs.library import SceneLibrary
+    from drivenav.envs.embedded.library import SceneLibrary
     from drivenav.eval.episodes import generate_episodes, load_episodes
     from drivenav.types import SimConfig
 

@@ -26,6 +26,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from drivenav.envs.embedded.geodesic import GeodesicField, largest_component
+from drivenav.envs.embedded.library import SceneLibrary
+from drivenav.envs.embedded.rosmap import OBJECTS_FILE
+from drivenav.envs.embedded.scene import Scene
 from drivenav.envs.episode import (
     Episode,
     ObjectGoal,
@@ -36,10 +40,6 @@ from drivenav.envs.episode import (
     world_to_habitat,
     yaw_to_quaternion,
 )
-from drivenav.envs.geodesic import GeodesicField, largest_component
-from drivenav.envs.library import SceneLibrary
-from drivenav.envs.rosmap import OBJECTS_FILE
-from drivenav.envs.scene import Scene
 from drivenav.errors import InputError
 from drivenav.eval.goals import object_goal
 from drivenav.jsonstream import DOCUMENT, ArrayStream, Convert

@@ -16,7 +16,7 @@ import time
 import tracemalloc
 from pathlib import Path
 
-from drivenav.envs.library import SceneLibrary
+from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.eval.episodes import (
     episode_to_dict,
     generate_episodes,

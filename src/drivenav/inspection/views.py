@@ -17,10 +17,10 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 
-from drivenav.config import InspectionConfig
 from drivenav.directions.types import Direction
 from drivenav.inspection.sweep import signed_offset, within
 from drivenav.packing import DeferredImage, PackedImage
+from drivenav.paper import InspectionConfig
 from drivenav.semantics.protocols import View
 from drivenav.types import Observation
 

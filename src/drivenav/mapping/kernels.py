@@ -10,7 +10,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.kernels import jit
+from drivenav.jit import jit
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]

@@ -10,10 +10,10 @@ from typing import TypeVar
 from drivenav.errors import InputError, one_line
 from drivenav.robot.lidar import LidarConfig, LidarOccupancy
 from drivenav.robot.parts import MotionExecutor, SensorSource
-from drivenav.robot.protocol import RobotInfo
-from drivenav.robot.security import check_bind
 from drivenav.robot.server import EpisodeWorld, RobotServer, RobotSession, ServerConfig
 from drivenav.types import SimConfig
+from drivenav.wire.protocol import RobotInfo
+from drivenav.wire.security import check_bind
 
 T = TypeVar("T")
 
@@ -43,8 +43,8 @@ def serve_simulation(
     scenes: str, seed: int, episodes_file: Path, bind: str, keys: Path | None, lidar: bool, sim: SimConfig
 ) -> None:
     """The embedded world over ``scenes`` served as a robot that knows the episodes of ``episodes_file``."""
-    from drivenav.envs.embedded import EmbeddedSpec
-    from drivenav.envs.library import SceneLibrary
+    from drivenav.envs.embedded.env import EmbeddedSpec
+    from drivenav.envs.embedded.library import SceneLibrary
     from drivenav.eval.episodes import load_episodes, validate_for_scenes
     from drivenav.robot.sim import SimulatedLidar, SimulatedRobot
 

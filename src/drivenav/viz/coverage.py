@@ -13,7 +13,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.envs.scene import Material, Scene
+from drivenav.envs.embedded.scene import Material, Scene
 from drivenav.types import SimConfig
 from drivenav.viz.saved_trace import SavedTrace
 

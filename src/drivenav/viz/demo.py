@@ -5,8 +5,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from drivenav.envs.embedded import EmbeddedSpec
-from drivenav.envs.library import SceneLibrary
+from drivenav.envs.embedded.env import EmbeddedSpec
+from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.eval.episodes import generate_episodes
 from drivenav.eval.records import read_records
 from drivenav.eval.report import format_table, shown

@@ -9,10 +9,10 @@ import numpy as np
 from numpy.typing import NDArray
 from PIL import Image, ImageDraw
 
-from drivenav.config import DirectionConfig
 from drivenav.directions.types import DirectionResult
 from drivenav.grid import GridSpec
 from drivenav.mapping.types import Frontier, MapSnapshot
+from drivenav.paper import DirectionConfig
 
 PALETTE = (
     (230, 25, 75),

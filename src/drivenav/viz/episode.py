@@ -17,10 +17,10 @@ import numpy as np
 from numpy.typing import NDArray
 from PIL import Image
 
+from drivenav.envs.embedded.library import SceneLibrary
+from drivenav.envs.embedded.render import Renderer
+from drivenav.envs.embedded.scene import Material, Scene
 from drivenav.envs.episode import Episode
-from drivenav.envs.library import SceneLibrary
-from drivenav.envs.render import Renderer
-from drivenav.envs.scene import Material, Scene
 from drivenav.errors import InputError
 from drivenav.eval.episodes import load_episodes
 from drivenav.eval.records import EpisodeRecord, read_records

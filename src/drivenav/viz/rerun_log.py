@@ -14,8 +14,8 @@ from typing import Any
 
 import numpy as np
 
+from drivenav.envs.embedded.scene import Scene
 from drivenav.envs.episode import Episode
-from drivenav.envs.scene import Scene
 from drivenav.errors import InputError
 from drivenav.types import SimConfig
 from drivenav.viz.saved_trace import SavedTrace

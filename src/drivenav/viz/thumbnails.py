@@ -10,7 +10,7 @@ from typing import Any
 
 from PIL import Image, ImageDraw
 
-from drivenav.envs.render import Renderer
+from drivenav.envs.embedded.render import Renderer
 from drivenav.viz.directions import label_color
 from drivenav.viz.saved_trace import SavedTrace
 from drivenav.viz.topdown import FONT, SMALL_FONT, darker, stack

@@ -16,9 +16,9 @@ import numpy as np
 from numpy.typing import NDArray
 from PIL import Image, ImageDraw, ImageFont
 
+from drivenav.envs.embedded.palette import category_color
+from drivenav.envs.embedded.scene import Material, Scene
 from drivenav.envs.episode import Episode
-from drivenav.envs.palette import category_color
-from drivenav.envs.scene import Material, Scene
 from drivenav.eval.records import EpisodeRecord
 from drivenav.eval.report import shown
 from drivenav.types import Pose

@@ -19,9 +19,9 @@ import numpy as np
 from numpy.typing import NDArray
 from PIL import Image, ImageDraw
 
+from drivenav.envs.embedded.render import Renderer
+from drivenav.envs.embedded.scene import Scene
 from drivenav.envs.episode import Episode
-from drivenav.envs.render import Renderer
-from drivenav.envs.scene import Scene
 from drivenav.types import SimConfig
 from drivenav.viz.saved_trace import SavedTrace
 from drivenav.viz.topdown import (

@@ -26,11 +26,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivenav import metrics
-from drivenav.envs.base import EpisodeMeasures, episode_pose, measured
+from drivenav.envs.base import EpisodeMeasures, episode_pose, measured, shows_goal
 from drivenav.envs.episode import Episode, habitat_to_world, quaternion_to_yaw, world_to_habitat
 from drivenav.envs.habitat.config import habitat_config
 from drivenav.envs.habitat.observations import to_observation
-from drivenav.envs.measures import shows_goal
 from drivenav.envs.vocabulary import VOCABULARY
 from drivenav.grid import wrap_angle
 from drivenav.types import GEODESIC, SEMANTIC, Action, GroundTruth, Observation, Pose, SimConfig

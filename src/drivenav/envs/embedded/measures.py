@@ -13,21 +13,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivenav import metrics
-from drivenav.envs.base import EpisodeMeasures, measured
+from drivenav.envs.base import EpisodeMeasures, measured, shows_goal
+from drivenav.envs.embedded.geodesic import GeodesicField
 from drivenav.envs.episode import Episode
-from drivenav.envs.geodesic import GeodesicField
 from drivenav.grid import GridSpec
-from drivenav.instances import count_pixels_of
 from drivenav.types import Action, Observation, Pose, SimConfig
-
-TARGET_SEEN_PIXELS = 150  # goal-instance pixels in one frame for the target to count as seen
-
-
-def shows_goal(observation: Observation, goal_ids: NDArray[np.int64]) -> bool:
-    """Whether an observation's ground-truth instance ids show a goal instance clearly (``target_seen``)."""
-    if observation.semantic is None:
-        return False
-    return count_pixels_of(observation.semantic, goal_ids) >= TARGET_SEEN_PIXELS
 
 
 class EmbeddedMeasures:

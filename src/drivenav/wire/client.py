@@ -20,8 +20,8 @@ from typing import Any
 
 import zmq
 
-from drivenav.robot.protocol import REPLIES, Message, ProtocolError, decode, encode
-from drivenav.robot.security import secure_client
+from drivenav.wire.protocol import REPLIES, Message, ProtocolError, decode, encode
+from drivenav.wire.security import secure_client
 
 log = logging.getLogger(__name__)
 

@@ -27,8 +27,8 @@ def largest_component(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
     distances: the Fast-Marching solve of :class:`GeodesicField` steps between the four axis neighbours only, so
     every cell of a 4-connected component has a finite distance to every goal in it, and a start and goal in it
     never yield a null distance to goal or SPL. A body moving through a corner contact would have to cross one of
-    the two blocked cells beside it; :func:`drivenav.envs.motion.forward_step` checks its segment at samples half
-    a cell apart, so a step nearly along the diagonal can still slip through (pockets joined only by a corner are
+    the two blocked cells beside it; :func:`drivenav.envs.embedded.motion.forward_step` checks its segment at samples
+    half a cell apart, so a step nearly along the diagonal can still slip through (pockets joined only by a corner are
     at most a few square metres of the shared maps). 8-connectivity would add those pockets, with infinite
     distances. The golden episodes (procedural houses) are the same under either rule; map episodes are not.
     """

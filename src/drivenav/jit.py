@@ -1,10 +1,14 @@
-"""Numba kernels, compiled ahead of time where a matching build exists, else just in time (issue 14: worker memory).
+"""Numba kernels, compiled ahead of time where a matching build exists, else just in time (worker memory).
 
 Every numba function of drivenav is declared with :func:`jit`. A kernel that Python calls names its signatures
 (numba's signature strings); a helper that only kernels call names none. Numba's JIT keeps its LLVM compiler in every
 process that runs a kernel, cached or not: about 105 MB of each worker (53 MB to import numba, 51 MB more to load
-the first cached kernel). ``python -m drivenav.kernels`` (run by ``make install``) compiles every kernel for its
+the first cached kernel). ``python -m drivenav.jit`` (run by ``make install``) compiles every kernel for its
 signatures into one extension module beside this file (``numba.pycc``), which needs neither numba nor LLVM to run.
+
+Kernel modules register themselves: a module of the package that imports :func:`jit` from here declares kernels
+(:func:`kernel_modules` finds them by that import line), so no list of them is kept by hand; the Makefile finds the
+same files with ``grep``.
 
 At import, the kernels of a process come from that module when its build key matches -- the kernel sources, the
 numba, numpy and Python versions and the machine, so a stale build or another venv's is never used -- and from
@@ -33,19 +37,9 @@ import numpy as np
 
 F = TypeVar("F", bound=Callable[..., Any])
 
-# The modules that declare kernels: their sources are part of the build key.
-MODULES = (
-    "drivenav.instances",
-    "drivenav.mapping.kernels",
-    "drivenav.directions.bearings",
-    "drivenav.directions.edt",
-    "drivenav.directions.fmm",
-    "drivenav.directions.paths",
-    "drivenav.directions.speed",
-    "drivenav.envs.render",
-)
 COMPILED = "_compiled_kernels"  # the extension module's name, in this package
 MODE_VARIABLE = "DRIVENAV_KERNELS"
+DECLARATION = "from drivenav.jit import jit"  # the import line that makes a module a kernel module
 _PACKAGE = Path(__file__).parent
 _INDEX = _PACKAGE / f"{COMPILED}.json"
 
@@ -132,7 +126,7 @@ class CompiledKernel:
                 continue
             return variant.function(*checked)
         given = ", ".join(_describe(a) for a in args)
-        raise TypeError(f"kernel {self.name} has no compiled signature for ({given}); see drivenav.kernels")
+        raise TypeError(f"kernel {self.name} has no compiled signature for ({given}); see drivenav.jit")
 
 
 def _describe(value: object) -> str:
@@ -187,11 +181,22 @@ def _specs(raw: Sequence[dict[str, Any]]) -> tuple[ArgSpec, ...]:
 def build_key() -> str:
     """What a build must match: the kernel sources, numba, numpy and Python, the machine and platform."""
     digest = hashlib.sha256()
-    for module in ("drivenav.kernels", *MODULES):
+    for module in ("drivenav.jit", *kernel_modules()):
         digest.update(_source(module).read_bytes())
     for part in (metadata.version("numba"), np.__version__, sys.version, platform.platform(), _cpu()):
         digest.update(part.encode())
     return digest.hexdigest()
+
+
+@cache
+def kernel_modules() -> tuple[str, ...]:
+    """The package's modules that declare kernels (they import :func:`jit` from here), sorted: their sources are
+    part of the build key and the build imports them."""
+    found = []
+    for path in sorted(_PACKAGE.rglob("*.py")):
+        if path != Path(__file__) and DECLARATION in path.read_text(encoding="utf-8"):
+            found.append(".".join(("drivenav", *path.relative_to(_PACKAGE).with_suffix("").parts)))
+    return tuple(found)
 
 
 def _cpu() -> str:
@@ -247,7 +252,7 @@ def build() -> Path:
     os.environ[MODE_VARIABLE] = "jit"
     compiled_build.cache_clear()
     normalize_signature: Any = importlib.import_module("numba.core.sigutils").normalize_signature
-    for module in MODULES:
+    for module in kernel_modules():
         importlib.import_module(module)
     cc: Any = importlib.import_module("numba.pycc").CC(COMPILED)
     cc.output_dir = str(_PACKAGE)
@@ -274,10 +279,10 @@ def _trampoline(dispatcher: Any, arity: int) -> Callable[..., Any]:
 
 
 def main() -> int:
-    from drivenav import kernels  # this file runs as __main__: the kernel modules register with drivenav.kernels
+    import drivenav.jit as registry  # this file runs as __main__: the kernel modules register with drivenav.jit
 
-    path = kernels.build()
-    print(f"compiled {len(kernels.DECLARED)} kernels ahead of time into {COMPILED} ({path.name})")
+    path = registry.build()
+    print(f"compiled {len(registry.DECLARED)} kernels ahead of time into {COMPILED} ({path.name})")
     return 0
 
 

@@ -9,8 +9,8 @@ import time
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.envs.render import Renderer
-from drivenav.envs.scene import Material, ObjectInstance, Room, Scene
+from drivenav.envs.embedded.render import Renderer
+from drivenav.envs.embedded.scene import Material, ObjectInstance, Room, Scene
 from drivenav.grid import GridSpec
 from drivenav.types import Pose, SimConfig
 
@@ -107,13 +107,13 @@ def demo_house() -> Scene:
     objects = [
         ObjectInstance(i + 1, cat, centre, size, yaw, elev) for i, (cat, centre, size, yaw, elev) in enumerate(_OBJECTS)
     ]
-    return Scene("demo_house", grid, structure, objects, rooms, source="drivenav.envs.bench.demo_house")
+    return Scene("demo_house", grid, structure, objects, rooms, source="drivenav.envs.embedded.bench.demo_house")
 
 
 def bench_scene() -> Scene:
     """The procedural house of seed 0 when the generator is available and works, else :func:`demo_house`."""
     try:
-        scene = importlib.import_module("drivenav.envs.procedural").generate_house(seed=0)
+        scene = importlib.import_module("drivenav.envs.embedded.procedural").generate_house(seed=0)
     except Exception:  # the generator is optional here: any failure falls back to the demo house
         return demo_house()
     return scene if isinstance(scene, Scene) else demo_house()

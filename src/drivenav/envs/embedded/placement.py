@@ -24,8 +24,8 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from drivenav.directions.edt import edt
-from drivenav.envs.geodesic import largest_component
-from drivenav.envs.scene import Material, ObjectInstance, Scene
+from drivenav.envs.embedded.geodesic import largest_component
+from drivenav.envs.embedded.scene import Material, ObjectInstance, Scene
 from drivenav.envs.vocabulary import VOCABULARY, CategorySpec, PlacementStyle, Vocabulary
 from drivenav.errors import InputError
 from drivenav.grid import GridSpec, wrap_angle

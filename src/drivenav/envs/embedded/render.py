@@ -1,6 +1,6 @@
 """Perspective renderer of the 2.5-D embedded world: RGB, z-depth and instance semantics in one pass.
 
-The world (:mod:`drivenav.envs.scene`) is a structure grid whose non-free cells are full-height opaque
+The world (:mod:`drivenav.envs.embedded.scene`) is a structure grid whose non-free cells are full-height opaque
 prisms, plus box objects, between a floor at height 0 and a ceiling. The camera is a level pinhole at the
 agent's position and camera height, looking along its yaw.
 
@@ -30,9 +30,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivenav.directions.edt import edt
-from drivenav.envs import palette
-from drivenav.envs.scene import Material, Scene
-from drivenav.kernels import jit
+from drivenav.envs.embedded import palette
+from drivenav.envs.embedded.scene import Material, Scene
+from drivenav.jit import jit
 from drivenav.types import Pose, SimConfig
 
 Images = tuple[NDArray[np.uint8], NDArray[np.float32], NDArray[np.int32]]

@@ -10,14 +10,14 @@ from pathlib import Path
 
 import numpy as np
 
+from drivenav.brain.live import live_episode
 from drivenav.envs.episode import Episode
 from drivenav.envs.robot import RobotEnv, RobotSpec
-from drivenav.robot.live import live_episode
 from drivenav.robot.parts import HeldStill, SensorFrame
-from drivenav.robot.protocol import RobotInfo
-from drivenav.robot.security import write_keys
 from drivenav.robot.server import RobotSession, served
 from drivenav.types import Action, Pose, SimConfig
+from drivenav.wire.protocol import RobotInfo
+from drivenav.wire.security import write_keys
 
 
 class StillCamera:

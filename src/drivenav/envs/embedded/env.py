@@ -4,10 +4,11 @@ It provides what the paper's problem formulation (Sec. III) gives the agent -- a
 observation and a pose relative to the start ``p_0`` at every step -- with the Habitat set-up of the
 experiments (Sec. V-A: 79 degree RGB-D camera, 0.25 m steps, 30 degree turns), plus ground-truth instance ids.
 
-The env moves the agent, renders, and keeps the Habitat measures (:class:`~drivenav.envs.measures.EmbeddedMeasures`);
-step limits belong to the evaluator. It gives the ground truth it has (instance labels, the goal's geodesic
-field and its own motion model) to the agents that ask. It is cheap to construct and pickles without its scene
-cache (scenes are reloaded through ``scene_loader`` on demand); :class:`EmbeddedSpec` builds one per worker.
+The env moves the agent, renders, and keeps the Habitat measures
+(:class:`~drivenav.envs.embedded.measures.EmbeddedMeasures`); step limits belong to the evaluator. It gives the
+ground truth it has (instance labels, the goal's geodesic field and its own motion model) to the agents that ask.
+It is cheap to construct and pickles without its scene cache (scenes are reloaded through ``scene_loader`` on
+demand); :class:`EmbeddedSpec` builds one per worker.
 """
 
 from __future__ import annotations
@@ -23,12 +24,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivenav.envs.base import EpisodeMeasures, episode_pose
+from drivenav.envs.embedded.geodesic import GeodesicField, largest_component
+from drivenav.envs.embedded.measures import EmbeddedMeasures
+from drivenav.envs.embedded.motion import forward_step, is_navigable
+from drivenav.envs.embedded.render import Images, Renderer
+from drivenav.envs.embedded.scene import Scene
 from drivenav.envs.episode import Episode
-from drivenav.envs.geodesic import GeodesicField, largest_component
-from drivenav.envs.measures import EmbeddedMeasures
-from drivenav.envs.motion import forward_step, is_navigable
-from drivenav.envs.render import Images, Renderer
-from drivenav.envs.scene import Scene
 from drivenav.envs.vocabulary import VOCABULARY
 from drivenav.grid import wrap_angle
 from drivenav.types import GEODESIC, SEMANTIC, Action, GroundTruth, Observation, Pose, SimConfig
@@ -57,7 +58,7 @@ class EmbeddedSpec:
     provides: ClassVar[frozenset[str]] = frozenset({SEMANTIC, GEODESIC})
 
     def build(self, sim: SimConfig) -> EmbeddedEnv:
-        from drivenav.envs.library import SceneLibrary
+        from drivenav.envs.embedded.library import SceneLibrary
 
         return EmbeddedEnv(SceneLibrary(self.scenes, self.seed).load, sim)
 

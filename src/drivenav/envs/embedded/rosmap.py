@@ -9,7 +9,7 @@ the YAML, and optionally ``objects.json`` beside it::
 in the map frame (metres; the YAML origin is the world position of the lower-left pixel's lower-left corner,
 as in ROS and :mod:`drivenav.grid`). ``yaw`` and ``elevation`` default to 0 and ``rooms`` to none. Without an
 ``objects`` list (no file, or a file with rooms only) objects are placed by
-:func:`drivenav.envs.placement.place_objects`, seeded from the scene id (see :func:`scene_rng`). Object
+:func:`drivenav.envs.embedded.placement.place_objects`, seeded from the scene id (see :func:`scene_rng`). Object
 ``instance_id`` is 1 + the object's position in the list (0 means "no object" in semantic images).
 
 Pixels are classified as in map_server's trinary mode, with these deliberate differences:
@@ -41,8 +41,8 @@ import numpy as np
 from numpy.typing import NDArray
 from PIL import Image
 
-from drivenav.envs import placement
-from drivenav.envs.scene import Material, ObjectInstance, Room, Scene
+from drivenav.envs.embedded import placement
+from drivenav.envs.embedded.scene import Material, ObjectInstance, Room, Scene
 from drivenav.errors import InputError
 from drivenav.grid import GridSpec
 from drivenav.validation import Fields, read_json, read_yaml
@@ -381,7 +381,7 @@ def load_map_scene(path: str | Path, *, resolution: float = 0.05, seed: int | No
     """Load a scene from a map_server map directory (or its YAML file); ``scene_id`` is the directory name.
 
     Objects and rooms come from ``objects.json`` beside the YAML; without objects there they are placed by
-    :func:`drivenav.envs.placement.place_objects` with :func:`scene_rng` ``(scene_id, seed)``.
+    :func:`drivenav.envs.embedded.placement.place_objects` with :func:`scene_rng` ``(scene_id, seed)``.
     """
     yaml_path = find_map_yaml(path)
     grid, structure = load_structure(yaml_path, resolution)

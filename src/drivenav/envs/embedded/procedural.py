@@ -7,7 +7,7 @@ on, Sec. IV-A). The blocks between corridors are split into rooms so that most r
 the rest open onto a neighbour. Room types are assigned by size (the largest rooms get the types that are
 usually large). The plan is mirrored and transposed at random and rasterised onto the structure grid: walls
 0.10-0.15 m thick, door openings 0.8-1.1 m wide with :attr:`Material.DOOR_FRAME` jambs, and unknown space
-outside. Objects come from :func:`drivenav.envs.placement.place_objects` with the same generator.
+outside. Objects come from :func:`drivenav.envs.embedded.placement.place_objects` with the same generator.
 
 Everything is drawn from ``numpy.random.default_rng(seed)``, so a seed always gives the same house.
 """
@@ -20,8 +20,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.envs.placement import place_objects
-from drivenav.envs.scene import Material, Room, Scene
+from drivenav.envs.embedded.placement import place_objects
+from drivenav.envs.embedded.scene import Material, Room, Scene
 from drivenav.errors import InputError
 from drivenav.grid import GridSpec
 

@@ -2,7 +2,7 @@
 
 SPEC is one part or several joined by commas (``procedural:40,maps``). A part is ``procedural`` (procedural
 houses; ``procedural:K`` picks K houses for episode generation), ``maps`` (the nine real floor plans shipped with
-drivenav, :func:`drivenav.envs.rosmap.packaged_maps_dir`), a scene directory (a ROS map YAML plus optional
+drivenav, :func:`drivenav.envs.embedded.rosmap.packaged_maps_dir`), a scene directory (a ROS map YAML plus optional
 objects.json), or a folder of scene directories (a folder of your own named ``maps`` is ``./maps``). Procedural scene
 ids (``procedural/house_00042``) carry their seed, so any of them can be rebuilt from the id alone; a map scene's id
 is its directory name (the packaged plans' too: ``uos_avz``).
@@ -14,7 +14,7 @@ import re
 from functools import lru_cache
 from pathlib import Path
 
-from drivenav.envs.scene import Scene
+from drivenav.envs.embedded.scene import Scene
 from drivenav.errors import InputError
 
 PROCEDURAL_ID = re.compile(r"^procedural/house_(\d+)$")
@@ -28,14 +28,14 @@ def procedural_scene_id(seed: int) -> str:
 
 @lru_cache(maxsize=8)
 def _load_procedural(seed: int) -> Scene:
-    from drivenav.envs.procedural import generate_house
+    from drivenav.envs.embedded.procedural import generate_house
 
     return generate_house(seed)
 
 
 @lru_cache(maxsize=8)
 def _load_map(path: str) -> Scene:
-    from drivenav.envs.rosmap import load_map_scene
+    from drivenav.envs.embedded.rosmap import load_map_scene
 
     return load_map_scene(path)
 
@@ -94,7 +94,7 @@ def _parse_house_count(part: str) -> int:
 
 def _find_map_dirs(part: str) -> dict[str, Path]:
     """The map scenes of one SPEC part by id, in name order."""
-    from drivenav.envs.rosmap import find_map_yaml, is_map_scene_dir, packaged_maps_dir, read_map_yaml
+    from drivenav.envs.embedded.rosmap import find_map_yaml, is_map_scene_dir, packaged_maps_dir, read_map_yaml
 
     path = packaged_maps_dir() if part == PACKAGED_MAPS_PART else Path(part)
     if not path.exists():
