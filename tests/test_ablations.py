@@ -192,4 +192,4 @@ def test_a_methods_intervals_do_not_depend_on_the_order_its_records_finished_in(
         for k in range(40)
     ]
     entries = [method_entry(order) for order in (records, records[::-1], records[1::2] + records[::2])]
-    assert entries[0]["spl_ci95"] == entries[1]["spl_ci95"] == entries[2]["spl_ci95"]
+    assert entries[0].spl_ci95 == entries[1].spl_ci95 == entries[2].spl_ci95

@@ -1,4 +1,4 @@
-"""The agent against the paper (issue 12): which directions a decision offers, labels carried over relabellings,
+"""The agent against the paper: which directions a decision offers, labels carried over relabellings,
 unreachable targets set aside rather than rejected, the decision counters and the segmentation-free revisits."""
 
 from __future__ import annotations
@@ -9,10 +9,14 @@ import numpy as np
 import pytest
 
 from agent_scenes import episode_for, t_junction
-from drivenav.agent.drivenav import DriveNavAgent, StepContext
-from drivenav.agent.registry import make_agent
+from drivenav.agent.context import StepContext
+from drivenav.agent.decision import candidates
+from drivenav.agent.drivenav import DriveNavAgent
+from drivenav.agent.relabel import carry_over
+from drivenav.agent.state import EpisodeState
 from drivenav.agent.target import SearchConfig, TargetSearch
-from drivenav.agent.trace import Trace
+from drivenav.agent.trace import DirectionSelected, InspectionStarted, Trace, of_type
+from drivenav.agents import make_agent
 from drivenav.directions.tracking import DirectionTracker
 from drivenav.directions.types import Direction, DirectionResult, TrackingUpdate
 from drivenav.envs.embedded.env import EmbeddedEnv
@@ -81,8 +85,17 @@ def _agent_at(name: str, bearings_deg: dict[int, float], heading_deg: float) -> 
     directions = tuple(_direction(label, b) for label, b in sorted(bearings_deg.items()))
     pose = Pose(0.0, 0.0, math.radians(heading_deg))
     ctx = StepContext(pose, None, [], DirectionResult(directions, {}, ()), None)  # type: ignore[arg-type]
-    agent._views._views = {d.label: _view(d.label, math.degrees(d.bearing)) for d in directions}
+    _state(agent).views._views = {d.label: _view(d.label, math.degrees(d.bearing)) for d in directions}
     return agent, ctx
+
+
+def _state(agent: DriveNavAgent) -> EpisodeState:
+    assert agent.state is not None
+    return agent.state
+
+
+def _offered(agent: DriveNavAgent, ctx: StepContext, reason: str) -> list[int]:
+    return [c.label for c in candidates(agent.loop(), ctx, reason)]
 
 
 AROUND = {0: 0.0, 1: 90.0, 2: 120.0, 3: 150.0, 4: 180.0, 5: -100.0, 6: -130.0}
@@ -90,48 +103,49 @@ AROUND = {0: 0.0, 1: 90.0, 2: 120.0, 3: 150.0, 4: 180.0, 5: -100.0, 6: -130.0}
 
 def test_decisions_after_the_start_scan_offer_only_the_forward_240_degrees() -> None:
     agent, ctx = _agent_at("drive-nav", AROUND, 0.0)
-    assert [c.label for c in agent._candidates(ctx, "scan")] == list(AROUND)  # the start scan saw everything
-    assert [c.label for c in agent._candidates(ctx, "vanished")] == [0, 1, 2, 5]  # |alpha| <= 120 deg
-    agent._event_heading = math.radians(180.0)  # an inspection event measures alpha from where it began
-    assert [c.label for c in agent._candidates(ctx, "inspection")] == [1, 2, 3, 4, 5, 6]  # all but 0 deg
+    assert _offered(agent, ctx, "scan") == list(AROUND)  # the start scan saw everything
+    assert _offered(agent, ctx, "vanished") == [0, 1, 2, 5]  # |alpha| <= 120 deg
+    _state(agent).event_heading = math.radians(180.0)  # an inspection event measures alpha from where it began
+    assert _offered(agent, ctx, "inspection") == [1, 2, 3, 4, 5, 6]  # all but 0 deg
     assert agent.decision_stats().dead_end_decisions == 0
 
 
 def test_a_dead_end_offers_the_rear_range() -> None:
     agent, ctx = _agent_at("drive-nav", {0: 170.0, 1: -160.0}, 0.0)
-    assert [c.label for c in agent._candidates(ctx, "vanished")] == [0, 1]
+    assert _offered(agent, ctx, "vanished") == [0, 1]
     assert agent.decision_stats().dead_end_decisions == 1
 
 
 @pytest.mark.parametrize("name", ["no-240", "direction-360"])
 def test_360_methods_decide_among_every_direction(name: str) -> None:
     agent, ctx = _agent_at(name, AROUND, 0.0)
-    assert [c.label for c in agent._candidates(ctx, "inspection")] == list(AROUND)
+    assert _offered(agent, ctx, "inspection") == list(AROUND)
 
 
 def test_a_merged_followed_direction_is_still_followed_without_a_decision() -> None:
     agent, ctx = _agent_at("drive-nav", {0: 10.0, 1: 40.0}, 0.0)
-    agent._selected, agent._inspected = 0, {0, 1}
-    agent._carry_over(ctx)
+    _state(agent).selected, _state(agent).inspected = 0, {0, 1}
+    carry_over(agent.loop(), ctx)
     merged = Direction(2, math.radians(25.0), (0, 1), (), np.zeros((1, 2)), np.zeros((1, 2)), (3.0, 1.0))
     result = DirectionResult((merged,), {}, (), tracking=TrackingUpdate(merged={2: (0, 1)}))
-    agent._carry_over(StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
-    assert agent._selected == 2 and 2 in agent._inspected and agent._views.has_view(2)
+    carry_over(agent.loop(), StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
+    episode = _state(agent)
+    assert episode.selected == 2 and 2 in episode.inspected and episode.views.has_view(2)
     stats = agent.decision_stats()
     assert (stats.followed_through_relabel, stats.selected_lost, stats.labels_merged) == (1, 0, 1)
 
 
 def test_a_direction_back_at_a_removed_ones_place_keeps_its_inspected_state() -> None:
     agent, ctx = _agent_at("drive-nav", {0: 10.0, 1: 90.0}, 0.0)
-    agent._inspected = {0, 1}
-    agent._carry_over(ctx)
+    _state(agent).inspected = {0, 1}
+    carry_over(agent.loop(), ctx)
     gone = DirectionResult((ctx.directions[0],), {}, (), tracking=TrackingUpdate(removed=(1,)))
-    agent._carry_over(StepContext(ctx.pose, None, [], gone, None))  # type: ignore[arg-type]
+    carry_over(agent.loop(), StepContext(ctx.pose, None, [], gone, None))  # type: ignore[arg-type]
     again = _direction(1, 90.0)
     back = Direction(5, again.bearing, (1,), (), again.waypoints, again.points, again.farthest_point)
     result = DirectionResult((ctx.directions[0], back), {}, (), tracking=TrackingUpdate(created=(5,)))
-    agent._carry_over(StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
-    assert 5 in agent._inspected
+    carry_over(agent.loop(), StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
+    assert 5 in _state(agent).inspected
     assert agent.decision_stats().labels_reidentified == 1
 
 
@@ -239,16 +253,16 @@ def test_an_episode_record_accounts_for_every_step_and_decision() -> None:
     stats = record.decisions
     assert sum(stats.steps_by_activity.values()) == record.steps
     assert stats.steps_by_activity["start_scan"] == 12 and stats.decisions_by_reason["scan"] == 1
-    selected = [e for e in trace["events"] if e["kind"] == "direction_selected"]
+    selected = of_type(trace.events, DirectionSelected)
     assert sum(stats.decisions_by_reason.values()) == len(selected)
-    assert stats.inspection_events == len([e for e in trace["events"] if e["kind"] == "inspection"])
+    assert stats.inspection_events == len(of_type(trace.events, InspectionStarted))
     assert stats.labels_created >= 1 and record.retraced_revisits == 0
 
 
 def test_a_split_off_branch_is_new_but_a_flickering_one_is_not() -> None:
     agent, ctx = _agent_at("drive-nav", {0: 10.0, 1: 40.0}, 0.0)
-    agent._inspected = {0, 1}
-    agent._carry_over(ctx)
+    _state(agent).inspected = {0, 1}
+    carry_over(agent.loop(), ctx)
     merged = Direction(
         2,
         math.radians(25.0),
@@ -259,12 +273,12 @@ def test_a_split_off_branch_is_new_but_a_flickering_one_is_not() -> None:
         (3.0, 1.0),
     )
     result = DirectionResult((merged,), {}, (), tracking=TrackingUpdate(merged={2: (0, 1)}))
-    agent._carry_over(StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
+    carry_over(agent.loop(), StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
     flicker = Direction(3, math.radians(40.0), (1,), (), ctx.directions[1].waypoints, np.zeros((1, 2)), (3.0, 2.0))
     result = DirectionResult((merged, flicker), {}, (), tracking=TrackingUpdate(created=(3,)))
-    agent._carry_over(StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
-    assert 3 in agent._inspected  # label 1 again, split off the merge a step later
+    carry_over(agent.loop(), StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
+    assert 3 in _state(agent).inspected  # label 1 again, split off the merge a step later
     branch = _direction(4, -60.0)  # a branch at a place no retired direction held
     result = DirectionResult((merged, flicker, branch), {}, (), tracking=TrackingUpdate(created=(4,)))
-    agent._carry_over(StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
-    assert 4 not in agent._inspected and agent.decision_stats().labels_reidentified == 1
+    carry_over(agent.loop(), StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
+    assert 4 not in _state(agent).inspected and agent.decision_stats().labels_reidentified == 1

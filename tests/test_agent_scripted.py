@@ -8,12 +8,14 @@ import pytest
 
 from agent_scenes import carved_scene, episode_for, t_junction
 from drivenav.agent.drivenav import DriveNavAgent
-from drivenav.agent.registry import make_agent
+from drivenav.agent.trace import DirectionSelected, EventT, InspectionStarted, ScanStarted, of_type
+from drivenav.agents import make_agent
 from drivenav.envs.embedded.env import EmbeddedEnv
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.embedded.scene import ObjectInstance, Scene
 from drivenav.eval.episodes import generate_episodes
 from drivenav.eval.runner import run_episode
+from drivenav.eval.trace import EpisodeTrace
 from drivenav.inspection import sweep_turns
 from drivenav.methods import METHODS
 from drivenav.settings import load_settings
@@ -28,8 +30,8 @@ def _run(scene: Scene, agent_name: str, start: tuple[float, float], yaw: float, 
     return run_episode(env, agent, episode_for(scene, start, yaw, category, text), 0, SIM.max_steps)
 
 
-def _events(trace: dict[str, object], kind: str) -> list[dict[str, object]]:
-    return [e for e in trace["events"] if e["kind"] == kind]  # type: ignore[index, union-attr]
+def _events(trace: EpisodeTrace, kind: type[EventT]) -> list[EventT]:
+    return of_type(trace.events, kind)
 
 
 def test_target_down_one_branch_is_reached_and_stop_issued() -> None:
@@ -41,23 +43,23 @@ def test_target_down_one_branch_is_reached_and_stop_issued() -> None:
 
 def test_no_360_scan_after_the_start() -> None:
     record, trace = _run(t_junction(target_on_left=False), "drive-nav", (12.0, 2.5), math.pi / 2, "plant")
-    scans = _events(trace, "scan")
-    assert [e["step"] for e in scans] == [0]
+    scans = _events(trace, ScanStarted)
+    assert [e.step for e in scans] == [0]
     assert record.success == 1
 
 
 def test_junction_inspection_turns_only_toward_new_directions() -> None:
     """At the T the agent sweeps over the forward 240 deg directions lacking views, no more than needed."""
     _, trace = _run(t_junction(target_on_left=True), "drive-nav", (12.0, 2.5), math.pi / 2, "plant")
-    actions = trace["actions"]
-    start_yaw = trace["yaws"][0]
-    decisions = [int(e["step"]) for e in _events(trace, "direction_selected")]  # type: ignore[arg-type]
-    inspections = _events(trace, "inspection")
+    actions = trace.actions
+    start_yaw = trace.yaws[0]
+    decisions = [e.step for e in _events(trace, DirectionSelected)]
+    inspections = _events(trace, InspectionStarted)
     assert inspections, "reaching the T must reveal new directions"
     for event in inspections:
-        step = int(event["step"])  # type: ignore[arg-type]
-        heading = trace["yaws"][step] - start_yaw  # observations report yaw in the episode frame
-        planned = list(event["target_yaws"])  # type: ignore[arg-type]
+        step = event.step
+        heading = trace.yaws[step] - start_yaw  # observations report yaw in the episode frame
+        planned = list(event.target_yaws)
         minimum = sweep_turns(heading, planned, math.radians(SIM.turn_angle_deg))
         assert minimum <= 8  # a forward-240 sweep never needs a full turn
         decided = min(s for s in decisions if s >= step)
@@ -70,7 +72,7 @@ def test_direction_360_turns_more_than_drive_nav() -> None:
     scene = t_junction(target_on_left=False)
     drive, _ = _run(scene, "drive-nav", (12.0, 2.5), math.pi / 2, "plant")
     full, full_trace = _run(scene, "direction-360", (12.0, 2.5), math.pi / 2, "plant")
-    assert len(_events(full_trace, "scan")) >= 2
+    assert len(_events(full_trace, ScanStarted)) >= 2
     assert drive.steps < full.steps
 
 
@@ -82,7 +84,7 @@ def test_dead_end_triggers_reselection() -> None:
         [ObjectInstance(1, "plant", (19.25, 15.5), (0.5, 0.5, 1.2))],
     )
     record, trace = _run(scene, "drive-nav", (12.0, 2.0), math.pi / 2, "plant")
-    assert len(_events(trace, "direction_selected")) >= 2
+    assert len(_events(trace, DirectionSelected)) >= 2
     assert record.success == 1
 
 
@@ -112,4 +114,4 @@ def test_every_variant_runs_an_episode_to_the_end(name: str) -> None:
     record, trace = run_episode(env, agent, episode, 0, 80)
     assert record.error == ""
     assert record.stop_reason in {"timeout", "target_reached", "no_frontier"}
-    assert trace["segment_starts"] and trace["segment_starts"][0] == 0
+    assert trace.segment_starts and trace.segment_starts[0] == 0

@@ -11,7 +11,7 @@ import yaml
 
 from drivenav.agent.drivenav import DriveNavAgent
 from drivenav.agent.oracle import OracleAgent
-from drivenav.agent.registry import make_agent
+from drivenav.agents import make_agent
 from drivenav.cli import main
 from drivenav.errors import InputError
 from drivenav.mapping.config import MappingConfig, MapTuning

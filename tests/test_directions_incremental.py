@@ -1,4 +1,4 @@
-"""The incremental speed field (issue 14) against the from-scratch one: the same numbers, nearest features and
+"""The incremental speed field against the from-scratch one: the same numbers, nearest features and
 tie-breaks after every change, on random grids, on a growing house map and along an embedded episode."""
 
 from __future__ import annotations

@@ -251,7 +251,7 @@ def _same_result(a: DirectionResult, b: DirectionResult) -> None:
 
 @pytest.mark.parametrize("robot", [(4.0, 4.0), (4.0, 3.0), (5.5, 4.0)])
 def test_a_reused_speed_field_gives_what_a_fresh_pipeline_gives(robot: tuple[float, float]) -> None:
-    """Issue 14: an unchanged map (equal content, new arrays) reuses the speed field; the robot may have moved."""
+    """An unchanged map (equal content, new arrays) reuses the speed field; the robot may have moved."""
     snapshot, frontiers = t_junction()
     pipeline = DirectionPipeline(DriveNavConfig())
     pipeline.update(snapshot, frontiers, (4.0, 4.0))
@@ -294,7 +294,7 @@ def test_frontier_cells_of_all_frontiers_at_once_are_each_frontiers_traversable_
 
 
 def test_an_unchanged_map_robot_and_goal_reuse_the_solve() -> None:
-    """Issue 14: turning in place with nothing new in view runs no FMM; a new goal or position solves again."""
+    """Turning in place with nothing new in view runs no FMM; a new goal or position solves again."""
     snapshot, frontiers = t_junction()
     pipeline = DirectionPipeline(DriveNavConfig())
     pipeline.update(snapshot, frontiers, (4.0, 4.0))

@@ -108,6 +108,6 @@ waypoint_sets = st.lists(
 def test_coinciding_of_all_pairs_is_waypoints_coincide_per_pair(
     a: list[np.ndarray], b: list[np.ndarray], tolerance: float
 ) -> None:
-    """Issue 14: the tracker's one-operation pair test equals the per-pair test, boundaries included."""
+    """The tracker's one-operation pair test equals the per-pair test, boundaries included."""
     expected = [[waypoints_coincide(x, y, tolerance) for y in b] for x in a]
     assert coinciding(a, b, tolerance).tolist() == expected

@@ -199,7 +199,7 @@ def test_config_probabilities_and_validation() -> None:
     )
 )
 def test_instance_areas_counts_like_unique(semantic: NDArray[np.int32]) -> None:
-    """Counting by table (issue 14) and by sorting agree, ids in increasing order, id 0 left out."""
+    """Counting by table and by sorting agree, ids in increasing order, id 0 left out."""
     ids, counts = np.unique(semantic, return_counts=True)
     expected = {int(i): int(c) for i, c in zip(ids, counts, strict=True) if i != 0}
     found = instance_areas(semantic)

@@ -10,7 +10,7 @@ import pytest
 
 from drivenav.envs.embedded.env import EmbeddedEnv
 from drivenav.envs.embedded.scene import Material, ObjectInstance, Scene
-from drivenav.envs.episode import Episode, world_to_habitat, yaw_to_quaternion
+from drivenav.episode import Episode, world_to_habitat, yaw_to_quaternion
 from drivenav.grid import GridSpec
 from drivenav.types import Action, Pose, SimConfig
 

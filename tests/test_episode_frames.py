@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from drivenav.envs.episode import habitat_to_world, quaternion_to_yaw, world_to_habitat, yaw_to_quaternion
+from drivenav.episode import habitat_to_world, quaternion_to_yaw, world_to_habitat, yaw_to_quaternion
 from drivenav.grid import wrap_angle
 from drivenav.types import Pose
 

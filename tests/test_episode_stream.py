@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 from drivenav import jsonstream
 from drivenav.envs.embedded.library import SceneLibrary
-from drivenav.envs.episode import parse_episode
+from drivenav.episode import parse_episode
 from drivenav.errors import InputError
 from drivenav.eval.episodes import episode_to_dict, generate_episodes, load_episodes, save_episodes
 from drivenav.eval.episodes_bench import traced_read, write_repeated

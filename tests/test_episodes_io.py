@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from drivenav.envs.episode import Episode, ObjectGoal, ViewPoint, world_to_habitat, yaw_to_quaternion
+from drivenav.episode import Episode, ObjectGoal, ViewPoint, world_to_habitat, yaw_to_quaternion
 from drivenav.errors import InputError
 from drivenav.eval.episodes import episode_to_dict, load_episodes, save_episodes
 

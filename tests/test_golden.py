@@ -1,6 +1,6 @@
 """Golden records: the same embedded episodes, seeds and agents give the same records as before (captured from
 commit 0209848 with ``drivenav eval --max-steps 120``, when the evaluation core became world-agnostic; re-captured
-for issue 12, whose agent changes moved drive-nav's episode 0, direction-360's and no-240's episodes 0 and 1: the
+when the agent's fidelity fixes moved drive-nav's episode 0, direction-360's and no-240's episodes 0 and 1: the
 other 16 are unchanged)."""
 
 from __future__ import annotations

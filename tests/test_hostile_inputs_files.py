@@ -14,7 +14,7 @@ import pytest
 from drivenav.cli import main
 from drivenav.envs.embedded.geodesic import largest_component
 from drivenav.envs.embedded.library import SceneLibrary
-from drivenav.envs.episode import world_to_habitat
+from drivenav.episode import world_to_habitat
 from drivenav.eval.episodes import episode_to_dict, generate_episodes
 from drivenav.types import SimConfig
 from test_rosmap import write_map

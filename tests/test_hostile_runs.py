@@ -61,7 +61,7 @@ def test_a_second_evaluation_into_the_same_directory_is_refused(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     spec = _spec()
-    with RunDirectory.open(tmp_path, spec.to_config(), _episodes()):
+    with RunDirectory.open(tmp_path, spec.env, spec.settings, _episodes()):
         code = main(["eval", *SLOW_RUN[:2], "--episodes", "2", "--max-steps", "20", "--out", str(tmp_path)])
     assert code == 2
     _one_line_error(capsys, "--out", f"locked by pid {os.getpid()}")

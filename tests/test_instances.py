@@ -1,4 +1,4 @@
-"""Pixel counts of instance-id images (issue 14): the one-pass counts equal numpy's."""
+"""Pixel counts of instance-id images: the one-pass counts equal numpy's."""
 
 from __future__ import annotations
 

@@ -221,7 +221,8 @@ def _agent_maps(fuse_lidar: bool, occupancy: LocalOccupancy | None) -> tuple[Map
     pose, k = Pose(0.0, 0.0, 0.0), SIM.intrinsics
     rgb, semantic = np.zeros((k.height, k.width, 3), np.uint8), np.zeros((k.height, k.width), np.int32)
     agent.decide(Observation(rgb, WALL.render(pose, k), semantic, pose, k, 0, False, occupancy))
-    return agent._mapper.snapshot(), len(agent._mapper.frontiers())
+    assert agent.state is not None
+    return agent.state.mapper.snapshot(), len(agent.state.mapper.frontiers())
 
 
 def test_the_agent_fuses_lidar_only_when_switched_on() -> None:

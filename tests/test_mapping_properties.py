@@ -92,7 +92,7 @@ def test_random_frames_keep_the_invariants(steps: list[tuple[Pose, np.ndarray]])
     data=st.data(),
 )
 def test_component_at_is_the_labelled_component(mask: NDArray[np.bool_], eight: bool, data: st.DataObject) -> None:
-    """The flood fill behind ``component_at`` (issue 14) gives exactly scipy's connected-component label."""
+    """The flood fill behind ``component_at`` gives exactly scipy's connected-component label."""
     i = data.draw(st.integers(0, mask.shape[0] - 1))
     j = data.draw(st.integers(0, mask.shape[1] - 1))
     labels, _ = ndimage.label(mask, structure=ndimage.generate_binary_structure(2, 2 if eight else 1))
@@ -103,7 +103,7 @@ def test_component_at_is_the_labelled_component(mask: NDArray[np.bool_], eight: 
 @settings(max_examples=80, deadline=None)
 @given(mask=arrays(np.bool_, st.tuples(st.integers(1, 24), st.integers(1, 24))))
 def test_raster_components_group_like_scipy_label(mask: NDArray[np.bool_]) -> None:
-    """Frontier grouping (issue 14): scipy's 8-connected labels, components in label order, cells in raster order."""
+    """Frontier grouping: scipy's 8-connected labels, components in label order, cells in raster order."""
     labels, count = ndimage.label(mask, structure=ndimage.generate_binary_structure(2, 2))
     cells, starts = raster_components(mask)
     assert len(starts) == count + 1
@@ -163,7 +163,7 @@ def _pocket_reference(passable: NDArray[np.bool_], cells: NDArray[np.int64], win
     margin=st.integers(0, 6),
 )
 def test_pocket_sizes_are_scipys_labelled_components(passable: NDArray[np.bool_], seed: int, margin: int) -> None:
-    """The scan-line fill behind the pockets (issue 14) counts exactly the 4-connected components it seeds."""
+    """The scan-line fill behind the pockets counts exactly the 4-connected components it seeds."""
     rng = np.random.default_rng(seed)
     cells, starts = raster_components(rng.random(passable.shape) < 0.2)
     for k, size in enumerate(pocket_sizes(passable, cells, starts, margin)):

@@ -17,7 +17,7 @@ from drivenav.directions.synthetic import extract_frontiers, make_snapshot, rect
 from drivenav.envs.embedded.env import EmbeddedEnv
 from drivenav.envs.embedded.motion import turn
 from drivenav.envs.embedded.procedural import generate_house
-from drivenav.envs.episode import Episode, world_to_habitat, yaw_to_quaternion
+from drivenav.episode import Episode, world_to_habitat, yaw_to_quaternion
 from drivenav.mapping.config import MappingConfig
 from drivenav.mapping.occupancy import OccupancyMapper
 from drivenav.mapping.types import Frontier, MapSnapshot

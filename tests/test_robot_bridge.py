@@ -22,8 +22,8 @@ import zmq
 from conftest import REPO, run_cli
 from drivenav.envs.embedded.env import EmbeddedSpec
 from drivenav.envs.embedded.library import SceneLibrary
-from drivenav.envs.episode import Episode
 from drivenav.envs.robot import RobotSpec
+from drivenav.episode import Episode
 from drivenav.errors import InputError, RunStoppedError
 from drivenav.eval.episodes import generate_episodes, save_episodes
 from drivenav.eval.records import EpisodeRecord
@@ -58,7 +58,7 @@ def direct(settings: Settings, episodes: list[Episode]) -> list[tuple[EpisodeRec
     results = []
     for episode in episodes:
         record, trace = run_episode(env, agent, episode, 0, settings.sim.max_steps)
-        results.append((record, trace["actions"]))
+        results.append((record, list(trace.actions)))
     return results
 
 
@@ -77,7 +77,7 @@ def through_robot(
         results = []
         for episode in episodes:
             record, trace = run_episode(env, agent, episode, 0, settings.sim.max_steps)
-            results.append((record, trace["actions"]))
+            results.append((record, list(trace.actions)))
         return results
     finally:
         env.close()

@@ -1,5 +1,6 @@
-"""The ROS 2 side (drivenav.robot.ros, paper Sec. V-E): conversions, synchronisation, a real ROS 2 bag written with
-rosbags and replayed through BagSource into the field-of-view LiDAR occupancy, and the cmd_vel closed loop."""
+"""The ROS 2 side (the drivenav.robot.ros package, paper Sec. V-E): conversions, synchronisation, a real ROS 2 bag
+written with rosbags and replayed through BagSource into the field-of-view LiDAR occupancy, and the cmd_vel
+closed loop."""
 
 from __future__ import annotations
 
@@ -18,29 +19,18 @@ from rosbags.typesys import Stores, get_typestore
 
 from drivenav.robot.lidar import LidarOccupancy
 from drivenav.robot.parts import MotionResult
-from drivenav.robot.ros import (
-    BagSource,
-    CmdVelConfig,
-    CmdVelController,
-    LidarMount,
-    Outcome,
-    Pairing,
-    RosMotionExecutor,
-    RosSensorSource,
-    RosTopics,
-    Stream,
-    SyncBuffer,
-    SyncConfig,
-    VelocityCommand,
+from drivenav.robot.ros import BagSource, LidarMount, RosMotionExecutor, RosSensorSource, RosTopics
+from drivenav.robot.ros.convert import (
     camera_info_to_intrinsics,
     image_to_array,
     image_to_depth,
     image_to_rgb,
     odometry_to_pose,
-    pair_by_time,
     pointcloud2_to_xyz,
     stamp_seconds,
 )
+from drivenav.robot.ros.motion import CmdVelConfig, CmdVelController, Outcome, VelocityCommand
+from drivenav.robot.ros.sync import Pairing, Stream, SyncBuffer, SyncConfig, pair_by_time
 from drivenav.types import FREE_CELL, OCCUPIED_CELL, UNKNOWN_CELL, Action, CameraIntrinsics, LocalOccupancy, Pose
 
 STORE = get_typestore(Stores.ROS2_HUMBLE)

@@ -14,7 +14,7 @@ from drivenav.agent.base import Agent
 from drivenav.cli import main
 from drivenav.envs.embedded.env import EmbeddedSpec
 from drivenav.envs.embedded.library import SceneLibrary
-from drivenav.envs.episode import Episode
+from drivenav.episode import Episode
 from drivenav.errors import InputError, RunStoppedError
 from drivenav.eval import rundir, runner
 from drivenav.eval.episodes import episode_to_dict, generate_episodes, load_episodes
@@ -83,7 +83,7 @@ def test_a_reader_never_cuts_a_line_a_live_run_is_writing(finished: Path) -> Non
     path.write_bytes(torn)
     assert len(read_records(path)) == 3
     assert path.read_bytes() == torn  # untouched: only the run's writer repairs it, under its lock
-    with RunDirectory.open(finished, _spec().to_config(), _episodes()) as run:
+    with RunDirectory.open(finished, _spec().env, _spec().settings, _episodes()) as run:
         assert len(run.records()) == 3
     assert path.read_bytes() == torn[: torn.rfind(b"\n") + 1]
 
@@ -119,7 +119,7 @@ def test_a_trace_that_cannot_be_written_costs_no_record(tmp_path: Path, monkeypa
 def _with_unserialisable_trace(run):  # type: ignore[no-untyped-def]
     def wrapped(*args, **kwargs):  # type: ignore[no-untyped-def]
         record, trace = run(*args, **kwargs)
-        return record, {**trace, "bad": object()}
+        return record, replace(trace, step_ms={"bad": [object()]})
 
     return wrapped
 

@@ -1,5 +1,5 @@
 """The packaged text-embedding table: it covers the embedded world's vocabulary, matches the model, and spares an
-embedded-world run the encoder (issue 14's worker-memory goal)."""
+embedded-world run the encoder (the worker-memory goal)."""
 
 from __future__ import annotations
 

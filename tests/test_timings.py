@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from drivenav.agent.trace import DirectionSelected, StopEvent
 from drivenav.eval.timings import from_columns, runtime_table, summary, to_columns, traced_steps
+from drivenav.eval.trace import EpisodeTrace
 
 MODULE_NAMES = st.sampled_from(["mapping", "directions.total", "directions.fmm", "inspection", "policy"])
 MS = st.floats(min_value=0.0, max_value=1e4, allow_nan=False).map(lambda v: round(v, 3))
@@ -40,6 +44,8 @@ def test_runtime_table_sums_compute_modules_and_counts_decisions() -> None:
 
 
 def test_traced_steps_skips_traces_without_timings() -> None:
-    timed = {"step_ms": {"mapping": [1.0, 2.0]}, "events": [{"kind": "direction_selected"}, {"kind": "stop"}]}
-    steps, decisions, episodes = traced_steps([timed, {}, {"step_ms": {}}, timed])
+    decision = DirectionSelected(1, 2, 0.5, (1.0, 2.0), (2, 3), "scan")
+    untimed = EpisodeTrace("e", "s", ((0.0, 0.0),), (0.0,), events=(decision,))
+    timed = replace(untimed, step_ms={"mapping": [1.0, 2.0]}, events=(decision, StopEvent(2, "done")))
+    steps, decisions, episodes = traced_steps([timed, untimed, replace(untimed, step_ms={}), timed])
     assert len(steps) == 4 and decisions == 2 and episodes == 2

@@ -14,12 +14,14 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from drivenav.agent.trace import ViewCaptured
 from drivenav.envs.embedded.env import EmbeddedSpec
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.errors import InputError
 from drivenav.eval.episodes import generate_episodes, load_episodes
 from drivenav.eval.rundir import trace_path
 from drivenav.eval.runner import RunSpec, evaluate
+from drivenav.eval.trace import EpisodeTrace
 from drivenav.grid import wrap_angle
 from drivenav.settings import load_settings
 from drivenav.types import SimConfig
@@ -47,7 +49,8 @@ def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def _trace(run_dir: Path) -> SavedTrace:
     episode = load_episodes(run_dir / "episodes.json.gz")[0]
-    return SavedTrace.from_json(json.loads(trace_path(run_dir, episode.episode_id).read_text()), episode)
+    path = trace_path(run_dir, episode.episode_id)
+    return SavedTrace.of(EpisodeTrace.from_json(json.loads(path.read_text()), path), episode)
 
 
 def test_pictures_and_video(run_dir: Path, tmp_path: Path) -> None:
@@ -123,10 +126,10 @@ def test_rerun_without_the_sdk_names_the_extra(run_dir: Path, tmp_path: Path, mo
 def test_trace_frames_agree(run_dir: Path) -> None:
     """View yaws (episode frame) through the start pose give the world yaws at their steps."""
     trace = _trace(run_dir)
-    views = trace.of_kind("view")
+    views = trace.of_type(ViewCaptured)
     assert views, "a 40-step drive-nav episode records representative views"
     for event in views:
-        assert wrap_angle(trace.world_yaw(event["yaw"]) - trace.pose(event["step"]).yaw) == pytest.approx(0, abs=1e-3)
+        assert wrap_angle(trace.world_yaw(event.yaw) - trace.pose(event.step).yaw) == pytest.approx(0, abs=1e-3)
     assert trace.to_world((0.0, 0.0)) == pytest.approx(trace.xy(0), abs=1e-3)
 
 

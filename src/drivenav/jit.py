@@ -35,6 +35,8 @@ from typing import Any, TypeVar, cast
 
 import numpy as np
 
+from drivenav.jsonstream import JsonObject
+
 F = TypeVar("F", bound=Callable[..., Any])
 
 COMPILED = "_compiled_kernels"  # the extension module's name, in this package
@@ -152,7 +154,7 @@ DECLARED: dict[str, Declared] = {}  # filled as the kernel modules are imported 
 def jit(*signatures: str, inline: bool = False, error_model: str | None = None) -> Callable[[F], F]:
     """Declare a numba function: a kernel that Python calls when ``signatures`` are given, else a helper of
     kernels. Options as ``numba.njit``'s (``cache=True`` always)."""
-    options: dict[str, Any] = {"inline": "always"} if inline else {}
+    options: dict[str, str] = {"inline": "always"} if inline else {}
     if error_model is not None:
         options["error_model"] = error_model
 
@@ -164,9 +166,9 @@ def jit(*signatures: str, inline: bool = False, error_model: str | None = None) 
                 return function  # inlined or called by kernels only: inside the build
             variants = [Variant(getattr(build[0], e["export"]), _specs(e["args"])) for e in build[1][name]]
             return cast(F, CompiledKernel(name, function, variants))
-        import numba
+        njit: Callable[..., Callable[[F], Any]] = importlib.import_module("numba").njit
 
-        dispatcher = numba.njit(cache=True, **options)(function)
+        dispatcher = njit(cache=True, **options)(function)
         if signatures:
             DECLARED[name] = Declared(name, dispatcher, signatures)
         return cast(F, dispatcher)
@@ -174,7 +176,7 @@ def jit(*signatures: str, inline: bool = False, error_model: str | None = None) 
     return declare
 
 
-def _specs(raw: Sequence[dict[str, Any]]) -> tuple[ArgSpec, ...]:
+def _specs(raw: Sequence[JsonObject]) -> tuple[ArgSpec, ...]:
     return tuple(ArgSpec(**item) for item in raw)
 
 
@@ -214,7 +216,7 @@ def _source(module: str) -> Path:
 
 
 @cache
-def compiled_build() -> tuple[ModuleType, dict[str, list[dict[str, Any]]]] | None:
+def compiled_build() -> tuple[ModuleType, dict[str, list[JsonObject]]] | None:
     """The extension module and its index of exports, if built for this key and not overridden; else ``None``."""
     if os.environ.get(MODE_VARIABLE, "").lower() == "jit" or not _INDEX.is_file():
         return None
@@ -225,11 +227,11 @@ def compiled_build() -> tuple[ModuleType, dict[str, list[dict[str, Any]]]] | Non
         module = importlib.import_module(f"{__package__}.{COMPILED}")
     except ImportError:
         return None
-    exports: dict[str, list[dict[str, Any]]] = index["kernels"]
+    exports: dict[str, list[JsonObject]] = index["kernels"]
     return module, exports
 
 
-def _arg_spec(numba_type: Any) -> dict[str, Any]:
+def _arg_spec(numba_type: Any) -> JsonObject:
     """An argument's :class:`ArgSpec` fields from its numba type (build time)."""
     from numba.core import types
 
@@ -257,7 +259,7 @@ def build() -> Path:
     cc: Any = importlib.import_module("numba.pycc").CC(COMPILED)
     cc.output_dir = str(_PACKAGE)
     cc.target_cpu = "host"  # as numba's JIT compiles: this CPU's instructions (part of the build key)
-    index: dict[str, list[dict[str, Any]]] = {}
+    index: dict[str, list[JsonObject]] = {}
     for n, declared in enumerate(sorted(DECLARED.values(), key=lambda d: d.name)):
         for k, signature in enumerate(declared.signatures):
             export = f"k{n}_{k}_{declared.dispatcher.py_func.__name__.strip('_')}"
@@ -273,7 +275,7 @@ def _trampoline(dispatcher: Any, arity: int) -> Callable[..., Any]:
     """A plain function of ``arity`` arguments that calls ``dispatcher``: exported in its place, so that the kernel
     is compiled as a callee with its own numba options (``pycc`` exports take none)."""
     names = ", ".join(f"a{i}" for i in range(arity))
-    namespace: dict[str, Any] = {"kernel": dispatcher}
+    namespace: dict[str, object] = {"kernel": dispatcher}
     exec(f"def call({names}):\n    return kernel({names})\n", namespace)
     return cast(Callable[..., Any], namespace["call"])
 

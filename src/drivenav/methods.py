@@ -69,7 +69,13 @@ METHODS: tuple[Method, ...] = (
 )
 """DRIVE-Nav and its baselines / ablations (paper Tables II, V, VI), in the order of the ablation report."""
 
-REFERENCE_AGENTS = ("oracle", "random")  # not DRIVE-Nav variants: the ground-truth path follower and a random walk
+REFERENCE_AGENTS: dict[str, str] = {
+    "oracle": "drivenav.agent.oracle:OracleAgent",  # follows the ground-truth shortest path to the goal
+    "random": "drivenav.agent.random_agent:RandomAgent",  # a random walk
+}
+"""The agents that are not DRIVE-Nav variants, the one list of them: ``--agent`` name -> ``module:Class`` (a class
+built from the simulator's set-up alone, imported when a run uses it, so the command line lists the names without
+loading agent code). A new reference agent is its module and one line here."""
 
 
 def method_named(name: str) -> Method | None:

@@ -30,6 +30,7 @@ from omegaconf.errors import OmegaConfBaseException
 
 from drivenav.agent.config import AgentConfig
 from drivenav.errors import InputError
+from drivenav.jsonstream import JsonObject
 from drivenav.mapping.config import MapTuning
 from drivenav.methods import PRESETS, agent_names, method_named, preset_names
 from drivenav.paper import DriveNavConfig
@@ -285,9 +286,23 @@ def check_values(settings: Settings) -> None:
             raise InputError("settings", key, f"one of {', '.join(names)} (the {option} option)", leaves[key])
 
 
-def settings_to_dict(settings: Settings) -> dict[str, Any]:
+def settings_to_dict(settings: Settings) -> JsonObject:
     """The tree as plain JSON-able data (what ``run.json`` records)."""
     return dataclasses.asdict(settings)
+
+
+def settings_from_dict(tree: JsonObject) -> Settings:
+    """The settings a tree of :func:`settings_to_dict` holds (a run's ``run.json``), checked as :func:`load_settings`
+    checks its layers: the tree merged over the defaults, then :func:`check_values`. A wrong key, type or value is
+    one :class:`~drivenav.errors.InputError` on the source ``settings`` naming the dotted key."""
+    try:
+        layer = OmegaConf.create(tree)
+    except (OmegaConfBaseException, ValueError) as error:
+        expected = "settings as 'drivenav config show' prints them"
+        raise InputError("settings", "<settings>", expected, str(error)) from None
+    settings = _resolve(_merge(_writable(OmegaConf.structured(Settings)), layer, "settings"))
+    check_values(settings)
+    return settings
 
 
 def settings_to_yaml(settings: Settings) -> str:

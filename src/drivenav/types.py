@@ -179,7 +179,7 @@ class Observation:
             object.__delattr__(self, "_render_rgb")
             return rgb
 
-    def __getstate__(self) -> dict[str, Any]:
+    def __getstate__(self) -> dict[str, object]:
         """Pickles and copies carry the pixels, not the renderer of a deferred image."""
         self.rgb  # noqa: B018 -- renders a deferred image
         return dict(self.__dict__)

@@ -20,7 +20,7 @@ from typing import Any
 import yaml
 
 from drivenav.errors import InputError
-from drivenav.jsonstream import DOCUMENT, read_document
+from drivenav.jsonstream import DOCUMENT, JsonObject, read_document
 
 read_json = read_document
 """The JSON content of a file, plain or gzip-compressed: see :mod:`drivenav.jsonstream` for what is refused."""
@@ -87,7 +87,7 @@ class Fields:
 
     def mapping(
         self, value: Any, field: str, keys: Collection[str] | None = None, required: Sequence[str] = ()
-    ) -> dict[str, Any]:
+    ) -> JsonObject:
         """A JSON object; with ``keys``, only those keys; every ``required`` key present."""
         if not isinstance(value, dict):
             raise self.error(field, "a JSON object", value)

@@ -30,8 +30,8 @@ from habitat.sims.habitat_simulator.actions import HabitatSimActions
 
 from drivenav.envs.embedded.env import EmbeddedEnv
 from drivenav.envs.embedded.library import SceneLibrary
-from drivenav.envs.episode import Episode, habitat_to_world, world_to_habitat, yaw_to_quaternion
 from drivenav.envs.habitat.benchmarks import SCENES_DIR
+from drivenav.episode import Episode, habitat_to_world, world_to_habitat, yaw_to_quaternion
 from drivenav.types import Action, Observation, SimConfig
 
 SIM_NAME = "DriveNavSim-v0"

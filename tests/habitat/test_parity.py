@@ -16,10 +16,10 @@ import pytest
 from worlds import BothWorlds, export, settings_for
 
 from drivenav.envs.embedded.library import SceneLibrary
-from drivenav.envs.episode import Episode
+from drivenav.episode import Episode
 from drivenav.eval.episodes import generate_episodes, load_episodes, save_episodes
 from drivenav.eval.records import EpisodeRecord
-from drivenav.eval.runner import Trace
+from drivenav.eval.trace import EpisodeTrace
 
 EPISODES = 12
 TOLERANCE = 1e-6
@@ -53,7 +53,7 @@ def test_same_actions_and_metrics_in_both_worlds(
     """Each episode runs once directly, then through habitat.Env in each layout (hm3d-v1: ObjectNav v1 read by
     habitat-lab; hm3d-ovon: HM3D-OVON read by drivenav's OVON-v1 dataset). One success distance (0.25 m) for
     both, so that one direct run is the reference of both."""
-    direct: dict[str, tuple[EpisodeRecord, Trace]] = {}
+    direct: dict[str, tuple[EpisodeRecord, EpisodeTrace]] = {}
     for benchmark in ("hm3d-v1", "hm3d-ovon"):
         spec = export(episodes[half * EPISODES // 2 : (half + 1) * EPISODES // 2], tmp_path / benchmark, benchmark)
         worlds = BothWorlds(spec, settings_for(agent, benchmark, "sim.success_distance=0.25", *CASES[agent]))
@@ -70,10 +70,12 @@ def test_same_actions_and_metrics_in_both_worlds(
     assert sum(int(record.success or 0) for record, _ in direct.values()) >= 1  # successes compared too
 
 
-def _assert_same(direct: tuple[EpisodeRecord, Trace], through: tuple[EpisodeRecord, Trace], where: str) -> None:
+def _assert_same(
+    direct: tuple[EpisodeRecord, EpisodeTrace], through: tuple[EpisodeRecord, EpisodeTrace], where: str
+) -> None:
     (ours, our_trace), (theirs, their_trace) = direct, through
     assert theirs.error == "" and ours.error == "", (where, theirs.error, ours.error)
-    assert their_trace["actions"] == our_trace["actions"], where
+    assert their_trace.actions == our_trace.actions, where
     assert theirs.success == ours.success, where
     for key in ("spl", "distance_to_goal", "geodesic_distance", "path_length"):
         assert getattr(theirs, key) == pytest.approx(getattr(ours, key), abs=TOLERANCE), (where, key)

@@ -8,16 +8,17 @@ from pathlib import Path
 
 from drivenav_sim import SCENES, SIM_NAME
 
-from drivenav.agent.registry import make_agent
+from drivenav.agents import make_agent
 from drivenav.envs.embedded.env import EmbeddedEnv
 from drivenav.envs.embedded.library import SceneLibrary
-from drivenav.envs.episode import Episode
 from drivenav.envs.habitat.benchmarks import BENCHMARKS
 from drivenav.envs.habitat.env import HabitatEnv
 from drivenav.envs.habitat.layouts import write_split
 from drivenav.envs.habitat.spec import HabitatSpec
+from drivenav.episode import Episode
 from drivenav.eval.records import EpisodeRecord
-from drivenav.eval.runner import Trace, run_episode
+from drivenav.eval.runner import run_episode
+from drivenav.eval.trace import EpisodeTrace
 from drivenav.settings import Settings, load_settings
 
 SIM_OVERRIDE = f"habitat.simulator.type={SIM_NAME}"
@@ -47,11 +48,11 @@ class BothWorlds:
         self.embedded = EmbeddedEnv(SceneLibrary(SCENES, 0).load, self.settings.sim)
         self.habitat = HabitatEnv(self.spec, self.settings.sim)
 
-    def direct(self, episode: Episode) -> tuple[EpisodeRecord, Trace]:
+    def direct(self, episode: Episode) -> tuple[EpisodeRecord, EpisodeTrace]:
         """The record and trace of one episode in the embedded world, with a fresh agent."""
         return run_episode(self.embedded, make_agent(self.settings), episode, 0, self.settings.sim.max_steps)
 
-    def through(self, episode: Episode) -> tuple[EpisodeRecord, Trace]:
+    def through(self, episode: Episode) -> tuple[EpisodeRecord, EpisodeTrace]:
         """The record and trace of one episode through habitat.Env, with a fresh agent."""
         return run_episode(self.habitat, make_agent(self.settings), episode, 0, self.settings.sim.max_steps)
 

@@ -1,14 +1,30 @@
 """The episode trace: typed events an agent emits, saved by the evaluator and read by the visualiser.
 
-Every event carries the step at which it happened and a ``kind``; ``to_dict`` gives its JSON form (no images).
+Every event carries the step at which it happened and a ``kind``, the name its JSON form goes by. Each event class
+registers itself under its kind when it is defined (:data:`EVENT_TYPES`), so that :func:`event_from_dict` rebuilds
+the right dataclass from a saved trace and readers dispatch on the event's type, never on its kind string.
+``to_dict`` gives the JSON form (no images): the kind, the step, then the fields in declaration order.
+
+This module stays pure (no files): reading and writing trace files is the evaluator's (``drivenav.eval.trace``).
 """
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
-from typing import Any, ClassVar
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import MISSING, asdict, dataclass, field, fields
+from functools import cache
+from pathlib import Path
+from typing import ClassVar, TypeVar, get_args, get_origin, get_type_hints
+
+from drivenav.errors import InputError
+from drivenav.jsonstream import JsonObject
 
 Point = tuple[float, float]
+EventT = TypeVar("EventT", bound="Event")
+Convert = Callable[[object], object]
+
+EVENT_TYPES: dict[str, type[Event]] = {}
+"""Every event class by its ``kind``; a class enters it when it is defined (:meth:`Event.__init_subclass__`)."""
 
 
 @dataclass(frozen=True)
@@ -16,7 +32,17 @@ class Event:
     step: int
     kind: ClassVar[str] = "event"
 
-    def to_dict(self) -> dict[str, Any]:
+    def __init_subclass__(cls, **kwargs: object) -> None:
+        """Register the new event class under its own ``kind`` (one class per kind: a clash is a bug)."""
+        super().__init_subclass__(**kwargs)
+        if "kind" not in cls.__dict__:
+            raise TypeError(f"event class {cls.__name__} must name its own kind")
+        if cls.kind in EVENT_TYPES:
+            raise TypeError(f"event kind {cls.kind!r} of {cls.__name__} is already {EVENT_TYPES[cls.kind].__name__}'s")
+        EVENT_TYPES[cls.kind] = cls
+
+    def to_dict(self) -> JsonObject:
+        """The JSON form: ``kind``, then the fields (tuples stay tuples; ``json.dumps`` writes them as lists)."""
         return {"kind": self.kind, **asdict(self)}
 
 
@@ -82,6 +108,8 @@ class VerificationEvent(Event):
 
 @dataclass(frozen=True)
 class TargetAccepted(Event):
+    """A verified candidate became the target the agent approaches."""
+
     candidate: int
     position: Point
     kind: ClassVar[str] = "target_accepted"
@@ -89,6 +117,8 @@ class TargetAccepted(Event):
 
 @dataclass(frozen=True)
 class TargetRejected(Event):
+    """A candidate is no longer the target (``reason``: e.g. a verification said it is not)."""
+
     candidate: int
     position: Point
     reason: str
@@ -108,8 +138,15 @@ class TargetSetAside(Event):
 
 @dataclass(frozen=True)
 class StopEvent(Event):
+    """The agent called STOP (``reason``: why)."""
+
     reason: str
     kind: ClassVar[str] = "stop"
+
+
+def of_type(events: Iterable[Event], kind: type[EventT]) -> list[EventT]:
+    """The events of one type, in order."""
+    return [event for event in events if isinstance(event, kind)]
 
 
 @dataclass
@@ -121,8 +158,87 @@ class Trace:
     def add(self, event: Event) -> None:
         self.events.append(event)
 
-    def of_kind(self, kind: str) -> list[Event]:
-        return [e for e in self.events if e.kind == kind]
+    def of_type(self, kind: type[EventT]) -> list[EventT]:
+        return of_type(self.events, kind)
 
-    def to_json(self) -> list[dict[str, Any]]:
-        return [e.to_dict() for e in self.events]
+
+# ---------------------------------------------------------------------------------------------- from JSON
+
+
+def event_from_dict(data: Mapping[str, object], source: str | Path = "trace", where: str = "event") -> Event:
+    """The event whose JSON form (:meth:`Event.to_dict`) is ``data``: the class its ``kind`` names, JSON lists
+    back to tuples. A field with a default may be missing (traces written before it existed); keys the class does
+    not have are ignored. An unknown kind or a missing or mistyped field is an :class:`InputError` naming ``source``
+    and ``where`` (e.g. ``events[3]``)."""
+    kind = data.get("kind")
+    cls = EVENT_TYPES.get(kind) if isinstance(kind, str) else None
+    if cls is None:
+        raise InputError(
+            source, f"{where}.kind", f"an event kind drivenav knows ({', '.join(sorted(EVENT_TYPES))})", kind
+        )
+    values: dict[str, object] = {}
+    for name, (convert, required) in _fields_of(cls.kind).items():
+        if name not in data:
+            if required:
+                raise InputError(source, f"{where}.{name}", f"the {name} of a {kind} event", "nothing")
+            continue
+        try:
+            values[name] = convert(data[name])
+        except (TypeError, ValueError) as error:
+            raise InputError(source, f"{where}.{name}", str(error), data[name]) from None
+    return cls(**values)  # type: ignore[arg-type]  # converted to each field's type above
+
+
+@cache
+def _fields_of(kind: str) -> dict[str, tuple[Convert, bool]]:
+    """Per field of the event class of ``kind``: the converter from its JSON value and whether it is required."""
+    cls = EVENT_TYPES[kind]
+    hints = get_type_hints(cls)
+    return {
+        f.name: (_converter(hints[f.name]), f.default is MISSING and f.default_factory is MISSING) for f in fields(cls)
+    }
+
+
+def _converter(hint: object) -> Convert:
+    """From a JSON value to a value of the field type ``hint`` (int, float, str, bool, or tuples of them)."""
+    if get_origin(hint) is tuple:
+        args = get_args(hint)
+        if len(args) == 2 and args[1] is Ellipsis:
+            item = _converter(args[0])
+            return lambda value: tuple(item(v) for v in _sequence(value, None))
+        items = [_converter(a) for a in args]
+        return lambda value: tuple(c(v) for c, v in zip(items, _sequence(value, len(items)), strict=True))
+    scalars: dict[object, Convert] = {int: _integer, float: _real, str: _text, bool: _flag}
+    if hint not in scalars:
+        raise TypeError(f"an event field of type {hint} has no JSON form")
+    return scalars[hint]
+
+
+def _sequence(value: object, length: int | None) -> list[object]:
+    if not isinstance(value, (list, tuple)) or (length is not None and len(value) != length):
+        raise ValueError("a list" + (f" of {length}" if length is not None else ""))
+    return list(value)
+
+
+def _integer(value: object) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not float(value).is_integer():
+        raise ValueError("an integer")
+    return int(value)
+
+
+def _real(value: object) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError("a number")
+    return float(value)
+
+
+def _text(value: object) -> str:
+    if not isinstance(value, str):
+        raise ValueError("a string")
+    return value
+
+
+def _flag(value: object) -> bool:
+    if not isinstance(value, bool):
+        raise ValueError("true or false")
+    return value

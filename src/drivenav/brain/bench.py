@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 
 from drivenav.brain.live import live_episode
-from drivenav.envs.episode import Episode
 from drivenav.envs.robot import RobotEnv, RobotSpec
+from drivenav.episode import Episode
 from drivenav.robot.parts import HeldStill, SensorFrame
 from drivenav.robot.server import RobotSession, served
 from drivenav.types import Action, Pose, SimConfig

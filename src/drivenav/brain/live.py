@@ -18,8 +18,8 @@ from typing import TextIO
 from drivenav.agent.base import Agent
 from drivenav.agent.trace import DetectionEvent, DirectionSelected
 from drivenav.envs.base import EpisodeMeasures
-from drivenav.envs.episode import Episode, world_to_habitat, yaw_to_quaternion
 from drivenav.envs.robot import RobotEnv, RobotSpec
+from drivenav.episode import Episode, world_to_habitat, yaw_to_quaternion
 from drivenav.eval.records import EpisodeRecord
 from drivenav.eval.report import summarize
 from drivenav.eval.rundir import RunDirectory
@@ -124,12 +124,12 @@ def run_live(spec: RunSpec, target: str, out: Path, episode_id: str | None = Non
     env = spec.env.build(spec.settings.sim)
     live = LiveEnv(env, agent)
     try:
-        with RunDirectory.open(out, spec.to_config(), [episode]) as run, operator_stop(live):
+        with RunDirectory.open(out, spec.env, spec.settings, [episode]) as run, operator_stop(live):
             record, trace = run_episode(live, agent, episode, spec.seed, spec.max_steps)
             run.save(record, trace)
             run.write_summary(summarize(run.records()))
     finally:
         env.close()
-    if not trace["positions"]:
+    if not trace.positions:
         return record, None
-    return record, trace_picture(episode, SavedTrace.from_json(trace, episode), record, out / "viz")
+    return record, trace_picture(episode, SavedTrace.of(trace, episode), record, out / "viz")

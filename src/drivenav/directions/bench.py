@@ -15,7 +15,6 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -24,6 +23,7 @@ from drivenav.directions.pipeline import TIMING_KEYS, DirectionPipeline, arrival
 from drivenav.directions.speed import build_speed_field
 from drivenav.directions.synthetic import extract_frontiers, make_snapshot, rect
 from drivenav.directions.types import DirectionResult
+from drivenav.jsonstream import JsonObject
 from drivenav.mapping.types import Frontier, MapSnapshot
 from drivenav.paper import DriveNavConfig
 
@@ -170,7 +170,7 @@ def skfmm_reference(
     return float(np.median(times)), cells
 
 
-def bench_directions(repeats: int = 50, config: DriveNavConfig | None = None) -> dict[str, Any]:
+def bench_directions(repeats: int = 50, config: DriveNavConfig | None = None) -> JsonObject:
     """Time :meth:`DirectionPipeline.update` (map -> labelled directions for all frontiers) on one core.
 
     Returns the map size, frontier and direction counts, the median total in ms and the median of each stage, the

@@ -284,7 +284,7 @@ def feature_transform(
 
 class IncrementalTransform:
     """The squared distance transform of a boolean grid (and, with ``features``, the nearest feature cell), kept
-    up to date as the grid changes a little between calls (issue 14: a depth frame adds obstacles in a few columns).
+    up to date as the grid changes a little between calls (a depth frame adds obstacles in a few columns).
 
     Felzenszwalb-Huttenlocher is separable and each pass is exact per whole line: a column's pass depends on that
     column's cells only, a row's pass on that row's column-pass values only. :meth:`update` therefore redoes the

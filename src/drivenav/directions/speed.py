@@ -295,8 +295,8 @@ CAPACITY_MARGIN = 16
 
 
 class SpeedFieldBuilder:
-    """:func:`build_speed_field` for the successive maps of one episode, kept up to date instead of recomputed
-    (issue 14): the same arrays, bit for bit.
+    """:func:`build_speed_field` for the successive maps of one episode, kept up to date instead of recomputed:
+    the same arrays, bit for bit.
 
     The obstacle feature transform, the skeleton, the skeleton distance transform and the speed are kept on a
     *capacity* window (the crop window grown by ``CAPACITY_MARGIN`` cells). Each build redoes only what the map's

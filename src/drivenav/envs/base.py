@@ -20,7 +20,7 @@ from drivenav.instances import count_pixels_of
 from drivenav.types import Action, GroundTruth, Observation, Pose, SimConfig
 
 if TYPE_CHECKING:
-    from drivenav.envs.episode import Episode
+    from drivenav.episode import Episode
 
 
 @dataclass(frozen=True)

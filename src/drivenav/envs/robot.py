@@ -11,14 +11,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
 
 from drivenav.envs.base import EpisodeMeasures
-from drivenav.envs.episode import Episode
 from drivenav.envs.vocabulary import VOCABULARY
+from drivenav.episode import Episode
 from drivenav.errors import InputError, RunStoppedError
+from drivenav.jsonstream import JsonObject
 from drivenav.types import SEMANTIC, Action, GroundTruth, Observation, Pose, SimConfig
 from drivenav.wire.client import ClientConfig, RobotClient, RobotUnavailableError
 from drivenav.wire.protocol import (
@@ -152,7 +153,7 @@ class RobotEnv:
     def close(self) -> None:
         self._client.close()
 
-    def _request(self, kind: str, body: dict[str, Any]) -> Message:
+    def _request(self, kind: str, body: JsonObject) -> Message:
         try:
             reply = self._client.request(Message(kind, self._client.next_id(), body=body))
         except RobotUnavailableError:

@@ -1,14 +1,15 @@
 """The ablation report's files: ``ablations.csv`` and ``ablations.md`` (the paper's tables beside ours, and where
-the orderings differ)."""
+the orderings differ), written from an :class:`~drivenav.eval.ablation_data.AblationReport`."""
 
 from __future__ import annotations
 
 import csv
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from itertools import pairwise
 from pathlib import Path
-from typing import Any
 
+from drivenav.eval.ablation_data import AblationReport, ComputeTable, Interval, MethodEntry, Pictures, Runtime
+from drivenav.eval.compare import Comparison
 from drivenav.eval.paper_tables import (
     TABLE_II,
     TABLE_II_VLFM,
@@ -19,13 +20,17 @@ from drivenav.eval.paper_tables import (
     PaperRow,
 )
 from drivenav.eval.stats import BOOTSTRAP_RESAMPLES
+from drivenav.jsonstream import JsonObject
+
+Methods = dict[str, MethodEntry]
 
 # ----------------------------------------------------------------------------------------------- csv
 
 
-def flatten(entry: dict[str, Any], prefix: str = "") -> dict[str, Any]:
-    """Nested fields joined by dots; an interval ``[lo, hi]`` becomes ``name.lo`` and ``name.hi``."""
-    flat: dict[str, Any] = {}
+def flatten(entry: JsonObject, prefix: str = "") -> JsonObject:
+    """Nested fields joined by dots; an interval ``[lo, hi]`` becomes ``name.lo`` and ``name.hi`` (a CSV row from
+    an entry's JSON, so the columns are named as ``ablations.json``'s keys)."""
+    flat: JsonObject = {}
     for key, value in entry.items():
         name = f"{prefix}{key}"
         if isinstance(value, dict):
@@ -37,9 +42,9 @@ def flatten(entry: dict[str, Any], prefix: str = "") -> dict[str, Any]:
     return flat
 
 
-def write_csv(report: dict[str, Any], path: Path) -> None:
+def write_csv(report: AblationReport, path: Path) -> None:
     """One row per method with its ``ablations.json`` fields flattened."""
-    rows = [{"method": name, **flatten(entry)} for name, entry in report["methods"].items()]
+    rows = [{"method": name, **flatten(entry.to_json())} for name, entry in report.methods.items()]
     fields = list(dict.fromkeys(key for row in rows for key in row))
     with path.open("w", newline="", encoding="utf-8") as handle:
         writer = csv.DictWriter(handle, fieldnames=fields, restval=0)
@@ -50,67 +55,71 @@ def write_csv(report: dict[str, Any], path: Path) -> None:
 # ----------------------------------------------------------------------------------------------- markdown
 
 
-def format_markdown(report: dict[str, Any]) -> str:
+def format_markdown(report: AblationReport) -> str:
     """``ablations.md``: the paper's tables with our numbers beside the paper's, failures, ordering differences."""
-    commit = report["commit"] or "unknown"
-    header = [
-        "# Ablations on the embedded benchmark",
-        "",
-        f"{report['episodes']} episodes, seed {report['seed']}, scenes `{report['scenes']}`, at most "
-        f"{report['max_steps']} steps, reasoner `{report['models']['reasoner']}`, detector "
-        f"`{report['models']['detector']}`, commit {commit}. SR and SPL in %, with 95 % intervals in brackets "
-        f"(Wilson score for SR, percentile bootstrap of the mean with {BOOTSTRAP_RESAMPLES} resamples for SPL). "
-        "Paper values: HM3D-OVON (DRIVE-Nav, Tables II, V, VI, VII).",
-    ]
     sections = [
-        header,
-        _table_vi(report["methods"]),
-        _table_v(report["methods"]),
-        _table_ii(report["table_ii"]),
-        _table_vii(report["runtime"]),
-        _decisions(report["methods"]),
-        _steps(report["methods"]),
-        _failures(report["methods"]),
-        _missed(report["methods"]),
+        _header(report),
+        _table_vi(report.methods),
+        _table_v(report.methods),
+        _table_ii(report.table_ii),
+        _table_vii(report.runtime),
+        _decisions(report.methods),
+        _steps(report.methods),
+        _failures(report.methods),
+        _missed(report.methods),
         _orderings(report),
-        _pictures(report.get("pictures")),
+        _pictures(report.pictures),
     ]
     return "\n\n".join("\n".join(lines) for lines in sections) + "\n"
 
 
-def _pictures(pictures: dict[str, Any] | None) -> list[str]:
+def _header(report: AblationReport) -> list[str]:
+    """What was run: episodes, seed, scenes, step budget, models, commit, and how the intervals are computed."""
+    commit = report.commit or "unknown"
+    return [
+        "# Ablations on the embedded benchmark",
+        "",
+        f"{report.episodes} episodes, seed {report.seed}, scenes `{report.scenes}`, at most "
+        f"{report.max_steps} steps, reasoner `{report.models.reasoner}`, detector "
+        f"`{report.models.detector}`, commit {commit}. SR and SPL in %, with 95 % intervals in brackets "
+        f"(Wilson score for SR, percentile bootstrap of the mean with {BOOTSTRAP_RESAMPLES} resamples for SPL). "
+        "Paper values: HM3D-OVON (DRIVE-Nav, Tables II, V, VI, VII).",
+    ]
+
+
+def _pictures(pictures: Pictures) -> list[str]:
     lines = ["## Pictures", ""]
-    if not pictures or not pictures["episodes"]:
+    if not pictures.episodes:
         return [*lines, "None drawn (`--pictures 0`, or no episode finished by every method)."]
     lines.append(
         "The same episodes for each method (`drivenav viz` top-down maps: path by segment, decisions, "
         "representative views, detections, goal); Table II episodes first."
     )
-    for episode_id, by_method in pictures["episodes"].items():
+    for episode_id, by_method in pictures.episodes.items():
         lines.extend(["", f"Episode `{episode_id}`:", ""])
         lines.append("| " + " | ".join(f"`{m}`" for m in by_method) + " |")
         lines.append("|" + "---|" * len(by_method))
         lines.append("| " + " | ".join(f"![{m}]({path})" for m, path in by_method.items()) + " |")
-    if pictures["video"]:
+    if pictures.video:
         lines.extend(
-            ["", f"Video (egocentric view beside the map, step by step): [{pictures['video']}]({pictures['video']})"]
+            ["", f"Video (egocentric view beside the map, step by step): [{pictures.video}]({pictures.video})"]
         )
     return lines
 
 
-def _pct(value: float | None, interval: list[float] | None) -> str:
+def _pct(value: float | None, interval: Interval | None) -> str:
     if value is None or interval is None:
         return "n/a"
     return f"{100 * value:.1f} [{100 * interval[0]:.1f}, {100 * interval[1]:.1f}]"
 
 
-def _sr_spl(entry: dict[str, Any]) -> str:
+def _sr_spl(entry: MethodEntry) -> str:
     """SR and SPL with their intervals, then the episodes an exception ended."""
-    sr, spl = _pct(entry["success_rate"], entry["sr_ci95"]), _pct(entry["spl"], entry["spl_ci95"])
-    return f"{sr} | {spl} | {entry.get('errors', 0)}"
+    sr, spl = _pct(entry.success_rate, entry.sr_ci95), _pct(entry.spl, entry.spl_ci95)
+    return f"{sr} | {spl} | {entry.errors}"
 
 
-def _rows_present(rows: Sequence[PaperRow], methods: dict[str, Any]) -> list[PaperRow]:
+def _rows_present(rows: Sequence[PaperRow], methods: Mapping[str, object]) -> list[PaperRow]:
     return [row for row in rows if row.method in methods]
 
 
@@ -118,7 +127,7 @@ def _not_run(lines: list[str], rows: Sequence[PaperRow]) -> list[str]:
     return lines if rows else [lines[0], "", "No method of this table was run."]
 
 
-def _table_vi(methods: dict[str, Any]) -> list[str]:
+def _table_vi(methods: Methods) -> list[str]:
     rows = _rows_present(TABLE_VI, methods)
     lines = [
         "## Table VI: module ablation",
@@ -133,7 +142,7 @@ def _table_vi(methods: dict[str, Any]) -> list[str]:
     return _not_run(lines, rows)
 
 
-def _table_v(methods: dict[str, Any]) -> list[str]:
+def _table_v(methods: Methods) -> list[str]:
     rows = _rows_present(TABLE_V, methods)
     lines = [
         "## Table V: directional-reasoning components",
@@ -147,13 +156,13 @@ def _table_v(methods: dict[str, Any]) -> list[str]:
     return _not_run(lines, rows)
 
 
-def _table_ii(table: dict[str, Any]) -> list[str]:
-    rows = _rows_present(TABLE_II, table["methods"])
+def _table_ii(table: Comparison) -> list[str]:
+    rows = _rows_present(TABLE_II, table.methods)
     lines = [
         "## Table II: common successful episodes",
         "",
-        f"Episodes every method below solved, start-to-goal geodesic distance > {table['min_distance']:g} m: "
-        f"n = {table['common_episodes']}. Lower is better. Revisits: the paper's count (a frontier-selection "
+        f"Episodes every method below solved, start-to-goal geodesic distance > {table.min_distance:g} m: "
+        f"n = {table.common_episodes}. Lower is better. Revisits: the paper's count (a frontier-selection "
         "segment that travels >= 5 m within 0.5 m of the earlier path); retraced: the same without segments (each "
         "stretch of >= 5 m driven within 0.5 m of the path driven more than 1 m earlier), and its metres.",
         "",
@@ -162,41 +171,41 @@ def _table_ii(table: dict[str, Any]) -> list[str]:
         f"| VLFM | (not implemented) | - | - | - | - | {TABLE_II_VLFM[0]:.1f} | {TABLE_II_VLFM[1]:.3f} |",
     ]
     for row in rows:
-        common = table["methods"][row.method]["common"]
+        common = table.methods[row.method].common
         ours = "- | - | - | -"
         if common:
-            retraced = [_number(common.get(k), "{:.3f}") for k in ("avg_retraced_revisits", "avg_retraced_m")]
-            ours = f"{common['avg_steps']:.1f} | {common['avg_revisits']:.3f} | {' | '.join(retraced)}"
+            retraced = [_number(value, "{:.3f}") for value in (common.avg_retraced_revisits, common.avg_retraced_m)]
+            ours = f"{common.avg_steps:.1f} | {common.avg_revisits:.3f} | {' | '.join(retraced)}"
         lines.append(f"| {row.label} | `{row.method}` | {ours} | {row.paper[0]:.1f} | {row.paper[1]:.3f} |")
     return _not_run(lines, rows)
 
 
-def _table_vii(runtime: dict[str, Any]) -> list[str]:
-    lines = ["## Table VII: runtime", "", *_compute_rows(runtime["compute"])]
-    for kind, calls in runtime["model_calls"].items():
+def _table_vii(runtime: Runtime) -> list[str]:
+    lines = ["## Table VII: runtime", "", *_compute_rows(runtime.compute)]
+    for kind, calls in runtime.model_calls.items():
         lines.append(
-            f"| model call: {kind} | {calls['mean_latency_ms']:.1f} ms (mean) |"
-            f" {calls['calls_per_episode']:.2f} per episode |"
+            f"| model call: {kind} | {calls.mean_latency_ms:.1f} ms (mean) |"
+            f" {calls.calls_per_episode:.2f} per episode |"
         )
     lines.extend(["", f"Paper (real-world workstation): {TABLE_VII_PAPER}."])
     return lines
 
 
-def _compute_rows(compute: dict[str, Any] | None) -> list[str]:
+def _compute_rows(compute: ComputeTable | None) -> list[str]:
     header = ["", "| module | latency (median) | invocation |", "|---|---|---|"]
     if compute is None:
         return ["No per-step timings in these runs' traces; model calls only.", *header]
     rows = [
-        f"Agent compute per step (models excluded), `{compute['agent']}`, every step of its {compute['episodes']} "
-        f"episodes ({compute['steps']} steps, {compute['width']}x{compute['height']}): median "
-        f"{compute['median_ms']:.1f} ms, p90 {compute['p90_ms']:.1f} ms. Model calls: mean latency per call over "
-        "every run above, calls per episode over the runs of the methods that make them.",
+        f"Agent compute per step (models excluded), `{compute.agent}`, every step of its {compute.episodes} "
+        f"episodes ({compute.steps} steps, {compute.width}x{compute.height}): median "
+        f"{compute.latency.median_ms:.1f} ms, p90 {compute.latency.p90_ms:.1f} ms. Model calls: mean latency per "
+        "call over every run above, calls per episode over the runs of the methods that make them.",
         *header,
     ]
-    for name, module in compute["modules"].items():
-        latency = f"{module['median_ms']:.2f} ms" if "median_ms" in module else "-"
-        count = f", {module['invocations']} in {compute['steps']} steps" if "invocations" in module else ""
-        rows.append(f"| {name} | {latency} | {module['invocation']}{count} |")
+    for name, module in compute.modules.items():
+        latency = "-" if module.latency is None else f"{module.latency.median_ms:.2f} ms"
+        count = "" if module.invocations is None else f", {module.invocations} in {compute.steps} steps"
+        rows.append(f"| {name} | {latency} | {module.invocation}{count} |")
     return rows
 
 
@@ -222,7 +231,7 @@ DECISION_COLUMNS = (
 STEP_COLUMNS = ("start_scan", "scan", "sweep", "follow", "escape", "approach", "enrich")
 
 
-def _decisions(methods: dict[str, Any]) -> list[str]:
+def _decisions(methods: Methods) -> list[str]:
     lines = [
         "## Decisions and direction labels per episode",
         "",
@@ -234,14 +243,13 @@ def _decisions(methods: dict[str, Any]) -> list[str]:
         "|---|---|" + "---|" * len(DECISION_COLUMNS),
     ]
     for name, entry in methods.items():
-        means = entry.get("decisions", {})
-        calls = f"{_number(entry.get('median_vlm_calls'), '{:g}')} / {_number(entry.get('vlm_calls'), '{:.1f}')}"
-        cells = " | ".join(f"{means.get(key, 0.0):.2f}" for key, _ in DECISION_COLUMNS)
+        calls = f"{_number(entry.median_vlm_calls, '{:g}')} / {_number(entry.vlm_calls, '{:.1f}')}"
+        cells = " | ".join(f"{entry.decisions.get(key, 0.0):.2f}" for key, _ in DECISION_COLUMNS)
         lines.append(f"| `{name}` | {calls} | {cells} |")
     return lines
 
 
-def _steps(methods: dict[str, Any]) -> list[str]:
+def _steps(methods: Methods) -> list[str]:
     lines = [
         "## Where the steps go",
         "",
@@ -252,15 +260,15 @@ def _steps(methods: dict[str, Any]) -> list[str]:
         "|---|---|" + "---|" * (len(STEP_COLUMNS) + 1),
     ]
     for name, entry in methods.items():
-        means = entry.get("decisions", {})
+        means = entry.decisions
         cells = " | ".join(f"{means.get(f'steps.{key}', 0.0):.1f}" for key in STEP_COLUMNS)
-        steps = _number(entry.get("avg_steps"), "{:.1f}")
+        steps = _number(entry.avg_steps, "{:.1f}")
         lines.append(f"| `{name}` | {steps} | {cells} | {means.get('turn_reversals', 0.0):.1f} |")
     return lines
 
 
-def _missed(methods: dict[str, Any]) -> list[str]:
-    causes = list(dict.fromkeys(c for entry in methods.values() for c in entry.get("missed_target_causes", {})))
+def _missed(methods: Methods) -> list[str]:
+    causes = list(dict.fromkeys(c for entry in methods.values() for c in entry.missed_target_causes))
     lines = [
         "## Missed targets by cause",
         "",
@@ -270,14 +278,14 @@ def _missed(methods: dict[str, Any]) -> list[str]:
         "|---|---|" + "---|" * len(causes),
     ]
     for name, entry in methods.items():
-        counts = entry.get("missed_target_causes", {})
+        counts = entry.missed_target_causes
         cells = " | ".join(str(counts.get(c, 0)) for c in causes)
         lines.append(f"| `{name}` | {sum(counts.values())} | {cells} |")
     return lines
 
 
-def _failures(methods: dict[str, Any]) -> list[str]:
-    causes = list(dict.fromkeys(c for entry in methods.values() for c in entry["failure_causes"]))
+def _failures(methods: Methods) -> list[str]:
+    causes = list(dict.fromkeys(c for entry in methods.values() for c in entry.failure_causes))
     lines = [
         "## Failure causes",
         "",
@@ -285,9 +293,9 @@ def _failures(methods: dict[str, Any]) -> list[str]:
         "|---|---|---|" + "---|" * len(causes),
     ]
     for name, entry in methods.items():
-        counts = entry["failure_causes"]
+        counts = entry.failure_causes
         cells = " | ".join(str(counts.get(c, 0)) for c in causes)
-        lines.append(f"| `{name}` | {entry['episodes']} | {sum(counts.values())} | {cells} |")
+        lines.append(f"| `{name}` | {entry.episodes} | {sum(counts.values())} | {cells} |")
     return lines
 
 
@@ -333,14 +341,19 @@ def _metric(rows: Sequence[PaperRow], index: int, ours: dict[str, float]) -> tup
     return {row.method: row.paper[index] for row in present}, {row.method: ours[row.method] for row in present}
 
 
-def _orderings(report: dict[str, Any]) -> list[str]:
-    methods = report["methods"]
-    sr = {name: round(100 * entry["success_rate"], 1) for name, entry in methods.items()}
-    spl = {name: round(100 * entry["spl"], 1) for name, entry in methods.items()}
-    table_ii = report["table_ii"]
-    common = {name: row["common"] for name, row in table_ii["methods"].items() if row["common"]}
-    steps = {name: round(row["avg_steps"], 1) for name, row in common.items()}
-    revisits = {name: round(row["avg_revisits"], 3) for name, row in common.items()}
+def _shown(values: Mapping[str, float | None], digits: int, scale: float = 1.0) -> dict[str, float]:
+    """Values as the tables show them (``scale`` times, rounded), for the methods that have one (a method with no
+    measured episode has no rate to order)."""
+    return {name: round(scale * value, digits) for name, value in values.items() if value is not None}
+
+
+def _orderings(report: AblationReport) -> list[str]:
+    methods = report.methods
+    sr = _shown({name: entry.success_rate for name, entry in methods.items()}, 1, 100.0)
+    spl = _shown({name: entry.spl for name, entry in methods.items()}, 1, 100.0)
+    common = {name: row.common for name, row in report.table_ii.methods.items() if row.common}
+    steps = _shown({name: row.avg_steps for name, row in common.items()}, 1)
+    revisits = _shown({name: row.avg_revisits for name, row in common.items()}, 3)
     checks = [
         ("Table VI, SR", TABLE_VI, 0, sr),
         ("Table VI, SPL", TABLE_VI, 1, spl),

@@ -2,8 +2,10 @@
 
 ``drivenav bench ablations`` runs every method once through :func:`drivenav.eval.runner.evaluate` into
 ``DIR/runs/<method>/`` (resumable) and writes ``DIR/ablations.json``, ``DIR/ablations.md`` and ``DIR/ablations.csv``
-(:mod:`drivenav.eval.ablation_report`). The benchmark is :mod:`drivenav.eval.benchmark`; the paper's numbers,
-for comparison only, are :mod:`drivenav.eval.paper_tables`.
+(:mod:`drivenav.eval.ablation_report`), from one :class:`~drivenav.eval.ablation_data.AblationReport`. The
+benchmark is :mod:`drivenav.eval.benchmark`; the paper's numbers, for comparison only, are
+:mod:`drivenav.eval.paper_tables`. Pictures come from a :class:`PictureMaker` the caller passes in (the application
+passes :func:`drivenav.viz.run_pictures.render_pictures`): eval draws nothing itself.
 """
 
 from __future__ import annotations
@@ -11,31 +13,51 @@ from __future__ import annotations
 import json
 from collections import Counter
 from collections.abc import Sequence
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
-from typing import Any
+from typing import Protocol
 
 from drivenav.agent.base import DecisionStats
-from drivenav.envs.episode import Episode
+from drivenav.episode import Episode
 from drivenav.errors import InputError
+from drivenav.eval.ablation_data import (
+    AblationReport,
+    ComputeTable,
+    Interval,
+    MethodEntry,
+    ModelCalls,
+    Pictures,
+    ReportModels,
+    Runtime,
+)
 from drivenav.eval.ablation_report import format_markdown, write_csv
-from drivenav.eval.compare import compare_runs, load_runs
+from drivenav.eval.compare import RunRecords, compare_runs, load_runs
 from drivenav.eval.episodes import load_episodes, save_episodes
 from drivenav.eval.executor import Executor
 from drivenav.eval.paper_tables import TABLE_II_METHODS
-from drivenav.eval.pictures import render_pictures
 from drivenav.eval.provenance import git_commit
 from drivenav.eval.records import ERROR, MISSED_CAUSES, EpisodeRecord, missed_cause
 from drivenav.eval.report import summarize
+from drivenav.eval.run_info import world_json
 from drivenav.eval.rundir import EPISODES_COPY, trace_path
 from drivenav.eval.runner import RunSpec, evaluate
 from drivenav.eval.stats import bootstrap_mean_interval, wilson_interval
 from drivenav.eval.timings import runtime_table, traced_steps
+from drivenav.eval.trace import EpisodeTrace
 from drivenav.methods import agent_names
 from drivenav.types import SimConfig
 
 FAILURE_CAUSES = ("false_positive_stop", "missed_target", "timeout", "no_frontier", "target_never_seen")
 RUNS_DIR = "runs"
+
+
+class PictureMaker(Protocol):
+    """Draws the report's pictures: ``count`` episodes (ids from ``order``) through the methods of ``dirs`` (their
+    run directories, Table II methods first; their records: ``runs``) into ``out``."""
+
+    def __call__(
+        self, dirs: dict[str, Path], runs: RunRecords, order: Sequence[str], count: int, out: Path
+    ) -> Pictures: ...
 
 
 def parse_methods(text: str) -> list[str]:
@@ -80,28 +102,28 @@ def _check_episode_set(episodes: list[Episode], copy: Path) -> None:
 # ----------------------------------------------------------------------------------------------- aggregation
 
 
-def method_entry(records: list[EpisodeRecord]) -> dict[str, Any]:
+def method_entry(records: list[EpisodeRecord]) -> MethodEntry:
     """One method's ``ablations.json`` entry: SR / SPL with 95 % intervals, steps, revisits, calls, failures and
     errors (episodes an exception ended: counted apart, never as navigation failures)."""
     summary = summarize(records)
     measured = [r for r in records if r.success is not None]
     successes = sum(int(r.success or 0) for r in measured)
-    return {
-        "episodes": summary.episodes,
-        "errors": summary.errors,
-        "success_rate": summary.success_rate,
-        "spl": summary.spl,
-        "avg_steps": summary.avg_steps,
-        "avg_revisits": summary.avg_revisits,
-        "sr_ci95": _rounded(wilson_interval(successes, len(measured))) if measured else None,
-        "spl_ci95": _rounded(bootstrap_mean_interval(_spls_by_episode(measured))) if measured else None,
-        "avg_retraced_revisits": summary.avg_retraced_revisits,
-        "vlm_calls": summary.avg_vlm_calls,
-        "median_vlm_calls": summary.median_vlm_calls,
-        "failure_causes": failure_counts(records),
-        "missed_target_causes": missed_counts(records),
-        "decisions": decision_means(records),
-    }
+    return MethodEntry(
+        episodes=summary.episodes,
+        errors=summary.errors,
+        success_rate=summary.success_rate,
+        spl=summary.spl,
+        avg_steps=summary.avg_steps,
+        avg_revisits=summary.avg_revisits,
+        sr_ci95=_rounded(wilson_interval(successes, len(measured))) if measured else None,
+        spl_ci95=_rounded(bootstrap_mean_interval(_spls_by_episode(measured))) if measured else None,
+        avg_retraced_revisits=summary.avg_retraced_revisits,
+        vlm_calls=summary.avg_vlm_calls,
+        median_vlm_calls=summary.median_vlm_calls,
+        failure_causes=failure_counts(records),
+        missed_target_causes=missed_counts(records),
+        decisions=decision_means(records),
+    )
 
 
 def missed_counts(records: list[EpisodeRecord]) -> dict[str, int]:
@@ -129,8 +151,8 @@ def _spls_by_episode(records: list[EpisodeRecord]) -> list[float]:
     return [float(r.spl or 0.0) for r in sorted(records, key=lambda r: r.episode_id)]
 
 
-def _rounded(interval: tuple[float, float]) -> list[float]:
-    return [round(interval[0], 6), round(interval[1], 6)]
+def _rounded(interval: Interval) -> Interval:
+    return round(interval[0], 6), round(interval[1], 6)
 
 
 def failure_counts(records: list[EpisodeRecord]) -> dict[str, int]:
@@ -139,7 +161,7 @@ def failure_counts(records: list[EpisodeRecord]) -> dict[str, int]:
     return {cause: counts.pop(cause, 0) for cause in FAILURE_CAUSES} | dict(sorted(counts.items()))
 
 
-def model_call_latency(runs: dict[str, dict[str, EpisodeRecord]]) -> dict[str, dict[str, float]]:
+def model_call_latency(runs: RunRecords) -> dict[str, ModelCalls]:
     """Per model-call kind: mean latency per call, and calls per episode over the runs that make such calls."""
     calls: Counter[str] = Counter()
     latency: Counter[str] = Counter()
@@ -152,11 +174,7 @@ def model_call_latency(runs: dict[str, dict[str, EpisodeRecord]]) -> dict[str, d
         calls.update(run_calls)
         episodes.update({kind: len(records) for kind, count in run_calls.items() if count})
     return {
-        kind: {
-            "calls": count,
-            "calls_per_episode": round(count / episodes[kind], 3),
-            "mean_latency_ms": round(latency[kind] / count, 3),
-        }
+        kind: ModelCalls(count, round(count / episodes[kind], 3), round(latency[kind] / count, 3))
         for kind, count in sorted(calls.items())
         if count
     }
@@ -165,44 +183,42 @@ def model_call_latency(runs: dict[str, dict[str, EpisodeRecord]]) -> dict[str, d
 RUNTIME_METHOD = "drive-nav"
 
 
-def measure_runtime(runs: dict[str, dict[str, EpisodeRecord]], dirs: dict[str, Path]) -> dict[str, Any]:
+def measure_runtime(runs: RunRecords, dirs: dict[str, Path]) -> Runtime:
     """Table VII from the runs themselves: per-step module timings saved in the traces of ``drive-nav`` (else
     the first method whose traces have them), model-call latency over every run. ``compute`` is None when no
     trace has timings."""
     sim = SimConfig()
     for method in sorted(dirs, key=lambda name: name != RUNTIME_METHOD):
-        traces = (_read_trace(trace_path(dirs[method], episode_id)) for episode_id in runs[method])
-        steps, decisions, episodes = traced_steps(traces)
+        read = (_read_trace(trace_path(dirs[method], episode_id)) for episode_id in runs[method])
+        steps, decisions, episodes = traced_steps(trace for trace in read if trace is not None)
         if steps:
             compute = runtime_table(steps, decisions, episodes, method, sim.width, sim.height)
-            return {"compute": compute, "model_calls": model_call_latency(runs)}
-    return {"compute": None, "model_calls": model_call_latency(runs)}
+            return Runtime(ComputeTable.from_json(compute), model_call_latency(runs))
+    return Runtime(None, model_call_latency(runs))
 
 
-def _read_trace(path: Path) -> dict[str, Any]:
+def _read_trace(path: Path) -> EpisodeTrace | None:
     try:
-        trace: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return {}  # a missing or torn trace only leaves its steps out of the timings
-    return trace
+        return EpisodeTrace.from_json(json.loads(path.read_text(encoding="utf-8")), path)
+    except (OSError, ValueError, InputError):
+        return None  # a missing, torn or malformed trace only leaves its steps out of the timings
 
 
-def build_report(
-    dirs: dict[str, Path], runs: dict[str, dict[str, EpisodeRecord]], first: RunSpec, episodes: int
-) -> dict[str, Any]:
-    """The ``ablations.json`` payload for the finished runs in ``dirs`` (their records: ``runs``)."""
+def build_report(dirs: dict[str, Path], runs: RunRecords, first: RunSpec, episodes: int) -> AblationReport:
+    """The ``ablations.json`` report for the finished runs in ``dirs`` (their records: ``runs``), without pictures."""
     table_ii_methods = [name for name in TABLE_II_METHODS if name in dirs]
-    return {
-        "methods": {name: method_entry(list(records.values())) for name, records in runs.items()},
-        "table_ii": compare_runs({name: runs[name] for name in table_ii_methods}),
-        "runtime": measure_runtime(runs, dirs),
-        "episodes": episodes,
-        "seed": first.seed,
-        "scenes": first.to_config()["env"].get("scenes"),
-        "max_steps": first.max_steps,
-        "models": {"reasoner": first.settings.models.reasoner, "detector": first.settings.models.detector},
-        "commit": git_commit(),
-    }
+    scenes = world_json(first.env).get("scenes")
+    return AblationReport(
+        methods={name: method_entry(list(records.values())) for name, records in runs.items()},
+        table_ii=compare_runs({name: runs[name] for name in table_ii_methods}),
+        runtime=measure_runtime(runs, dirs),
+        episodes=episodes,
+        seed=first.seed,
+        scenes=None if scenes is None else str(scenes),
+        max_steps=first.max_steps,
+        models=ReportModels(first.settings.models.reasoner, first.settings.models.detector),
+        commit=git_commit(),
+    )
 
 
 def run_ablations(
@@ -211,16 +227,19 @@ def run_ablations(
     out: Path,
     executor: Executor | None = None,
     pictures: int = 2,
-) -> dict[str, Any]:
-    """Run (or resume) every method, then write ``ablations.json``, ``.md`` and ``.csv`` into ``out``, and the
-    top-down pictures of ``pictures`` episodes for the Table II methods (else the first methods)."""
+    draw: PictureMaker | None = None,
+) -> AblationReport:
+    """Run (or resume) every method, then write ``ablations.json``, ``.md`` and ``.csv`` into ``out``; with
+    ``draw``, the pictures of ``pictures`` episodes for the Table II methods (else the first methods) too."""
     dirs = run_methods(episodes, specs, out, executor)
     runs = load_runs(dirs)
     report = build_report(dirs, runs, specs[0], len(episodes))
-    table_ii_first = sorted(dirs, key=lambda name: name not in TABLE_II_METHODS)
-    order = [e.episode_id for e in episodes]
-    report["pictures"] = render_pictures({name: dirs[name] for name in table_ii_first}, runs, order, pictures, out)
-    (out / "ablations.json").write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
+    if draw is not None:
+        table_ii_first = sorted(dirs, key=lambda name: name not in TABLE_II_METHODS)
+        order = [e.episode_id for e in episodes]
+        drawn = draw({name: dirs[name] for name in table_ii_first}, runs, order, pictures, out)
+        report = replace(report, pictures=drawn)
+    (out / "ablations.json").write_text(json.dumps(report.to_json(), indent=2) + "\n", encoding="utf-8")
     (out / "ablations.md").write_text(format_markdown(report), encoding="utf-8")
     write_csv(report, out / "ablations.csv")
     return report

@@ -6,20 +6,18 @@ A quick stand-alone measurement; ``bench ablations`` builds the same table from 
 
 from __future__ import annotations
 
-from typing import Any
-
-from drivenav.agent.registry import make_agent
+from drivenav.agent.trace import DirectionSelected
+from drivenav.agents import make_agent
 from drivenav.envs.embedded.env import EmbeddedEnv
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.eval.episodes import generate_episodes
 from drivenav.eval.runner import run_episode
-from drivenav.eval.timings import DECISION_EVENT, runtime_table
+from drivenav.eval.timings import runtime_table
+from drivenav.jsonstream import JsonObject
 from drivenav.settings import load_settings
 
 
-def bench_agent(
-    episodes: int = 4, max_steps: int = 150, seed: int = 0, agent_name: str = "drive-nav"
-) -> dict[str, Any]:
+def bench_agent(episodes: int = 4, max_steps: int = 150, seed: int = 0, agent_name: str = "drive-nav") -> JsonObject:
     """Run a few embedded episodes and report per-step compute and the per-module breakdown."""
     settings = load_settings(agent_name)
     sim = settings.sim
@@ -33,5 +31,5 @@ def bench_agent(
     for episode in generate_episodes(library, episodes, seed):
         run_episode(env, agent, episode, seed, max_steps)
         steps.extend(agent.step_timings)
-        reasoner_calls += len(agent.trace.of_kind(DECISION_EVENT))
+        reasoner_calls += len(agent.trace.of_type(DirectionSelected))
     return runtime_table(steps, reasoner_calls, episodes, agent_name, sim.width, sim.height)

@@ -7,7 +7,7 @@ from importlib import resources
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # the definitions load without numpy (the command line reads them for its defaults)
-    from drivenav.envs.episode import Episode
+    from drivenav.episode import Episode
 
 
 @dataclass(frozen=True)

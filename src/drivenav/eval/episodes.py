@@ -1,7 +1,7 @@
 """HM3D-OVON-style episode files: generation over a scene set, and validated reading and writing.
 
 A file is gzip-compressed JSON ``{"episodes": [...]}``; each episode carries ``episode_id``, ``scene_id``,
-``start_position`` and ``start_rotation`` (Habitat's y-up frame, see :mod:`drivenav.envs.episode`),
+``start_position`` and ``start_rotation`` (Habitat's y-up frame, see :mod:`drivenav.episode`),
 ``object_category`` (the text given to the agent, a synonym in some episodes as in HM3D-OVON's
 val_seen_synonyms), ``goals`` (every instance of the category with ``position`` and ``view_points``) and
 ``info`` (``geodesic_distance``, ``canonical_category``, ``synonym``).
@@ -30,7 +30,7 @@ from drivenav.envs.embedded.geodesic import GeodesicField, largest_component
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.embedded.rosmap import OBJECTS_FILE
 from drivenav.envs.embedded.scene import Scene
-from drivenav.envs.episode import (
+from drivenav.episode import (
     Episode,
     ObjectGoal,
     goal_to_dict,
@@ -42,7 +42,7 @@ from drivenav.envs.episode import (
 )
 from drivenav.errors import InputError
 from drivenav.eval.goals import object_goal
-from drivenav.jsonstream import DOCUMENT, ArrayStream, Convert
+from drivenav.jsonstream import DOCUMENT, ArrayStream, Convert, JsonObject
 from drivenav.types import SimConfig
 from drivenav.validation import Fields
 
@@ -178,12 +178,12 @@ def _make_episode(
     return None
 
 
-def episode_to_dict(episode: Episode) -> dict[str, Any]:
+def episode_to_dict(episode: Episode) -> JsonObject:
     """The HM3D-OVON JSON form of an episode (goals inside it)."""
     return _episode_dict(episode, [goal_to_dict(goal) for goal in episode.goals])
 
 
-def _episode_dict(episode: Episode, goals: Any) -> dict[str, Any]:
+def _episode_dict(episode: Episode, goals: Any) -> JsonObject:
     return {
         "episode_id": episode.episode_id,
         "scene_id": episode.scene_id,
@@ -305,7 +305,7 @@ def _parse_streamed(fields: Fields, name: str, item: Any, goals: Convert, index:
     return parse_episode_with(fields, name, item, item["goals"] if "goals" in item else goals(None, index))
 
 
-def _top_level(source: Path) -> dict[str, Any]:
+def _top_level(source: Path) -> JsonObject:
     """The top-level members of an episode file (its episodes read but not kept), for :func:`_refuse_habitat_layout`."""
     stream = ArrayStream(source, "episodes")
     count = sum(1 for _ in stream.items())
@@ -316,7 +316,7 @@ HABITAT_SPLIT_KEYS = ("category_to_task_category_id", "category_to_mp3d_category
 """Keys of a Habitat ObjectNav v1 / HM3D-OVON split file (its episodes live in ``content/<scene>.json.gz``)."""
 
 
-def _refuse_habitat_layout(fields: Fields, data: dict[str, Any]) -> None:
+def _refuse_habitat_layout(fields: Fields, data: JsonObject) -> None:
     """Habitat's ObjectNav v1 layout (HM3D-OVON's too) keeps goals per category (``goals_by_category``) and, in a
     split file, the episodes in ``content/<scene>.json.gz`` beside it: the embedded world reads neither."""
     source = Path(fields.source)

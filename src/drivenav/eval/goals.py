@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivenav.envs.embedded.scene import Material, ObjectInstance, Scene
-from drivenav.envs.episode import ObjectGoal, ViewPoint, world_to_habitat, yaw_to_quaternion
+from drivenav.episode import ObjectGoal, ViewPoint, world_to_habitat, yaw_to_quaternion
 from drivenav.types import SimConfig
 
 VIEW_POINT_RADIUS = 1.0  # metres from the object footprint (Habitat ObjectNav view points)

@@ -133,7 +133,7 @@ def ray_session(workers: int | None, address: str | None) -> Iterator[Any]:
 
 
 def _init(ray: Any, workers: int | None, address: str | None) -> None:
-    options: dict[str, Any] = {
+    options: dict[str, object] = {
         "include_dashboard": False,
         "log_to_driver": False,
         "runtime_env": {"env_vars": single_thread_env()},

@@ -1,6 +1,6 @@
 """The episode record: one typed line of ``episodes.jsonl`` per finished episode, and its readers.
 
-Every key issue 2 named (``episode_id``, ``scene_id``, ``object_category``, ``success``, ``spl``, ``steps``,
+Every key of the results contract (``episode_id``, ``scene_id``, ``object_category``, ``success``, ``spl``, ``steps``,
 ``path_length``, ``geodesic_distance``, ``distance_to_goal``, ``revisits``, ``collisions``, ``stop_reason``,
 ``vlm_calls``) keeps its name. The world's measures may be ``None`` (a robot has no ground truth: they are
 ``null``, never 0). The agent's model statistics (:class:`~drivenav.agent.base.ModelStats`) and decision counters
@@ -16,10 +16,10 @@ from __future__ import annotations
 import json
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
-from typing import Any
 
 from drivenav.agent.base import DecisionStats, ModelStats
 from drivenav.errors import InputError
+from drivenav.jsonstream import JsonObject
 
 SCHEMA_VERSION = 4
 ERROR = "error"  # the stop reason and failure cause of an episode that an exception ended
@@ -62,7 +62,7 @@ class EpisodeRecord:
     def is_error(self) -> bool:
         return self.stop_reason == ERROR
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> JsonObject:
         """The JSON object written to ``episodes.jsonl`` (model statistics and decision counters flat beside the
         other keys)."""
         data = asdict(self)
@@ -72,7 +72,7 @@ class EpisodeRecord:
         return data
 
     @staticmethod
-    def from_json(data: Any, source: str | Path = "episodes.jsonl") -> EpisodeRecord:
+    def from_json(data: object, source: str | Path = "episodes.jsonl") -> EpisodeRecord:
         """Read a record (any schema version); a missing key or a value of the wrong type is an
         :class:`InputError` naming the field."""
         if not isinstance(data, dict):
@@ -93,7 +93,7 @@ class EpisodeRecord:
 _SCALARS: dict[str, tuple[type, ...]] = {"str": (str,), "int": (int,), "bool": (bool,), "float": (int, float)}
 
 
-def _typed(kind: type, data: dict[str, Any], source: str | Path, skip: frozenset[str] = frozenset()) -> dict[str, Any]:
+def _typed(kind: type, data: JsonObject, source: str | Path, skip: frozenset[str] = frozenset()) -> JsonObject:
     """The keys of ``data`` that are fields of the dataclass ``kind``, each checked against its annotation."""
     values = {}
     for item in fields(kind):
@@ -106,13 +106,13 @@ def _typed(kind: type, data: dict[str, Any], source: str | Path, skip: frozenset
     return values
 
 
-def _has_type(value: Any, annotation: str) -> bool:
+def _has_type(value: object, annotation: str) -> bool:
     """Whether a JSON value fits a field annotation of the record (``int | None``, ``dict[str, float]``,
     ``tuple[str, ...]``; a boolean is no number)."""
     return any(_fits(value, option.strip()) for option in annotation.split("|"))
 
 
-def _fits(value: Any, option: str) -> bool:
+def _fits(value: object, option: str) -> bool:
     if option == "None":
         return value is None
     if option.startswith("dict["):

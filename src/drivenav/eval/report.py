@@ -11,9 +11,9 @@ from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from statistics import median
-from typing import Any
 
 from drivenav.eval.records import EpisodeRecord
+from drivenav.jsonstream import JsonObject
 
 
 def mean(records: Sequence[EpisodeRecord], value: Callable[[EpisodeRecord], float | None]) -> float | None:
@@ -47,8 +47,14 @@ class Summary:
     errors: int
     stop_reasons: dict[str, int] = field(default_factory=dict)
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> JsonObject:
+        """The ``summary.json`` object (keys in field order)."""
         return asdict(self)
+
+    @staticmethod
+    def from_json(data: JsonObject) -> Summary:
+        """A summary as :meth:`to_json` wrote it (a missing or unknown key is a :class:`TypeError`)."""
+        return Summary(**data)
 
 
 def summarize(records: Sequence[EpisodeRecord]) -> Summary:

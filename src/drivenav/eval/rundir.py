@@ -18,20 +18,24 @@ import json
 import logging
 import os
 import threading
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from functools import partial
 from pathlib import Path
 from typing import IO, Any
 
-from drivenav.envs.episode import Episode
+from drivenav.envs.base import EnvSpec
+from drivenav.episode import Episode
 from drivenav.errors import InputError, RunStoppedError, one_line
 from drivenav.eval.episodes import episode_texts, load_episodes, save_episodes
 from drivenav.eval.provenance import package_version, source_state
 from drivenav.eval.records import EpisodeRecord, cut_torn_tail, read_records
 from drivenav.eval.report import Summary
-from drivenav.settings import first_difference
+from drivenav.eval.run_info import RunInfo, world_json
+from drivenav.eval.trace import EpisodeTrace
+from drivenav.jsonstream import JsonObject
+from drivenav.settings import Settings
 
 EPISODES_FILE = "episodes.jsonl"
 SUMMARY_FILE = "summary.json"
@@ -70,27 +74,6 @@ def write_json_atomic(path: Path, payload: Any) -> None:
     os.replace(tmp, path)
 
 
-@dataclass(frozen=True)
-class RunInfo:
-    """``run.json``: what the run was started with."""
-
-    config: dict[str, Any]
-    episodes_sha256: str
-    version: str
-    git_commit: str | None
-    git_dirty: bool | None
-
-    def check_resume(self, previous: Mapping[str, Any], source: Path) -> None:
-        """Refuse to resume a run started with other settings or episodes."""
-        key = first_difference(previous.get("config") or {}, self.config)
-        if key is not None:
-            raise InputError(
-                source, f"config.{key}", "the settings this run directory was started with, to resume it", "others"
-            )
-        if previous.get("episodes_sha256") != self.episodes_sha256:
-            raise InputError(source, "episodes", "the episodes this run directory was started with, to resume it")
-
-
 def make_directory(out: Path) -> None:
     """Create ``out`` (and its parents) as a writable directory, or an :class:`InputError` on ``--out``."""
     if out.exists() and not out.is_dir():
@@ -117,15 +100,16 @@ class RunDirectory:
 
     @staticmethod
     @contextmanager
-    def open(out: Path, config: dict[str, Any], episodes: Sequence[Episode]) -> Iterator[RunDirectory]:
-        """Create or resume ``out`` for a run with ``config`` over ``episodes``; held locked until left. A new run
-        writes ``run.json`` and the copy of its episodes while its first episodes run (:class:`_Setup`)."""
+    def open(out: Path, world: EnvSpec, settings: Settings, episodes: Sequence[Episode]) -> Iterator[RunDirectory]:
+        """Create or resume ``out`` for a run in ``world`` with ``settings`` over ``episodes``; held locked until
+        left. A new run writes ``run.json`` and the copy of its episodes while its first episodes run
+        (:class:`_Setup`)."""
         make_directory(out)
         with _locked(out / LOCK_FILE):
             run_file = out / RUN_FILE
             results = out / EPISODES_FILE
             if run_file.exists():
-                info = _run_info(config, episodes)
+                info = _run_info(world, settings, episodes)
                 info.check_resume(_read_json(run_file), run_file)
                 setup = _Setup(partial(_repair_episodes_copy, out / EPISODES_COPY, episodes, info.episodes_sha256))
             elif results.exists() and results.stat().st_size:
@@ -138,7 +122,7 @@ class RunDirectory:
                 )
             else:
                 copy = partial(save_episodes, episodes, out / EPISODES_COPY)
-                setup = _Setup(copy, run_file=partial(_write_run_file, out, config, episodes))
+                setup = _Setup(copy, run_file=partial(_write_run_file, out, world, settings, episodes))
             cut_torn_tail(results)
             with setup.alongside():
                 yield RunDirectory(out, frozenset(e.episode_id for e in episodes), setup)
@@ -147,13 +131,13 @@ class RunDirectory:
         """The run's records (a duplicate, or a record of an episode outside the run, is an :class:`InputError`)."""
         return read_records(self.results, self._episode_ids)
 
-    def save(self, record: EpisodeRecord, trace: Mapping[str, Any]) -> None:
+    def save(self, record: EpisodeRecord, trace: EpisodeTrace) -> None:
         """The trace first, then the record (naming the trace) appended, flushed and fsync'ed: the record marks the
         episode finished. A trace that cannot be written is logged and the record kept, with no trace named."""
         self._setup.wait_ready()
         path = trace_path(self.out, record.episode_id)
         try:
-            path.write_text(json.dumps(trace), encoding="utf-8")
+            path.write_text(json.dumps(trace.to_json()), encoding="utf-8")
             named = replace(record, trace=f"{TRACES_DIR}/{path.name}")
         except (OSError, TypeError, ValueError) as error:
             log.warning("episode %r: its trace could not be written (%s); the record is kept", record.episode_id, error)
@@ -170,13 +154,13 @@ class RunDirectory:
 JOIN_ON_ERROR_S = 2.0  # how long a run that stops on an error waits for its set-up
 
 
-def _run_info(config: dict[str, Any], episodes: Sequence[Episode]) -> RunInfo:
+def _run_info(world: EnvSpec, settings: Settings, episodes: Sequence[Episode]) -> RunInfo:
     commit, dirty = source_state()
-    return RunInfo(config, episodes_sha256(episodes), package_version(), commit, dirty)
+    return RunInfo(settings, world_json(world), episodes_sha256(episodes), package_version(), commit, dirty)
 
 
-def _write_run_file(out: Path, config: dict[str, Any], episodes: Sequence[Episode]) -> None:
-    write_json_atomic(out / RUN_FILE, _run_info(config, episodes).__dict__)
+def _write_run_file(out: Path, world: EnvSpec, settings: Settings, episodes: Sequence[Episode]) -> None:
+    write_json_atomic(out / RUN_FILE, _run_info(world, settings, episodes).to_json())
 
 
 class _Setup:
@@ -236,7 +220,7 @@ def _repair_episodes_copy(path: Path, episodes: Sequence[Episode], sha256: str) 
         save_episodes(episodes, path)
 
 
-def _read_json(path: Path) -> dict[str, Any]:
+def _read_json(path: Path) -> JsonObject:
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as error:

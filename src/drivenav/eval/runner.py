@@ -11,12 +11,10 @@ Habitat metrics, the trajectory gives steps and revisits. Ground truth reaches o
 
 from __future__ import annotations
 
-import json
 import logging
-import traceback
 import zlib
 from collections.abc import Iterator, Sequence
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -26,21 +24,21 @@ from tqdm.contrib.logging import logging_redirect_tqdm
 
 from drivenav import metrics
 from drivenav.agent.base import Agent, DecisionStats, ModelStats
-from drivenav.agent.registry import make_agent
+from drivenav.agents import make_agent
 from drivenav.envs.base import Env, EnvSpec, EpisodeMeasures
-from drivenav.envs.episode import Episode
+from drivenav.episode import Episode
 from drivenav.errors import InputError, RunStoppedError, one_line
 from drivenav.eval.executor import Executor
 from drivenav.eval.records import ERROR, EpisodeRecord, failure_cause
 from drivenav.eval.report import Summary, summarize
 from drivenav.eval.rundir import RunDirectory
 from drivenav.eval.timings import to_columns
-from drivenav.settings import Settings, settings_to_dict
+from drivenav.eval.trace import EpisodeError, EpisodeTrace
+from drivenav.settings import Settings
 from drivenav.types import SEMANTIC, Action, Observation
 
 log = logging.getLogger(__name__)
 
-Trace = dict[str, Any]
 FAIL_FAST_EPISODES = 4  # a run stops when its first max(workers, this) episodes all fail with one exception type
 
 
@@ -62,13 +60,6 @@ class RunSpec:
     @property
     def max_steps(self) -> int:
         return self.settings.sim.max_steps
-
-    def to_config(self) -> dict[str, Any]:
-        """The world and the settings as one JSON tree (recorded in ``run.json``), in JSON's own types (a tuple
-        is a list), so that it compares equal to the tree read back on resume."""
-        tree = {"env": {"name": self.env.name, **asdict(self.env)}, **settings_to_dict(self.settings)}
-        result: dict[str, Any] = json.loads(json.dumps(tree))
-        return result
 
 
 def build_agent(spec: RunSpec) -> Agent:
@@ -131,37 +122,52 @@ def _drive(env: Env, agent: Agent, episode: Episode, run_seed: int, max_steps: i
     return False
 
 
-def run_episode(env: Env, agent: Agent, episode: Episode, run_seed: int, max_steps: int) -> tuple[EpisodeRecord, Trace]:
+def run_episode(
+    env: Env, agent: Agent, episode: Episode, run_seed: int, max_steps: int
+) -> tuple[EpisodeRecord, EpisodeTrace]:
     """Run one episode to STOP or the step budget; returns its record and its trace.
 
     An exception from the agent, its models or the world ends this episode with ``stop_reason`` ``"error"``
     and the traceback in the trace; it never escapes (a user error, :class:`InputError`, stops the run).
     """
     path = _Trajectory()
-    error: dict[str, str] = {}
+    error: EpisodeError | None = None
     called_stop = False
     try:
         called_stop = _drive(env, agent, episode, run_seed, max_steps, path)
     except (InputError, RunStoppedError):
         raise  # e.g. a replay that does not match the run, a robot gone: the run stops with its message
     except Exception as exc:
-        error = _error(exc)
+        error = EpisodeError.of(exc)
     measures = EpisodeMeasures()  # a failed reset measured nothing
     if path.positions:
         try:
             measures = env.measures()
         except Exception as exc:  # a world gone with its measures (a robot's link): the first error is kept
-            error = error or _error(exc)
-    if error:
+            error = error or EpisodeError.of(exc)
+    if error is not None:
         stop_reason = ERROR
     elif called_stop:
         stop_reason = agent.stop_reason or "agent_stop"
     else:
         stop_reason = "timeout"
+    record = _record(episode, agent, path, measures, stop_reason, error)
+    return record, _trace(episode, agent, path, error)
+
+
+def _record(
+    episode: Episode,
+    agent: Agent,
+    path: _Trajectory,
+    measures: EpisodeMeasures,
+    stop_reason: str,
+    error: EpisodeError | None,
+) -> EpisodeRecord:
+    """The episode's record: what it was, what the world measured, what the agent did (paper Sec. V metrics)."""
     calls, stats = _model_use(agent, started=bool(path.positions))
     positions = np.asarray(path.positions).reshape(-1, 2)
     retraced_revisits, retraced_m = metrics.retraced(positions)
-    record = EpisodeRecord(
+    return EpisodeRecord(
         episode_id=episode.episode_id,
         scene_id=episode.scene_id,
         object_category=episode.object_category,
@@ -180,33 +186,28 @@ def run_episode(env: Env, agent: Agent, episode: Episode, run_seed: int, max_ste
         collisions=measures.collisions,
         stop_reason=stop_reason,
         vlm_calls=calls,
-        error=f"{error['type']}: {error['message']}" if error else "",
+        error=error.summary() if error is not None else "",
         failure_cause=failure_cause(measures.success, stop_reason, measures.target_seen),
         privileged=tuple(sorted(agent.requires)),
         stats=stats,
         decisions=agent.decision_stats() if path.positions else DecisionStats(),
     )
-    trace: Trace = {
-        "episode_id": episode.episode_id,
-        "scene_id": episode.scene_id,
-        "positions": np.round(np.asarray(path.positions).reshape(-1, 2), 4).tolist(),
-        "yaws": np.round(path.yaws, 4).tolist(),
-        "actions": path.actions,
-        "segment_starts": list(agent.segment_starts),
-        "events": agent.trace.to_json(),
-        "step_ms": to_columns(agent.step_timings),
-    }
-    if error:
-        trace["error"] = error
-    return record, trace
 
 
-def _error(exc: Exception) -> dict[str, str]:
-    return {
-        "type": type(exc).__name__,
-        "message": str(exc),
-        "traceback": "".join(traceback.format_exception(type(exc), exc, exc.__traceback__)),
-    }
+def _trace(episode: Episode, agent: Agent, path: _Trajectory, error: EpisodeError | None) -> EpisodeTrace:
+    """The episode's trace: the poses rounded to 0.1 mm (and 1e-4 rad), the agent's events and step timings."""
+    positions = np.round(np.asarray(path.positions, dtype=np.float64).reshape(-1, 2), 4).tolist()
+    return EpisodeTrace(
+        episode_id=episode.episode_id,
+        scene_id=episode.scene_id,
+        positions=tuple((float(x), float(y)) for x, y in positions),
+        yaws=tuple(float(yaw) for yaw in np.round(path.yaws, 4).tolist()),
+        actions=tuple(path.actions),
+        segment_starts=tuple(agent.segment_starts),
+        events=tuple(agent.trace.events),
+        step_ms=to_columns(agent.step_timings),
+        error=error,
+    )
 
 
 def _model_use(agent: Agent, started: bool) -> tuple[int, ModelStats]:
@@ -224,7 +225,7 @@ class _Worker:
         self.env = spec.env.build(spec.settings.sim)
         self.agent = build_agent(spec)
 
-    def run(self, episode: Episode) -> tuple[EpisodeRecord, Trace]:
+    def run(self, episode: Episode) -> tuple[EpisodeRecord, EpisodeTrace]:
         """One episode; then the agent releases its episode state before the next scene loads. An exception there
         never replaces the episode's result: it is logged (the next episode's reset starts the agent anew)."""
         try:
@@ -286,7 +287,7 @@ class EpisodeTask:
     episode: Episode
 
 
-def run_task(task: EpisodeTask) -> tuple[EpisodeRecord, Trace]:
+def run_task(task: EpisodeTask) -> tuple[EpisodeRecord, EpisodeTrace]:
     """Run one episode in this process, building the world and the agent on first use."""
     return _worker_for(task.spec).run(task.episode)
 
@@ -306,7 +307,7 @@ def evaluate(
     """
     executor = executor or Executor()
     preflight(spec, executor, len(episodes))
-    with RunDirectory.open(out, spec.to_config(), episodes) as run:
+    with RunDirectory.open(out, spec.env, spec.settings, episodes) as run:
         done = run.finished
         todo = [e for e in episodes if e.episode_id not in done]
         label = f"{spec.agent} (resuming)" if done else spec.agent
@@ -355,7 +356,7 @@ def _advance(bar: tqdm[Any]) -> None:
         bar.update(1)
 
 
-def run_all(todo: Sequence[Episode], spec: RunSpec, executor: Executor) -> Iterator[tuple[EpisodeRecord, Trace]]:
+def run_all(todo: Sequence[Episode], spec: RunSpec, executor: Executor) -> Iterator[tuple[EpisodeRecord, EpisodeTrace]]:
     """Every episode's record and trace, in completion order, on ``executor``."""
     if not todo:
         return

@@ -11,8 +11,11 @@ separately, as latency per call and calls per episode.
 from __future__ import annotations
 
 import statistics
-from collections.abc import Iterable, Sequence
-from typing import Any
+from collections.abc import Iterable, Mapping, Sequence
+
+from drivenav.agent.trace import DirectionSelected, of_type
+from drivenav.eval.trace import EpisodeTrace, StepColumns
+from drivenav.jsonstream import JsonObject
 
 COMPUTE_KEYS = ("mapping", "directions.total", "inspection", "policy")
 MODULES = {
@@ -27,16 +30,15 @@ MODULES = {
     "policy (planner, inspection events, decisions)": "policy",
     "grounding (detector, model)": "grounding",
 }
-DECISION_EVENT = "direction_selected"
 
 
-def to_columns(steps: Sequence[dict[str, float]]) -> dict[str, list[float]]:
+def to_columns(steps: Sequence[Mapping[str, float]]) -> StepColumns:
     """Per-step timing dicts as columns (a module missing at a step counts 0 ms), rounded to 1 us."""
     keys = sorted({key for step in steps for key in step})
     return {key: [round(step.get(key, 0.0), 3) for step in steps] for key in keys}
 
 
-def from_columns(columns: dict[str, list[float]]) -> list[dict[str, float]]:
+def from_columns(columns: Mapping[str, Sequence[float]]) -> list[dict[str, float]]:
     """The inverse of :func:`to_columns`."""
     length = max((len(values) for values in columns.values()), default=0)
     return [{key: values[i] for key, values in columns.items() if i < len(values)} for i in range(length)]
@@ -54,12 +56,12 @@ def summary(values: Sequence[float]) -> dict[str, float]:
 
 def runtime_table(
     steps: Sequence[dict[str, float]], decisions: int, episodes: int, agent: str, width: int, height: int
-) -> dict[str, Any]:
+) -> JsonObject:
     """Table VII from per-step timings: compute per step, and each module's latency and invocations."""
     if not steps:
         raise ValueError("runtime_table needs at least one timed step")
     compute = [sum(step.get(key, 0.0) for key in COMPUTE_KEYS) for step in steps]
-    modules: dict[str, dict[str, Any]] = {
+    modules: dict[str, JsonObject] = {
         name: {**summary([s.get(key, 0.0) for s in steps]), "invocation": "every step"} for name, key in MODULES.items()
     }
     modules["direction selection (reasoner)"] = {"invocations": decisions, "invocation": "decision points"}
@@ -74,15 +76,15 @@ def runtime_table(
     }
 
 
-def traced_steps(traces: Iterable[dict[str, Any]]) -> tuple[list[dict[str, float]], int, int]:
-    """All timed steps, decision events and timed episodes in saved traces (traces without timings skipped)."""
+def traced_steps(traces: Iterable[EpisodeTrace]) -> tuple[list[dict[str, float]], int, int]:
+    """All timed steps, decisions (:class:`~drivenav.agent.trace.DirectionSelected` events) and timed episodes in
+    saved traces (traces without timings, written before ``step_ms`` existed, are skipped)."""
     steps: list[dict[str, float]] = []
     decisions = episodes = 0
     for trace in traces:
-        columns = trace.get("step_ms")
-        if not columns:
+        if not trace.step_ms:
             continue
-        steps.extend(from_columns(columns))
-        decisions += sum(event.get("kind") == DECISION_EVENT for event in trace.get("events", []))
+        steps.extend(from_columns(trace.step_ms))
+        decisions += len(of_type(trace.events, DirectionSelected))
         episodes += 1
     return steps, decisions, episodes

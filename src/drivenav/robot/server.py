@@ -26,6 +26,7 @@ from zmq.utils.monitor import recv_monitor_message
 
 from drivenav.envs.base import EpisodeMeasures, episode_pose
 from drivenav.errors import InputError, one_line
+from drivenav.jsonstream import JsonObject
 from drivenav.robot.parts import MotionExecutor, MotionResult, SensorFrame, SensorSource
 from drivenav.types import Action, Pose
 from drivenav.wire.protocol import (
@@ -99,7 +100,7 @@ class _Episode:
     origin: Pose
     step: int = 0
     collided: bool = False
-    extra: dict[str, Any] = field(default_factory=dict)
+    extra: JsonObject = field(default_factory=dict)
 
 
 class RobotSession:
@@ -217,12 +218,12 @@ class RobotSession:
         assert self._episode is not None
         episode = self._episode
         pose = episode_pose(episode.origin, frame.pose)
-        arrays: dict[str, Any] = {"depth": depth_to_wire(frame.depth)}
+        arrays: JsonObject = {"depth": depth_to_wire(frame.depth)}
         if self.config.rgb_encoding == "jpeg":
             arrays["rgb_jpeg"] = rgb_to_jpeg(frame.rgb, self.config.jpeg_quality)
         else:
             arrays["rgb"] = frame.rgb
-        body: dict[str, Any] = dict(episode.extra)
+        body: JsonObject = dict(episode.extra)
         episode.extra.clear()  # labels travel once, with the reset's observation
         if self.lidar is not None and frame.scan is not None:
             self.lidar.update(frame.scan, pose, frame.gimbal_yaw)

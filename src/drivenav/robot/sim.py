@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from drivenav.envs.base import EpisodeMeasures
 from drivenav.envs.embedded.env import EmbeddedEnv
-from drivenav.envs.episode import Episode
+from drivenav.episode import Episode
 from drivenav.grid import GridSpec
 from drivenav.robot.parts import MotionResult, SensorFrame
 from drivenav.types import SEMANTIC, Action, Observation, Pose

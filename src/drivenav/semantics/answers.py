@@ -12,6 +12,7 @@ import json
 from collections.abc import Collection, Mapping, Sequence
 from typing import Any
 
+from drivenav.jsonstream import JsonObject
 from drivenav.semantics.prompts import MAX_PHRASE_WORDS
 from drivenav.semantics.protocols import JUDGEMENTS, Proposal, Selection, Verdict
 
@@ -20,7 +21,7 @@ class AnswerError(ValueError):
     """A model answer that does not fit its schema; the message says what is wrong, for the repair request."""
 
 
-def extract_json_object(text: str) -> dict[str, Any]:
+def extract_json_object(text: str) -> JsonObject:
     """The first JSON object in ``text`` after any ``</think>`` (fences and prose around it are ignored)."""
     text = text.rsplit("</think>", 1)[-1]
     decoder = json.JSONDecoder()

@@ -30,11 +30,13 @@ from dataclasses import dataclass
 from functools import cache
 from importlib import resources
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.special import erf
+
+from drivenav.jsonstream import JsonObject
 
 if TYPE_CHECKING:
     from tokenizers import Tokenizer
@@ -68,10 +70,10 @@ def packaged_model_dir(text: str | None = None) -> Path:
     return Path(package.get_model_path())
 
 
-def _read_json(path: Path) -> dict[str, Any]:
+def _read_json(path: Path) -> JsonObject:
     if not path.is_file():
         raise EmbeddingModelMissingError(f"{path} not found: incomplete model folder (reinstall: '{INSTALL_HINT}')")
-    data: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
+    data: JsonObject = json.loads(path.read_text(encoding="utf-8"))
     return data
 
 
@@ -125,13 +127,13 @@ class _Checkpoint:
     ``weights[name]`` reads one tensor into memory (loading never holds the whole file beside the fused and
     transposed layers built from it); :meth:`mapped` maps one read-only instead, so that only the pages a
     computation touches are read, shared by every process on the machine: the 47 MB word-embedding table, of which
-    a text uses a few rows (issue 14's memory goal)."""
+    a text uses a few rows (the worker-memory goal)."""
 
     def __init__(self, path: Path) -> None:
         self._path = path
         with path.open("rb") as file:
             size = int.from_bytes(file.read(8), "little")
-            self._header: dict[str, Any] = json.loads(file.read(size))
+            self._header: JsonObject = json.loads(file.read(size))
         self._data_start = 8 + size
 
     def __getitem__(self, name: str) -> FloatArray:
@@ -175,7 +177,7 @@ def _block(weights: _Checkpoint, k: int) -> _Block:
 class _Encoder:
     """The tokenizer and encoder weights of one model folder (read when a text first needs an encoder pass)."""
 
-    def __init__(self, folder: Path, config: dict[str, Any], max_length: int) -> None:
+    def __init__(self, folder: Path, config: JsonObject, max_length: int) -> None:
         self.heads = int(config["num_attention_heads"])
         self.eps = float(config["layer_norm_eps"])
         self._tokenizer = self._load_tokenizer(folder / "tokenizer.json", max_length)
@@ -230,7 +232,7 @@ class _ModelFolder:
     """A checked model folder: its ``config.json`` and its ``max_seq_length``."""
 
     path: Path
-    config: dict[str, Any]
+    config: JsonObject
     max_length: int
 
 

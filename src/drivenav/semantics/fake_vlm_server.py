@@ -29,6 +29,7 @@ from collections.abc import Callable, Sequence
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from typing import Any
 
+from drivenav.jsonstream import JsonObject
 from drivenav.semantics.prompts import GOAL_PREFIX, PROPOSE_SCHEMA, SELECT_SCHEMA, VERIFY_SCHEMA
 
 MODES = ("ok", "fenced", "garbage", "bad-then-good", "error", "flaky", "stall", "empty")
@@ -46,7 +47,7 @@ def _texts(message: Any) -> str:
     return "\n".join(str(part.get("text", "")) for part in parts if isinstance(part, dict))
 
 
-def _question_answer(question: str) -> dict[str, Any]:
+def _question_answer(question: str) -> JsonObject:
     """A valid answer to the question text, recognised by its schema."""
     found = _GOAL.search(question)
     goal = json.loads(found.group(1)) if found else "object"
@@ -134,7 +135,7 @@ class FakeVLMServer(ThreadingHTTPServer):
         self.shutdown()
         self.server_close()
 
-    def stats(self) -> dict[str, Any]:
+    def stats(self) -> JsonObject:
         with self.lock:
             return {
                 "requests": self.requests,
@@ -182,7 +183,7 @@ class _Handler(BaseHTTPRequestHandler):
         else:
             self._completion(fake_answer(self.server.mode, request["messages"]))
 
-    def _refusal(self, request: Any, count: int) -> tuple[int, dict[str, Any]] | None:
+    def _refusal(self, request: Any, count: int) -> tuple[int, JsonObject] | None:
         """The HTTP error this request gets, if any, checked in the order vLLM would."""
         expected = f"Bearer {self.server.api_key}" if self.server.api_key else None
         if self.path != "/v1/chat/completions":
@@ -234,10 +235,10 @@ def start_fake_server(
     return server.url, server.stop
 
 
-def fake_stats(url: str, timeout: float = 5.0) -> dict[str, Any]:
+def fake_stats(url: str, timeout: float = 5.0) -> JsonObject:
     """The ``/_stats`` of the fake server at base URL ``url``: counts, last bodies and Authorization headers."""
     with urllib.request.urlopen(f"{url}/_stats", timeout=timeout) as response:
-        stats: dict[str, Any] = json.loads(response.read())
+        stats: JsonObject = json.loads(response.read())
     return stats
 
 

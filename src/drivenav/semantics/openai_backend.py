@@ -29,13 +29,14 @@ import urllib.parse
 import urllib.request
 from collections.abc import Callable, Sequence
 from dataclasses import replace
-from typing import Any, TypeVar
+from typing import TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 from PIL import Image
 
 from drivenav.errors import InputError
+from drivenav.jsonstream import JsonObject
 from drivenav.semantics.answers import AnswerError, parse_proposal, parse_selection, parse_verdict
 from drivenav.semantics.geometric import GeometricReasoner
 from drivenav.semantics.prompts import (
@@ -63,7 +64,7 @@ from drivenav.types import GroundTruth
 logger = logging.getLogger(__name__)
 
 T = TypeVar("T", Selection, Proposal, Verdict)
-Message = dict[str, Any]
+Message = JsonObject
 Captioned = tuple[str, NDArray[np.uint8]]
 
 MAX_TOKENS = {"select_direction": 1024, "propose_prompt": 128, "verify": 128}
@@ -258,7 +259,7 @@ class OpenAIReasoner:
 
     def _messages(self, text: str, images: Sequence[Captioned]) -> list[Message]:
         """System prompt, then the question text followed by each caption and its JPEG image."""
-        content: list[dict[str, Any]] = [{"type": "text", "text": text}]
+        content: list[JsonObject] = [{"type": "text", "text": text}]
         for caption, rgb in images:
             content.append({"type": "text", "text": caption})
             content.append({"type": "image_url", "image_url": {"url": jpeg_data_uri(rgb, self.jpeg_quality)}})

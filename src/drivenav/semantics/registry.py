@@ -1,23 +1,25 @@
 """Reasoner and grounder backends by command-line name (``--reasoner``, ``--detector``).
 
-Backends are built lazily (heavy imports only when chosen) from a picklable :class:`ModelSpec`, so worker
-processes build their own.
+Each role (the VLM's reasoning of Sec. IV-B/IV-C, the segmenter's grounding) has one :class:`ModelRegistry`: a
+name maps to a :class:`Backend`, which builds the model from a picklable :class:`ModelSpec` (so that worker
+processes build their own) and says what the model needs. Backends import their heavy modules only when built,
+so the command line reads the names here without loading numpy. A new backend is one ``add`` line; a new role (a
+scorer, say) is one more registry.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Generic, TypeVar
 
 from drivenav.errors import InputError
 
 if TYPE_CHECKING:  # the command line reads the names here without loading numpy
     from drivenav.semantics.protocols import Grounder, Reasoner
 
-REASONERS = ("embedded", "openai", "replay", "geometric")
-DETECTORS = ("embedded", "ground-truth", "sam3", "owlv2")
-_STAND_INS = {"embedded", "ground-truth"}  # read the world's instance labels: ground truth (``semantic``)
+Model = TypeVar("Model")
 
 
 @dataclass(frozen=True)
@@ -33,75 +35,137 @@ class ModelSpec:
     detector_model: str = ""
 
 
-def model_requirements(spec: ModelSpec) -> frozenset[str]:
-    """The privileged inputs the chosen models need: the embedded stand-ins read ground-truth labels."""
-    from drivenav.types import SEMANTIC
-
-    return frozenset({SEMANTIC}) if {spec.reasoner, spec.detector} & _STAND_INS else frozenset()
+def _no_check(spec: ModelSpec) -> None:
+    """A backend with nothing to check before a run."""
 
 
-def make_reasoner(spec: ModelSpec) -> Reasoner:
-    """The reasoner named by ``spec`` (wrapped in a recorder when ``vlm_record`` is set)."""
-    reasoner = _base_reasoner(spec)
-    if spec.vlm_record:
-        from drivenav.semantics.replay import RecordingReasoner
+@dataclass(frozen=True)
+class Backend(Generic[Model]):
+    """One named model of a role.
 
-        reasoner = RecordingReasoner(reasoner, Path(spec.vlm_record))
-    return reasoner
+    ``build`` makes it from a :class:`ModelSpec` (importing its module then). ``reads_labels``: it reads the
+    world's ground-truth instance labels (the embedded stand-ins), so agents using it need ``semantic``.
+    ``check`` runs cheap local checks before any episode (a file to read); ``connect`` the costly ones (a server
+    to reach, weights to load), which run after every cheap check so that a typo fails at once.
+    """
 
-
-def _base_reasoner(spec: ModelSpec) -> Reasoner:
-    if spec.reasoner == "embedded":
-        from drivenav.semantics.embedded import EmbeddedReasoner
-
-        return EmbeddedReasoner()
-    if spec.reasoner == "openai":
-        from drivenav.semantics.openai_backend import OpenAIReasoner
-
-        return OpenAIReasoner(spec.vlm_base_url, spec.vlm_model)
-    if spec.reasoner == "replay":
-        from drivenav.semantics.replay import ReplayReasoner
-
-        return ReplayReasoner(Path(spec.vlm_replay))
-    if spec.reasoner == "geometric":
-        from drivenav.semantics.geometric import GeometricReasoner
-
-        return GeometricReasoner()
-    raise InputError("command line", "--reasoner", f"one of {', '.join(REASONERS)}", spec.reasoner)
+    build: Callable[[ModelSpec], Model]
+    reads_labels: bool = False
+    check: Callable[[ModelSpec], None] = _no_check
+    connect: Callable[[ModelSpec], None] = _no_check
 
 
-def make_grounder(spec: ModelSpec) -> Grounder:
-    """The grounder named by ``spec``."""
-    if spec.detector == "embedded":
-        from drivenav.semantics.embedded_detector import EmbeddedGrounder
+class ModelRegistry(Generic[Model]):
+    """The backends of one role by name, in the order they were added (the order ``--help`` lists them)."""
 
-        return EmbeddedGrounder()
-    if spec.detector == "ground-truth":
-        from drivenav.semantics.ground_truth import GroundTruthGrounder
+    def __init__(self, option: str) -> None:
+        self.option = option  # the command-line option that names a backend of this role
+        self._backends: dict[str, Backend[Model]] = {}
 
-        return GroundTruthGrounder()
-    if spec.detector in ("sam3", "owlv2"):
-        return _hf_grounder(spec)
-    raise InputError("command line", "--detector", f"one of {', '.join(DETECTORS)}", spec.detector)
+    def add(self, name: str, backend: Backend[Model]) -> None:
+        """Register ``backend`` as ``name`` (a name is taken once)."""
+        if name in self._backends:
+            raise ValueError(f"{self.option} {name} is registered twice")
+        self._backends[name] = backend
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(self._backends)
+
+    def get(self, name: str) -> Backend[Model]:
+        """The backend called ``name``; an unknown name is an :class:`InputError` on this role's option."""
+        backend = self._backends.get(name)
+        if backend is None:
+            raise InputError("command line", self.option, f"one of {', '.join(self._backends)}", name)
+        return backend
+
+    def reads_labels(self, name: str) -> bool:
+        """Whether ``name`` reads ground-truth labels (False for an unknown name: it is refused elsewhere)."""
+        backend = self._backends.get(name)
+        return backend is not None and backend.reads_labels
 
 
-def _hf_grounder(spec: ModelSpec) -> Grounder:
-    """SAM3 or OWLv2 through transformers; without the ``models`` extra, one line naming it."""
+def _embedded_reasoner(spec: ModelSpec) -> Reasoner:
+    from drivenav.semantics.embedded import EmbeddedReasoner
+
+    return EmbeddedReasoner()
+
+
+def _openai_reasoner(spec: ModelSpec) -> Reasoner:
+    from drivenav.semantics.openai_backend import OpenAIReasoner
+
+    return OpenAIReasoner(spec.vlm_base_url, spec.vlm_model)
+
+
+def _reach_vlm(spec: ModelSpec) -> None:
+    """The OpenAI-compatible server answers (before any episode, not at the first decision)."""
+    from drivenav.semantics.openai_backend import OpenAIReasoner
+
+    OpenAIReasoner(spec.vlm_base_url, spec.vlm_model).check_connection()
+
+
+def _replay_reasoner(spec: ModelSpec) -> Reasoner:
+    from drivenav.semantics.replay import ReplayReasoner
+
+    return ReplayReasoner(Path(spec.vlm_replay))
+
+
+def _read_recording(spec: ModelSpec) -> None:
+    """The recording exists and reads: a missing or malformed one fails before any episode."""
+    if not Path(spec.vlm_replay).is_file():
+        raise InputError(spec.vlm_replay or "command line", "--vlm-replay", "a file written with --vlm-record")
+    make_reasoner(spec)
+
+
+def _geometric_reasoner(spec: ModelSpec) -> Reasoner:
+    from drivenav.semantics.geometric import GeometricReasoner
+
+    return GeometricReasoner()
+
+
+def _embedded_grounder(spec: ModelSpec) -> Grounder:
+    from drivenav.semantics.embedded_detector import EmbeddedGrounder
+
+    return EmbeddedGrounder()
+
+
+def _ground_truth_grounder(spec: ModelSpec) -> Grounder:
+    from drivenav.semantics.ground_truth import GroundTruthGrounder
+
+    return GroundTruthGrounder()
+
+
+def _sam3_grounder(spec: ModelSpec) -> Grounder:
     try:
-        if spec.detector == "sam3":
-            from drivenav.semantics.sam3_grounder import Sam3Grounder
+        from drivenav.semantics.sam3_grounder import Sam3Grounder
 
-            return Sam3Grounder(spec.detector_model or "facebook/sam3")
+        return Sam3Grounder(spec.detector_model or "facebook/sam3")
+    except ImportError as error:
+        raise _models_extra_missing(spec, error) from None
+
+
+def _owlv2_grounder(spec: ModelSpec) -> Grounder:
+    try:
         from drivenav.semantics.owlv2_grounder import Owlv2Grounder
 
         return Owlv2Grounder(spec.detector_model or "google/owlv2-base-patch16-ensemble")
     except ImportError as error:
-        raise InputError(
-            "command line",
-            "--detector",
-            f"the models extra for {spec.detector} (pip install 'drivenav[models]')",
-            _import_problem(error),
-        ) from None
+        raise _models_extra_missing(spec, error) from None
+
+
+def _load_weights(spec: ModelSpec) -> None:
+    """Loads the segmenter's weights now: a missing checkpoint fails before any episode."""
+    make_grounder(spec)
+
+
+def _models_extra_missing(spec: ModelSpec, error: ImportError) -> InputError:
+    """SAM3 or OWLv2 without the ``models`` extra (transformers): one line naming it."""
+    return InputError(
+        "command line",
+        "--detector",
+        f"the models extra for {spec.detector} (pip install 'drivenav[models]')",
+        _import_problem(error),
+    )
 
 
 def _import_problem(error: ImportError) -> str:
@@ -109,6 +173,45 @@ def _import_problem(error: ImportError) -> str:
     if isinstance(error, ModuleNotFoundError):
         return f"{error.name or 'a dependency'} not installed"
     return str(error).splitlines()[0]
+
+
+REASONER_BACKENDS: ModelRegistry[Reasoner] = ModelRegistry("--reasoner")
+REASONER_BACKENDS.add("embedded", Backend(_embedded_reasoner, reads_labels=True))
+REASONER_BACKENDS.add("openai", Backend(_openai_reasoner, connect=_reach_vlm))
+REASONER_BACKENDS.add("replay", Backend(_replay_reasoner, check=_read_recording))
+REASONER_BACKENDS.add("geometric", Backend(_geometric_reasoner))
+
+GROUNDER_BACKENDS: ModelRegistry[Grounder] = ModelRegistry("--detector")
+GROUNDER_BACKENDS.add("embedded", Backend(_embedded_grounder, reads_labels=True))
+GROUNDER_BACKENDS.add("ground-truth", Backend(_ground_truth_grounder, reads_labels=True))
+GROUNDER_BACKENDS.add("sam3", Backend(_sam3_grounder, connect=_load_weights))
+GROUNDER_BACKENDS.add("owlv2", Backend(_owlv2_grounder, connect=_load_weights))
+
+REASONERS = REASONER_BACKENDS.names
+DETECTORS = GROUNDER_BACKENDS.names
+
+
+def model_requirements(spec: ModelSpec) -> frozenset[str]:
+    """The privileged inputs the chosen models need: the embedded stand-ins read ground-truth labels."""
+    from drivenav.types import SEMANTIC
+
+    reads = REASONER_BACKENDS.reads_labels(spec.reasoner) or GROUNDER_BACKENDS.reads_labels(spec.detector)
+    return frozenset({SEMANTIC}) if reads else frozenset()
+
+
+def make_reasoner(spec: ModelSpec) -> Reasoner:
+    """The reasoner named by ``spec`` (wrapped in a recorder when ``vlm_record`` is set)."""
+    reasoner = REASONER_BACKENDS.get(spec.reasoner).build(spec)
+    if spec.vlm_record:
+        from drivenav.semantics.replay import RecordingReasoner
+
+        reasoner = RecordingReasoner(reasoner, Path(spec.vlm_record))
+    return reasoner
+
+
+def make_grounder(spec: ModelSpec) -> Grounder:
+    """The grounder named by ``spec``."""
+    return GROUNDER_BACKENDS.get(spec.detector).build(spec)
 
 
 def _check_record_path(path: Path) -> None:
@@ -123,20 +226,13 @@ def _check_record_path(path: Path) -> None:
 
 
 def check_models(spec: ModelSpec) -> None:
-    """Fail fast, before any episode: unknown names, an unreachable VLM server, a missing replay file."""
-    if spec.reasoner not in REASONERS:
-        raise InputError("command line", "--reasoner", f"one of {', '.join(REASONERS)}", spec.reasoner)
-    if spec.detector not in DETECTORS:
-        raise InputError("command line", "--detector", f"one of {', '.join(DETECTORS)}", spec.detector)
-    if spec.reasoner == "replay" and not Path(spec.vlm_replay).is_file():
-        raise InputError(spec.vlm_replay or "command line", "--vlm-replay", "a file written with --vlm-record")
-    if spec.reasoner == "replay":
-        make_reasoner(spec)  # reads the recording now: a malformed one fails before any episode
+    """Fail fast, before any episode: unknown names, a missing replay file, an unwritable record file, an
+    unreachable VLM server, missing weights (cheap checks first)."""
+    reasoner = REASONER_BACKENDS.get(spec.reasoner)
+    grounder = GROUNDER_BACKENDS.get(spec.detector)
+    reasoner.check(spec)
+    grounder.check(spec)
     if spec.vlm_record:
         _check_record_path(Path(spec.vlm_record))
-    if spec.reasoner == "openai":
-        from drivenav.semantics.openai_backend import OpenAIReasoner
-
-        OpenAIReasoner(spec.vlm_base_url, spec.vlm_model).check_connection()
-    if spec.detector in ("sam3", "owlv2"):
-        make_grounder(spec)  # loads the weights now: a missing checkpoint fails before any episode
+    reasoner.connect(spec)
+    grounder.connect(spec)

@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivenav.errors import InputError
+from drivenav.jsonstream import JsonObject
 from drivenav.semantics.protocols import (
     JUDGEMENTS,
     Candidate,
@@ -50,7 +51,7 @@ class Request:
 
     kind: str
     goal: str
-    inputs: dict[str, Any]
+    inputs: JsonObject
     summary: str
 
     @property
@@ -117,7 +118,7 @@ def verify_request(goal: str, frame: VerificationFrame, earlier: Sequence[Verifi
     return Request("verify", goal, inputs, f"frame of step {frame.step}, earlier steps {[f.step for f in earlier]}")
 
 
-def answer_to_json(answer: Answer) -> dict[str, Any]:
+def answer_to_json(answer: Answer) -> JsonObject:
     if isinstance(answer, Selection):
         return {
             "label": answer.label,
@@ -143,7 +144,7 @@ class AnswerFieldError(ValueError):
 _MISSING = object()
 
 
-def _field(data: dict[str, Any], name: str, kind: type, expected: str, optional: bool = False) -> Any:
+def _field(data: JsonObject, name: str, kind: type, expected: str, optional: bool = False) -> Any:
     value = data.get(name, _MISSING)
     if optional and value is None:
         return None
@@ -152,7 +153,7 @@ def _field(data: dict[str, Any], name: str, kind: type, expected: str, optional:
     return value
 
 
-def _descriptions(data: dict[str, Any]) -> dict[int, str]:
+def _descriptions(data: JsonObject) -> dict[int, str]:
     descriptions = _field(data, "descriptions", dict, "an object mapping direction labels to texts")
     if not all(str(k).isdecimal() and isinstance(v, str) for k, v in descriptions.items()):
         raise AnswerFieldError("descriptions", "an object mapping direction labels to texts", descriptions)

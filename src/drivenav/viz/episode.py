@@ -17,14 +17,15 @@ import numpy as np
 from numpy.typing import NDArray
 from PIL import Image
 
-from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.embedded.render import Renderer
 from drivenav.envs.embedded.scene import Material, Scene
-from drivenav.envs.episode import Episode
+from drivenav.episode import Episode
 from drivenav.errors import InputError
 from drivenav.eval.episodes import load_episodes
 from drivenav.eval.records import EpisodeRecord, read_records
 from drivenav.eval.rundir import EPISODES_COPY, EPISODES_FILE, RUN_FILE, trace_path
+from drivenav.eval.trace import EpisodeTrace
+from drivenav.eval.worlds import recorded_world
 from drivenav.grid import GridSpec
 from drivenav.types import Pose, SimConfig
 from drivenav.viz.coverage import explored_cells
@@ -99,22 +100,13 @@ def _load_episode(run_dir: Path, episode_id: str) -> tuple[Scene | None, Episode
     episode = episodes[episode_id]
     path = trace_path(run_dir, episode_id)
     try:
-        trace = SavedTrace.from_json(_read_json(path, "trace"), episode)
+        trace = SavedTrace.of(EpisodeTrace.from_json(_read_json(path, "trace"), path), episode)
     except (KeyError, TypeError, ValueError):
         raise InputError(path, "trace", "positions, yaws and events as written by 'drivenav eval'") from None
     records = {r.episode_id: r for r in read_records(run_dir / EPISODES_FILE)}
-    world = run.get("config", {}).get("env", {})
-    if world.get("name") not in DRAWN_WORLDS:
-        raise InputError(
-            run_dir / RUN_FILE, "config.env.name", f"a run in {' or '.join(DRAWN_WORLDS)}", world.get("name")
-        )
-    scene = None
-    if world["name"] == "embedded":
-        scene = SceneLibrary(str(world["scenes"]), int(world["seed"])).load(episode.scene_id)
+    world, spec = recorded_world(run.get("config", {}).get("env", {}), run_dir / RUN_FILE)
+    scene = None if world.scenes is None else world.scenes(spec)(episode.scene_id)
     return scene, episode, trace, records.get(episode_id)
-
-
-DRAWN_WORLDS = ("embedded", "habitat", "robot")
 
 
 def render_episode_pictures(

@@ -14,8 +14,9 @@ from typing import Any
 
 import numpy as np
 
+from drivenav.agent.trace import Event
 from drivenav.envs.embedded.scene import Scene
-from drivenav.envs.episode import Episode
+from drivenav.episode import Episode
 from drivenav.errors import InputError
 from drivenav.types import SimConfig
 from drivenav.viz.saved_trace import SavedTrace
@@ -34,10 +35,10 @@ def import_rerun() -> Any:
     return rerun
 
 
-def event_text(event: dict[str, Any]) -> str:
-    """One trace event as a log line: its kind, then its fields."""
-    fields = {k: v for k, v in event.items() if k not in EVENT_FIELDS_SKIPPED}
-    return f"{event.get('kind', 'event')}: {json.dumps(fields, sort_keys=True)}"
+def event_text(event: Event) -> str:
+    """One trace event as a log line: its kind, then its fields (the step is the timeline's)."""
+    fields = {k: v for k, v in event.to_dict().items() if k not in EVENT_FIELDS_SKIPPED}
+    return f"{event.kind}: {json.dumps(fields, sort_keys=True)}"
 
 
 def write_rerun(path: Path, scene: Scene, episode: Episode, trace: SavedTrace, sim: SimConfig) -> Path:
@@ -50,7 +51,7 @@ def write_rerun(path: Path, scene: Scene, episode: Episode, trace: SavedTrace, s
             recording.set_time("step", sequence=step)
             recording.log(f"timings/{module}", rr.Scalars(float(value)))
     for event in trace.events:
-        recording.set_time("step", sequence=int(event.get("step", 0)))
+        recording.set_time("step", sequence=event.step)
         recording.log("events", rr.TextLog(event_text(event)))
     for frame in step_frames(scene, episode, trace, sim):
         recording.set_time("step", sequence=frame.step)

@@ -1,48 +1,57 @@
-"""A saved episode trace (``RUN_DIR/traces/<id>.json``) as the pictures read it.
+"""A saved episode trace placed in the world, as the pictures read it: a thin view over
+:class:`~drivenav.eval.trace.EpisodeTrace`.
 
 Poses (``positions``, ``yaws``) are in the world frame, one per step from the start; event points and bearings
-are in the episode frame and go to the world through the episode's start pose.
+are in the episode frame and go to the world through the episode's start pose. The view adds only that start
+pose and the poses as arrays; everything else is read from the trace it wraps.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.envs.episode import Episode
+from drivenav.agent.trace import Event, EventT, Point, of_type
+from drivenav.episode import Episode
+from drivenav.eval.trace import EpisodeTrace, StepColumns
 from drivenav.types import Pose
-
-Point = tuple[float, float]
 
 
 @dataclass(frozen=True)
 class SavedTrace:
+    """``trace`` of an episode that started at ``start`` (world frame); ``positions`` (N x 2) and ``yaws`` (N) are
+    its poses as arrays."""
+
+    trace: EpisodeTrace
     start: Pose
     positions: NDArray[np.float64]
     yaws: NDArray[np.float64]
-    segment_starts: tuple[int, ...]
-    events: tuple[dict[str, Any], ...]
-    step_ms: dict[str, list[float]] = field(default_factory=dict)  # per module, one latency per step
 
     @staticmethod
-    def from_json(data: dict[str, Any], episode: Episode) -> SavedTrace:
-        """Raises KeyError, TypeError or ValueError on a malformed trace."""
-        positions = np.asarray(data["positions"], dtype=np.float64).reshape(-1, 2)
-        yaws = np.asarray(data["yaws"], dtype=np.float64).reshape(-1)
+    def of(trace: EpisodeTrace, episode: Episode) -> SavedTrace:
+        """The view of ``episode``'s trace; a trace without poses (an episode that failed before its start) cannot
+        be drawn: ValueError."""
+        positions = np.asarray(trace.positions, dtype=np.float64).reshape(-1, 2)
+        yaws = np.asarray(trace.yaws, dtype=np.float64).reshape(-1)
         if len(positions) == 0 or len(positions) != len(yaws):
             raise ValueError("positions and yaws must be non-empty and of equal length")
-        return SavedTrace(
-            start=Pose(*episode.start_xy, episode.start_yaw),
-            positions=positions,
-            yaws=yaws,
-            segment_starts=tuple(int(s) for s in data.get("segment_starts", ())),
-            events=tuple(dict(e) for e in data.get("events", ())),
-            step_ms={str(k): [float(v) for v in values] for k, values in data.get("step_ms", {}).items()},
-        )
+        return SavedTrace(trace, Pose(*episode.start_xy, episode.start_yaw), positions, yaws)
+
+    @property
+    def events(self) -> tuple[Event, ...]:
+        return self.trace.events
+
+    @property
+    def step_ms(self) -> StepColumns:
+        """Per module, one latency (ms) per agent step."""
+        return self.trace.step_ms
+
+    def of_type(self, kind: type[EventT]) -> list[EventT]:
+        """The trace's events of one type, in order."""
+        return of_type(self.trace.events, kind)
 
     def __len__(self) -> int:
         return len(self.positions)
@@ -65,13 +74,10 @@ class SavedTrace:
         """An episode-frame heading or bearing in the world frame."""
         return self.start.yaw + yaw
 
-    def of_kind(self, kind: str) -> list[dict[str, Any]]:
-        return [e for e in self.events if e.get("kind") == kind]
-
     def segments(self) -> list[tuple[int, int]]:
         """``(first, last)`` pose index of each segment; consecutive segments share their boundary pose."""
         last = len(self) - 1
-        starts = sorted({min(max(s, 0), last) for s in self.segment_starts} | {0})
+        starts = sorted({min(max(s, 0), last) for s in self.trace.segment_starts} | {0})
         ends = [*starts[1:], last]
         return [(a, b) for a, b in zip(starts, ends, strict=True) if b > a] or [(0, last)]
 

@@ -1,15 +1,14 @@
 """Representative-view thumbnails of the last few direction decisions, re-rendered from the trace.
 
-A candidate direction's view is the frame from the latest ``view`` event for its label at or before the
-decision step: the world pose at that event's step is ``positions[step]``, ``yaws[step]``.
+A candidate direction's view is the frame from the latest :class:`~drivenav.agent.trace.ViewCaptured` event for its
+label at or before the decision step: the world pose at that event's step is ``positions[step]``, ``yaws[step]``.
 """
 
 from __future__ import annotations
 
-from typing import Any
-
 from PIL import Image, ImageDraw
 
+from drivenav.agent.trace import DirectionSelected, ViewCaptured
 from drivenav.envs.embedded.render import Renderer
 from drivenav.viz.directions import label_color
 from drivenav.viz.saved_trace import SavedTrace
@@ -26,7 +25,7 @@ NO_VIEW = (200, 200, 200)
 
 def capture_step(trace: SavedTrace, label: int, decision_step: int) -> int | None:
     """Step of the latest view recorded for ``label`` at or before ``decision_step`` (None if none was)."""
-    steps = [int(e["step"]) for e in trace.of_kind("view") if e["label"] == label and e["step"] <= decision_step]
+    steps = [e.step for e in trace.of_type(ViewCaptured) if e.label == label and e.step <= decision_step]
     return max(steps, default=None)
 
 
@@ -49,14 +48,14 @@ def _tile(renderer: Renderer, trace: SavedTrace, label: int, decision_step: int,
     return tile
 
 
-def _decision_row(renderer: Renderer, trace: SavedTrace, event: dict[str, Any], width: int) -> Image.Image:
-    step, chosen = int(event["step"]), int(event["label"])
+def _decision_row(renderer: Renderer, trace: SavedTrace, event: DirectionSelected, width: int) -> Image.Image:
+    step, chosen = event.step, event.label
     per_row = max(1, (width - CAPTION_WIDTH) // (THUMB_SIZE[0] + 2 * CHOSEN_BORDER + TILE_GAP))
-    labels = sorted(event["candidates"], key=lambda label: label != chosen)[:per_row]
-    tiles = [_tile(renderer, trace, int(label), step, int(label) == chosen) for label in labels]
+    labels = sorted(event.candidates, key=lambda label: label != chosen)[:per_row]
+    tiles = [_tile(renderer, trace, label, step, label == chosen) for label in labels]
     row = Image.new("RGB", (width, max(t.height for t in tiles) + TILE_GAP), (255, 255, 255))
     draw = ImageDraw.Draw(row)
-    lines = (f"step {step}", f"chose D{chosen}", f"({event.get('reason', '')})")
+    lines = (f"step {step}", f"chose D{chosen}", f"({event.reason})")
     for k, line in enumerate(lines):
         draw.text((8, 24 + 18 * k), line, fill=(0, 0, 0), font=FONT if k < 2 else SMALL_FONT)
     x = CAPTION_WIDTH
@@ -68,7 +67,7 @@ def _decision_row(renderer: Renderer, trace: SavedTrace, event: dict[str, Any], 
 
 def decision_views(renderer: Renderer, trace: SavedTrace, width: int) -> Image.Image | None:
     """Rows of candidate views for the last :data:`DECISIONS_SHOWN` decisions (None without decisions)."""
-    decisions = trace.of_kind("direction_selected")[-DECISIONS_SHOWN:]
+    decisions = trace.of_type(DirectionSelected)[-DECISIONS_SHOWN:]
     if not decisions:
         return None
     header = Image.new("RGB", (width, 30), (255, 255, 255))

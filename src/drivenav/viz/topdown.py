@@ -10,20 +10,30 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 from PIL import Image, ImageDraw, ImageFont
 
+from drivenav.agent.trace import (
+    DetectionEvent,
+    DirectionSelected,
+    Event,
+    EventT,
+    InspectionStarted,
+    Point,
+    TargetAccepted,
+    TargetRejected,
+)
 from drivenav.envs.embedded.palette import category_color
 from drivenav.envs.embedded.scene import Material, Scene
-from drivenav.envs.episode import Episode
+from drivenav.episode import Episode
 from drivenav.eval.records import EpisodeRecord
 from drivenav.eval.report import shown
 from drivenav.types import Pose
 from drivenav.viz.directions import label_color
-from drivenav.viz.saved_trace import Point, SavedTrace
+from drivenav.viz.saved_trace import SavedTrace
 
 RGB = tuple[int, int, int]
 Draw = ImageDraw.ImageDraw
@@ -236,16 +246,16 @@ def draw_trajectory(draw: Draw, canvas: Canvas, trace: SavedTrace) -> None:
         draw.line(points, fill=segment_color(index, len(segments)), width=3, joint="curve")
 
 
-def _draw_decision(draw: Draw, canvas: Canvas, trace: SavedTrace, event: dict[str, Any]) -> None:
-    x, y = trace.xy(int(event["step"]))
-    bearing = trace.world_yaw(float(event["bearing"]))
+def _draw_decision(draw: Draw, canvas: Canvas, trace: SavedTrace, event: DirectionSelected) -> None:
+    x, y = trace.xy(event.step)
+    bearing = trace.world_yaw(event.bearing)
     tip = canvas.to_pixel(x + ARROW_LENGTH * math.cos(bearing), y + ARROW_LENGTH * math.sin(bearing))
-    goal = canvas.to_pixel(*trace.to_world(event["goal"]))
-    color = label_color(int(event["label"]))
+    goal = canvas.to_pixel(*trace.to_world(event.goal))
+    color = label_color(event.label)
     mark_decision(draw, canvas.to_pixel(x, y), tip, goal, color)
     draw.text(
         (goal[0] + 8, goal[1] - 8),
-        f"D{event['label']}",
+        f"D{event.label}",
         fill=darker(color, 0.7),
         font=FONT,
         stroke_width=2,
@@ -253,30 +263,54 @@ def _draw_decision(draw: Draw, canvas: Canvas, trace: SavedTrace, event: dict[st
     )
 
 
-EventDrawer = Callable[[Draw, Canvas, SavedTrace, dict[str, Any]], None]
+class Placed(Protocol):
+    """An event with a world point in the episode frame (a detection, an accepted or rejected target)."""
+
+    @property
+    def position(self) -> Point: ...
 
 
-def _at_step(mark: Marker) -> EventDrawer:
-    return lambda draw, canvas, trace, event: mark(draw, *canvas.to_pixel(*trace.xy(int(event["step"]))))
+EventDrawer = Callable[[Draw, Canvas, SavedTrace, Event], None]
 
 
-def _at_position(mark: Marker) -> EventDrawer:
-    return lambda draw, canvas, trace, event: mark(draw, *canvas.to_pixel(*trace.to_world(event["position"])))
+def _at_step(mark: Marker) -> Callable[[Draw, Canvas, SavedTrace, Event], None]:
+    """Draw ``mark`` where the robot was at the event's step."""
+    return lambda draw, canvas, trace, event: mark(draw, *canvas.to_pixel(*trace.xy(event.step)))
 
 
-EVENT_DRAWERS: dict[str, EventDrawer] = {
-    "inspection": _at_step(mark_inspection),
-    "direction_selected": _draw_decision,
-    "detection": _at_position(mark_detection),
-    "target_accepted": _at_position(mark_accepted),
-    "target_rejected": _at_position(mark_rejected),
-}
-DRAW_ORDER = ("inspection", "detection", "direction_selected", "target_rejected", "target_accepted")
+def _at_position(mark: Marker) -> Callable[[Draw, Canvas, SavedTrace, Placed], None]:
+    """Draw ``mark`` at the event's own point."""
+    return lambda draw, canvas, trace, event: mark(draw, *canvas.to_pixel(*trace.to_world(event.position)))
 
 
-def draw_event(draw: Draw, canvas: Canvas, trace: SavedTrace, event: dict[str, Any]) -> None:
-    """The marker of one trace event (kinds without a place on the map draw nothing)."""
-    drawer = EVENT_DRAWERS.get(str(event.get("kind")))
+def _drawer(
+    kind: type[EventT], draw_event: Callable[[Draw, Canvas, SavedTrace, EventT], None]
+) -> tuple[type[Event], EventDrawer]:
+    """``kind`` and a drawer of any event that draws those of type ``kind`` with ``draw_event``."""
+
+    def drawer(draw: Draw, canvas: Canvas, trace: SavedTrace, event: Event) -> None:
+        if isinstance(event, kind):
+            draw_event(draw, canvas, trace, event)
+
+    return kind, drawer
+
+
+EVENT_DRAWERS: dict[type[Event], EventDrawer] = dict(
+    [
+        _drawer(InspectionStarted, _at_step(mark_inspection)),
+        _drawer(DetectionEvent, _at_position(mark_detection)),
+        _drawer(DirectionSelected, _draw_decision),
+        _drawer(TargetRejected, _at_position(mark_rejected)),
+        _drawer(TargetAccepted, _at_position(mark_accepted)),
+    ]
+)
+"""The drawer of each event type with a place on the map, in drawing order (accepted targets on top)."""
+DRAW_ORDER = tuple(EVENT_DRAWERS)
+
+
+def draw_event(draw: Draw, canvas: Canvas, trace: SavedTrace, event: Event) -> None:
+    """The marker of one trace event (types without a place on the map draw nothing)."""
+    drawer = EVENT_DRAWERS.get(type(event))
     if drawer is not None:
         drawer(draw, canvas, trace, event)
 
@@ -359,7 +393,7 @@ def draw_episode(
     draw = ImageDraw.Draw(image)
     draw_trajectory(draw, canvas, trace)
     for kind in DRAW_ORDER:
-        for event in trace.of_kind(kind):
+        for event in trace.of_type(kind):
             draw_event(draw, canvas, trace, event)
     success = bool(record and record.success)
     draw_pose(draw, canvas, trace.xy(0), trace.start.yaw, START_COLOR)

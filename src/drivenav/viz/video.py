@@ -19,9 +19,10 @@ import numpy as np
 from numpy.typing import NDArray
 from PIL import Image, ImageDraw
 
+from drivenav.agent.trace import Event
 from drivenav.envs.embedded.render import Renderer
 from drivenav.envs.embedded.scene import Scene
-from drivenav.envs.episode import Episode
+from drivenav.episode import Episode
 from drivenav.types import SimConfig
 from drivenav.viz.saved_trace import SavedTrace
 from drivenav.viz.topdown import (
@@ -77,9 +78,9 @@ def step_frames(scene: Scene, episode: Episode, trace: SavedTrace, sim: SimConfi
     layer = draw_scene(scene, episode, canvas)
     draw = ImageDraw.Draw(layer)
     renderer = Renderer(scene, sim)
-    events: dict[int, list[dict[str, Any]]] = defaultdict(list)
+    events: dict[int, list[Event]] = defaultdict(list)
     for event in trace.events:
-        events[int(event.get("step", -1))].append(event)
+        events[event.step].append(event)
     moves = trace.move_segments()
     count = len(trace.segments())
     shown = set(frame_steps(len(trace)))

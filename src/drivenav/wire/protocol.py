@@ -39,7 +39,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.envs.episode import Episode
+from drivenav.episode import Episode
+from drivenav.jsonstream import JsonObject
 from drivenav.types import CameraIntrinsics, LocalOccupancy, Pose, SimConfig
 
 PROTOCOL = "drivenav-robot"
@@ -108,7 +109,7 @@ class RobotInfo:
 
     @staticmethod
     def from_json(body: Mapping[str, JSON]) -> RobotInfo:
-        values: dict[str, Any] = {}
+        values: JsonObject = {}
         for item in fields(RobotInfo):
             if item.name not in body:
                 if item.name in _INFO_OPTIONAL:

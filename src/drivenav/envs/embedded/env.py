@@ -18,7 +18,7 @@ import math
 from collections import OrderedDict
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -29,8 +29,8 @@ from drivenav.envs.embedded.measures import EmbeddedMeasures
 from drivenav.envs.embedded.motion import forward_step, is_navigable
 from drivenav.envs.embedded.render import Images, Renderer
 from drivenav.envs.embedded.scene import Scene
-from drivenav.envs.episode import Episode
 from drivenav.envs.vocabulary import VOCABULARY
+from drivenav.episode import Episode
 from drivenav.grid import wrap_angle
 from drivenav.types import GEODESIC, SEMANTIC, Action, GroundTruth, Observation, Pose, SimConfig
 
@@ -103,14 +103,14 @@ class EmbeddedEnv:
         self._fields: OrderedDict[tuple[str | None, tuple[tuple[float, float], ...]], GeodesicField] = OrderedDict()
 
     # -- pickling: drop the scene cache ---------------------------------------------------------------
-    def __getstate__(self) -> dict[str, Any]:
+    def __getstate__(self) -> dict[str, object]:
         state = dict(self.__dict__)
         state["_worlds"] = OrderedDict()
         state["_fields"] = OrderedDict()
         state["_measures"] = EmbeddedMeasures(self._config)
         return state
 
-    def __setstate__(self, state: dict[str, Any]) -> None:
+    def __setstate__(self, state: dict[str, object]) -> None:
         self.__dict__.update(state)
 
     # -- read-only state ------------------------------------------------------------------------------

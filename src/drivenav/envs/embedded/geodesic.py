@@ -81,7 +81,7 @@ def _goal_distances(
     navigable: NDArray[np.bool_], grid: GridSpec, goals: Sequence[tuple[float, float]]
 ) -> NDArray[np.float64]:
     """:class:`GeodesicField`'s distances. The solve runs on the bounding box of the navigable cells (one cell
-    wider), and the grid-sized result is made after it, when scikit-fmm's temporaries are freed (issue 14's memory
+    wider), and the grid-sized result is made after it, when scikit-fmm's temporaries are freed (the worker-memory
     goal)."""
     cells = grid.world_to_cell(np.asarray(goals, dtype=np.float64).reshape(-1, 2))
     cells = cells[grid.contains(cells)]

@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 from drivenav import metrics
 from drivenav.envs.base import EpisodeMeasures, measured, shows_goal
 from drivenav.envs.embedded.geodesic import GeodesicField
-from drivenav.envs.episode import Episode
+from drivenav.episode import Episode
 from drivenav.grid import GridSpec
 from drivenav.types import Action, Observation, Pose, SimConfig
 

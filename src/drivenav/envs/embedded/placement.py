@@ -82,7 +82,7 @@ class _Placer:
         self.rng = rng
         self.vocab = vocab
         self.free = scene.structure == Material.FREE
-        # scipy's arrays, scaled in place and kept as int32 (no grid-sized copies: issue 14's memory goal).
+        # scipy's arrays, scaled in place and kept as int32 (no grid-sized copies: the worker-memory goal).
         wall_dist: NDArray[np.float64]
         self.nearest: NDArray[np.int32]
         wall_dist, self.nearest = ndimage.distance_transform_edt(self.free, return_indices=True)

@@ -3,7 +3,7 @@
 The embedded reasoner and detector compare normalised phrases of the vocabulary (category names and synonyms: the
 goals, the instance labels and the prompts made from them). Their vectors ship in
 :data:`drivenav.semantics.embedding.PACKAGED_TABLE`, so an embedded-world worker never loads the 90 MB model
-(issue 14's worker-memory goal); a text outside the table still gets an encoder pass. After a change to the
+(the worker-memory goal); a text outside the table still gets an encoder pass. After a change to the
 vocabulary, rewrite the table with ``python -m drivenav.envs.embedded.text_table`` (a test checks that it covers the
 vocabulary and matches the model).
 """

@@ -4,7 +4,7 @@ habitat-lab's task, sensors and measures do the work: the agent steps by action 
 indices follow the config's order), observations are converted by :mod:`.observations`, and the metrics are
 habitat-lab's own ``success``, ``spl``, ``distance_to_goal`` and ``collisions``; path length is the executed
 translation, the start distance habitat-lab's ``distance_to_goal`` at reset. The world frame is Habitat's floor
-plane as drivenav's 2-D map frame (:mod:`drivenav.envs.episode`).
+plane as drivenav's 2-D map frame (:mod:`drivenav.episode`).
 
 The agent's pose is the simulator's agent state relative to the episode start, in float64: exactly what the
 noise-free GPS and compass report, without their float32 rounding (~1e-7 m), which alone can flip a map cell
@@ -20,17 +20,17 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
 from drivenav import metrics
 from drivenav.envs.base import EpisodeMeasures, episode_pose, measured, shows_goal
-from drivenav.envs.episode import Episode, habitat_to_world, quaternion_to_yaw, world_to_habitat
 from drivenav.envs.habitat.config import habitat_config
 from drivenav.envs.habitat.observations import to_observation
 from drivenav.envs.vocabulary import VOCABULARY
+from drivenav.episode import Episode, habitat_to_world, quaternion_to_yaw, world_to_habitat
 from drivenav.grid import wrap_angle
 from drivenav.types import GEODESIC, SEMANTIC, Action, GroundTruth, Observation, Pose, SimConfig
 
@@ -45,6 +45,13 @@ ACTION_NAMES = {
 }
 POSE_CHECK = 1e-3  # metres / radians: GPS and compass against the agent state (float32 sensors read ~1e-6)
 COLLISION_EPSILON = 1e-5  # metres between the intended and the reached end of a step that count as a collision
+
+
+class HabitatEpisode(Protocol):
+    """What drivenav reads of one of habitat-lab's episodes (``habitat.core.dataset.Episode``)."""
+
+    start_position: Any
+    start_rotation: Sequence[float]
 
 
 def habitat_pose(position: Any, rotation: Sequence[float]) -> Pose:
@@ -210,7 +217,7 @@ def _under_data_dir(path: str, data_dir: str) -> str:
     return path
 
 
-def _index(ours: list[Episode], theirs: list[Any]) -> dict[str, Any]:
+def _index(ours: list[Episode], theirs: list[Any]) -> dict[str, HabitatEpisode]:
     """drivenav's episode ids -> habitat-lab's episodes, paired in reading order and checked (scene basename and
     start position must agree, so a reader that ordered them differently fails here, not in the metrics)."""
     if len(ours) != len(theirs):

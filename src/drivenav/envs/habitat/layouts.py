@@ -6,7 +6,7 @@ basename of the episode's ``scene_id``, extension included). HM3D-OVON adds ``ch
 episodes (their instances count as goals too) and ``radius`` to view points, and leaves the category maps empty.
 
 Episodes come back in habitat-lab's order (the split file's, then each content file in sorted order, each in file
-order), with their goals resolved, as drivenav :class:`~drivenav.envs.episode.Episode`\\ s. habitat-lab numbers a
+order), with their goals resolved, as drivenav :class:`~drivenav.episode.Episode`\\ s. habitat-lab numbers a
 file's episodes from 0 (overwriting ``episode_id``); drivenav keeps the file's own ``episode_id`` where there is
 one, and where the ids of a split repeat across scenes, names every episode ``<scene>:<id>``.
 """
@@ -22,9 +22,10 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from drivenav.envs.episode import Episode, goal_to_dict, parse_episode, rounded
 from drivenav.envs.habitat.benchmarks import LAYOUTS, OVON
+from drivenav.episode import Episode, goal_to_dict, parse_episode, rounded
 from drivenav.errors import InputError
+from drivenav.jsonstream import JsonObject
 from drivenav.validation import Fields, read_json
 
 CONTENT = "content"
@@ -82,7 +83,7 @@ def _read_file(path: Path, layout: str) -> list[Episode]:
     return [_read_episode(fields, i, item, goals_by_category, layout) for i, item in enumerate(items)]
 
 
-def _read_episode(fields: Fields, index: int, item: Any, goals_by_category: dict[str, Any], layout: str) -> Episode:
+def _read_episode(fields: Fields, index: int, item: Any, goals_by_category: JsonObject, layout: str) -> Episode:
     name = f"episodes[{index}]"
     item = dict(fields.mapping(item, name, required=("scene_id", "object_category")))
     scene_id = fields.text(item["scene_id"], f"{name}.scene_id")
@@ -144,8 +145,8 @@ def write_split(episodes: Sequence[Episode], split_file: Path, layout: str) -> l
     return written
 
 
-def _content(episodes: Iterable[Episode], layout: str) -> dict[str, Any]:
-    goals_by_category: dict[str, list[dict[str, Any]]] = {}
+def _content(episodes: Iterable[Episode], layout: str) -> JsonObject:
+    goals_by_category: dict[str, list[JsonObject]] = {}
     items = []
     for episode in episodes:
         key = goals_key(episode.scene_id, episode.object_category)
@@ -167,7 +168,7 @@ def _content(episodes: Iterable[Episode], layout: str) -> dict[str, Any]:
     return {"episodes": items, "goals_by_category": goals_by_category}
 
 
-def _write_json(path: Path, payload: dict[str, Any]) -> Path:
+def _write_json(path: Path, payload: JsonObject) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     text = json.dumps(payload, separators=(",", ":"))
     with path.open("wb") as raw, gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0) as gz:

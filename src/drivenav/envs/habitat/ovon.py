@@ -18,10 +18,10 @@ from habitat.core.registry import registry
 from habitat.core.simulator import AgentState
 from habitat.tasks.nav.object_nav_task import ObjectGoal, ObjectGoalNavEpisode, ObjectViewLocation
 
-from drivenav.envs.episode import Episode
-from drivenav.envs.episode import ObjectGoal as DrivenavGoal
 from drivenav.envs.habitat.benchmarks import OVON
 from drivenav.envs.habitat.layouts import read_split, scene_name, scene_path
+from drivenav.episode import Episode
+from drivenav.episode import ObjectGoal as DrivenavGoal
 
 if TYPE_CHECKING:
     from omegaconf import DictConfig

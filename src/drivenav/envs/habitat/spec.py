@@ -13,8 +13,8 @@ from drivenav.errors import InputError
 from drivenav.types import GEODESIC, SEMANTIC, SimConfig
 
 if TYPE_CHECKING:
-    from drivenav.envs.episode import Episode
     from drivenav.envs.habitat.env import HabitatEnv
+    from drivenav.episode import Episode
 
 
 @dataclass(frozen=True)

@@ -14,6 +14,7 @@ import sys
 from dataclasses import dataclass, field
 from typing import Any
 
+from drivenav.jsonstream import JsonObject
 from drivenav.validation import Fields
 
 Vec3 = tuple[float, float, float]
@@ -80,7 +81,7 @@ class Episode:
     start_rotation: Quat
     object_category: str
     goals: tuple[ObjectGoal, ...]
-    info: dict[str, Any] = field(default_factory=dict)
+    info: JsonObject = field(default_factory=dict)
 
     @property
     def start_xy(self) -> tuple[float, float]:
@@ -107,7 +108,7 @@ def rounded(values: tuple[float, ...]) -> list[float]:
     return [round(float(v), 4) for v in values]
 
 
-def goal_to_dict(goal: ObjectGoal) -> dict[str, Any]:
+def goal_to_dict(goal: ObjectGoal) -> JsonObject:
     """A goal instance in the HM3D-OVON / ObjectNav v1 JSON form (``object_id`` as the file's integer)."""
     return {
         "object_id": goal.object_id,
@@ -154,7 +155,7 @@ def parse_episode(fields: Fields, name: str, item: Any, require_goals: bool = Tr
     return parse_episode_with(fields, name, item, goals)
 
 
-def parse_episode_with(fields: Fields, name: str, item: dict[str, Any], goals: tuple[ObjectGoal, ...]) -> Episode:
+def parse_episode_with(fields: Fields, name: str, item: JsonObject, goals: tuple[ObjectGoal, ...]) -> Episode:
     """An episode whose ``goals`` were read already (a streamed file reads a repeated goals text once)."""
     return Episode(
         episode_id=parse_identifier(fields, f"{name}.episode_id", item.get("episode_id")),
@@ -173,7 +174,7 @@ def parse_goals(fields: Fields, name: str, value: Any, require_goals: bool = Tru
     return tuple(parse_goal(fields, f"{name}[{k}]", goal) for k, goal in enumerate(items))
 
 
-def parse_info(fields: Fields, name: str, value: Any) -> dict[str, Any]:
+def parse_info(fields: Fields, name: str, value: Any) -> JsonObject:
     """``info``: the keys drivenav reads have their types (distance in metres >= 0, text, true / false); others
     are kept as given."""
     info = fields.mapping(value, name)

@@ -1,8 +1,10 @@
 """Pictures for the ablation report: the same episodes through the compared methods, side by side.
 
 Episodes are taken first from the Table II subset (solved by every compared method, start-goal distance above
-10 m: the episodes where steps and revisits are compared), then in benchmark order. Each method's top-down
-picture comes from ``drivenav viz`` on its run directory; the first episode of the first method also gets its MP4.
+10 m: the episodes where steps and revisits are compared, paper Sec. V-C), then in benchmark order. Each method's
+top-down picture comes from ``drivenav viz`` on its run directory; the first episode of the first method also gets
+its MP4. :func:`render_pictures` is the :class:`~drivenav.eval.ablations.PictureMaker` the command line hands to
+``bench ablations`` (eval itself draws nothing).
 """
 
 from __future__ import annotations
@@ -10,11 +12,11 @@ from __future__ import annotations
 import logging
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 from drivenav.errors import InputError
-from drivenav.eval.compare import TABLE_II_MIN_DISTANCE, common_successes
-from drivenav.eval.records import EpisodeRecord
+from drivenav.eval.ablation_data import Pictures
+from drivenav.eval.compare import TABLE_II_MIN_DISTANCE, RunRecords, common_successes
+from drivenav.viz.episode import render_episode_pictures
 
 log = logging.getLogger(__name__)
 
@@ -22,7 +24,7 @@ PICTURES_DIR = "pictures"
 MAX_METHODS = 3
 
 
-def choose_episodes(runs: dict[str, dict[str, EpisodeRecord]], order: Sequence[str], count: int) -> list[str]:
+def choose_episodes(runs: RunRecords, order: Sequence[str], count: int) -> list[str]:
     """Up to ``count`` episode ids finished by every method: Table II subset first, then in ``order``."""
     if not runs or count <= 0:
         return []
@@ -32,21 +34,14 @@ def choose_episodes(runs: dict[str, dict[str, EpisodeRecord]], order: Sequence[s
     return ranked[:count]
 
 
-def render_pictures(
-    dirs: dict[str, Path], runs: dict[str, dict[str, EpisodeRecord]], order: Sequence[str], count: int, out: Path
-) -> dict[str, Any]:
-    """Top-down pictures of ``count`` episodes for up to three methods under ``out/pictures/<method>/``.
-
-    Returns ``{"episodes": {id: {method: path}}, "video": path or None}`` with paths relative to ``out``; an
-    episode that cannot be drawn is logged and left out (the tables never depend on the pictures).
-    """
-    from drivenav.viz.episode import render_episode_pictures
-
+def render_pictures(dirs: dict[str, Path], runs: RunRecords, order: Sequence[str], count: int, out: Path) -> Pictures:
+    """Top-down pictures of ``count`` episodes for up to three methods under ``out/pictures/<method>/``, paths
+    relative to ``out``; an episode that cannot be drawn is logged and left out (the tables never depend on the
+    pictures)."""
     methods = list(dirs)[:MAX_METHODS]
-    chosen = choose_episodes({m: runs[m] for m in methods}, order, count)
     episodes: dict[str, dict[str, str]] = {}
     video: str | None = None
-    for episode_id in chosen:
+    for episode_id in choose_episodes({m: runs[m] for m in methods}, order, count):
         for method in methods:
             want_video = video is None and method == methods[0]
             folder = out / PICTURES_DIR / method
@@ -57,4 +52,4 @@ def render_pictures(
                 continue
             episodes.setdefault(episode_id, {})[method] = paths[0].relative_to(out).as_posix()
             video = video or next((p.relative_to(out).as_posix() for p in paths if p.suffix == ".mp4"), None)
-    return {"episodes": episodes, "video": video}
+    return Pictures(episodes, video)

@@ -1,0 +1,95 @@
+"""The target approach (paper Sec. IV-B, IV-C): drive to the target candidate, verifying it on the way, and STOP
+within ``stop_distance`` once it is accepted and in view.
+
+While no mapped free cell leads to the target yet, the robot drives through the frontier nearest to it (a target
+seen beyond the mapped space); a target it cannot get to is set aside for a while, never rejected (only
+verification rejects). :func:`track_target` switches the loop into and out of this mode as candidates appear,
+are accepted or go.
+"""
+
+from __future__ import annotations
+
+import math
+
+from drivenav.agent.context import Point, Polyline, StepContext, replan
+from drivenav.agent.loop import Loop
+from drivenav.agent.state import Mode
+from drivenav.inspection import turn_toward
+from drivenav.mapping.objects import ObjectCandidate, nearest_point
+from drivenav.types import Action, Observation
+
+
+def act(loop: Loop, observation: Observation, ctx: StepContext) -> Action | None:
+    """The next step of the approach, or None when the target was dropped or set aside (the step goes on in the
+    mode the loop is in now)."""
+    assert loop.state.target is not None
+    candidate = loop.state.search.objects.get(loop.state.target)
+    here = (ctx.pose.x, ctx.pose.y)
+    closest = nearest_point(candidate, here)
+    distance = math.dist(here, closest)
+    if distance <= loop.tuning.config.stop_distance:
+        return _at_target(loop, observation, ctx, candidate)
+    return _drive(loop, observation, ctx, candidate, closest, distance)
+
+
+def track_target(loop: Loop) -> None:
+    """Switch to approaching a target candidate when one appears; drop it when it is rejected or set aside."""
+    state = loop.state
+    current = state.search.current()
+    if state.target is not None and (current is None or current.candidate_id != state.target):
+        state.target, state.goal = None, None  # back to the followed direction (a decision if it is gone)
+        state.mode = Mode.FOLLOW
+        state.planner.reset()
+        loop.start_segment()
+    if current is not None and state.target is None:
+        state.target = current.candidate_id
+        state.detour_steps = 0
+        state.mode = Mode.APPROACH
+        state.planner.reset()
+        loop.start_segment()
+
+
+def _at_target(loop: Loop, observation: Observation, ctx: StepContext, candidate: ObjectCandidate) -> Action | None:
+    """Within stop distance: a pending candidate gets its last verification frame (Sec. IV-C); STOP once the
+    target is in the current frame, turning toward it until then."""
+    state = loop.state
+    if candidate.status != "accepted":
+        assert state.target is not None
+        state.search.verify_now(observation, state.target, loop.trace)
+        track_target(loop)
+        if state.target is None:
+            return None
+    if state.target in state.search.seen_now:
+        return loop.stop("target_reached")
+    bearing = math.atan2(candidate.center[1] - ctx.pose.y, candidate.center[0] - ctx.pose.x)
+    return turn_toward(ctx.pose.yaw, bearing, loop.tuning.turn) or loop.stop("target_reached")
+
+
+def _drive(
+    loop: Loop, observation: Observation, ctx: StepContext, candidate: ObjectCandidate, closest: Point, distance: float
+) -> Action | None:
+    """A step toward the target's nearest observed point (re-planned when it moved), through the frontier
+    nearest to it while the map has no way there; STOP if stuck close to an accepted target, else set it aside."""
+    state, config = loop.state, loop.tuning.config
+    if state.goal is None or math.dist(state.goal, closest) > config.replan_shift:
+        ctx = replan(state.pipeline, ctx, closest)
+    state.goal = closest
+    path = ctx.goal_path
+    if path is None:
+        path = _detour(ctx, closest)
+        state.detour_steps += 1
+    action = state.planner.act(path, ctx.pose, observation.collided, ctx.free)
+    if action is not None and state.detour_steps <= config.approach_detour_steps:
+        return action
+    if distance <= config.give_up_distance and candidate.status == "accepted":
+        return loop.stop("target_reached")
+    assert state.target is not None
+    state.search.set_aside(state.target, loop.step + config.blacklist_steps, loop.trace)
+    track_target(loop)
+    return None
+
+
+def _detour(ctx: StepContext, target: Point) -> Polyline | None:
+    """The path to the frontier nearest the target: the way toward a target seen beyond the mapped space."""
+    paths = list(ctx.result.paths.values())
+    return min(paths, key=lambda p: math.dist(p.target, target)).path if paths else None

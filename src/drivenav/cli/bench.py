@@ -1,0 +1,165 @@
+"""Speed benchmarks and the paper's tables: ``bench sim|directions|mapping|agent|episodes|robot`` (one figure
+each, or one JSON object), ``bench ablations`` (Tables II, V, VI, VII) and ``benchmark generate`` (the fixed,
+versioned embedded benchmark)."""
+
+from __future__ import annotations
+
+import argparse
+
+from drivenav.cli.common import (
+    Commands,
+    add_config_options,
+    add_execution_options,
+    add_max_steps,
+    add_model_options,
+    add_world_options,
+    episodes,
+    executor,
+    print_bench,
+    run_spec,
+)
+from drivenav.errors import InputError
+from drivenav.eval.options import episode_count, path, positive
+from drivenav.eval.worlds import chosen_world
+
+
+def add_bench(commands: Commands) -> None:
+    parser = commands.add_parser("bench", help="speed benchmarks")
+    sub = parser.add_subparsers(dest="bench_command", required=True)
+    sim = sub.add_parser("sim", help="embedded simulator frames per second (RGB + depth + semantic, one core)")
+    sim.add_argument("--frames", type=int, default=300)
+    sim.add_argument("--json", action="store_true", help="print one JSON object")
+    sim.set_defaults(handler=_cmd_bench_sim)
+    directions = sub.add_parser("directions", help="map -> labelled directions for all frontiers (480x480 map)")
+    directions.add_argument("--repeats", type=int, default=50)
+    directions.add_argument("--json", action="store_true", help="print one JSON object")
+    directions.set_defaults(handler=_cmd_bench_directions)
+    mapping = sub.add_parser("mapping", help="mapping update per 640x480 depth frame, frontier extraction")
+    mapping.add_argument("--frames", type=int, default=24)
+    mapping.add_argument("--json", action="store_true", help="print one JSON object")
+    mapping.set_defaults(handler=_cmd_bench_mapping)
+    agent = sub.add_parser("agent", help="agent compute per step (models excluded) and per-module breakdown")
+    agent.add_argument("--episodes", type=int, default=4)
+    agent.add_argument("--max-steps", type=int, default=150)
+    agent.add_argument("--json", action="store_true", help="print one JSON object")
+    agent.set_defaults(handler=_cmd_bench_agent)
+    _add_bench_ablations(sub)
+    stream = sub.add_parser("episodes", help="a large episodes file: read, check, digest, copy, memory per episode")
+    stream.add_argument("--num", type=int, default=100_000)
+    stream.add_argument("--json", action="store_true", help="print one JSON object")
+    stream.set_defaults(handler=_cmd_bench_episodes)
+    robot = sub.add_parser("robot", help="robot protocol round trip of one 640x480 observation, plain and CURVE")
+    robot.add_argument("--repeats", type=int, default=200)
+    robot.add_argument("--json", action="store_true", help="print one JSON object")
+    robot.set_defaults(handler=_cmd_bench_robot)
+
+
+def _add_bench_ablations(sub: Commands) -> None:
+    from drivenav.eval.benchmark import BENCHMARK_V1
+    from drivenav.methods import ALL_METHODS
+
+    parser = sub.add_parser("ablations", help="the paper's Tables II, V, VI and VII on the embedded benchmark")
+    parser.add_argument(
+        "--episodes",
+        default=str(BENCHMARK_V1.episodes),
+        help="a number (with the default --scenes and --seed: the first N of benchmark v1), or a file",
+    )
+    parser.add_argument("--seed", type=int, default=BENCHMARK_V1.seed)
+    parser.add_argument("--out", required=True, type=path, help="output directory (rerun to resume)")
+    parser.add_argument("--methods", default=",".join(ALL_METHODS), help="comma-separated agent names")
+    parser.add_argument("--scenes", default=BENCHMARK_V1.scenes, help="a --scenes SPEC (default: benchmark v1's)")
+    add_max_steps(parser)
+    parser.add_argument("--pictures", type=int, default=2, help="episodes drawn for the report (0: none)")
+    add_world_options(parser)
+    add_execution_options(parser)
+    add_model_options(parser)
+    add_config_options(parser)
+    parser.set_defaults(handler=_cmd_bench_ablations)
+
+
+def add_benchmark(commands: Commands) -> None:
+    from drivenav.eval.benchmark import BENCHMARKS
+
+    parser = commands.add_parser("benchmark", help="the fixed, versioned embedded benchmark")
+    sub = parser.add_subparsers(dest="benchmark_command", required=True)
+    generate = sub.add_parser("generate", help="write a benchmark version's episodes (json.gz, same bytes each time)")
+    generate.add_argument("--version", default="v1", choices=sorted(BENCHMARKS))
+    generate.add_argument("--out", type=path, required=True)
+    generate.add_argument("--episodes", type=int, default=None, help="only the first N episodes (quick checks)")
+    generate.set_defaults(handler=_cmd_benchmark_generate)
+
+
+def _cmd_bench_sim(args: argparse.Namespace) -> int:
+    from drivenav.envs.embedded.bench import bench_sim
+
+    return print_bench(bench_sim(frames=positive(args.frames, "--frames")), args.json)
+
+
+def _cmd_bench_directions(args: argparse.Namespace) -> int:
+    from drivenav.directions.bench import bench_directions
+
+    return print_bench(bench_directions(positive(args.repeats, "--repeats")), args.json)
+
+
+def _cmd_bench_mapping(args: argparse.Namespace) -> int:
+    from drivenav.mapping.bench import bench_mapping
+
+    return print_bench(dict(bench_mapping(frames=positive(args.frames, "--frames"))), args.json)
+
+
+def _cmd_bench_agent(args: argparse.Namespace) -> int:
+    from drivenav.eval.agent_bench import bench_agent
+
+    result = bench_agent(positive(args.episodes, "--episodes"), positive(args.max_steps, "--max-steps"))
+    return print_bench(result, args.json)
+
+
+def _cmd_bench_episodes(args: argparse.Namespace) -> int:
+    from drivenav.eval.episodes_bench import bench_episodes
+
+    return print_bench(bench_episodes(episode_count(args.num, "--num")), args.json)
+
+
+def _cmd_bench_robot(args: argparse.Namespace) -> int:
+    from drivenav.brain.bench import bench_robot
+
+    return print_bench(bench_robot(positive(args.repeats, "--repeats")), args.json)
+
+
+def _cmd_bench_ablations(args: argparse.Namespace) -> int:
+    """``bench ablations``: every method on the same episodes (benchmark v1's frozen ones by default), then the
+    report's tables; the pictures are drawn by the viz floor's picture-maker, passed in."""
+    from drivenav.eval.ablations import parse_methods, run_ablations
+    from drivenav.eval.benchmark import BENCHMARK_V1, generate_benchmark
+    from drivenav.eval.report import shown
+    from drivenav.viz.run_pictures import render_pictures
+
+    methods = parse_methods(args.methods)
+    pool = executor(args)
+    if args.pictures < 0:
+        raise InputError("command line", "--pictures", "a number of episodes >= 0", args.pictures)
+    v1_defaults = (args.scenes, args.seed) == (BENCHMARK_V1.scenes, BENCHMARK_V1.seed)
+    benchmark_v1 = v1_defaults and chosen_world(args).embedded_episodes
+    specs = [run_spec(args, method) for method in methods]
+    if benchmark_v1 and str(args.episodes).isdigit():  # v1's frozen episodes, not today's generator's
+        run_episodes = generate_benchmark(BENCHMARK_V1, positive(int(args.episodes), "--episodes"))
+    else:
+        run_episodes = episodes(args, specs[0])
+    report = run_ablations(run_episodes, specs, args.out, pool, args.pictures, render_pictures)
+    for name, entry in report.methods.items():
+        sr, spl = (shown(value, "{:5.1f} %", 100.0) for value in (entry.success_rate, entry.spl))
+        print(f"{name:<20} SR {sr}  SPL {spl}  errors {entry.errors}")
+    print(f"tables: {args.out / 'ablations.md'}  data: {args.out / 'ablations.json'}, {args.out / 'ablations.csv'}")
+    return 0
+
+
+def _cmd_benchmark_generate(args: argparse.Namespace) -> int:
+    from drivenav.eval.benchmark import BENCHMARKS, generate_benchmark
+    from drivenav.eval.episodes import save_episodes
+
+    count = None if args.episodes is None else positive(args.episodes, "--episodes")
+    written = generate_benchmark(BENCHMARKS[args.version], count)
+    save_episodes(written, args.out)
+    scenes = len({e.scene_id for e in written})
+    print(f"benchmark {args.version}: {len(written)} episodes over {scenes} scenes written to {args.out}")
+    return 0

@@ -1,0 +1,170 @@
+"""What several commands share: the configuration, model and execution options, the resolved settings, the run's
+world (``--env``: its options, spec, episodes and title, all through :data:`drivenav.eval.worlds.WORLDS`) and
+printing a benchmark's result."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING, TypeAlias
+
+from drivenav.eval.options import seed
+from drivenav.eval.worlds import DEFAULT_WORLD, WORLDS, WorldEntry, chosen_world
+from drivenav.jsonstream import JsonObject
+
+if TYPE_CHECKING:
+    from drivenav.episode import Episode
+    from drivenav.eval.executor import Executor
+    from drivenav.eval.runner import RunSpec
+    from drivenav.settings import Settings
+
+Handler = Callable[[argparse.Namespace], int]
+Commands: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"  # a parser's sub-commands (no public name)
+
+OPTION_KEYS = {
+    "seed": "run.seed",
+    "max_steps": "sim.max_steps",
+    "reasoner": "models.reasoner",
+    "detector": "models.detector",
+    "vlm_base_url": "models.vlm_base_url",
+    "vlm_model": "models.vlm_model",
+    "vlm_record": "models.vlm_record",
+    "vlm_replay": "models.vlm_replay",
+    "detector_model": "models.detector_model",
+}
+"""The dedicated options that set a settings key (``--seed`` -> ``run.seed``, ...)."""
+
+
+def add_max_steps(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--max-steps", type=int, default=None, help="step budget (default 500; sets sim.max_steps)")
+
+
+def add_run_seed(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--seed", type=int, default=None, help="run seed (default 0; sets run.seed)")
+
+
+def add_config_options(parser: argparse.ArgumentParser) -> None:
+    from drivenav.methods import preset_names
+
+    group = parser.add_argument_group("configuration (see 'drivenav config show')")
+    group.add_argument(
+        "--config",
+        action="append",
+        default=[],
+        metavar="NAME_OR_FILE",
+        help=f"a preset ({', '.join(preset_names())}) or a YAML file; repeatable, later ones win",
+    )
+    group.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        dest="overrides",
+        metavar="KEY=VALUE",
+        help="a dotted override, e.g. paper.speed.lam=0.5 (habitat.KEY=VALUE: a habitat-lab override); repeatable",
+    )
+
+
+def add_model_options(parser: argparse.ArgumentParser) -> None:
+    from drivenav.semantics.registry import DETECTORS, REASONERS, ModelSpec
+
+    default = ModelSpec()
+    models = parser.add_argument_group("models (reasoner = the VLM's role, detector = SAM3's role; sets models.*)")
+    models.add_argument("--reasoner", help=f"one of {', '.join(REASONERS)} (default {default.reasoner})")
+    models.add_argument("--detector", help=f"one of {', '.join(DETECTORS)} (default {default.detector})")
+    models.add_argument("--vlm-base-url", help=f"OpenAI-compatible endpoint (default {default.vlm_base_url})")
+    models.add_argument("--vlm-model", help=f"default {default.vlm_model}")
+    models.add_argument("--vlm-record", help="record every reasoner request/answer to this file")
+    models.add_argument("--vlm-replay", help="with --reasoner replay: answer from this recording")
+    models.add_argument("--detector-model", help="local checkpoint dir or HF-cache model id")
+
+
+def add_execution_options(parser: argparse.ArgumentParser) -> None:
+    from drivenav.eval.executor import EXECUTORS
+
+    parser.add_argument(
+        "--workers", type=int, default=None, help="parallel workers (default: 1 local, every CPU of a Ray cluster)"
+    )
+    parser.add_argument("--executor", default="local", choices=EXECUTORS, help="local processes or Ray tasks")
+    parser.add_argument("--ray-address", default=None, help="a Ray cluster (default: a private local instance)")
+
+
+def add_world_options(parser: argparse.ArgumentParser) -> None:
+    """``--env`` and every world's own options, in one group titled with the worlds' documentation."""
+    worlds = list(WORLDS.values())
+    docs = "; ".join(f"--env {world.name}: {world.docs}" for world in worlds if world.docs)
+    names = [world.summary for world in worlds]
+    group = parser.add_argument_group(f"world ({docs})")
+    summary = f"{', '.join(names[:-1])} or {names[-1]}" if len(names) > 1 else names[0]
+    group.add_argument("--env", default=DEFAULT_WORLD, choices=tuple(WORLDS), help=summary)
+    for world in worlds:
+        world.add_options(group)
+
+
+def executor(args: argparse.Namespace) -> Executor:
+    from drivenav.eval.executor import Executor
+
+    return Executor(args.executor, args.workers, args.ray_address)
+
+
+def given_options(args: argparse.Namespace) -> dict[str, object]:
+    """The dedicated options given on the command line, as settings keys (``--seed`` -> ``run.seed``, ...)."""
+    return {key: getattr(args, name) for name, key in OPTION_KEYS.items() if getattr(args, name, None) is not None}
+
+
+def settings(args: argparse.Namespace, agent: str | None) -> Settings:
+    """The resolved configuration: defaults, the world's presets (a Habitat benchmark's, first, under every other
+    layer), ``agent``'s preset, ``--config``, the options given, ``--set`` (less the worlds' own overrides)."""
+    from drivenav.settings import load_settings
+
+    given = given_options(args)
+    for key in ("models.vlm_record", "models.vlm_replay"):
+        if given.get(key):
+            given[key] = str(Path(str(given[key])).resolve())
+    if "run.seed" in given:
+        seed(int(str(given["run.seed"])))
+    presets = chosen_world(args).presets(args)
+    configs = [*presets, *(c for c in args.config if c not in presets)]
+    prefixes = tuple(world.set_prefix for world in WORLDS.values() if world.set_prefix)
+    overrides = [o for o in args.overrides if not (prefixes and o.startswith(prefixes))]
+    return load_settings(agent, configs=configs, overrides=overrides, options=given)
+
+
+def check_world_options(args: argparse.Namespace, world: WorldEntry) -> None:
+    """A world's own options only with that world (before any model loads)."""
+    for other in WORLDS.values():
+        if other is not world:
+            other.refuse_options(args)
+
+
+def run_spec(args: argparse.Namespace, agent: str) -> RunSpec:
+    """The world (``--env``) and the resolved settings for ``agent``; models are checked before any work."""
+    from drivenav.eval.runner import RunSpec
+    from drivenav.semantics.registry import check_models
+
+    world = chosen_world(args)
+    check_world_options(args, world)
+    resolved = settings(args, agent)
+    check_models(resolved.models)
+    return RunSpec(world.build(args, resolved), resolved)
+
+
+def episodes(args: argparse.Namespace, spec: RunSpec) -> list[Episode]:
+    """The run's episodes, from its world's source (generated, a file, a Habitat split)."""
+    return chosen_world(args).episodes(args, spec)
+
+
+def world_label(args: argparse.Namespace) -> str:
+    """What a run's table is titled with: the scenes, the benchmark and split, the robot."""
+    return chosen_world(args).label(args)
+
+
+def print_bench(result: JsonObject, as_json: bool) -> int:
+    """A benchmark's result: one JSON object, or one aligned ``key: value`` line each."""
+    if as_json:
+        print(json.dumps(result))
+    else:
+        for key, value in result.items():
+            print(f"{key:>20}: {value}")
+    return 0

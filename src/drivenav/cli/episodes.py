@@ -1,0 +1,57 @@
+"""Episode files: ``episodes generate`` (HM3D-OVON-style episodes over embedded scenes) and ``episodes export``
+(an episodes file in a Habitat dataset layout)."""
+
+from __future__ import annotations
+
+import argparse
+
+from drivenav.cli.common import Commands
+from drivenav.errors import InputError
+from drivenav.eval.options import episode_count, path, seed
+
+
+def add_episodes(commands: Commands) -> None:
+    from drivenav.envs.habitat.benchmarks import LAYOUTS
+
+    parser = commands.add_parser("episodes", help="episode files")
+    sub = parser.add_subparsers(dest="episodes_command", required=True)
+    generate = sub.add_parser("generate", help="generate HM3D-OVON-style episodes (json.gz)")
+    generate.add_argument("--scenes", default="procedural")
+    generate.add_argument("--num", type=int, required=True)
+    generate.add_argument("--seed", type=int, default=0)
+    generate.add_argument("--out", type=path, required=True)
+    generate.set_defaults(handler=_cmd_episodes_generate)
+    export = sub.add_parser("export", help="write an episodes file in a Habitat layout (ObjectNav v1 or HM3D-OVON)")
+    export.add_argument("--episodes", required=True, type=path, help="an episodes file (drivenav's json.gz)")
+    export.add_argument("--format", required=True, choices=LAYOUTS, help="the Habitat dataset layout")
+    export.add_argument("--split", default="val", help="the split's name (default val)")
+    export.add_argument("--out", required=True, type=path, help="the dataset folder: writes OUT/SPLIT/SPLIT.json.gz")
+    export.set_defaults(handler=_cmd_episodes_export)
+
+
+def _cmd_episodes_generate(args: argparse.Namespace) -> int:
+    from drivenav.envs.embedded.library import SceneLibrary
+    from drivenav.eval.episodes import generate_episodes, save_episodes
+    from drivenav.types import SimConfig
+
+    count = episode_count(args.num, "--num")
+    library = SceneLibrary(args.scenes, seed(args.seed))
+    episodes = generate_episodes(library, count, args.seed, SimConfig())
+    save_episodes(episodes, args.out)
+    synonyms = sum(bool(e.info.get("synonym")) for e in episodes)
+    scenes = len({e.scene_id for e in episodes})
+    print(f"wrote {len(episodes)} episodes over {scenes} scenes ({synonyms} by synonym) to {args.out}")
+    return 0
+
+
+def _cmd_episodes_export(args: argparse.Namespace) -> int:
+    from drivenav.envs.habitat.layouts import write_split
+    from drivenav.eval.episodes import load_episodes
+
+    episodes = load_episodes(args.episodes)
+    split = str(args.split)
+    if not split or "/" in split or split.startswith("."):
+        raise InputError("command line", "--split", "a split name such as val", split)
+    written = write_split(episodes, args.out / split / f"{split}.json.gz", args.format)
+    print(f"wrote {len(episodes)} episodes as {args.format} to {written[0]} and {len(written) - 1} content files")
+    return 0

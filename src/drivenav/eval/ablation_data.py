@@ -1,0 +1,234 @@
+"""The ablation report as typed records: what ``ablations.json`` holds, built once by
+:func:`drivenav.eval.ablations.build_report` and read by attribute by :mod:`drivenav.eval.ablation_report`.
+
+Each record's ``to_json`` writes the keys ``ablations.json`` has always had, in the same order (other tools read
+the file); ``from_json`` reads them back. Intervals (``sr_ci95``, ``spl_ci95``) are ``[lo, hi]`` lists in JSON.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import TypeVar
+
+from drivenav.errors import InputError
+from drivenav.eval.compare import Comparison
+from drivenav.jsonstream import DOCUMENT, JsonObject
+
+Interval = tuple[float, float]
+_Record = TypeVar("_Record")
+
+
+def _interval_json(interval: Interval | None) -> list[float] | None:
+    return None if interval is None else [interval[0], interval[1]]
+
+
+def _interval(value: list[float] | None) -> Interval | None:
+    return None if value is None else (value[0], value[1])
+
+
+def _each(values: JsonObject, read: Callable[[JsonObject], _Record]) -> dict[str, _Record]:
+    return {name: read(value) for name, value in values.items()}
+
+
+@dataclass(frozen=True)
+class MethodEntry:
+    """One method's aggregate over its episodes: SR and SPL with 95 % intervals (None without a measured episode),
+    steps, revisits, reasoner calls, failures by cause, missed targets by cause, and per-episode means of the
+    decision counters (``decisions.REASON``, ``steps.ACTIVITY``). ``errors`` counts the episodes an exception
+    ended, never navigation failures."""
+
+    episodes: int
+    errors: int
+    success_rate: float | None
+    spl: float | None
+    avg_steps: float | None
+    avg_revisits: float | None
+    sr_ci95: Interval | None
+    spl_ci95: Interval | None
+    avg_retraced_revisits: float | None
+    vlm_calls: float | None
+    median_vlm_calls: float | None
+    failure_causes: dict[str, int]
+    missed_target_causes: dict[str, int] = field(default_factory=dict)
+    decisions: dict[str, float] = field(default_factory=dict)
+
+    def to_json(self) -> JsonObject:
+        data = asdict(self)
+        data.update(sr_ci95=_interval_json(self.sr_ci95), spl_ci95=_interval_json(self.spl_ci95))
+        return data
+
+    @staticmethod
+    def from_json(data: JsonObject) -> MethodEntry:
+        values = {**data, "sr_ci95": _interval(data["sr_ci95"]), "spl_ci95": _interval(data["spl_ci95"])}
+        return MethodEntry(**values)
+
+
+@dataclass(frozen=True)
+class ModelCalls:
+    """One kind of model call over the runs: how many, how many per episode of the runs that make it, mean
+    latency."""
+
+    calls: int
+    calls_per_episode: float
+    mean_latency_ms: float
+
+    def to_json(self) -> JsonObject:
+        return asdict(self)
+
+    @staticmethod
+    def from_json(data: JsonObject) -> ModelCalls:
+        return ModelCalls(**data)
+
+
+@dataclass(frozen=True)
+class Latency:
+    """Median, 90th percentile and mean of per-step latencies, in ms (:func:`drivenav.eval.timings.summary`)."""
+
+    median_ms: float
+    p90_ms: float
+    mean_ms: float
+
+    @staticmethod
+    def from_json(data: JsonObject) -> Latency:
+        return Latency(data["median_ms"], data["p90_ms"], data["mean_ms"])
+
+
+@dataclass(frozen=True)
+class ModuleTiming:
+    """One row of Table VII: when the module runs, and its latency (timed every step) or its invocation count."""
+
+    invocation: str
+    latency: Latency | None = None
+    invocations: int | None = None
+
+    def to_json(self) -> JsonObject:
+        data: JsonObject = asdict(self.latency) if self.latency else {}
+        if self.invocations is not None:
+            data["invocations"] = self.invocations
+        data["invocation"] = self.invocation
+        return data
+
+    @staticmethod
+    def from_json(data: JsonObject) -> ModuleTiming:
+        latency = Latency.from_json(data) if "median_ms" in data else None
+        return ModuleTiming(data["invocation"], latency, data.get("invocations"))
+
+
+@dataclass(frozen=True)
+class ComputeTable:
+    """Table VII's agent compute (paper Sec. V-E): one method's timed steps, their compute per step (models
+    excluded), and each module's row (:func:`drivenav.eval.timings.runtime_table`)."""
+
+    agent: str
+    width: int
+    height: int
+    episodes: int
+    steps: int
+    latency: Latency
+    modules: dict[str, ModuleTiming]
+
+    def to_json(self) -> JsonObject:
+        head = {"agent": self.agent, "width": self.width, "height": self.height, "episodes": self.episodes}
+        modules = {name: module.to_json() for name, module in self.modules.items()}
+        return {**head, "steps": self.steps, **asdict(self.latency), "modules": modules}
+
+    @staticmethod
+    def from_json(data: JsonObject) -> ComputeTable:
+        """Also the reader of :func:`~drivenav.eval.timings.runtime_table`'s result."""
+        modules = _each(data["modules"], ModuleTiming.from_json)
+        size = (data["width"], data["height"])
+        return ComputeTable(data["agent"], *size, data["episodes"], data["steps"], Latency.from_json(data), modules)
+
+
+@dataclass(frozen=True)
+class Runtime:
+    """Table VII from the runs: agent compute (None when no trace has timings) and model calls by kind."""
+
+    compute: ComputeTable | None
+    model_calls: dict[str, ModelCalls]
+
+    def to_json(self) -> JsonObject:
+        compute = None if self.compute is None else self.compute.to_json()
+        return {"compute": compute, "model_calls": {kind: calls.to_json() for kind, calls in self.model_calls.items()}}
+
+    @staticmethod
+    def from_json(data: JsonObject) -> Runtime:
+        compute = None if data["compute"] is None else ComputeTable.from_json(data["compute"])
+        return Runtime(compute, _each(data["model_calls"], ModelCalls.from_json))
+
+
+@dataclass(frozen=True)
+class Pictures:
+    """The report's pictures: per episode id, each method's top-down picture, and one video; paths relative to
+    the report's directory. Empty when none were drawn."""
+
+    episodes: dict[str, dict[str, str]] = field(default_factory=dict)
+    video: str | None = None
+
+    def to_json(self) -> JsonObject:
+        return asdict(self)
+
+    @staticmethod
+    def from_json(data: JsonObject | None) -> Pictures:
+        return Pictures() if not data else Pictures(data["episodes"], data["video"])
+
+
+@dataclass(frozen=True)
+class ReportModels:
+    """The reasoner and detector the methods ran with."""
+
+    reasoner: str
+    detector: str
+
+
+@dataclass(frozen=True)
+class AblationReport:
+    """``ablations.json``: every method's entry, the Table II comparison, Table VII, and what the runs were."""
+
+    methods: dict[str, MethodEntry]
+    table_ii: Comparison
+    runtime: Runtime
+    episodes: int
+    seed: int
+    scenes: str | None
+    max_steps: int
+    models: ReportModels
+    commit: str | None
+    pictures: Pictures = field(default_factory=Pictures)
+
+    def to_json(self) -> JsonObject:
+        """The ``ablations.json`` object."""
+        return {
+            "methods": {name: entry.to_json() for name, entry in self.methods.items()},
+            "table_ii": self.table_ii.to_json(),
+            "runtime": self.runtime.to_json(),
+            "episodes": self.episodes,
+            "seed": self.seed,
+            "scenes": self.scenes,
+            "max_steps": self.max_steps,
+            "models": asdict(self.models),
+            "commit": self.commit,
+            "pictures": self.pictures.to_json(),
+        }
+
+    @staticmethod
+    def from_json(data: JsonObject, source: str | Path = "ablations.json") -> AblationReport:
+        """The report :meth:`to_json` wrote; a document of another shape is one :class:`InputError`."""
+        try:
+            return AblationReport(
+                _each(data["methods"], MethodEntry.from_json),
+                Comparison.from_json(data["table_ii"]),
+                Runtime.from_json(data["runtime"]),
+                data["episodes"],
+                data["seed"],
+                data["scenes"],
+                data["max_steps"],
+                ReportModels(**data["models"]),
+                data["commit"],
+                Pictures.from_json(data.get("pictures")),
+            )
+        except (KeyError, TypeError, AttributeError, IndexError) as error:
+            expected = "an ablations.json written by 'drivenav bench ablations'"
+            raise InputError(source, DOCUMENT, expected, f"{type(error).__name__}: {error}") from None

@@ -1,0 +1,118 @@
+"""``run.json``: what a run was started with -- its resolved settings, its world, the episodes' digest and where
+the code came from -- as a typed :class:`RunInfo`.
+
+On disk, ``config`` is one JSON tree: the world's recipe under ``config.env`` (``name`` and the fields of its
+:class:`~drivenav.envs.base.EnvSpec`) beside the sections of :func:`~drivenav.settings.settings_to_dict`. Reading
+it back rebuilds :class:`~drivenav.settings.Settings` through the same checks as ``--config``, so a hand-edited
+``run.json`` with a wrong key, type or value is one :class:`~drivenav.errors.InputError` naming ``config.KEY``.
+The world stays JSON: each world's recipe has its own fields, and only its name and scenes are ever read back.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from drivenav.envs.base import EnvSpec
+from drivenav.errors import InputError
+from drivenav.jsonstream import DOCUMENT, JsonObject
+from drivenav.settings import Settings, first_difference, settings_from_dict, settings_to_dict
+
+WORLD_KEY = "env"  # the key of the world's recipe in run.json's config
+
+
+def world_json(env: EnvSpec) -> JsonObject:
+    """A world's recipe as ``run.json`` records it: its ``--env`` name and its fields, in JSON's own types (a
+    tuple is a list), so that it compares equal to the tree read back on resume."""
+    tree: JsonObject = json.loads(json.dumps({"name": env.name, **asdict(env)}))
+    return tree
+
+
+@dataclass(frozen=True)
+class RunInfo:
+    """``run.json``: the run's settings and world, the sha256 of its episodes, the drivenav version, and the git
+    commit of the checkout and whether its tree was dirty (None outside git)."""
+
+    config: Settings
+    world: JsonObject
+    episodes_sha256: str
+    version: str
+    git_commit: str | None
+    git_dirty: bool | None
+
+    def config_json(self) -> JsonObject:
+        """``run.json``'s ``config`` tree: the world under ``env`` beside the settings' sections."""
+        tree: JsonObject = json.loads(json.dumps({WORLD_KEY: self.world, **settings_to_dict(self.config)}))
+        return tree
+
+    def to_json(self) -> JsonObject:
+        """The ``run.json`` object."""
+        return {
+            "config": self.config_json(),
+            "episodes_sha256": self.episodes_sha256,
+            "version": self.version,
+            "git_commit": self.git_commit,
+            "git_dirty": self.git_dirty,
+        }
+
+    @staticmethod
+    def from_json(data: object, source: str | Path) -> RunInfo:
+        """A ``run.json`` read back, its settings rebuilt and checked; anything else is one :class:`InputError`
+        naming the field (``config.sim.max_steps``, ``episodes_sha256``)."""
+        if not isinstance(data, dict):
+            raise InputError(source, DOCUMENT, "a JSON object", type(data).__name__)
+        config = _object(data, "config", source)
+        world = _object(config, WORLD_KEY, source, "config.")
+        tree = {key: value for key, value in config.items() if key != WORLD_KEY}
+        try:
+            settings = settings_from_dict(tree)
+        except InputError as error:
+            raise InputError(source, f"config.{error.field}", error.expected, error.got) from None
+        return RunInfo(
+            settings,
+            world,
+            _text(data, "episodes_sha256", source),
+            _text(data, "version", source),
+            _optional_text(data, "git_commit", source),
+            _optional_flag(data, "git_dirty", source),
+        )
+
+    def check_resume(self, previous: JsonObject, source: str | Path) -> None:
+        """Refuse to resume a run started with other settings or episodes (``previous``: the directory's
+        ``run.json``). Its settings are rebuilt first (a hand-edited value is named as such); the trees are then
+        compared as written, so that a key one of them lacks (a ``run.json`` of another drivenav version) is a
+        difference rather than a default."""
+        RunInfo.from_json(previous, source)
+        key = first_difference(previous["config"], self.config_json())
+        if key is not None:
+            raise InputError(
+                source, f"config.{key}", "the settings this run directory was started with, to resume it", "others"
+            )
+        if previous["episodes_sha256"] != self.episodes_sha256:
+            raise InputError(source, "episodes", "the episodes this run directory was started with, to resume it")
+
+
+def _object(data: JsonObject, key: str, source: str | Path, prefix: str = "") -> JsonObject:
+    value = data.get(key)
+    if not isinstance(value, dict):
+        raise InputError(source, f"{prefix}{key}", "a JSON object as drivenav writes it", value)
+    return value
+
+
+def _text(data: JsonObject, key: str, source: str | Path) -> str:
+    value = data.get(key)
+    if not isinstance(value, str):
+        raise InputError(source, key, "a string as drivenav writes it", value)
+    return value
+
+
+def _optional_text(data: JsonObject, key: str, source: str | Path) -> str | None:
+    return None if data.get(key) is None else _text(data, key, source)
+
+
+def _optional_flag(data: JsonObject, key: str, source: str | Path) -> bool | None:
+    value = data.get(key)
+    if value is not None and not isinstance(value, bool):
+        raise InputError(source, key, "true, false or null", value)
+    return value

@@ -1,0 +1,49 @@
+"""The typed ablation report writes exactly the files it wrote as untyped JSON.
+
+``tests/data/ablations/`` holds ``ablations.json``, ``.md`` and ``.csv`` of a small ``bench ablations`` run (four
+methods, six episodes) as written before the report was typed, and ``variant.*``: the same report edited to take
+the other branches (no per-step timings, no pictures, a method without intervals or a median, no commit), with its
+markdown and CSV as the untyped code wrote them.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from drivenav.errors import InputError
+from drivenav.eval.ablation_data import AblationReport
+from drivenav.eval.ablation_report import format_markdown, write_csv
+
+DATA = Path(__file__).parent / "data" / "ablations"
+
+
+@pytest.mark.parametrize("name", ["ablations", "variant"])
+def test_the_report_round_trips_its_json_byte_for_byte(name: str) -> None:
+    text = (DATA / f"{name}.json").read_text(encoding="utf-8")
+    report = AblationReport.from_json(json.loads(text))
+    assert json.dumps(report.to_json(), indent=2) + "\n" == text  # what run_ablations writes
+
+
+@pytest.mark.parametrize("name", ["ablations", "variant"])
+def test_the_markdown_and_csv_are_those_written_before(name: str, tmp_path: Path) -> None:
+    report = AblationReport.from_json(json.loads((DATA / f"{name}.json").read_text(encoding="utf-8")))
+    assert format_markdown(report) == (DATA / f"{name}.md").read_text(encoding="utf-8")
+    write_csv(report, tmp_path / "out.csv")
+    assert (tmp_path / "out.csv").read_bytes() == (DATA / f"{name}.csv").read_bytes()
+
+
+def test_a_report_of_another_shape_is_one_input_error() -> None:
+    data = json.loads((DATA / "ablations.json").read_text(encoding="utf-8"))
+    del data["runtime"]
+    with pytest.raises(InputError, match=r"ablations\.json.*'runtime'"):
+        AblationReport.from_json(data)
+
+
+def test_a_report_without_pictures_reads_as_none_drawn() -> None:
+    data = json.loads((DATA / "variant.json").read_text(encoding="utf-8"))
+    del data["pictures"]
+    report = AblationReport.from_json(data)
+    assert not report.pictures.episodes and "None drawn" in format_markdown(report)

@@ -1,0 +1,69 @@
+"""The model registries (``--reasoner``, ``--detector``; room for another role) and the one list of reference
+agents: names and order as the command line shows them, what each backend needs, unknown names refused."""
+
+from __future__ import annotations
+
+import pytest
+
+from drivenav.agents import reference_agent
+from drivenav.errors import InputError
+from drivenav.methods import REFERENCE_AGENTS
+from drivenav.semantics.registry import (
+    DETECTORS,
+    GROUNDER_BACKENDS,
+    REASONERS,
+    Backend,
+    ModelRegistry,
+    ModelSpec,
+    check_models,
+    make_grounder,
+    make_reasoner,
+    model_requirements,
+)
+from drivenav.types import SEMANTIC
+
+
+def test_the_names_and_their_order_are_the_command_lines() -> None:
+    assert REASONERS == ("embedded", "openai", "replay", "geometric")
+    assert DETECTORS == ("embedded", "ground-truth", "sam3", "owlv2")
+
+
+def test_every_reference_agent_resolves_to_its_class() -> None:
+    for name in REFERENCE_AGENTS:
+        assert getattr(reference_agent(name), "name", None) == name
+
+
+def test_the_stand_ins_need_ground_truth_labels() -> None:
+    assert model_requirements(ModelSpec()) == frozenset({SEMANTIC})
+    assert model_requirements(ModelSpec(reasoner="geometric", detector="ground-truth")) == frozenset({SEMANTIC})
+    assert model_requirements(ModelSpec(reasoner="openai", detector="sam3")) == frozenset()
+    assert GROUNDER_BACKENDS.reads_labels("no-such-detector") is False
+
+
+def test_backends_are_built_by_name() -> None:
+    assert make_reasoner(ModelSpec(reasoner="geometric")).name == "geometric"
+    assert type(make_grounder(ModelSpec(detector="ground-truth"))).__name__ == "GroundTruthGrounder"
+
+
+@pytest.mark.parametrize(
+    ("spec", "option"), [(ModelSpec(reasoner="gpt"), "--reasoner"), (ModelSpec(detector="x"), "--detector")]
+)
+def test_an_unknown_name_is_one_line_naming_its_option(spec: ModelSpec, option: str) -> None:
+    with pytest.raises(InputError, match=f"field '{option}': expected one of "):
+        check_models(spec)
+
+
+def test_a_new_role_is_one_registry() -> None:
+    """A later role (a scorer, say) reuses :class:`ModelRegistry`: names in order, one build per name, checks."""
+    checked: list[str] = []
+    scorers: ModelRegistry[str] = ModelRegistry("--scorer")
+    scorers.add("length", Backend(lambda spec: f"length of {spec.vlm_model}", check=lambda spec: checked.append("x")))
+    scorers.add("clip", Backend(lambda spec: "clip", reads_labels=True))
+    assert scorers.names == ("length", "clip")
+    assert scorers.get("length").build(ModelSpec(vlm_model="m")) == "length of m"
+    scorers.get("length").check(ModelSpec())
+    assert checked == ["x"] and scorers.reads_labels("clip")
+    with pytest.raises(InputError, match="field '--scorer': expected one of length, clip, got 'nope'"):
+        scorers.get("nope")
+    with pytest.raises(ValueError, match="twice"):
+        scorers.add("clip", Backend(lambda spec: "again"))
