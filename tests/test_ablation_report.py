@@ -9,12 +9,13 @@ markdown and CSV as the untyped code wrote them.
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
 
 from drivenav.errors import InputError
-from drivenav.eval.ablation_data import AblationReport
+from drivenav.eval.ablation_data import AblationReport, SplitEntry
 from drivenav.eval.ablation_report import format_markdown, write_csv
 
 DATA = Path(__file__).parent / "data" / "ablations"
@@ -47,3 +48,20 @@ def test_a_report_without_pictures_reads_as_none_drawn() -> None:
     del data["pictures"]
     report = AblationReport.from_json(data)
     assert not report.pictures.episodes and "None drawn" in format_markdown(report)
+
+
+def test_the_per_split_section_is_written_only_for_episodes_with_splits() -> None:
+    report = AblationReport.from_json(json.loads((DATA / "ablations.json").read_text(encoding="utf-8")))
+    assert not report.splits and "splits" not in report.to_json() and "Per split" not in format_markdown(report)
+    seen = SplitEntry(4, 0, 0.5, 0.25, (0.15, 0.85), (0.0, 0.5))
+    unseen = SplitEntry(2, 1, 0.0, 0.0, (0.0, 0.79), (0.0, 0.0))
+    with_splits = replace(report, splits={"val_seen": {"drive-nav": seen}, "val_unseen": {"frontier": unseen}})
+    data = json.loads(json.dumps(with_splits.to_json()))
+    assert list(data)[-1] == "splits" and data["splits"]["val_seen"]["drive-nav"]["sr_ci95"] == [0.15, 0.85]
+    assert AblationReport.from_json(data) == with_splits
+    markdown = format_markdown(with_splits)
+    assert markdown.index("## Per split") < markdown.index("## Table VI")
+    assert "| method | val_seen SR | val_seen SPL | val_unseen SR | val_unseen SPL |" in markdown
+    assert "| `drive-nav` | 50.0 [15.0, 85.0] | 25.0 [0.0, 50.0] | - | - |" in markdown
+    assert "| `frontier` | - | - | 0.0 [0.0, 79.0] | 0.0 [0.0, 0.0] |" in markdown
+    assert "Episodes per split: val_seen (4), val_unseen (2)." in markdown

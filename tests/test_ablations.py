@@ -13,8 +13,8 @@ from drivenav.cli import main
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.embedded.rosmap import is_map_scene_dir
 from drivenav.eval.ablation_report import ordering_differences
-from drivenav.eval.ablations import method_entry
-from drivenav.eval.benchmark import BENCHMARK_V1, BenchmarkDefinition, generate_benchmark
+from drivenav.eval.ablations import method_entry, split_entries
+from drivenav.eval.benchmark import BENCHMARK_V1, BENCHMARK_V2, BenchmarkDefinition, generate_benchmark
 from drivenav.eval.episodes import save_episodes, validate_for_scenes
 from drivenav.eval.records import EpisodeRecord
 from drivenav.eval.stats import bootstrap_mean_interval, wilson_interval
@@ -89,6 +89,7 @@ def test_bench_ablations_writes_tables_and_resumes(tmp_path: Path) -> None:
     assert main(["bench", "ablations", *TINY, *MODELS, "--out", str(out)]) == 0
     report = json.loads((out / "ablations.json").read_text())
     assert {"methods", "table_ii", "runtime", "episodes", "seed", "commit"} <= set(report)
+    assert "splits" not in report  # v1's episodes have no vocabulary split
     assert list(report["methods"]) == ["drive-nav", "nearest-frontier"]
     assert report["episodes"] == 2 and report["seed"] == BENCHMARK_V1.seed
     for entry in report["methods"].values():
@@ -193,3 +194,38 @@ def test_a_methods_intervals_do_not_depend_on_the_order_its_records_finished_in(
     ]
     entries = [method_entry(order) for order in (records, records[::-1], records[1::2] + records[::2])]
     assert entries[0].spl_ci95 == entries[1].spl_ci95 == entries[2].spl_ci95
+
+
+def test_bench_ablations_runs_benchmark_v2_and_reports_each_split(tmp_path: Path) -> None:
+    out = tmp_path / "v2"
+    tiny = ["--episodes", "3", "--methods", "nearest-frontier", "--max-steps", "20", "--scenes", "procedural:1"]
+    assert main(["bench", "ablations", "--benchmark", "v2", *tiny, *MODELS, "--pictures", "0", "--out", str(out)]) == 0
+    report = json.loads((out / "ablations.json").read_text())
+    assert report["seed"] == BENCHMARK_V2.seed  # the benchmark's seed where --seed is not given
+    assert list(report["splits"]) == ["val_seen", "val_seen_synonyms", "val_unseen"]
+    for by_method in report["splits"].values():
+        assert list(by_method) == ["nearest-frontier"] and by_method["nearest-frontier"]["episodes"] == 1
+    markdown = (out / "ablations.md").read_text()
+    assert "## Per split" in markdown and "| method | val_seen SR | val_seen SPL |" in markdown
+    assert "Episodes per split: val_seen (1), val_seen_synonyms (1), val_unseen (1)." in markdown
+
+
+def test_bench_ablations_refuses_an_unknown_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as stopped:
+        main(["bench", "ablations", "--benchmark", "v0", "--out", str(tmp_path)])
+    assert stopped.value.code == 2 and "--benchmark" in capsys.readouterr().err
+
+
+def test_split_entries_are_each_methods_results_on_each_splits_episodes() -> None:
+    def record(k: int, success: bool, spl: float) -> EpisodeRecord:
+        return EpisodeRecord(str(k), "s", "chair", "drive-nav", 10, 0, "timeout", "", success=success, spl=spl)
+
+    runs = {"drive-nav": {str(k): record(k, k in (0, 1, 4), 0.5 if k in (0, 1, 4) else 0.0) for k in range(6)}}
+    splits = {"0": "val_unseen", "1": "val_seen", "2": "val_seen", "3": "val_unseen", "4": "val_seen", "5": "other"}
+    table = split_entries(runs, splits)
+    assert list(table) == ["val_seen", "val_unseen", "other"]  # HM3D-OVON's splits first
+    seen, unseen = table["val_seen"]["drive-nav"], table["val_unseen"]["drive-nav"]
+    assert seen.episodes == 3 and seen.success_rate == pytest.approx(2 / 3) and seen.spl == pytest.approx(1 / 3)
+    assert (unseen.episodes, unseen.success_rate, unseen.spl) == (2, 0.5, 0.25)
+    assert table["other"]["drive-nav"].success_rate == 0.0
+    assert split_entries(runs, {}) == {}

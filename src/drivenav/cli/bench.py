@@ -5,6 +5,7 @@ versioned embedded benchmark)."""
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
 from drivenav.cli.common import (
     Commands,
@@ -21,6 +22,10 @@ from drivenav.cli.common import (
 from drivenav.errors import InputError
 from drivenav.eval.options import episode_count, path, positive
 from drivenav.eval.worlds import chosen_world
+
+if TYPE_CHECKING:
+    from drivenav.episode import Episode
+    from drivenav.eval.benchmark import BenchmarkDefinition
 
 
 def add_bench(commands: Commands) -> None:
@@ -55,19 +60,22 @@ def add_bench(commands: Commands) -> None:
 
 
 def _add_bench_ablations(sub: Commands) -> None:
-    from drivenav.eval.benchmark import BENCHMARK_V1
+    from drivenav.eval.benchmark import BENCHMARKS
     from drivenav.methods import ALL_METHODS
 
     parser = sub.add_parser("ablations", help="the paper's Tables II, V, VI and VII on the embedded benchmark")
     parser.add_argument(
-        "--episodes",
-        default=str(BENCHMARK_V1.episodes),
-        help="a number (with the default --scenes and --seed: the first N of benchmark v1), or a file",
+        "--benchmark", default="v1", choices=sorted(BENCHMARKS), help="the benchmark version run (default: v1)"
     )
-    parser.add_argument("--seed", type=int, default=BENCHMARK_V1.seed)
+    parser.add_argument(
+        "--episodes",
+        default=None,
+        help="a number (with the benchmark's --scenes and --seed: its first N), or a file (default: the benchmark's)",
+    )
+    parser.add_argument("--seed", type=int, default=None, help="default: the benchmark's")
     parser.add_argument("--out", required=True, type=path, help="output directory (rerun to resume)")
     parser.add_argument("--methods", default=",".join(ALL_METHODS), help="comma-separated agent names")
-    parser.add_argument("--scenes", default=BENCHMARK_V1.scenes, help="a --scenes SPEC (default: benchmark v1's)")
+    parser.add_argument("--scenes", default=None, help="a --scenes SPEC (default: the benchmark's)")
     add_max_steps(parser)
     parser.add_argument("--pictures", type=int, default=2, help="episodes drawn for the report (0: none)")
     add_world_options(parser)
@@ -127,10 +135,9 @@ def _cmd_bench_robot(args: argparse.Namespace) -> int:
 
 
 def _cmd_bench_ablations(args: argparse.Namespace) -> int:
-    """``bench ablations``: every method on the same episodes (benchmark v1's frozen ones by default), then the
+    """``bench ablations``: every method on the same episodes (``--benchmark``'s frozen ones by default), then the
     report's tables; the pictures are drawn by the viz floor's picture-maker, passed in."""
     from drivenav.eval.ablations import parse_methods, run_ablations
-    from drivenav.eval.benchmark import BENCHMARK_V1, generate_benchmark
     from drivenav.eval.report import shown
     from drivenav.viz.run_pictures import render_pictures
 
@@ -138,19 +145,44 @@ def _cmd_bench_ablations(args: argparse.Namespace) -> int:
     pool = executor(args)
     if args.pictures < 0:
         raise InputError("command line", "--pictures", "a number of episodes >= 0", args.pictures)
-    v1_defaults = (args.scenes, args.seed) == (BENCHMARK_V1.scenes, BENCHMARK_V1.seed)
-    benchmark_v1 = v1_defaults and chosen_world(args).embedded_episodes
+    definition = _benchmark_options(args)
     specs = [run_spec(args, method) for method in methods]
-    if benchmark_v1 and str(args.episodes).isdigit():  # v1's frozen episodes, not today's generator's
-        run_episodes = generate_benchmark(BENCHMARK_V1, positive(int(args.episodes), "--episodes"))
-    else:
-        run_episodes = episodes(args, specs[0])
-    report = run_ablations(run_episodes, specs, args.out, pool, args.pictures, render_pictures)
+    run_episodes = _benchmark_episodes(args, definition) if chosen_world(args).embedded_episodes else None
+    report = run_ablations(
+        run_episodes or episodes(args, specs[0]), specs, args.out, pool, args.pictures, render_pictures
+    )
     for name, entry in report.methods.items():
         sr, spl = (shown(value, "{:5.1f} %", 100.0) for value in (entry.success_rate, entry.spl))
         print(f"{name:<20} SR {sr}  SPL {spl}  errors {entry.errors}")
     print(f"tables: {args.out / 'ablations.md'}  data: {args.out / 'ablations.json'}, {args.out / 'ablations.csv'}")
     return 0
+
+
+def _benchmark_options(args: argparse.Namespace) -> BenchmarkDefinition:
+    """``--benchmark``'s definition; ``--episodes``, ``--seed`` and ``--scenes`` not given take its values."""
+    from drivenav.eval.benchmark import BENCHMARKS
+
+    definition = BENCHMARKS[args.benchmark]
+    args.episodes = str(definition.episodes) if args.episodes is None else args.episodes
+    args.seed = definition.seed if args.seed is None else args.seed
+    args.scenes = definition.scenes if args.scenes is None else args.scenes
+    return definition
+
+
+def _benchmark_episodes(args: argparse.Namespace, definition: BenchmarkDefinition) -> list[Episode] | None:
+    """A number of episodes: the benchmark's first N (its frozen ones) with its own scenes and seed, else its
+    generator's on the scenes and seed given; v1's generator on other scenes is the world's own (None: the
+    world generates them). A file: None (the world reads it)."""
+    from drivenav.eval.benchmark import BenchmarkDefinition, generate_benchmark
+
+    if not str(args.episodes).isdigit():
+        return None
+    count = positive(int(args.episodes), "--episodes")
+    if (args.scenes, args.seed) == (definition.scenes, definition.seed):
+        return generate_benchmark(definition, count)
+    if definition.generator == "uniform":
+        return None
+    return generate_benchmark(BenchmarkDefinition(args.scenes, count, args.seed, generator=definition.generator))
 
 
 def _cmd_benchmark_generate(args: argparse.Namespace) -> int:

@@ -1,5 +1,6 @@
-"""Episode files: ``episodes generate`` (HM3D-OVON-style episodes over embedded scenes) and ``episodes export``
-(an episodes file in a Habitat dataset layout)."""
+"""Episode files: ``episodes generate`` (HM3D-OVON-style episodes over embedded scenes), ``episodes export``
+(an episodes file in a Habitat dataset layout) and ``episodes stats`` (the world and episode statistics of
+docs/world-vs-hm3d.md)."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from drivenav.eval.options import episode_count, path, seed
 
 def add_episodes(commands: Commands) -> None:
     from drivenav.envs.habitat.benchmarks import LAYOUTS
+    from drivenav.eval.benchmark import BENCHMARKS
 
     parser = commands.add_parser("episodes", help="episode files")
     sub = parser.add_subparsers(dest="episodes_command", required=True)
@@ -27,6 +29,20 @@ def add_episodes(commands: Commands) -> None:
     export.add_argument("--split", default="val", help="the split's name (default val)")
     export.add_argument("--out", required=True, type=path, help="the dataset folder: writes OUT/SPLIT/SPLIT.json.gz")
     export.set_defaults(handler=_cmd_episodes_export)
+    stats = sub.add_parser("stats", help="doors, loops, rooms and area of the scenes; distances of the episodes")
+    benchmarks = ", ".join(BENCHMARKS)
+    stats.add_argument("episodes", metavar="EPISODES", help=f"an episodes file, or a benchmark name ({benchmarks})")
+    stats.add_argument(
+        "--scenes",
+        help=f"a --scenes SPEC with the episodes' scenes (default: the benchmark's, else {_STATS_SCENES})",
+    )
+    stats.add_argument("--json", action="store_true", help="print the figures as one JSON object")
+    stats.set_defaults(handler=_cmd_episodes_stats)
+
+
+_STATS_SCENES = "procedural,homes,maps"
+"""Where ``episodes stats`` loads an episodes file's scenes from by default: procedural houses and homes (any of
+them, by id) and the packaged floor plans."""
 
 
 def _cmd_episodes_generate(args: argparse.Namespace) -> int:
@@ -54,4 +70,29 @@ def _cmd_episodes_export(args: argparse.Namespace) -> int:
         raise InputError("command line", "--split", "a split name such as val", split)
     written = write_split(episodes, args.out / split / f"{split}.json.gz", args.format)
     print(f"wrote {len(episodes)} episodes as {args.format} to {written[0]} and {len(written) - 1} content files")
+    return 0
+
+
+def _cmd_episodes_stats(args: argparse.Namespace) -> int:
+    import json
+    from pathlib import Path
+
+    from drivenav.envs.embedded.library import SceneLibrary
+    from drivenav.eval.benchmark import BENCHMARKS, generate_benchmark
+    from drivenav.eval.episodes import load_episodes
+    from drivenav.eval.world_stats import measure
+    from drivenav.eval.world_stats_table import format_world_stats
+
+    name = str(args.episodes)
+    benchmark = BENCHMARKS.get(name) if not Path(name).exists() else None
+    if benchmark is not None:
+        episodes, scenes = generate_benchmark(benchmark), args.scenes or benchmark.scenes
+        library = SceneLibrary(scenes, benchmark.seed)
+    else:
+        if not Path(name).is_file():
+            expected = f"an episodes file or a benchmark name ({', '.join(BENCHMARKS)})"
+            raise InputError("command line", "EPISODES", expected, name)
+        episodes, library = load_episodes(name), SceneLibrary(args.scenes or _STATS_SCENES)
+    stats = measure(episodes, library, source=name)
+    print(json.dumps(stats.to_json(), indent=1) if args.json else format_world_stats(stats))
     return 0

@@ -33,7 +33,9 @@ def add_eval(commands: Commands) -> None:
 
     parser = commands.add_parser("eval", help="run an agent on episodes and write metrics")
     parser.add_argument("--agent", required=True, help=f"agent name ({', '.join(agent_names())})")
-    parser.add_argument("--scenes", default="procedural", help="procedural[:K], a scene dir, or a folder of them")
+    parser.add_argument(
+        "--scenes", default="procedural", help="procedural[:K], homes[:K], maps, a scene dir, or a folder of them"
+    )
     parser.add_argument(
         "--episodes",
         required=True,

@@ -123,6 +123,30 @@ class Vocabulary:
         return self.spec(category).synonyms
 
 
+SEEN_MIN_PRIOR = 3.0
+"""A category with at least this weight in some room type counts as common (see :func:`vocabulary_split`)."""
+
+
+@dataclass(frozen=True)
+class VocabularySplit:
+    """The categories split like HM3D-OVON's validation sets (Yokoyama et al., HM3D-OVON, arXiv 2409.14296):
+    ``seen`` (val_seen names them, val_seen_synonyms names them by a synonym) and ``unseen`` (val_unseen: kept
+    out of the seen set). Both in file order; together every category once."""
+
+    seen: tuple[str, ...]
+    unseen: tuple[str, ...]
+
+
+def vocabulary_split(vocab: Vocabulary, seen_min_prior: float = SEEN_MIN_PRIOR) -> VocabularySplit:
+    """Seen: the common categories, an anchor of some room type (placed in every room of that type) or weighted
+    at least ``seen_min_prior`` in some room type, as HM3D-OVON's seen (training) categories are the frequent ones;
+    unseen: every other category. Decided by the vocabulary file alone, so the same file gives the same split."""
+    anchors = {name for names in vocab.anchors.values() for name in names}
+    common = {spec.name for spec in vocab.specs if max((w for _, w in spec.priors), default=0.0) >= seen_min_prior}
+    seen = tuple(name for name in vocab.categories() if name in anchors | common)
+    return VocabularySplit(seen, tuple(name for name in vocab.categories() if name not in seen))
+
+
 def normalize_term(name: str) -> str:
     """Lower case with spaces, hyphens and underscores removed: the key synonyms are matched on."""
     return "".join(name.lower().replace("-", " ").replace("_", " ").split())

@@ -66,6 +66,38 @@ class MethodEntry:
 
 
 @dataclass(frozen=True)
+class SplitEntry:
+    """One method on the episodes of one vocabulary split (HM3D-OVON reports SR and SPL per split): episodes,
+    errors, SR and SPL with their 95 % intervals, as in :class:`MethodEntry`."""
+
+    episodes: int
+    errors: int
+    success_rate: float | None
+    spl: float | None
+    sr_ci95: Interval | None
+    spl_ci95: Interval | None
+
+    @staticmethod
+    def of(entry: MethodEntry) -> SplitEntry:
+        """The split's columns of a :class:`MethodEntry` computed over the split's records."""
+        return SplitEntry(entry.episodes, entry.errors, entry.success_rate, entry.spl, entry.sr_ci95, entry.spl_ci95)
+
+    def to_json(self) -> JsonObject:
+        data = asdict(self)
+        data.update(sr_ci95=_interval_json(self.sr_ci95), spl_ci95=_interval_json(self.spl_ci95))
+        return data
+
+    @staticmethod
+    def from_json(data: JsonObject) -> SplitEntry:
+        values = {**data, "sr_ci95": _interval(data["sr_ci95"]), "spl_ci95": _interval(data["spl_ci95"])}
+        return SplitEntry(**values)
+
+
+Splits = dict[str, dict[str, SplitEntry]]
+"""Per split (``val_seen``, ...), per method, its :class:`SplitEntry`."""
+
+
+@dataclass(frozen=True)
 class ModelCalls:
     """One kind of model call over the runs: how many, how many per episode of the runs that make it, mean
     latency."""
@@ -185,7 +217,9 @@ class ReportModels:
 
 @dataclass(frozen=True)
 class AblationReport:
-    """``ablations.json``: every method's entry, the Table II comparison, Table VII, and what the runs were."""
+    """``ablations.json``: every method's entry, the Table II comparison, Table VII, and what the runs were; with
+    episodes of vocabulary splits (``info["split"]``, benchmark v2), each method per split under ``splits`` (a key
+    the file has only then)."""
 
     methods: dict[str, MethodEntry]
     table_ii: Comparison
@@ -197,10 +231,11 @@ class AblationReport:
     models: ReportModels
     commit: str | None
     pictures: Pictures = field(default_factory=Pictures)
+    splits: Splits = field(default_factory=dict)
 
     def to_json(self) -> JsonObject:
         """The ``ablations.json`` object."""
-        return {
+        data: JsonObject = {
             "methods": {name: entry.to_json() for name, entry in self.methods.items()},
             "table_ii": self.table_ii.to_json(),
             "runtime": self.runtime.to_json(),
@@ -212,6 +247,9 @@ class AblationReport:
             "commit": self.commit,
             "pictures": self.pictures.to_json(),
         }
+        if self.splits:
+            data["splits"] = {name: {m: e.to_json() for m, e in by.items()} for name, by in self.splits.items()}
+        return data
 
     @staticmethod
     def from_json(data: JsonObject, source: str | Path = "ablations.json") -> AblationReport:
@@ -228,6 +266,7 @@ class AblationReport:
                 ReportModels(**data["models"]),
                 data["commit"],
                 Pictures.from_json(data.get("pictures")),
+                {name: _each(by_method, SplitEntry.from_json) for name, by_method in data.get("splits", {}).items()},
             )
         except (KeyError, TypeError, AttributeError, IndexError) as error:
             expected = "an ablations.json written by 'drivenav bench ablations'"

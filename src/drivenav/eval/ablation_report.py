@@ -8,7 +8,16 @@ from collections.abc import Mapping, Sequence
 from itertools import pairwise
 from pathlib import Path
 
-from drivenav.eval.ablation_data import AblationReport, ComputeTable, Interval, MethodEntry, Pictures, Runtime
+from drivenav.eval.ablation_data import (
+    AblationReport,
+    ComputeTable,
+    Interval,
+    MethodEntry,
+    Pictures,
+    Runtime,
+    SplitEntry,
+    Splits,
+)
 from drivenav.eval.compare import Comparison
 from drivenav.eval.paper_tables import (
     TABLE_II,
@@ -59,6 +68,7 @@ def format_markdown(report: AblationReport) -> str:
     """``ablations.md``: the paper's tables with our numbers beside the paper's, failures, ordering differences."""
     sections = [
         _header(report),
+        *([_splits(report.splits)] if report.splits else []),
         _table_vi(report.methods),
         _table_v(report.methods),
         _table_ii(report.table_ii),
@@ -85,6 +95,37 @@ def _header(report: AblationReport) -> list[str]:
         f"(Wilson score for SR, percentile bootstrap of the mean with {BOOTSTRAP_RESAMPLES} resamples for SPL). "
         "Paper values: HM3D-OVON (DRIVE-Nav, Tables II, V, VI, VII).",
     ]
+
+
+def _splits(splits: Splits) -> list[str]:
+    """SR and SPL of each method per vocabulary split, as HM3D-OVON reports its validation splits."""
+    names = list(splits)
+    methods = list(dict.fromkeys(method for by_method in splits.values() for method in by_method))
+    lines = [
+        "## Per split",
+        "",
+        "Each method on the episodes of each vocabulary split (HM3D-OVON's val_seen: common categories by name; "
+        "val_seen_synonyms: the same categories by a synonym; val_unseen: the other categories by name). "
+        "SR % and SPL % with 95 % intervals.",
+        "",
+        "| method | " + " | ".join(f"{name} SR | {name} SPL" for name in names) + " |",
+        "|---|" + "---|---|" * len(names),
+    ]
+    for method in methods:
+        cells = [_split_cells(splits[name].get(method)) for name in names]
+        lines.append(f"| `{method}` | " + " | ".join(cells) + " |")
+    counts = ", ".join(f"{name} ({_split_size(splits[name])})" for name in names)
+    return [*lines, "", f"Episodes per split: {counts}."]
+
+
+def _split_cells(entry: SplitEntry | None) -> str:
+    if entry is None:
+        return "- | -"
+    return f"{_pct(entry.success_rate, entry.sr_ci95)} | {_pct(entry.spl, entry.spl_ci95)}"
+
+
+def _split_size(by_method: dict[str, SplitEntry]) -> int:
+    return max(entry.episodes for entry in by_method.values())
 
 
 def _pictures(pictures: Pictures) -> list[str]:

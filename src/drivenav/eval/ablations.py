@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import json
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Protocol
@@ -29,11 +29,14 @@ from drivenav.eval.ablation_data import (
     Pictures,
     ReportModels,
     Runtime,
+    SplitEntry,
+    Splits,
 )
 from drivenav.eval.ablation_report import format_markdown, write_csv
 from drivenav.eval.compare import RunRecords, compare_runs, load_runs
 from drivenav.eval.episodes import load_episodes, save_episodes
 from drivenav.eval.executor import Executor
+from drivenav.eval.ovon_episodes import SPLITS, episode_splits
 from drivenav.eval.paper_tables import TABLE_II_METHODS
 from drivenav.eval.provenance import git_commit
 from drivenav.eval.records import ERROR, MISSED_CAUSES, EpisodeRecord, missed_cause
@@ -204,8 +207,26 @@ def _read_trace(path: Path) -> EpisodeTrace | None:
         return None  # a missing, torn or malformed trace only leaves its steps out of the timings
 
 
-def build_report(dirs: dict[str, Path], runs: RunRecords, first: RunSpec, episodes: int) -> AblationReport:
-    """The ``ablations.json`` report for the finished runs in ``dirs`` (their records: ``runs``), without pictures."""
+def split_entries(runs: RunRecords, splits: Mapping[str, str]) -> Splits:
+    """Per split (HM3D-OVON's first, then any other by name), each method over its records of the split's
+    episodes (``splits``: episode id -> split); splits without a record are left out."""
+    order = sorted(set(splits.values()), key=lambda name: (SPLITS.index(name) if name in SPLITS else len(SPLITS), name))
+    table: Splits = {}
+    for split in order:
+        by_method = {
+            name: [r for r in records.values() if splits.get(r.episode_id) == split] for name, records in runs.items()
+        }
+        entries = {name: SplitEntry.of(method_entry(found)) for name, found in by_method.items() if found}
+        if entries:
+            table[split] = entries
+    return table
+
+
+def build_report(
+    dirs: dict[str, Path], runs: RunRecords, first: RunSpec, episodes: int, splits: Mapping[str, str] | None = None
+) -> AblationReport:
+    """The ``ablations.json`` report for the finished runs in ``dirs`` (their records: ``runs``), without pictures;
+    with ``splits`` (episode id -> vocabulary split), each method per split too."""
     table_ii_methods = [name for name in TABLE_II_METHODS if name in dirs]
     scenes = world_json(first.env).get("scenes")
     return AblationReport(
@@ -218,6 +239,7 @@ def build_report(dirs: dict[str, Path], runs: RunRecords, first: RunSpec, episod
         max_steps=first.max_steps,
         models=ReportModels(first.settings.models.reasoner, first.settings.models.detector),
         commit=git_commit(),
+        splits=split_entries(runs, splits or {}),
     )
 
 
@@ -230,10 +252,11 @@ def run_ablations(
     draw: PictureMaker | None = None,
 ) -> AblationReport:
     """Run (or resume) every method, then write ``ablations.json``, ``.md`` and ``.csv`` into ``out``; with
-    ``draw``, the pictures of ``pictures`` episodes for the Table II methods (else the first methods) too."""
+    ``draw``, the pictures of ``pictures`` episodes for the Table II methods (else the first methods) too; episodes
+    of vocabulary splits (``info["split"]``) give each method's results per split too."""
     dirs = run_methods(episodes, specs, out, executor)
     runs = load_runs(dirs)
-    report = build_report(dirs, runs, specs[0], len(episodes))
+    report = build_report(dirs, runs, specs[0], len(episodes), episode_splits(episodes))
     if draw is not None:
         table_ii_first = sorted(dirs, key=lambda name: name not in TABLE_II_METHODS)
         order = [e.episode_id for e in episodes]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from importlib import resources
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal
 
 if TYPE_CHECKING:  # the definitions load without numpy (the command line reads them for its defaults)
     from drivenav.episode import Episode
@@ -12,14 +12,17 @@ if TYPE_CHECKING:  # the definitions load without numpy (the command line reads 
 
 @dataclass(frozen=True)
 class BenchmarkDefinition:
-    """A fixed episode set: a ``--scenes`` SPEC, an episode count and a seed; once
-    published, its episodes are frozen as a file shipped with drivenav (``frozen``, under ``drivenav/data``), so
-    that no later change to the generator changes them."""
+    """A fixed episode set: a ``--scenes`` SPEC, an episode count, a seed and the generator (``uniform``:
+    :func:`drivenav.eval.episodes.generate_episodes`; ``ovon``: HM3D-OVON's filters and splits,
+    :func:`drivenav.eval.ovon_episodes.generate_ovon_episodes`); once published, its episodes are frozen as a file
+    shipped with drivenav (``frozen``, under ``drivenav/data``), so that no later change to the generator changes
+    them."""
 
     scenes: str
     episodes: int
     seed: int
     frozen: str | None = None
+    generator: Literal["uniform", "ovon"] = "uniform"
 
 
 BENCHMARK_V1 = BenchmarkDefinition(scenes="procedural:40,maps", episodes=200, seed=2026, frozen="benchmarks/v1.json.gz")
@@ -27,7 +30,16 @@ BENCHMARK_V1 = BenchmarkDefinition(scenes="procedural:40,maps", episodes=200, se
 as generated at its publication (sha256 3de8fb63...4955d8). Never change a published version; add a new one.
 """
 
-BENCHMARKS: dict[str, BenchmarkDefinition] = {"v1": BENCHMARK_V1}
+BENCHMARK_V2 = BenchmarkDefinition(
+    scenes="homes:50", episodes=300, seed=2027, frozen="benchmarks/v2.json.gz", generator="ovon"
+)
+"""v2: 300 episodes filtered like HM3D-OVON's (geodesic / Euclidean >= 1.05, near-straight ones thinned out, a
+start with room to turn), 100 in each of its splits val_seen / val_seen_synonyms / val_unseen (episode ``i`` in
+the ``i % 3``-th), over 50 homes (open-plan living areas, halls with several doors, loops through rooms), as
+generated at its publication (sha256 8c08b1f3...4e6d9a).
+"""
+
+BENCHMARKS: dict[str, BenchmarkDefinition] = {"v1": BENCHMARK_V1, "v2": BENCHMARK_V2}
 
 
 def generate_benchmark(definition: BenchmarkDefinition, episodes: int | None = None) -> list[Episode]:
@@ -35,6 +47,7 @@ def generate_benchmark(definition: BenchmarkDefinition, episodes: int | None = N
     generated (generation is sequential, so a prefix is the same episodes)."""
     from drivenav.envs.embedded.library import SceneLibrary
     from drivenav.eval.episodes import generate_episodes, load_episodes
+    from drivenav.eval.ovon_episodes import generate_ovon_episodes
     from drivenav.types import SimConfig
 
     count = episodes or definition.episodes
@@ -42,4 +55,5 @@ def generate_benchmark(definition: BenchmarkDefinition, episodes: int | None = N
         with resources.as_file(resources.files("drivenav").joinpath(f"data/{definition.frozen}")) as path:
             return load_episodes(path)[:count]
     library = SceneLibrary(definition.scenes, definition.seed)
-    return generate_episodes(library, count, definition.seed, SimConfig())
+    generate = generate_ovon_episodes if definition.generator == "ovon" else generate_episodes
+    return generate(library, count, definition.seed, SimConfig())

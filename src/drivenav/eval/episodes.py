@@ -72,7 +72,7 @@ def _scene_source(scene: Scene) -> str:
     return scene.source if scene.source != "procedural" else f"procedural house {scene.scene_id}"
 
 
-def _objects_source(scene: Scene) -> str:
+def objects_source(scene: Scene) -> str:
     """What errors about a scene's objects name: the map's objects.json where it has one, else the scene."""
     objects = Path(scene.source).with_name(OBJECTS_FILE)
     return str(objects) if scene.source != "procedural" and objects.is_file() else _scene_source(scene)
@@ -96,7 +96,7 @@ def scene_goals(scene: Scene, sim: SimConfig) -> SceneGoals:
     if not goals:
         expected = "objects seen from where the agent can go (objects.json, or free space to place them in)"
         got = f"{len(scene.objects)} objects, none reachable"
-        raise InputError(_objects_source(scene), "objects", expected, got)
+        raise InputError(objects_source(scene), "objects", expected, got)
     return SceneGoals(scene, reachable, goals)
 
 
@@ -109,17 +109,29 @@ def _synonyms(category: str) -> tuple[str, ...]:
         return ()
 
 
+def start_cells(goals: SceneGoals, category: str, allowed: NDArray[np.bool_] | None = None) -> NDArray[np.int64]:
+    """The ``(row, col)`` cells, in row-major order, that are reachable (and ``allowed``, if given) and lie
+    1-30 m by geodesic distance from the category's nearest view point (HM3D-OVON's start distance limits)."""
+    distances = goals.field_for(category).distances
+    mask = goals.reachable & (distances >= MIN_GEODESIC) & (distances <= MAX_GEODESIC)
+    cells: NDArray[np.int64] = np.argwhere(mask if allowed is None else mask & allowed)
+    return cells
+
+
+def cell_start(goals: SceneGoals, category: str, cell: NDArray[np.int64]) -> tuple[tuple[float, float], float]:
+    """A start at ``cell``'s centre: its world point and its geodesic distance to the category's view points."""
+    x, y = goals.scene.grid.cell_to_world(cell)
+    return (float(x), float(y)), float(goals.field_for(category).distances[cell[0], cell[1]])
+
+
 def _sample_start(
     goals: SceneGoals, category: str, rng: np.random.Generator
 ) -> tuple[tuple[float, float], float] | None:
     """A reachable start cell whose geodesic distance to the category lies in the allowed range."""
-    distances = goals.field_for(category).distances
-    candidates = np.argwhere(goals.reachable & (distances >= MIN_GEODESIC) & (distances <= MAX_GEODESIC))
+    candidates = start_cells(goals, category)
     if len(candidates) == 0:
         return None
-    cell = candidates[rng.integers(len(candidates))]
-    x, y = goals.scene.grid.cell_to_world(cell)
-    return (float(x), float(y)), float(distances[cell[0], cell[1]])
+    return cell_start(goals, category, candidates[rng.integers(len(candidates))])
 
 
 def generate_episodes(library: SceneLibrary, num: int, seed: int, sim: SimConfig | None = None) -> list[Episode]:
@@ -141,7 +153,7 @@ def generate_episodes(library: SceneLibrary, num: int, seed: int, sim: SimConfig
         episode = _make_episode(str(len(episodes)), scene_id, contexts[scene_id], used, rng)
         if episode is None:
             expected = f"a start {MIN_GEODESIC:g}-{MAX_GEODESIC:g} m by geodesic distance from one of its objects"
-            raise InputError(_objects_source(contexts[scene_id].scene), "objects", expected, "none")
+            raise InputError(objects_source(contexts[scene_id].scene), "objects", expected, "none")
         episodes.append(episode)
         used[episode.info["canonical_category"]] += 1
         turn += 1
@@ -151,31 +163,58 @@ def generate_episodes(library: SceneLibrary, num: int, seed: int, sim: SimConfig
 def _make_episode(
     episode_id: str, scene_id: str, goals: SceneGoals, used: Counter[str], rng: np.random.Generator
 ) -> Episode | None:
-    present = sorted(goals.goals)
-    shuffled = [present[i] for i in rng.permutation(len(present))]
-    categories = sorted(shuffled, key=lambda c: used[c])  # least-used first, random among ties
-    for category in categories:
+    for category in least_used_first(goals.goals, used, rng):
         start = _sample_start(goals, category, rng)
         if start is None:
             continue
-        (x, y), geodesic = start
         names = _synonyms(category)
         synonym = bool(names) and rng.random() < SYNONYM_SHARE
         text = str(names[rng.integers(len(names))]) if synonym else category
-        return Episode(
-            episode_id=episode_id,
-            scene_id=scene_id,
-            start_position=world_to_habitat(round(x, 4), round(y, 4)),
-            start_rotation=yaw_to_quaternion(float(rng.uniform(0.0, 2.0 * math.pi))),
-            object_category=text,
-            goals=tuple(goals.goals[category]),
-            info={
-                "geodesic_distance": round(geodesic, 4),
-                "canonical_category": category,
-                "synonym": synonym,
-            },
-        )
+        return build_episode(EpisodeDraft(episode_id, scene_id, category, start, text, synonym), goals, rng)
     return None
+
+
+def least_used_first(categories: Iterable[str], used: Counter[str], rng: np.random.Generator) -> list[str]:
+    """``categories`` in name order, shuffled by one permutation draw, then stably sorted by how often ``used``
+    has them: the least-used first, in random order among ties (the spread over categories of every generator)."""
+    present = sorted(categories)
+    shuffled = [present[i] for i in rng.permutation(len(present))]
+    return sorted(shuffled, key=lambda c: used[c])
+
+
+@dataclass(frozen=True)
+class EpisodeDraft:
+    """What a generator chose for an episode: its id and scene, the canonical category, the start (world point,
+    geodesic distance to the nearest view point), the text the agent is given and whether it is a synonym, and
+    further ``info`` keys (after the three every episode has)."""
+
+    episode_id: str
+    scene_id: str
+    category: str
+    start: tuple[tuple[float, float], float]
+    text: str
+    synonym: bool
+    extra: tuple[tuple[str, str], ...] = ()
+
+
+def build_episode(draft: EpisodeDraft, goals: SceneGoals, rng: np.random.Generator) -> Episode:
+    """The episode of ``draft`` with every goal of its category, its start rounded to 0.1 mm and a heading drawn
+    uniformly in [0, 2 pi) from ``rng`` (HM3D-OVON's generator draws its start angle the same way)."""
+    (x, y), geodesic = draft.start
+    info: JsonObject = {
+        "geodesic_distance": round(geodesic, 4),
+        "canonical_category": draft.category,
+        "synonym": draft.synonym,
+    }
+    return Episode(
+        episode_id=draft.episode_id,
+        scene_id=draft.scene_id,
+        start_position=world_to_habitat(round(x, 4), round(y, 4)),
+        start_rotation=yaw_to_quaternion(float(rng.uniform(0.0, 2.0 * math.pi))),
+        object_category=draft.text,
+        goals=tuple(goals.goals[draft.category]),
+        info=info | dict(draft.extra),
+    )
 
 
 def episode_to_dict(episode: Episode) -> JsonObject:

@@ -1,11 +1,13 @@
 """Scene sets named on the command line (``--scenes SPEC``) and loading scenes by id.
 
 SPEC is one part or several joined by commas (``procedural:40,maps``). A part is ``procedural`` (procedural
-houses; ``procedural:K`` picks K houses for episode generation), ``maps`` (the nine real floor plans shipped with
+houses; ``procedural:K`` picks K houses for episode generation), ``homes`` (HM3D-like one-floor homes of
+:mod:`drivenav.envs.embedded.homes`; ``homes:K`` picks K), ``maps`` (the nine real floor plans shipped with
 drivenav, :func:`drivenav.envs.embedded.rosmap.packaged_maps_dir`), a scene directory (a ROS map YAML plus optional
-objects.json), or a folder of scene directories (a folder of your own named ``maps`` is ``./maps``). Procedural scene
-ids (``procedural/house_00042``) carry their seed, so any of them can be rebuilt from the id alone; a map scene's id
-is its directory name (the packaged plans' too: ``uos_avz``).
+objects.json), or a folder of scene directories (a folder of your own named ``maps`` is ``./maps``). Generated
+scene ids (``procedural/house_00042``, ``homes/home_00042``) carry their seed, so any of them can be rebuilt from
+the id alone; both parts use seeds ``1000 * S + k`` for ``--seed S`` and K scenes (8 when K is not given). A map
+scene's id is its directory name (the packaged plans' too: ``uos_avz``).
 """
 
 from __future__ import annotations
@@ -18,7 +20,9 @@ from drivenav.envs.embedded.scene import Scene
 from drivenav.errors import InputError
 
 PROCEDURAL_ID = re.compile(r"^procedural/house_(\d+)$")
+HOMES_ID = re.compile(r"^homes/home_(\d+)$")
 DEFAULT_PROCEDURAL_HOUSES = 8
+DEFAULT_HOMES = 8  # homes in the part ``homes`` without ``:K``
 PACKAGED_MAPS_PART = "maps"  # the SPEC part naming the floor plans shipped with drivenav
 
 
@@ -26,11 +30,22 @@ def procedural_scene_id(seed: int) -> str:
     return f"procedural/house_{seed:05d}"
 
 
+def home_scene_id(seed: int) -> str:
+    return f"homes/home_{seed:05d}"
+
+
 @lru_cache(maxsize=8)
 def _load_procedural(seed: int) -> Scene:
     from drivenav.envs.embedded.procedural import generate_house
 
     return generate_house(seed)
+
+
+@lru_cache(maxsize=8)
+def _load_home(seed: int) -> Scene:
+    from drivenav.envs.embedded.homes import generate_home
+
+    return generate_home(seed)
 
 
 @lru_cache(maxsize=8)
@@ -47,6 +62,7 @@ class SceneLibrary:
         self.spec = spec
         self._maps: dict[str, Path] = {}
         self._procedural = False
+        self._homes = False
         self._order: list[str] = []
         for part in spec.split(","):
             self._add_part(part.strip(), seed)
@@ -56,7 +72,10 @@ class SceneLibrary:
             raise InputError("command line", "--scenes", "comma-separated parts, none empty", self.spec)
         if part == "procedural" or part.startswith("procedural:"):
             self._procedural = True
-            ids = [procedural_scene_id(seed * 1000 + k) for k in range(_parse_house_count(part))]
+            ids = [procedural_scene_id(seed * 1000 + k) for k in range(_parse_count(part, DEFAULT_PROCEDURAL_HOUSES))]
+        elif part == "homes" or part.startswith("homes:"):
+            self._homes = True
+            ids = [home_scene_id(seed * 1000 + k) for k in range(_parse_count(part, DEFAULT_HOMES))]
         else:
             maps = _find_map_dirs(part)
             for scene_id, path in maps.items():
@@ -71,7 +90,11 @@ class SceneLibrary:
         return list(self._order)
 
     def __contains__(self, scene_id: str) -> bool:
-        return scene_id in self._maps or (self._procedural and PROCEDURAL_ID.match(scene_id) is not None)
+        return (
+            scene_id in self._maps
+            or (self._procedural and PROCEDURAL_ID.match(scene_id) is not None)
+            or (self._homes and HOMES_ID.match(scene_id) is not None)
+        )
 
     def load(self, scene_id: str) -> Scene:
         """The scene with this id (cached per process)."""
@@ -80,15 +103,19 @@ class SceneLibrary:
         match = PROCEDURAL_ID.match(scene_id)
         if match is not None and self._procedural:
             return _load_procedural(int(match.group(1)))
+        match = HOMES_ID.match(scene_id)
+        if match is not None and self._homes:
+            return _load_home(int(match.group(1)))
         raise KeyError(scene_id)
 
 
-def _parse_house_count(part: str) -> int:
-    if part == "procedural":
-        return DEFAULT_PROCEDURAL_HOUSES
-    text = part.split(":", 1)[1]
+def _parse_count(part: str, default: int) -> int:
+    """K of a generated part (``procedural:K``, ``homes:K``), ``default`` for the bare name."""
+    name, sep, text = part.partition(":")
+    if not sep:
+        return default
     if not text.isdigit() or int(text) < 1:
-        raise InputError("command line", "--scenes", "'procedural' or 'procedural:K' with K >= 1", part)
+        raise InputError("command line", "--scenes", f"'{name}' or '{name}:K' with K >= 1", part)
     return int(text)
 
 
@@ -99,7 +126,7 @@ def _find_map_dirs(part: str) -> dict[str, Path]:
     path = packaged_maps_dir() if part == PACKAGED_MAPS_PART else Path(part)
     if not path.exists():
         raise InputError(
-            path, "--scenes", "'procedural', 'maps', a scene directory, or a folder of scene directories", part
+            path, "--scenes", "'procedural', 'homes', 'maps', a scene directory, or a folder of scene directories", part
         )
     path = path.resolve()
     if path.is_file() or is_map_scene_dir(path) or any(path.glob("*.yaml")):

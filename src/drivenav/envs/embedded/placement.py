@@ -17,6 +17,7 @@ removes are computed exactly (a disk of the agent radius around its footprint, a
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -58,17 +59,28 @@ class _Region:
     placed: list[ObjectInstance] = field(default_factory=list)
 
 
-def place_objects(scene: Scene, rng: np.random.Generator, density: float = 1.0) -> list[ObjectInstance]:
+def place_objects(
+    scene: Scene,
+    rng: np.random.Generator,
+    density: float = 1.0,
+    free_standing: Mapping[str, tuple[str, ...]] | None = None,
+) -> list[ObjectInstance]:
     """Place objects in ``scene`` (whose ``objects`` are ignored) using its rooms' types as priors.
 
     Scenes without rooms use a generic indoor prior. Returned objects lie in free space, do not overlap walls
     or each other, and keep the navigable space connected. ``density`` scales the number of objects.
+    ``free_standing`` maps a room type to categories placed first in that room's open floor, whatever their
+    usual style (a sofa or a bookshelf dividing an open-plan living area, a kitchen island): furniture that
+    partly blocks views and passages. ``None`` (the default) places none and draws nothing for them.
     """
     if not (isinstance(density, int | float) and math.isfinite(density) and density >= 0.0):
         raise InputError("place_objects", "density", "a finite non-negative number", density)
     placer = _Placer(scene, rng, VOCABULARY)
     if density > 0.0:
         for region in placer.regions:
+            if free_standing is not None and region.room_type is not None:
+                for name in free_standing.get(region.room_type, ()):
+                    placer.place_free_standing(region, name)
             placer.fill(region, density)
     return placer.objects
 
@@ -156,6 +168,10 @@ class _Placer:
                 placed += 1
             else:
                 failures[k] += 1
+
+    def place_free_standing(self, region: _Region, name: str) -> bool:
+        """Place one ``name`` object in the region's open floor (the centre style), clear of the walls."""
+        return self._place(region, replace(self.vocab.spec(name), style=PlacementStyle.CENTER))
 
     def _place(self, region: _Region, spec: CategorySpec) -> bool:
         for _ in range(_ATTEMPTS):

@@ -29,13 +29,13 @@ MAX_ROOMS = 15
 HALLWAY = "hallway"
 
 _MIN_SIDE = 2.2  # metres: the shortest side a room may get from a split
-_MIN_BLOCK = 2.6  # metres: the narrowest block between two branches
+MIN_BLOCK = 2.6  # metres: the narrowest block between two branches
 _DOOR_WIDTH = (0.8, 1.1)
 _CORRIDOR_WIDTH = (1.2, 1.8)
-_WALL_THICKNESS = (0.10, 0.15)
+WALL_THICKNESS = (0.10, 0.15)
 _SPLIT_END_HEIGHT = 9.0  # metres: taller rooms at the spine's ends are split in two
-_JAMB = 0.1  # metres of door frame on each side of an opening
-_OUTSIDE_MARGIN = 0.3  # metres of unknown space around the house
+JAMB = 0.1  # metres of door frame on each side of an opening
+OUTSIDE_MARGIN = 0.3  # metres of unknown space around the house
 
 # Typical floor area (m^2) per room type: the largest rooms of a plan get the types that are usually largest.
 _TYPICAL_AREA: dict[str, float] = {
@@ -71,7 +71,7 @@ _EXTRA_DOOR_PAIRS = (frozenset({"living room", "dining room"}), frozenset({"kitc
 
 
 @dataclass(frozen=True)
-class _Box:
+class Box:
     """An axis-aligned rectangle in metres, between wall centre lines."""
 
     x0: float
@@ -97,19 +97,19 @@ Touch = tuple[bool, bool, bool, bool]
 
 
 @dataclass
-class _Plan:
+class Plan:
     """A floor plan in metres: rooms, corridors (the spine first) and the types fixed by the layout."""
 
     width: float
     height: float
-    rooms: list[_Box]
-    corridors: list[_Box] = field(default_factory=list)
+    rooms: list[Box]
+    corridors: list[Box] = field(default_factory=list)
     fixed_types: dict[int, str] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
-class _CellBox:
-    """A :class:`_Box` snapped to the grid: wall centre lines at cell columns ``c0, c1`` and rows ``r0, r1``."""
+class CellBox:
+    """A :class:`Box` snapped to the grid: wall centre lines at cell columns ``c0, c1`` and rows ``r0, r1``."""
 
     c0: int
     r0: int
@@ -118,7 +118,7 @@ class _CellBox:
 
 
 @dataclass(frozen=True)
-class _Edge:
+class Edge:
     """A wall shared by two boxes: ``vertical`` wall at column ``line`` (else row), over ``[lo, hi)``."""
 
     vertical: bool
@@ -141,7 +141,7 @@ def generate_house(seed: int, num_rooms: int | None = None, resolution: float = 
     rng = np.random.default_rng(seed)
     drawn = int(rng.integers(1, MAX_ROOMS + 1))  # always drawn, so num_rooms=drawn gives the same house
     n = drawn if num_rooms is None else num_rooms
-    plan = _transform(rng, _compact_plan(rng, n) if n <= 3 else _corridor_plan(rng, n))
+    plan = transform_plan(rng, _compact_plan(rng, n) if n <= 3 else _corridor_plan(rng, n))
     names = _room_types(rng, plan)
     scene = _build_scene(rng, plan, names, resolution, f"procedural/house_{seed:05d}")
     return replace(scene, objects=place_objects(scene, rng))
@@ -150,16 +150,16 @@ def generate_house(seed: int, num_rooms: int | None = None, resolution: float = 
 # --------------------------------------------------------------------------------------------- layout
 
 
-def _compact_plan(rng: np.random.Generator, n: int) -> _Plan:
+def _compact_plan(rng: np.random.Generator, n: int) -> Plan:
     """1-3 rooms: a rectangle of 40-65 m^2; the first cut leaves a large living room, the next a small room."""
     area = rng.uniform(40.0, 55.0) if n <= 2 else rng.uniform(45.0, 65.0)
     aspect = rng.uniform(1.0, 1.5)
     width = math.sqrt(area * aspect)
-    rooms = [_Box(0.0, 0.0, width, area / width)]
+    rooms = [Box(0.0, 0.0, width, area / width)]
     for frac in (rng.uniform(0.6, 0.72), rng.uniform(0.55, 0.65))[: n - 1]:
         rest = rooms.pop()
         rooms.extend(_cut(rest, frac, rest.width >= rest.height))
-    return _Plan(width, area / width, rooms)
+    return Plan(width, area / width, rooms)
 
 
 def _branch_count(rng: np.random.Generator, n: int) -> int:
@@ -172,7 +172,7 @@ def _branch_count(rng: np.random.Generator, n: int) -> int:
     return 2 + int(rng.random() < 0.5)
 
 
-def _corridor_plan(rng: np.random.Generator, n: int) -> _Plan:
+def _corridor_plan(rng: np.random.Generator, n: int) -> Plan:
     """4-15 rooms: a spine with branches (T-junctions), a living room at one end, rooms along both sides.
 
     The rooms at the spine's ends span the house's height; in tall houses such an end is split in two at
@@ -196,56 +196,56 @@ def _corridor_plan(rng: np.random.Generator, n: int) -> _Plan:
     side_rooms -= split_ends
 
     branch_area = float(sum(w * depth[s] for w, s in zip(branch_width, branch_side, strict=True)))
-    min_span = max((np.sum(branch_side == s) + 1) * _MIN_BLOCK + branch_width[branch_side == s].sum() for s in (0, 1))
+    min_span = max((np.sum(branch_side == s) + 1) * MIN_BLOCK + branch_width[branch_side == s].sum() for s in (0, 1))
     span = max((side_rooms * room_area + branch_area) / (depth[0] + depth[1]), float(min_span))
     x0, x1 = end_width[0], end_width[0] + span
 
-    plan = _Plan(x1 + sum(end_width[1:]), height, [], [_Box(x0, y0, x1, y1)])
+    plan = Plan(x1 + sum(end_width[1:]), height, [], [Box(x0, y0, x1, y1)])
     for k, (xa, xb) in enumerate(((0.0, x0), (x1, plan.width))[: len(end_types)]):
         plan.fixed_types[len(plan.rooms)] = end_types[k]
         if k < split_ends:
             cut = y0 if rng.random() < 0.5 else y1  # the part holding the spine's end [y0, y1] comes first
-            near, far = (_Box(xa, cut, xb, height), _Box(xa, 0.0, xb, cut))
+            near, far = (Box(xa, cut, xb, height), Box(xa, 0.0, xb, cut))
             plan.rooms.extend((near, far) if cut == y0 else (far, near))
         else:
-            plan.rooms.append(_Box(xa, 0.0, xb, height))
+            plan.rooms.append(Box(xa, 0.0, xb, height))
     blocks = [
         block
         for side, (ylo, yhi) in enumerate(((0.0, y0), (y1, height)))
-        for block in _side_blocks(rng, plan, (x0, x1, ylo, yhi), branch_width[branch_side == side], side)
+        for block in side_blocks(rng, plan, (x0, x1, ylo, yhi), branch_width[branch_side == side], side)
     ]
-    for (box, touch), k in zip(blocks, _allocate(side_rooms, [b.area for b, _ in blocks]), strict=True):
-        plan.rooms.extend(_split(rng, box, k, touch))
+    for (box, touch), k in zip(blocks, allocate_cells(side_rooms, [b.area for b, _ in blocks]), strict=True):
+        plan.rooms.extend(split_box(rng, box, k, touch))
     return plan
 
 
-def _side_blocks(
+def side_blocks(
     rng: np.random.Generator,
-    plan: _Plan,
+    plan: Plan,
     bounds: tuple[float, float, float, float],
     widths: NDArray[np.float64],
     side: int,
-) -> list[tuple[_Box, Touch]]:
+) -> list[tuple[Box, Touch]]:
     """Cut one side of the spine (``side`` 0 below, 1 above) into blocks by branch corridors (added to plan).
 
     Returns the blocks with the sides on which they touch a corridor.
     """
     x0, x1, ylo, yhi = bounds
-    free = (x1 - x0) - widths.sum() - (len(widths) + 1) * _MIN_BLOCK
-    parts = _MIN_BLOCK + free * rng.dirichlet(np.full(len(widths) + 1, 4.0))
-    blocks: list[tuple[_Box, Touch]] = []
+    free = (x1 - x0) - widths.sum() - (len(widths) + 1) * MIN_BLOCK
+    parts = MIN_BLOCK + free * rng.dirichlet(np.full(len(widths) + 1, 4.0))
+    blocks: list[tuple[Box, Touch]] = []
     x = x0
     for j, part in enumerate(parts):
         right = x1 if j == len(widths) else x + float(part)
-        blocks.append((_Box(x, ylo, right, yhi), (j > 0, j < len(widths), side == 1, side == 0)))
+        blocks.append((Box(x, ylo, right, yhi), (j > 0, j < len(widths), side == 1, side == 0)))
         if j < len(widths):
             after = right + float(widths[j])
-            plan.corridors.append(_Box(right, ylo, after, yhi))
+            plan.corridors.append(Box(right, ylo, after, yhi))
             x = after
     return blocks
 
 
-def _allocate(total: int, areas: list[float]) -> list[int]:
+def allocate_cells(total: int, areas: list[float]) -> list[int]:
     """Spread ``total`` rooms over blocks, at least one each, keeping the area per room as even as possible."""
     counts = [1] * len(areas)
     for _ in range(total - len(areas)):
@@ -254,16 +254,16 @@ def _allocate(total: int, areas: list[float]) -> list[int]:
     return counts
 
 
-def _cut(box: _Box, frac: float, vertical: bool) -> tuple[_Box, _Box]:
+def _cut(box: Box, frac: float, vertical: bool) -> tuple[Box, Box]:
     """Cut ``box`` at ``frac`` of its width (``vertical`` cut, at constant x) or of its height."""
     if vertical:
         x = box.x0 + frac * box.width
-        return _Box(box.x0, box.y0, x, box.y1), _Box(x, box.y0, box.x1, box.y1)
+        return Box(box.x0, box.y0, x, box.y1), Box(x, box.y0, box.x1, box.y1)
     y = box.y0 + frac * box.height
-    return _Box(box.x0, box.y0, box.x1, y), _Box(box.x0, y, box.x1, box.y1)
+    return Box(box.x0, box.y0, box.x1, y), Box(box.x0, y, box.x1, box.y1)
 
 
-def _split(rng: np.random.Generator, box: _Box, k: int, touch: Touch) -> list[_Box]:
+def split_box(rng: np.random.Generator, box: Box, k: int, touch: Touch) -> list[Box]:
     """Guillotine-split ``box`` into ``k`` rooms, preferring cuts that leave every room on a corridor.
 
     A cut at constant x keeps both parts on a corridor along the bottom or top side; a cut at constant y on
@@ -282,23 +282,23 @@ def _split(rng: np.random.Generator, box: _Box, k: int, touch: Touch) -> list[_B
         touch_first, touch_second = (touch[0], False, touch[2], touch[3]), (False, touch[1], touch[2], touch[3])
     else:
         touch_first, touch_second = (touch[0], touch[1], touch[2], False), (touch[0], touch[1], False, touch[3])
-    return _split(rng, first, k_first, touch_first) + _split(rng, second, k - k_first, touch_second)
+    return split_box(rng, first, k_first, touch_first) + split_box(rng, second, k - k_first, touch_second)
 
 
-def _transform(rng: np.random.Generator, plan: _Plan) -> _Plan:
+def transform_plan(rng: np.random.Generator, plan: Plan) -> Plan:
     """Mirror the plan in x and/or y and maybe swap the axes, for variety."""
     flip_x, flip_y, swap = (bool(v) for v in rng.integers(0, 2, 3))
 
-    def move(box: _Box) -> _Box:
+    def move(box: Box) -> Box:
         xa, xb = (plan.width - box.x1, plan.width - box.x0) if flip_x else (box.x0, box.x1)
         ya, yb = (plan.height - box.y1, plan.height - box.y0) if flip_y else (box.y0, box.y1)
-        return _Box(ya, xa, yb, xb) if swap else _Box(xa, ya, xb, yb)
+        return Box(ya, xa, yb, xb) if swap else Box(xa, ya, xb, yb)
 
     width, height = (plan.height, plan.width) if swap else (plan.width, plan.height)
-    return _Plan(width, height, [move(b) for b in plan.rooms], [move(b) for b in plan.corridors], plan.fixed_types)
+    return Plan(width, height, [move(b) for b in plan.rooms], [move(b) for b in plan.corridors], plan.fixed_types)
 
 
-def _room_types(rng: np.random.Generator, plan: _Plan) -> list[str]:
+def _room_types(rng: np.random.Generator, plan: Plan) -> list[str]:
     """Room type per room: fixed ones kept, the rest matched by size to a drawn list of types."""
     free = [k for k in range(len(plan.rooms)) if k not in plan.fixed_types]
     if not plan.corridors:
@@ -322,7 +322,7 @@ def _room_types(rng: np.random.Generator, plan: _Plan) -> list[str]:
 
 
 @dataclass(frozen=True)
-class _Raster:
+class Raster:
     """Cell geometry of one house: wall thickness ``t`` (its first ``h`` cells lie before the centre line)."""
 
     resolution: float
@@ -342,14 +342,14 @@ class _Raster:
     def cell(self, metres: float) -> int:
         return self.margin + round(metres / self.resolution)
 
-    def snap(self, box: _Box) -> _CellBox:
-        return _CellBox(self.cell(box.x0), self.cell(box.y0), self.cell(box.x1), self.cell(box.y1))
+    def snap(self, box: Box) -> CellBox:
+        return CellBox(self.cell(box.x0), self.cell(box.y0), self.cell(box.x1), self.cell(box.y1))
 
     def interior(self, lo: int, hi: int) -> tuple[int, int]:
         """Free cells between wall centre lines ``lo`` and ``hi``."""
         return lo - self.h + self.t, hi - self.h
 
-    def paint(self, structure: NDArray[np.uint8], edge: _Edge, lo: int, hi: int, material: Material) -> None:
+    def paint(self, structure: NDArray[np.uint8], edge: Edge, lo: int, hi: int, material: Material) -> None:
         """Set the wall strip of ``edge`` over ``[lo, hi)`` along it to ``material``."""
         across = slice(edge.line - self.h, edge.line - self.h + self.t)
         if edge.vertical:
@@ -358,7 +358,7 @@ class _Raster:
             structure[across, lo:hi] = material
 
 
-def _shared_edge(a: _CellBox, b: _CellBox) -> _Edge | None:
+def shared_edge(a: CellBox, b: CellBox) -> Edge | None:
     """The wall two boxes share, if their sides touch over a non-empty stretch."""
     for vertical, (a_lo, a_hi, b_lo, b_hi), along in (
         (True, (a.c0, a.c1, b.c0, b.c1), (a.r0, a.r1, b.r0, b.r1)),
@@ -367,15 +367,41 @@ def _shared_edge(a: _CellBox, b: _CellBox) -> _Edge | None:
         line = a_hi if a_hi == b_lo else a_lo if a_lo == b_hi else None
         lo, hi = max(along[0], along[2]), min(along[1], along[3])
         if line is not None and hi > lo:
-            return _Edge(vertical, line, lo, hi)
+            return Edge(vertical, line, lo, hi)
     return None
 
 
-def _build_scene(rng: np.random.Generator, plan: _Plan, names: list[str], resolution: float, scene_id: str) -> Scene:
-    t = max(1, round(rng.uniform(*_WALL_THICKNESS) / resolution))
-    raster = _Raster(resolution, t, t + round(_OUTSIDE_MARGIN / resolution), max(1, round(_JAMB / resolution)))
+@dataclass
+class Floor:
+    """A plan drawn on the structure grid before its doors: walls, free room and hall interiors, halls opened into
+    each other; each box's cell extent and label (rooms by name, then the halls)."""
+
+    raster: Raster
+    boxes: list[CellBox]
+    structure: NDArray[np.uint8]
+    extents: list[list[int]]
+    labels: list[str]
+
+    def named_extents(self) -> list[tuple[str, list[int]]]:
+        return list(zip(self.labels, self.extents, strict=True))
+
+    def scene(self, scene_id: str, source: str) -> Scene:
+        """The finished scene: the grid as it is now, with a room polygon per box."""
+        resolution = self.raster.resolution
+        origin = (-self.raster.margin * resolution, -self.raster.margin * resolution)
+        rooms = [
+            Room(name, room_polygon(e, origin, resolution)) for name, e in zip(self.labels, self.extents, strict=True)
+        ]
+        grid = GridSpec(resolution, origin, self.structure.shape)
+        return Scene(scene_id, grid, self.structure, rooms=rooms, source=source)
+
+
+def lay_out_floor(rng: np.random.Generator, plan: Plan, names: list[str], resolution: float) -> Floor:
+    """Draw ``plan`` on a structure grid at ``resolution`` (a random wall thickness), before any door is cut."""
+    t = max(1, round(rng.uniform(*WALL_THICKNESS) / resolution))
+    raster = Raster(resolution, t, t + round(OUTSIDE_MARGIN / resolution), max(1, round(JAMB / resolution)))
     boxes = [raster.snap(b) for b in plan.rooms] + [raster.snap(b) for b in plan.corridors]
-    outline = raster.snap(_Box(0.0, 0.0, plan.width, plan.height))
+    outline = raster.snap(Box(0.0, 0.0, plan.width, plan.height))
     shape = (outline.r1 + raster.margin, outline.c1 + raster.margin)
     structure = np.full(shape, Material.UNKNOWN, dtype=np.uint8)
     structure[outline.r0 - raster.h : outline.r1 - raster.h + t, outline.c0 - raster.h : outline.c1 - raster.h + t] = (
@@ -384,24 +410,26 @@ def _build_scene(rng: np.random.Generator, plan: _Plan, names: list[str], resolu
     extents = [[*raster.interior(b.r0, b.r1), *raster.interior(b.c0, b.c1)] for b in boxes]
     for r_lo, r_hi, c_lo, c_hi in extents:
         structure[r_lo:r_hi, c_lo:c_hi] = Material.FREE
-    _open_corridors(structure, raster, boxes, len(plan.rooms), extents)
-    labels = names + [HALLWAY] * len(plan.corridors)
-    for a, b in _door_pairs(rng, raster, boxes, labels, len(plan.rooms)):
-        edge = _shared_edge(boxes[a], boxes[b])
+    open_corridors(structure, raster, boxes, len(plan.rooms), extents)
+    return Floor(raster, boxes, structure, extents, names + [HALLWAY] * len(plan.corridors))
+
+
+def _build_scene(rng: np.random.Generator, plan: Plan, names: list[str], resolution: float, scene_id: str) -> Scene:
+    floor = lay_out_floor(rng, plan, names, resolution)
+    for a, b in _door_pairs(rng, floor.raster, floor.boxes, floor.labels, len(plan.rooms)):
+        edge = shared_edge(floor.boxes[a], floor.boxes[b])
         assert edge is not None
-        _cut_door(rng, structure, raster, edge)
-    origin = (-raster.margin * resolution, -raster.margin * resolution)
-    rooms = [Room(name, _polygon(extent, origin, resolution)) for name, extent in zip(labels, extents, strict=True)]
-    return Scene(scene_id, GridSpec(resolution, origin, shape), structure, rooms=rooms, source="procedural")
+        cut_door(rng, floor.structure, floor.raster, edge)
+    return floor.scene(scene_id, "procedural")
 
 
-def _open_corridors(
-    structure: NDArray[np.uint8], raster: _Raster, boxes: list[_CellBox], first: int, extents: list[list[int]]
+def open_corridors(
+    structure: NDArray[np.uint8], raster: Raster, boxes: list[CellBox], first: int, extents: list[list[int]]
 ) -> None:
     """Remove the walls between touching corridors; the later corridor's extent takes in the opened strip."""
     for a in range(first, len(boxes)):
         for b in range(a + 1, len(boxes)):
-            edge = _shared_edge(boxes[a], boxes[b])
+            edge = shared_edge(boxes[a], boxes[b])
             if edge is None:
                 continue
             raster.paint(structure, edge, *raster.interior(edge.lo, edge.hi), Material.FREE)
@@ -411,14 +439,14 @@ def _open_corridors(
             extents[b][axis + 1] = max(extents[b][axis + 1], strip[1])
 
 
-def _door_capacity(raster: _Raster, edge: _Edge) -> int:
+def door_capacity(raster: Raster, edge: Edge) -> int:
     """Widest door (cells) that fits in ``edge`` with its jambs and a cell of wall either side."""
     lo, hi = raster.interior(edge.lo, edge.hi)
     return hi - lo - 2 * raster.jamb - 2
 
 
 def _door_pairs(
-    rng: np.random.Generator, raster: _Raster, boxes: list[_CellBox], labels: list[str], n_rooms: int
+    rng: np.random.Generator, raster: Raster, boxes: list[CellBox], labels: list[str], n_rooms: int
 ) -> list[tuple[int, int]]:
     """Doors forming a spanning tree from the corridors (or the largest room), plus a few open-plan loops.
 
@@ -429,7 +457,7 @@ def _door_pairs(
         (a, b)
         for a in range(n_rooms)
         for b in range(a + 1, len(boxes))
-        if (edge := _shared_edge(boxes[a], boxes[b])) is not None and _door_capacity(raster, edge) >= raster.min_door
+        if (edge := shared_edge(boxes[a], boxes[b])) is not None and door_capacity(raster, edge) >= raster.min_door
     ]
     corridors = set(range(n_rooms, len(boxes)))
     largest = max(range(n_rooms), key=lambda k: (boxes[k].c1 - boxes[k].c0) * (boxes[k].r1 - boxes[k].r0))
@@ -451,10 +479,10 @@ def _door_pairs(
     return doors + [p for p in loops if rng.random() < 0.5]
 
 
-def _cut_door(rng: np.random.Generator, structure: NDArray[np.uint8], raster: _Raster, edge: _Edge) -> None:
+def cut_door(rng: np.random.Generator, structure: NDArray[np.uint8], raster: Raster, edge: Edge) -> None:
     """Open a 0.8-1.1 m door at a random place along ``edge`` and frame it with door-frame jambs."""
     lo, hi = raster.interior(edge.lo, edge.hi)
-    w_max = min(math.floor(_DOOR_WIDTH[1] / raster.resolution + 1e-9), _door_capacity(raster, edge))
+    w_max = min(math.floor(_DOOR_WIDTH[1] / raster.resolution + 1e-9), door_capacity(raster, edge))
     width = int(rng.integers(raster.min_door, w_max + 1))
     start = int(rng.integers(lo + raster.jamb + 1, hi - raster.jamb - 1 - width + 1))
     raster.paint(structure, edge, start, start + width, Material.FREE)
@@ -462,7 +490,7 @@ def _cut_door(rng: np.random.Generator, structure: NDArray[np.uint8], raster: _R
     raster.paint(structure, edge, start + width, start + width + raster.jamb, Material.DOOR_FRAME)
 
 
-def _polygon(extent: list[int], origin: tuple[float, float], resolution: float) -> tuple[tuple[float, float], ...]:
+def room_polygon(extent: list[int], origin: tuple[float, float], resolution: float) -> tuple[tuple[float, float], ...]:
     r_lo, r_hi, c_lo, c_hi = extent
     x0, x1 = origin[0] + c_lo * resolution, origin[0] + c_hi * resolution
     y0, y1 = origin[1] + r_lo * resolution, origin[1] + r_hi * resolution
