@@ -41,7 +41,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
-from drivenav.envs.embedded.geodesic import GeodesicField
+from drivenav.envs.embedded.geodesic import nearest_by_geodesic
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.vocabulary import VOCABULARY, Vocabulary, vocabulary_split
 from drivenav.episode import Episode
@@ -134,8 +134,7 @@ def straightness(goals: SceneGoals, category: str, start: tuple[float, float], g
     """Geodesic / Euclidean distance from ``start`` to the category's view point that is nearest by geodesic
     distance (the generator's ``dist_ratio``): one geodesic solve from the start finds that view point."""
     points = _view_points(goals, category)
-    from_start = GeodesicField(goals.reachable, goals.scene.grid, [start])
-    k = int(np.argmin([from_start.at(*point) for point in points]))
+    k, _ = nearest_by_geodesic(goals.reachable, goals.scene.grid, start, points)
     return _ratio(geodesic, math.dist(start, points[k]))
 
 

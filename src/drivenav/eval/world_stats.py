@@ -17,7 +17,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.envs.embedded.geodesic import GeodesicField, largest_component
+from drivenav.envs.embedded.geodesic import largest_component, nearest_by_geodesic
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.embedded.scene import Scene
 from drivenav.episode import Episode
@@ -297,14 +297,12 @@ def start_distances(episode: Episode, reachable: NDArray[np.bool_], grid: GridSp
     the straight line from the start to the geodesically nearest view point, found by one fast-marching solve from
     the start over ``reachable``: the quantity HM3D-OVON's generator filters on. The ratio is NaN if no view point
     is reachable or the line has no length."""
-    from_start = GeodesicField(reachable, grid, [episode.start_xy])
     points = episode.view_points_xy()
-    distances = [from_start.at(*p) for p in points]
-    nearest = int(np.argmin(distances)) if points else -1
-    if nearest < 0 or not math.isfinite(distances[nearest]):
+    nearest, distance = nearest_by_geodesic(reachable, grid, episode.start_xy, points)
+    if nearest < 0 or not math.isfinite(distance):
         return episode.geodesic_distance, math.nan
     given = episode.geodesic_distance
-    geodesic = given if math.isfinite(given) else distances[nearest]
+    geodesic = given if math.isfinite(given) else distance
     line = math.dist(episode.start_xy, points[nearest])
     return geodesic, geodesic / line if line > 0.0 else math.nan
 
