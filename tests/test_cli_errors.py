@@ -68,3 +68,15 @@ def test_missing_scene_path(tmp_path: Path) -> None:
 def test_bad_worker_count(tmp_path: Path) -> None:
     result = run_cli("eval", "--agent", "oracle", "--episodes", "1", "--workers", "0", "--out", str(tmp_path))
     _assert_clean_error(result, "--workers")
+
+
+def test_unknown_scorer(tmp_path: Path) -> None:
+    result = run_cli("eval", "--agent", "oracle", "--episodes", "1", "--scorer", "clip", "--out", str(tmp_path / "run"))
+    _assert_clean_error(result, "models.scorer", "--scorer", "blip2-itm", "'clip'")
+
+
+def test_scorer_replay_without_a_recording(tmp_path: Path) -> None:
+    missing = str(tmp_path / "calls.jsonl")
+    args = ("--scorer", "replay", "--vlm-replay", missing, "--out", str(tmp_path / "run"))
+    result = run_cli("eval", "--agent", "oracle", "--episodes", "1", *args)
+    _assert_clean_error(result, "--vlm-replay", missing)

@@ -76,6 +76,7 @@ def test_layers_apply_in_order(tmp_path: Path) -> None:
         (["paper.speed.lam=${nowhere}"], ["'paper.speed.lam'", "an interpolation", "'nowhere' not found"]),
         (["run.agent=no-such"], ["'run.agent'", "one of direction-360", "'no-such'"]),
         (["models.reasoner=gpt"], ["'models.reasoner'", "one of embedded, openai", "'gpt'"]),
+        (["models.scorer=clip"], ["'models.scorer'", "one of embedded, blip2-itm, siglip", "--scorer", "'clip'"]),
         (["mapping.min_obstacle_height=1.0"], ["'mapping.min_obstacle_height'", "less than sim.agent_height"]),
         (["paper.speed"], ["--set", "KEY=VALUE"]),
     ],
@@ -123,6 +124,7 @@ EXPECTED = {
     "no-240": {"enrich": False, "verify": False, "restrict_forward": False},
     "direction-360": {"decision_scan": True},
     "nearest-frontier": {"use_reasoner": False, "enrich": False, "verify": False},
+    "vlfm": {"use_reasoner": False, "value_map": True, "enrich": False, "verify": False},
 }
 
 
@@ -197,7 +199,12 @@ def test_config_show_states_the_units() -> None:
 
 def test_methods_name_the_papers_tables() -> None:
     tables = {m.name: set(m.tables) for m in METHODS}
-    assert {name for name, t in tables.items() if "II" in t} == {"drive-nav", "direction-360", "nearest-frontier"}
+    assert {name for name, t in tables.items() if "II" in t} == {
+        "drive-nav",
+        "direction-360",
+        "nearest-frontier",
+        "vlfm",
+    }
     assert {name for name, t in tables.items() if "V" in t} == {"directional", "no-weighted-fmm", "no-240"}
     assert all(m.description and m.tables for m in METHODS)
 

@@ -7,7 +7,8 @@ import numpy as np
 from drivenav.envs.vocabulary import VOCABULARY
 from drivenav.semantics.ground_truth import GroundTruthGrounder
 from drivenav.semantics.protocols import Grounder, category_key
-from drivenav.types import CameraIntrinsics, GroundTruth, Observation, Pose
+from drivenav.types import GroundTruth, Observation
+from frames import observation_of
 
 H, W = 60, 80
 LABELS = {1: "sofa", 2: "Couch", 3: "tv", 4: "sofa", 5: "potted plant", 9: "sofa"}  # 9 is not in the image
@@ -15,15 +16,7 @@ TRUTH = GroundTruth(LABELS, VOCABULARY)
 
 
 def observation(semantic: np.ndarray | None) -> Observation:
-    return Observation(
-        rgb=np.zeros((H, W, 3), np.uint8),
-        depth=np.full((H, W), 2.0, np.float32),
-        semantic=semantic,
-        pose=Pose(0.0, 0.0, 0.0),
-        intrinsics=CameraIntrinsics.from_hfov(W, H, 79.0),
-        step=0,
-        collided=False,
-    )
+    return observation_of(np.zeros((H, W, 3), np.uint8), semantic)
 
 
 def scene_image() -> np.ndarray:

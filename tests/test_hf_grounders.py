@@ -1,16 +1,19 @@
 """The SAM3 and OWLv2 grounders end to end on tiny randomly initialised transformers models (no downloads).
 
-Both tokenizers are CLIP BPE tokenizers over a 55-entry character vocabulary. OWLv2 runs with its real processor
-(the PIL image backend). SAM3's real image processor needs torchvision; where it is missing, a stand-in with the
-same resize / rescale / normalise steps (ViT's PIL backend) and SAM3's documented instance post-processing is
-plugged into the real ``Sam3Processor``.
+The models and processors are :mod:`drivenav.eval.random_grounders`' tiny configuration (``bench grounder --tiny``
+uses the same): CLIP BPE tokenizers over a 55-entry letter vocabulary; torchvision's fast image processors where
+torchvision is installed (those the grounders load), else OWLv2's PIL processor (injected: the grounder refuses to
+load it) and, for SAM3, a stand-in on ViT's PIL backend.
+
+The grounders split the forward into cached stages (text features per phrase, vision features per frame); the
+equivalence tests compare them exactly with one plain forward of the model, in fp32 on the CPU.
 """
 
 from __future__ import annotations
 
-import importlib.util
-import string
+import copy
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -21,108 +24,26 @@ pytest.importorskip("torch")
 pytest.importorskip("transformers")
 
 import torch
-from transformers import (
-    CLIPTokenizer,
-    Owlv2Config,
-    Owlv2ForObjectDetection,
-    Owlv2ImageProcessorPil,
-    Owlv2Processor,
-    Sam3Config,
-    Sam3Model,
-    Sam3Processor,
-    ViTImageProcessorPil,
-)
-from transformers.models.sam3.configuration_sam3 import (
-    Sam3DETRDecoderConfig,
-    Sam3DETREncoderConfig,
-    Sam3GeometryEncoderConfig,
-    Sam3MaskDecoderConfig,
-    Sam3VisionConfig,
-    Sam3ViTConfig,
-)
+from transformers import Owlv2ForObjectDetection, Owlv2Processor, Sam3Model, Sam3Processor
 
 from drivenav.errors import InputError
-from drivenav.semantics.hf_common import fit_phrase, load_local, pick_device
-from drivenav.semantics.owlv2_grounder import FilledBoxSegmenter, Owlv2Grounder
+from drivenav.eval.random_grounders import (
+    HAS_TORCHVISION,
+    TINY_OWL_PATCH,
+    TINY_OWL_SIZE,
+    TINY_SAM3_QUERIES,
+    letter_tokenizer,
+    random_owlv2,
+    random_sam3,
+)
+from drivenav.semantics.hf_common import fit_phrase, load_local, pick_device, ranked_detections, resolve_dtype
+from drivenav.semantics.owlv2_grounder import OWLV2_MAX_BOXES, FilledBoxSegmenter, Owlv2Grounder
 from drivenav.semantics.protocols import Detection, Grounder
 from drivenav.semantics.sam3_grounder import Sam3Grounder
-from drivenav.types import CameraIntrinsics, Observation, Pose
+from drivenav.types import CameraIntrinsics, GroundTruth, Observation, Pose
 
-H, W = 48, 64  # the frame; both models see a square image of SAM3_SIZE / OWL_SIZE pixels
-SAM3_SIZE = 56  # 4 x 4 patches of 14 pixels
-SAM3_QUERIES = 5
-OWL_SIZE, OWL_PATCH = 64, 8
-OWL_BOXES = (OWL_SIZE // OWL_PATCH) ** 2  # one box per patch
-HAS_TORCHVISION = importlib.util.find_spec("torchvision") is not None
-
-
-def tiny_tokenizer(max_length: int) -> CLIPTokenizer:
-    """Byte-level BPE without merges: ids 0-2 are pad ("!", as OWLv2's), bos, eos; then two ids per letter.
-
-    bos must not be id 0: OWLv2 treats a query whose first token is 0 as padding and masks it out.
-    """
-    vocab = {"!": 0, "<|startoftext|>": 1, "<|endoftext|>": 2}
-    for letter in string.ascii_lowercase:
-        vocab[letter] = len(vocab)
-        vocab[letter + "</w>"] = len(vocab)
-    return CLIPTokenizer(vocab=vocab, merges=[], pad_token="!", model_max_length=max_length)
-
-
-TEXT = {"vocab_size": 64, "hidden_size": 32, "intermediate_size": 64, "num_hidden_layers": 1}
-TEXT_IDS = {"num_attention_heads": 2, "bos_token_id": 1, "eos_token_id": 2, "pad_token_id": 0}
-LAYER = {"hidden_size": 32, "num_layers": 1, "num_attention_heads": 2, "intermediate_size": 64}
-
-
-def tiny_sam3_config() -> Sam3Config:
-    backbone = Sam3ViTConfig(
-        hidden_size=32,
-        intermediate_size=64,
-        num_hidden_layers=1,
-        num_attention_heads=2,
-        image_size=SAM3_SIZE,
-        patch_size=14,
-        window_size=2,
-        global_attn_indexes=[0],
-        pretrain_image_size=SAM3_SIZE,
-    )
-    return Sam3Config(
-        vision_config=Sam3VisionConfig(backbone_config=backbone, fpn_hidden_size=32, scale_factors=[2.0, 1.0]),
-        text_config={**TEXT, **TEXT_IDS, "projection_dim": 32, "max_position_embeddings": 32},
-        geometry_encoder_config=Sam3GeometryEncoderConfig(**LAYER),
-        detr_encoder_config=Sam3DETREncoderConfig(**LAYER),
-        detr_decoder_config=Sam3DETRDecoderConfig(**LAYER, num_queries=SAM3_QUERIES),
-        mask_decoder_config=Sam3MaskDecoderConfig(hidden_size=32, num_upsampling_stages=2, num_attention_heads=2),
-    )
-
-
-class Sam3StandInImageProcessor(ViTImageProcessorPil):
-    """Sam3ImageProcessor without torchvision: bilinear resize to a square, 1/255, mean = std = 0.5.
-
-    Its instance post-processing follows the SAM3 documentation: score = sigmoid(query logit) * sigmoid(presence
-    logit), kept when strictly above the threshold; mask = bilinear-resized mask probability above mask_threshold.
-    """
-
-    def preprocess(self, images: Any, segmentation_maps: Any = None, **kwargs: Any) -> Any:
-        return super().preprocess(images, **kwargs)
-
-    def post_process_instance_segmentation(
-        self, outputs: Any, threshold: float, mask_threshold: float, target_sizes: list[tuple[int, int]]
-    ) -> list[dict[str, torch.Tensor]]:
-        scores = outputs.pred_logits.sigmoid() * outputs.presence_logits.sigmoid()
-        results = []
-        for image_scores, image_masks, size in zip(scores, outputs.pred_masks, target_sizes, strict=True):
-            keep = image_scores > threshold
-            probs = torch.nn.functional.interpolate(image_masks[None].sigmoid(), size=size, mode="bilinear")[0]
-            results.append({"scores": image_scores[keep], "masks": (probs[keep] > mask_threshold).long()})
-        return results
-
-
-def sam3_image_processor() -> Any:
-    if HAS_TORCHVISION:
-        from transformers import Sam3ImageProcessor
-
-        return Sam3ImageProcessor(size={"height": SAM3_SIZE, "width": SAM3_SIZE})
-    return Sam3StandInImageProcessor(size={"height": SAM3_SIZE, "width": SAM3_SIZE})
+H, W = 48, 64  # the frame; both models see a square image (56 pixels for SAM3, 64 for OWLv2)
+OWL_BOXES = (TINY_OWL_SIZE // TINY_OWL_PATCH) ** 2  # one box per patch
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -137,8 +58,7 @@ def one_torch_thread() -> Iterator[None]:
 @pytest.fixture(scope="module")
 def sam3() -> tuple[Sam3Model, Sam3Processor]:
     torch.manual_seed(0)
-    processor = Sam3Processor(image_processor=sam3_image_processor(), tokenizer=tiny_tokenizer(32))
-    return Sam3Model(tiny_sam3_config()).eval(), processor
+    return random_sam3(tiny=True)
 
 
 @pytest.fixture(scope="module")
@@ -146,34 +66,21 @@ def owl() -> tuple[Owlv2ForObjectDetection, Owlv2Processor]:
     """A tiny OWLv2 whose box regressor outputs zero, so each patch's box is its prior: centred on the patch's
     bottom-right corner, one patch wide (a random regressor saturates the sigmoid into degenerate boxes)."""
     torch.manual_seed(0)
-    config = Owlv2Config(
-        text_config={**TEXT, **TEXT_IDS, "max_position_embeddings": 16},
-        vision_config={
-            "hidden_size": 32,
-            "intermediate_size": 64,
-            "num_hidden_layers": 1,
-            "num_attention_heads": 2,
-            "image_size": OWL_SIZE,
-            "patch_size": OWL_PATCH,
-        },
-        projection_dim=32,
-    )
-    model = Owlv2ForObjectDetection(config).eval()
+    model, processor = random_owlv2(tiny=True)
     with torch.no_grad():
         model.box_head.dense2.weight.zero_()
         model.box_head.dense2.bias.zero_()
-    image_processor = Owlv2ImageProcessorPil(size={"height": OWL_SIZE, "width": OWL_SIZE})
-    return model, Owlv2Processor(image_processor=image_processor, tokenizer=tiny_tokenizer(16))
+    return model, processor
 
 
-def observation(seed: int = 0) -> Observation:
+def observation(seed: int = 0, step: int = 0) -> Observation:
     return Observation(
         rgb=np.random.default_rng(seed).integers(0, 256, (H, W, 3), dtype=np.uint8),
         depth=np.full((H, W), 2.0, np.float32),
         semantic=None,
         pose=Pose(0.0, 0.0, 0.0),
         intrinsics=CameraIntrinsics.from_hfov(W, H, 79.0),
-        step=0,
+        step=step,
         collided=False,
     )
 
@@ -220,12 +127,12 @@ def bounding_rectangle(mask: np.ndarray) -> tuple[int, int, int, int]:
 def test_sam3_satisfies_the_grounder_protocol(sam3: tuple[Sam3Model, Sam3Processor]) -> None:
     grounder: Grounder = sam3_grounder(sam3, 0.5)
     assert grounder.name == "sam3"
-    grounder.begin_episode({1: "chair"}, seed=3)
+    grounder.begin_episode(GroundTruth(labels={1: "chair"}), seed=3)
 
 
 def test_sam3_threshold_zero_keeps_every_query_with_a_mask(sam3: tuple[Sam3Model, Sam3Processor]) -> None:
     detections = sam3_grounder(sam3, 0.0).segment(observation(), "red chair")
-    assert 0 < len(detections) <= SAM3_QUERIES
+    assert 0 < len(detections) <= TINY_SAM3_QUERIES
     assert_well_formed(detections, "red chair")
 
 
@@ -256,6 +163,17 @@ def test_sam3_loads_weights_from_a_saved_directory(sam3: tuple[Sam3Model, Sam3Pr
     assert same_detections(
         loaded.segment(observation(), "chair"), sam3_grounder(sam3, 0.0).segment(observation(), "chair")
     )
+
+
+@pytest.mark.skipif(not HAS_TORCHVISION, reason="SAM3's image processor is torchvision's only")
+def test_sam3_loads_the_fast_processor_from_a_saved_directory(
+    sam3: tuple[Sam3Model, Sam3Processor], tmp_path: Path
+) -> None:
+    sam3[0].save_pretrained(tmp_path)
+    sam3[1].save_pretrained(tmp_path)
+    loaded = Sam3Grounder(tmp_path, device="cpu", score_threshold=0.0)
+    assert loaded.processor.image_processor.backend == "torchvision"
+    assert exactly_equal(loaded.segment(observation(), "chair"), plain_sam3(sam3, observation(), "chair"))
 
 
 @pytest.mark.skipif(HAS_TORCHVISION, reason="checks the error without torchvision")
@@ -314,7 +232,8 @@ class TopRowSegmenter:
     def segment_boxes(self, rgb: np.ndarray, boxes: np.ndarray) -> np.ndarray:
         self.calls.append(boxes)
         masks = FilledBoxSegmenter().segment_boxes(rgb, boxes)
-        return masks & (np.cumsum(masks, axis=1) == 1)
+        first_rows: np.ndarray = masks & (np.cumsum(masks, axis=1) == 1)
+        return first_rows
 
 
 def test_owlv2_uses_the_given_box_segmenter(owl: tuple[Owlv2ForObjectDetection, Owlv2Processor]) -> None:
@@ -347,6 +266,7 @@ def test_filled_box_segmenter_takes_pixels_whose_centre_is_inside() -> None:
     assert not masks[3].any()  # narrower than a pixel and missing every centre
 
 
+@pytest.mark.skipif(not HAS_TORCHVISION, reason="loading takes torchvision's image processor")
 def test_owlv2_loads_model_and_processor_from_a_saved_directory(
     owl: tuple[Owlv2ForObjectDetection, Owlv2Processor], tmp_path: Path
 ) -> None:
@@ -355,9 +275,22 @@ def test_owlv2_loads_model_and_processor_from_a_saved_directory(
     processor.save_pretrained(tmp_path)
     loaded = Owlv2Grounder(str(tmp_path), device="cpu", score_threshold=0.0)
     assert loaded.model is not model and loaded.processor is not processor
+    assert loaded.processor.image_processor.backend == "torchvision"
     assert same_detections(
         loaded.segment(observation(), "chair"), owl_grounder(owl, 0.0).segment(observation(), "chair")
     )
+
+
+@pytest.mark.skipif(HAS_TORCHVISION, reason="checks the refusal without torchvision")
+def test_owlv2_refuses_the_pil_image_processor(
+    owl: tuple[Owlv2ForObjectDetection, Owlv2Processor], tmp_path: Path
+) -> None:
+    """transformers would fall back to the PIL processor (~300 ms a frame); the grounder says torchvision is
+    missing instead (an ImportError, which the registry reports as the missing models extra)."""
+    owl[0].save_pretrained(tmp_path)
+    owl[1].save_pretrained(tmp_path)
+    with pytest.raises(ImportError, match="torchvision"):
+        Owlv2Grounder(str(tmp_path), device="cpu")
 
 
 # --- missing weights, loading, device ---
@@ -406,8 +339,171 @@ def test_a_phrase_longer_than_the_text_encoder_still_grounds(
 
 
 def test_fit_phrase_drops_trailing_words_only_as_needed() -> None:
-    tokenizer = tiny_tokenizer(64)
+    tokenizer = letter_tokenizer(64)
     assert fit_phrase(tokenizer, LONG_PHRASE, 64) == LONG_PHRASE
     assert fit_phrase(tokenizer, LONG_PHRASE, 2 + len("tallwoodenbookshelf")) == "tall wooden bookshelf"
     assert fit_phrase(tokenizer, LONG_PHRASE, 2 + len("tallwoodenbookshelf") - 1) == "tall wooden"
     assert fit_phrase(tokenizer, LONG_PHRASE, 3) == "tall"  # one word is always kept
+
+
+# --- the split, cached forward against one plain forward (fp32, CPU: exact) ---
+
+
+@contextmanager
+def counting(module: torch.nn.Module) -> Iterator[list[int]]:
+    """How many times ``module`` runs forward inside the block."""
+    calls: list[int] = []
+    handle = module.register_forward_hook(lambda *_: calls.append(1))
+    try:
+        yield calls
+    finally:
+        handle.remove()
+
+
+def plain_batch(processor: Any, rgb: np.ndarray, text: Any) -> Any:
+    pixels = processor.image_processor([rgb], return_tensors="pt")["pixel_values"]
+    return {**processor(text=text, return_tensors="pt"), "pixel_values": pixels}
+
+
+def plain_sam3(sam3: tuple[Sam3Model, Sam3Processor], obs: Observation, phrase: str) -> list[Detection]:
+    """What the grounder did before the split: one forward on the processor's image and text, then the
+    processor's post-processing."""
+    model, processor = sam3
+    with torch.inference_mode():
+        outputs = model(**plain_batch(processor, obs.rgb, phrase))
+    result = processor.post_process_instance_segmentation(  # type: ignore[no-untyped-call]
+        outputs, threshold=0.0, mask_threshold=0.5, target_sizes=[(H, W)]
+    )[0]
+    return ranked_detections(result["scores"].numpy(), result["masks"].bool().numpy(), phrase)
+
+
+def plain_owl(owl: tuple[Owlv2ForObjectDetection, Owlv2Processor], obs: Observation, phrase: str) -> list[Detection]:
+    model, processor = owl
+    with torch.inference_mode():
+        outputs = model(**plain_batch(processor, obs.rgb, [phrase]))
+    result = processor.post_process_grounded_object_detection(outputs, threshold=0.0, target_sizes=[(H, W)])[0]
+    masks = FilledBoxSegmenter().segment_boxes(obs.rgb, result["boxes"].numpy())
+    return ranked_detections(result["scores"].numpy(), masks, phrase)
+
+
+def exactly_equal(a: list[Detection], b: list[Detection]) -> bool:
+    return len(a) == len(b) and all(
+        np.array_equal(x.mask, y.mask) and x.score == y.score and x.phrase == y.phrase
+        for x, y in zip(a, b, strict=True)
+    )
+
+
+def encoders(which: str, sam3: Any, owl: Any) -> tuple[torch.nn.Module, torch.nn.Module]:
+    """The text and vision encoders of the model (what the caches spare)."""
+    if which == "sam3":
+        return sam3[0].text_encoder, sam3[0].vision_encoder
+    return owl[0].owlv2.text_model, owl[0].owlv2.vision_model
+
+
+def plain(which: str, sam3: Any, owl: Any, obs: Observation, phrase: str) -> list[Detection]:
+    return plain_sam3(sam3, obs, phrase) if which == "sam3" else plain_owl(owl, obs, phrase)
+
+
+def fresh(which: str, sam3: Any, owl: Any) -> Sam3Grounder | Owlv2Grounder:
+    return sam3_grounder(sam3, 0.0) if which == "sam3" else owl_grounder(owl, 0.0)
+
+
+PHRASES = ("chair", "red chair", "sofa", "potted plant", "tv")
+
+
+@pytest.mark.parametrize("which", ["sam3", "owlv2"])
+def test_split_forward_equals_the_plain_forward(which: str, sam3: Any, owl: Any) -> None:
+    for seed, phrase in enumerate(PHRASES):
+        obs = observation(seed)
+        detections = fresh(which, sam3, owl).segment(obs, phrase)
+        assert detections and exactly_equal(detections, plain(which, sam3, owl, obs, phrase))
+
+
+@pytest.mark.parametrize("which", ["sam3", "owlv2"])
+def test_several_phrases_on_one_frame_encode_it_once(which: str, sam3: Any, owl: Any) -> None:
+    """Prompt enrichment's case: up to five phrases on the same frame; each answer is the plain forward's."""
+    grounder, obs = fresh(which, sam3, owl), observation(3, step=7)
+    text_encoder, vision_encoder = encoders(which, sam3, owl)
+    with counting(vision_encoder) as vision_runs, counting(text_encoder) as text_runs:
+        answers = [grounder.segment(obs, phrase) for phrase in PHRASES]
+    assert (len(vision_runs), len(text_runs)) == (1, len(PHRASES))
+    for phrase, detections in zip(PHRASES, answers, strict=True):
+        assert exactly_equal(detections, plain(which, sam3, owl, obs, phrase))
+
+
+@pytest.mark.parametrize("which", ["sam3", "owlv2"])
+def test_a_phrase_is_encoded_once_per_episode(which: str, sam3: Any, owl: Any) -> None:
+    grounder = fresh(which, sam3, owl)
+    text_encoder, vision_encoder = encoders(which, sam3, owl)
+    grounder.begin_episode(None, seed=0)
+    with counting(vision_encoder) as vision_runs, counting(text_encoder) as text_runs:
+        answers = [grounder.segment(observation(seed, step=seed), "chair") for seed in range(3)]
+        assert (len(vision_runs), len(text_runs)) == (3, 1)
+        grounder.begin_episode(None, seed=1)  # a new episode encodes its phrases again
+        grounder.segment(observation(0, step=0), "chair")
+        assert (len(vision_runs), len(text_runs)) == (4, 2)
+    for seed, detections in enumerate(answers):
+        assert exactly_equal(detections, plain(which, sam3, owl, observation(seed), "chair"))
+
+
+@pytest.mark.parametrize("which", ["sam3", "owlv2"])
+def test_a_new_frame_is_encoded_even_at_the_same_step(which: str, sam3: Any, owl: Any) -> None:
+    """The frame cache compares pixels, not only the step: a world that reuses its image buffer gets no stale
+    features."""
+    grounder = fresh(which, sam3, owl)
+    _, vision_encoder = encoders(which, sam3, owl)
+    first, second = observation(0, step=4), observation(1, step=4)
+    with counting(vision_encoder) as vision_runs:
+        grounder.segment(first, "chair")
+        first.rgb[:] = second.rgb  # the same array, new pixels
+        in_place = grounder.segment(first, "chair")
+        grounder.segment(observation(1, step=5), "chair")  # same pixels, next step
+    assert len(vision_runs) == 3
+    assert exactly_equal(in_place, plain(which, sam3, owl, second, "chair"))
+
+
+@pytest.mark.parametrize("which", ["sam3", "owlv2"])
+def test_a_batch_of_frames_gives_each_frame_its_detections(which: str, sam3: Any, owl: Any) -> None:
+    """One forward over several frames (the bench's ``--batch``): per frame, the single-frame answer (a batched
+    matrix product may round differently, so scores within 1e-6)."""
+    frames = [observation(seed) for seed in range(3)]
+    batched = fresh(which, sam3, owl).segment_batch([f.rgb for f in frames], "chair")
+    assert len(batched) == 3
+    for frame, detections in zip(frames, batched, strict=True):
+        assert same_detections(detections, plain(which, sam3, owl, frame, "chair"))
+
+
+def test_owlv2_masks_only_the_best_boxes(owl: tuple[Owlv2ForObjectDetection, Owlv2Processor]) -> None:
+    """At threshold 0 all 64 boxes pass; with ``max_boxes=5`` the segmenter sees only the 5 best, and the answer is
+    the first 5 of the full one."""
+    segmenter = TopRowSegmenter()
+    everything = owl_grounder(owl, 0.0, segmenter=TopRowSegmenter()).segment(observation(), "chair")
+    best = owl_grounder(owl, 0.0, segmenter=segmenter, max_boxes=5).segment(observation(), "chair")
+    assert [call.shape for call in segmenter.calls] == [(5, 4)]
+    assert exactly_equal(best, everything[:5])
+    assert OWLV2_MAX_BOXES == 100
+
+
+# --- dtype ---
+
+
+def test_dtype_auto_is_fp32_on_the_cpu_and_names_are_torch_dtypes() -> None:
+    assert resolve_dtype("auto", "cpu") == torch.float32
+    assert resolve_dtype("float32", "cpu") == torch.float32
+    assert resolve_dtype("bfloat16", "cpu") == torch.bfloat16
+    assert resolve_dtype("float16", "cuda") == torch.float16
+    if torch.cuda.is_available():
+        expected = torch.bfloat16 if torch.cuda.is_bf16_supported() else torch.float32
+        assert resolve_dtype("auto", "cuda:0") == expected
+
+
+@pytest.mark.parametrize("which", ["sam3", "owlv2"])
+def test_bfloat16_casts_the_model_and_still_grounds(which: str, sam3: Any, owl: Any) -> None:
+    """The model is cast (a copy here: the fixtures stay fp32) and the pixels follow; detections stay well formed
+    and the text features are bf16 too."""
+    model, processor = copy.deepcopy(sam3 if which == "sam3" else owl)
+    kind = Sam3Grounder if which == "sam3" else Owlv2Grounder
+    grounder = kind(device="cpu", score_threshold=0.0, dtype="bfloat16", model_obj=model, processor_obj=processor)
+    assert grounder.model.dtype == torch.bfloat16
+    assert grounder.preprocess([observation().rgb]).dtype == torch.bfloat16
+    assert_well_formed(grounder.segment(observation(), "chair"), "chair")

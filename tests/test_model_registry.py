@@ -1,7 +1,9 @@
-"""The model registries (``--reasoner``, ``--detector``; room for another role) and the one list of reference
-agents: names and order as the command line shows them, what each backend needs, unknown names refused."""
+"""The model registries (``--reasoner``, ``--detector``, ``--scorer``) and the one list of reference agents: names
+and order as the command line shows them, what each backend needs, unknown names refused."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import pytest
 
@@ -12,13 +14,16 @@ from drivenav.semantics.registry import (
     DETECTORS,
     GROUNDER_BACKENDS,
     REASONERS,
+    SCORERS,
     Backend,
     ModelRegistry,
     ModelSpec,
     check_models,
     make_grounder,
     make_reasoner,
+    make_scorer,
     model_requirements,
+    scorer_reads_labels,
 )
 from drivenav.types import SEMANTIC
 
@@ -26,6 +31,7 @@ from drivenav.types import SEMANTIC
 def test_the_names_and_their_order_are_the_command_lines() -> None:
     assert REASONERS == ("embedded", "openai", "replay", "geometric")
     assert DETECTORS == ("embedded", "ground-truth", "sam3", "owlv2")
+    assert SCORERS == ("embedded", "blip2-itm", "siglip", "replay")
 
 
 def test_every_reference_agent_resolves_to_its_class() -> None:
@@ -40,16 +46,36 @@ def test_the_stand_ins_need_ground_truth_labels() -> None:
     assert GROUNDER_BACKENDS.reads_labels("no-such-detector") is False
 
 
+def test_the_scorer_reads_labels_apart_from_the_model_requirements() -> None:
+    """Only the vlfm method scores frames, so its agent adds the scorer's needs; the other methods' stay."""
+    assert scorer_reads_labels(ModelSpec()) and scorer_reads_labels(ModelSpec(scorer="embedded"))
+    assert not any(scorer_reads_labels(ModelSpec(scorer=name)) for name in ("blip2-itm", "siglip", "replay", "x"))
+    assert model_requirements(ModelSpec(reasoner="openai", detector="sam3", scorer="embedded")) == frozenset()
+
+
 def test_backends_are_built_by_name() -> None:
     assert make_reasoner(ModelSpec(reasoner="geometric")).name == "geometric"
     assert type(make_grounder(ModelSpec(detector="ground-truth"))).__name__ == "GroundTruthGrounder"
+    assert type(make_scorer(ModelSpec())).__name__ == "EmbeddedScorer"
 
 
 @pytest.mark.parametrize(
-    ("spec", "option"), [(ModelSpec(reasoner="gpt"), "--reasoner"), (ModelSpec(detector="x"), "--detector")]
+    ("spec", "option"),
+    [
+        (ModelSpec(reasoner="gpt"), "--reasoner"),
+        (ModelSpec(detector="x"), "--detector"),
+        (ModelSpec(scorer="clip"), "--scorer"),
+    ],
 )
 def test_an_unknown_name_is_one_line_naming_its_option(spec: ModelSpec, option: str) -> None:
     with pytest.raises(InputError, match=f"field '{option}': expected one of "):
+        check_models(spec)
+
+
+def test_every_cheap_check_runs_before_any_weights_load(tmp_path: Path) -> None:
+    """A missing recording fails at once, though the scorer's checkpoint (also missing) is named first."""
+    spec = ModelSpec(scorer="blip2-itm", scorer_model=str(tmp_path), reasoner="replay", vlm_replay=str(tmp_path / "r"))
+    with pytest.raises(InputError, match="--vlm-replay"):
         check_models(spec)
 
 

@@ -1,4 +1,4 @@
-"""Recording a reasoner's answers and replaying them (drivenav.semantics.replay)."""
+"""Recording a reasoner's and a scorer's answers and replaying them (drivenav.semantics.replay)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,13 @@ from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from drivenav.envs.vocabulary import VOCABULARY
 from drivenav.errors import InputError
+from drivenav.semantics.embedded_scorer import EmbeddedScorer
+from drivenav.semantics.embedding import default_embedder
 from drivenav.semantics.fake_vlm_server import fake_stats, start_fake_server
 from drivenav.semantics.geometric import GeometricReasoner
 from drivenav.semantics.protocols import (
@@ -22,9 +26,19 @@ from drivenav.semantics.protocols import (
     VerificationFrame,
     View,
 )
-from drivenav.semantics.replay import RecordingReasoner, ReplayMissError, ReplayReasoner, select_request
+from drivenav.semantics.registry import ModelSpec, check_models, make_reasoner, make_scorer
+from drivenav.semantics.replay import (
+    RecordingReasoner,
+    RecordingScorer,
+    ReplayMissError,
+    ReplayReasoner,
+    ReplayScorer,
+    score_request,
+    select_request,
+)
 from drivenav.types import GroundTruth
-from test_openai_backend import GOAL, ask_all, candidates, frame, reasoner, view
+from frames import observation_of
+from test_openai_backend import GOAL, ask_all, candidates, frame, image, reasoner, view
 
 
 class ScriptedReasoner(GeometricReasoner):
@@ -154,3 +168,83 @@ def test_unusable_replay_files_are_input_errors(tmp_path: Path) -> None:
     path.write_bytes(b"\xff\xfe not text")
     with pytest.raises(InputError, match="expected a UTF-8 text file written with --vlm-record"):
         ReplayReasoner(path)
+
+
+# --- the image-text scorer's answers ---
+
+SCORED = GroundTruth({1: "chair", 2: "armchair", 3: "toilet"}, VOCABULARY)
+
+
+def instances(seed: int) -> np.ndarray:
+    """A 48 x 64 instance image: a chair, an armchair and a toilet in rows of a seed-dependent height."""
+    rows = np.random.default_rng(seed).integers(1, 4, size=(48, 1))
+    return np.repeat(rows, 64, axis=1).astype(np.int32)
+
+
+def scored_frames() -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """Goal, RGB and instance image of each question; the third repeats the first."""
+    return [(GOAL, image(1), instances(1)), ("toilet", image(2), instances(2)), (GOAL, image(1), instances(1))]
+
+
+def test_scores_replay_exactly_from_the_reasoners_recording(tmp_path: Path) -> None:
+    """Reasoner and scorer record into one file; each replay answers its own kinds from it."""
+    path = tmp_path / "run.jsonl"
+    scorer = RecordingScorer(EmbeddedScorer(default_embedder()), path)
+    scorer.begin_episode(SCORED)
+    recorded = [scorer.score(goal, observation_of(rgb, labels)) for goal, rgb, labels in scored_frames()]
+    selection = RecordingReasoner(GeometricReasoner(), path).select_direction(GOAL, candidates([1, 2]))
+    assert scorer.name == "embedded" and [c.outcome for c in scorer.calls] == ["ok"] * 3
+    assert recorded[0] == recorded[2] and len(set(recorded)) == 2 and all(0.0 < s < 1.0 for s in recorded)
+    lines = [json.loads(line) for line in path.read_text().splitlines()]
+    assert [line["kind"] for line in lines] == ["score"] * 3 + ["select_direction"]
+    assert lines[0]["answer"] == {"score": recorded[0]} and lines[0]["key"] == score_request(GOAL, image(1)).key
+
+    replay = ReplayScorer(path)
+    replay.begin_episode(None)
+    assert [replay.score(goal, observation_of(rgb)) for goal, rgb, _ in scored_frames()] == recorded  # exact floats
+    assert replay.name == "replay" and [(c.kind, c.outcome) for c in replay.calls] == [("score", "replayed")] * 3
+    assert ReplayReasoner(path).select_direction(GOAL, candidates([1, 2])) == selection
+
+
+def test_a_score_not_in_the_recording_misses_with_a_clear_message(tmp_path: Path) -> None:
+    path = tmp_path / "run.jsonl"
+    RecordingScorer(EmbeddedScorer(default_embedder()), path).score(GOAL, observation_of(image(1), instances(1)))
+    replay = ReplayScorer(path)
+    repainted = image(1)
+    repainted[0, 0, 0] ^= 1
+    with pytest.raises(ReplayMissError) as missed:
+        replay.score(GOAL, observation_of(repainted, instances(1)))
+    message = str(missed.value)
+    assert (
+        str(path) in message and "score question with goal 'chair'" in message and "frame of shape 48x64x3" in message
+    )
+    assert "holds 1 score answers for that goal" in message
+    with pytest.raises(ReplayMissError, match="holds 0 score answers for that goal"):
+        replay.score("toilet", observation_of(image(1)))
+    with pytest.raises(ReplayMissError, match="holds 0 select_direction answers"):
+        ReplayReasoner(path).select_direction(GOAL, candidates([1]))
+
+
+def test_a_malformed_score_is_an_input_error(tmp_path: Path) -> None:
+    path = tmp_path / "bad.jsonl"
+    record = {"key": "k", "kind": "score", "goal": GOAL, "summary": "", "answer": {"score": "high"}}
+    path.write_text(json.dumps(record) + "\n")
+    with pytest.raises(InputError, match=r"field 'line 1: answer\.score': expected a number, got 'high'"):
+        ReplayScorer(path)
+    with pytest.raises(InputError, match=r"answer\.score"):  # the reasoner's replay reads the same file
+        ReplayReasoner(path)
+
+
+def test_the_registry_records_and_replays_scores_through_one_file(tmp_path: Path) -> None:
+    path = tmp_path / "calls.jsonl"
+    recorder = make_scorer(ModelSpec(vlm_record=str(path)))
+    assert isinstance(recorder, RecordingScorer) and isinstance(
+        make_reasoner(ModelSpec(vlm_record=str(path))), RecordingReasoner
+    )
+    recorder.begin_episode(SCORED)
+    value = recorder.score(GOAL, observation_of(image(3), instances(3)))
+    spec = ModelSpec(scorer="replay", vlm_replay=str(path))
+    check_models(spec)  # the embedded reasoner reads no recording; the scorer's replay reads it
+    assert make_scorer(spec).score(GOAL, observation_of(image(3))) == value
+    with pytest.raises(InputError, match="--vlm-replay"):
+        check_models(ModelSpec(scorer="replay", vlm_replay=str(tmp_path / "missing.jsonl")))

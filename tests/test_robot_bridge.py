@@ -53,6 +53,11 @@ def episodes(settings: Settings) -> list[Episode]:
 
 @pytest.fixture(scope="module")
 def direct(settings: Settings, episodes: list[Episode]) -> list[tuple[EpisodeRecord, list[int]]]:
+    return directly(settings, episodes)
+
+
+def directly(settings: Settings, episodes: list[Episode]) -> list[tuple[EpisodeRecord, list[int]]]:
+    """The episodes run in the embedded world itself: the reference a robot run must match."""
     spec = RunSpec(EmbeddedSpec(SCENES, 5), settings)
     env, agent = spec.env.build(settings.sim), build_agent(spec)
     results = []
@@ -99,6 +104,15 @@ def test_the_same_episodes_give_the_same_actions_and_metrics_through_the_robot_p
         write_keys(keys)
     with served(sim_session(settings, episodes, lidar=curve), keys) as endpoint:
         assert_same(direct, through_robot(settings, episodes, endpoint, keys))
+
+
+def test_vlfm_gives_the_same_actions_and_metrics_through_the_robot_protocol(episodes: list[Episode]) -> None:
+    """The VLFM baseline (value map from the image-text scorer, Yokoyama et al. 2024) through the same bridge."""
+    vlfm = load_settings("vlfm", options={"sim.max_steps": 60})
+    reference = directly(vlfm, episodes)
+    assert any(record.vlm_calls > 0 for record, _ in reference)  # the scorer ran on the brain's side
+    with served(sim_session(vlfm, episodes), None) as endpoint:
+        assert_same(reference, through_robot(vlfm, episodes, endpoint, None))
 
 
 def test_an_unlisted_client_key_is_refused(tmp_path: Path, settings: Settings, episodes: list[Episode]) -> None:

@@ -22,40 +22,45 @@ def _without_timing(record: dict[str, object]) -> dict[str, object]:
     return {k: v for k, v in record.items() if k not in TIMING_KEYS}
 
 
-def _replay(recording: Path, out: Path) -> subprocess.CompletedProcess[str]:
-    """``drivenav eval`` answering every reasoner question from ``recording``."""
+def _replay(
+    recording: Path, out: Path, agent: str = "drive-nav", role: str = "--reasoner"
+) -> subprocess.CompletedProcess[str]:
+    """``drivenav eval`` answering every question of ``role`` (the reasoner's, or the scorer's) from ``recording``."""
     return run_cli(
-        "eval",
-        "--agent",
-        "drive-nav",
-        *EPISODE_ARGS,
-        "--reasoner",
-        "replay",
-        "--vlm-replay",
-        str(recording),
-        "--out",
-        str(out),
+        "eval", "--agent", agent, *EPISODE_ARGS, role, "replay", "--vlm-replay", str(recording), "--out", str(out)
     )
+
+
+def _recorded(recording: Path, out: Path, agent: str) -> None:
+    """``drivenav eval`` with the default models, recording their answers to ``recording``."""
+    first = run_cli("eval", "--agent", agent, *EPISODE_ARGS, "--vlm-record", str(recording), "--out", str(out))
+    assert first.returncode == 0, first.stderr
+    assert recording.stat().st_size > 0
 
 
 def test_replay_reproduces_a_recorded_run_exactly(tmp_path: Path) -> None:
     recording = tmp_path / "vlm.jsonl"
-    first = run_cli(
-        "eval",
-        "--agent",
-        "drive-nav",
-        *EPISODE_ARGS,
-        "--vlm-record",
-        str(recording),
-        "--out",
-        str(tmp_path / "recorded"),
-    )
-    assert first.returncode == 0, first.stderr
-    assert recording.stat().st_size > 0
+    _recorded(recording, tmp_path / "recorded", "drive-nav")
     second = _replay(recording, tmp_path / "replayed")
     assert second.returncode == 0, second.stderr
     recorded, replayed = _records(tmp_path / "recorded"), _records(tmp_path / "replayed")
     assert [_without_timing(r) for r in recorded] == [_without_timing(r) for r in replayed]
+    for record in recorded:
+        trace_a = json.loads((tmp_path / "recorded" / "traces" / f"{record['episode_id']}.json").read_text())
+        trace_b = json.loads((tmp_path / "replayed" / "traces" / f"{record['episode_id']}.json").read_text())
+        assert trace_a["actions"] == trace_b["actions"]
+
+
+def test_vlfm_replays_its_scores_exactly(tmp_path: Path) -> None:
+    """VLFM's image-text scores, recorded with ``--vlm-record`` and answered by ``--scorer replay``: the same
+    records (one score per step) and actions."""
+    recording = tmp_path / "scores.jsonl"
+    _recorded(recording, tmp_path / "recorded", "vlfm")
+    replay = _replay(recording, tmp_path / "replayed", "vlfm", "--scorer")
+    assert replay.returncode == 0, replay.stderr
+    recorded, replayed = _records(tmp_path / "recorded"), _records(tmp_path / "replayed")
+    assert [_without_timing(r) for r in recorded] == [_without_timing(r) for r in replayed]
+    assert all(r["vlm_calls_by_kind"] == {"score": r["steps"]} for r in recorded)
     for record in recorded:
         trace_a = json.loads((tmp_path / "recorded" / "traces" / f"{record['episode_id']}.json").read_text())
         trace_b = json.loads((tmp_path / "replayed" / "traces" / f"{record['episode_id']}.json").read_text())

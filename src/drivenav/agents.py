@@ -14,20 +14,33 @@ from drivenav.agent.base import Agent
 from drivenav.agent.drivenav import DriveNavAgent
 from drivenav.errors import InputError
 from drivenav.methods import REFERENCE_AGENTS, agent_names, method_named
-from drivenav.semantics.registry import make_grounder, make_reasoner, model_requirements
+from drivenav.semantics.registry import (
+    make_grounder,
+    make_reasoner,
+    make_scorer,
+    model_requirements,
+    scorer_reads_labels,
+)
 from drivenav.settings import Settings
-from drivenav.types import SimConfig
+from drivenav.types import SEMANTIC, SimConfig
 
 
 def make_agent(settings: Settings) -> Agent:
     """A fresh agent ``settings.run.agent``; DRIVE-Nav variants take the paper's constants, the agent switches,
-    the mapper tuning and the models of ``settings``. An unknown name is an :class:`InputError` on ``--agent``."""
+    the mapper tuning and the models of ``settings`` (VLFM's value map also the image-text scorer). An unknown name
+    is an :class:`InputError` on ``--agent``; a value map with the reasoner on, one on ``agent.value_map``."""
     name = settings.run.agent
     if name in REFERENCE_AGENTS:
         return reference_agent(name)(settings.sim)
     if method_named(name) is None:
         raise InputError("command line", "--agent", f"one of {', '.join(agent_names())}", name)
+    agent = settings.agent
+    if agent.value_map and agent.use_reasoner:
+        raise InputError("settings", "agent.value_map", "false unless agent.use_reasoner is false (VLFM)", True)
     models = settings.models
+    requires = model_requirements(models)
+    if agent.value_map and scorer_reads_labels(models):
+        requires |= {SEMANTIC}
     return DriveNavAgent(
         settings.sim,
         settings.agent,
@@ -36,7 +49,8 @@ def make_agent(settings: Settings) -> Agent:
         name=name,
         reasoner_factory=partial(make_reasoner, models),
         grounder_factory=partial(make_grounder, models),
-        requires=model_requirements(models),
+        requires=requires,
+        scorer_factory=partial(make_scorer, models),
     )
 
 

@@ -4,7 +4,8 @@ Habitat (``--env habitat``): habitat-sim and habitat-lab import, and for each sp
 ``--split`` names) the episode file and its ``content/`` files exist, with their episode and scene counts, the
 scenes' files under ``DIR/scene_datasets`` and the scene dataset config. Models: the ``openai`` reasoner's server
 answers one request with one image in the expected schema (no repair, no fallback); a ``sam3`` / ``owlv2``
-detector loads and segments one frame. The process exits 1 if any check failed.
+detector loads and segments one frame; a ``blip2-itm`` / ``siglip`` scorer loads and scores one frame. The
+process exits 1 if any check failed.
 """
 
 from __future__ import annotations
@@ -14,9 +15,10 @@ import importlib.metadata
 import importlib.util
 import platform
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 
@@ -25,6 +27,11 @@ from drivenav.errors import InputError
 from drivenav.jit import compiled_build
 from drivenav.semantics.registry import ModelSpec
 from drivenav.types import Observation, Pose, SimConfig
+
+if TYPE_CHECKING:
+    from drivenav.semantics.protocols import Grounder, ImageTextScorer
+
+Model = TypeVar("Model")
 
 HABITAT_LAB_VERSION = "0.3.320260507"
 HABITAT_SIM_FIX = "conda install habitat-sim withbullet headless -c conda-forge -c aihabitat (docs/habitat.md)"
@@ -68,6 +75,8 @@ def run_checks(request: DoctorRequest) -> list[Check]:
         checks.append(vlm_check(request.models))
     if request.models.detector in ("sam3", "owlv2"):
         checks.append(detector_check(request.models))
+    if request.models.scorer in ("blip2-itm", "siglip"):
+        checks.append(scorer_check(request.models))
     return checks
 
 
@@ -187,20 +196,40 @@ def detector_check(models: ModelSpec) -> Check:
     """The detector's weights load and it segments one frame."""
     from drivenav.semantics.registry import make_grounder
 
-    name = f"detector {models.detector}"
+    def segment_door(grounder: Grounder) -> str:
+        grounder.begin_episode(None, 0)
+        return f"{len(grounder.segment(_test_frame(SimConfig()), 'door'))} found"
+
     fix = "pip install 'drivenav[models]' and pass --detector-model with the checkpoint (docs/habitat.md)"
+    return _model_check(f"detector {models.detector}", fix, lambda: make_grounder(models), segment_door)
+
+
+def scorer_check(models: ModelSpec) -> Check:
+    """The scorer's weights load and it scores one frame."""
+    from drivenav.semantics.registry import SCORER_BACKENDS
+
+    def score_door(scorer: ImageTextScorer) -> str:
+        scorer.begin_episode(None)
+        return f"score {scorer.score('door', _test_frame(SimConfig())):.3f}"
+
+    fix = "pip install 'drivenav[models]' and pass --scorer-model with the checkpoint (docs/habitat.md)"
+    build = SCORER_BACKENDS.get(models.scorer).build
+    return _model_check(f"scorer {models.scorer}", fix, lambda: build(models), score_door)
+
+
+def _model_check(name: str, fix: str, load: Callable[[], Model], use: Callable[[Model], str]) -> Check:
+    """Times ``load`` (the weights) and ``use`` (one frame, saying what it found); any failure is the check's."""
     try:
         start = time.perf_counter()
-        grounder = make_grounder(models)
+        model = load()
         loaded = time.perf_counter()
-        grounder.begin_episode(None, 0)
-        found = grounder.segment(_test_frame(SimConfig()), "door")
+        found = use(model)
         done = time.perf_counter()
     except InputError as error:
         return Check(name, False, str(error), fix)
     except Exception as error:  # a broken checkpoint or runtime shows as any exception
         return Check(name, False, f"{type(error).__name__}: {_first_line(error)}", fix)
-    detail = f"loaded in {(loaded - start):.1f} s, one frame in {(done - loaded) * 1000:.0f} ms ({len(found)} found)"
+    detail = f"loaded in {(loaded - start):.1f} s, one frame in {(done - loaded) * 1000:.0f} ms ({found})"
     return Check(name, True, detail)
 
 

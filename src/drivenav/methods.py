@@ -66,6 +66,12 @@ METHODS: tuple[Method, ...] = (
         "greedy nearest frontier: no views, no reasoner",
         ("agent.use_reasoner=false", "agent.enrich=false", "agent.verify=false"),
     ),
+    Method(
+        "vlfm",
+        ("II",),
+        "VLFM (Yokoyama et al. 2024): value map from image-text scores, highest-value frontier",
+        ("agent.use_reasoner=false", "agent.value_map=true", "agent.enrich=false", "agent.verify=false"),
+    ),
 )
 """DRIVE-Nav and its baselines / ablations (paper Tables II, V, VI), in the order of the ablation report."""
 

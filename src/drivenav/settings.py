@@ -34,7 +34,7 @@ from drivenav.jsonstream import JsonObject
 from drivenav.mapping.config import MapTuning
 from drivenav.methods import PRESETS, agent_names, method_named, preset_names
 from drivenav.paper import DriveNavConfig
-from drivenav.semantics.registry import DETECTORS, REASONERS, ModelSpec
+from drivenav.semantics.registry import DETECTORS, DTYPES, REASONERS, SCORERS, ModelSpec
 from drivenav.types import SimConfig
 
 YAML_HEADER = """\
@@ -42,7 +42,7 @@ YAML_HEADER = """\
 # Units: lengths in metres, angles in degrees (*_deg), sim.max_steps in actions (the step budget).
 # sim: sensor and body (Habitat ObjectNav); mapping: the mapper's tuning (its depth range, camera height,
 # agent radius and grid resolution come from sim); paper: DRIVE-Nav's constants (Sec. IV); agent: the method's
-# switches (Tables II, V, VI); models: reasoner and detector; run: the agent's name and the run seed.
+# switches (Tables II, V, VI); models: reasoner, detector and scorer; run: the agent's name and the run seed.
 """
 
 
@@ -280,6 +280,8 @@ def check_values(settings: Settings) -> None:
         ("run.agent", agent_names(), "--agent"),
         ("models.reasoner", REASONERS, "--reasoner"),
         ("models.detector", DETECTORS, "--detector"),
+        ("models.scorer", SCORERS, "--scorer"),
+        ("models.dtype", DTYPES, "--dtype"),
     )
     for key, names, option in choices:
         if leaves[key] not in names:

@@ -1,10 +1,13 @@
 """The agent's own settings: the switches that compose DRIVE-Nav and its baselines, and the tuning the paper does
 not give (the paper's constants are :class:`~drivenav.paper.DriveNavConfig`). Plain frozen dataclasses, so the
-settings layer reads them without importing the agent."""
+settings layer reads them without importing the agent (VLFM's constants come from the value map's module, which
+needs only numpy and the grid)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+
+from drivenav.mapping.value_map import ValueMapConfig
 
 
 @dataclass(frozen=True)
@@ -22,9 +25,10 @@ class PlannerConfig:
 class AgentConfig:
     """Switches composing DRIVE-Nav and its baselines (paper Tables II, V, VI), and the agent's own tuning (ours:
     the paper does not give these); the paper's constants are a :class:`~drivenav.paper.DriveNavConfig` beside
-    them."""
+    them. ``value_map`` makes the ``use_reasoner=False`` baseline VLFM (``vlfm``), whose constants are ``vlfm``."""
 
     use_reasoner: bool = True  # False: greedy nearest frontier, no views, no reasoner
+    value_map: bool = False  # with use_reasoner False: VLFM's value map and highest-value frontier (agent/vlfm.py)
     enrich: bool = True  # prompt enrichment (Sec. IV-B)
     verify: bool = True  # cross-frame verification (Sec. IV-C)
     decision_scan: bool = False  # True: a full 360 deg scan at every decision point
@@ -37,3 +41,4 @@ class AgentConfig:
     reidentify_steps: int = 500  # steps a removed direction is remembered, to recognise it under a fresh label
     approach_detour_steps: int = 60  # steps an approach may go through frontiers before the target is set aside
     planner: PlannerConfig = field(default_factory=PlannerConfig)
+    vlfm: ValueMapConfig = field(default_factory=ValueMapConfig)  # VLFM's constants (Yokoyama et al., ICRA 2024)

@@ -20,9 +20,10 @@ in a module of :mod:`drivenav.agent.modes`:
 Which directions a decision offers the reasoner is :mod:`~drivenav.agent.decision`'s (docs/agent.md).
 
 Config switches give the baselines and ablations: ``use_reasoner=False`` (the greedy nearest frontier,
-:mod:`~drivenav.agent.greedy`), ``decision_scan`` (a full 360 deg scan at every decision: ``direction-360``,
-``frontier``), ``cluster_span`` 0 (raw frontiers as candidates), the speed field's ``weighted`` flag and the
-inspection's ``restrict_forward`` flag.
+:mod:`~drivenav.agent.greedy`; with ``value_map`` VLFM, :mod:`~drivenav.agent.vlfm`, which scores every frame with
+an image-text scorer and spreads the score over a value map, :mod:`~drivenav.mapping.value_map`),
+``decision_scan`` (a full 360 deg scan at every decision: ``direction-360``, ``frontier``), ``cluster_span`` 0
+(raw frontiers as candidates), the speed field's ``weighted`` flag and the inspection's ``restrict_forward`` flag.
 
 An episode's state is one :class:`~drivenav.agent.state.EpisodeState`, made by :meth:`DriveNavAgent.reset` and
 dropped by :meth:`DriveNavAgent.end_episode`.
@@ -33,7 +34,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
-from drivenav.agent import greedy
+from drivenav.agent import greedy, vlfm
 from drivenav.agent.base import Agent, DecisionStats, ModelStats
 from drivenav.agent.config import AgentConfig
 from drivenav.agent.context import StepContext, perceive
@@ -41,17 +42,18 @@ from drivenav.agent.loop import Loop, Modes, Tuning
 from drivenav.agent.modes import approach, enrich, follow, scan, sweep
 from drivenav.agent.planner import LocalPlanner
 from drivenav.agent.relabel import carry_over
-from drivenav.agent.state import EpisodeState
+from drivenav.agent.state import EpisodeState, ValueSearch
 from drivenav.agent.target import SearchConfig, TargetSearch
 from drivenav.agent.trace import ScanStarted, ViewCaptured
 from drivenav.directions import DirectionPipeline
 from drivenav.inspection import RepresentativeViews, full_scan_turns
 from drivenav.mapping.config import MappingConfig, MapTuning
 from drivenav.mapping.occupancy import OccupancyMapper
+from drivenav.mapping.value_map import ValueMap
 from drivenav.paper import DriveNavConfig
 from drivenav.semantics.geometric import GeometricReasoner
 from drivenav.semantics.ground_truth import GroundTruthGrounder
-from drivenav.semantics.protocols import Grounder, Reasoner
+from drivenav.semantics.protocols import Grounder, ImageTextScorer, ModelCall, Reasoner
 from drivenav.types import SEMANTIC, Action, GroundTruth, Observation, SimConfig
 
 
@@ -68,6 +70,7 @@ class DriveNavAgent(Agent):
         reasoner_factory: Callable[[], Reasoner] = GeometricReasoner,
         grounder_factory: Callable[[], Grounder] = GroundTruthGrounder,
         requires: frozenset[str] = frozenset({SEMANTIC}),
+        scorer_factory: Callable[[], ImageTextScorer] | None = None,
     ) -> None:
         super().__init__(sim)
         self.requires = requires  # what the models read of the world's ground truth (the default grounder: labels)
@@ -76,16 +79,25 @@ class DriveNavAgent(Agent):
         self.paper = paper or DriveNavConfig()
         self.mapping = mapping or MapTuning()
         self.tuning = Tuning(sim, self.config, self.paper)
-        self.modes = Modes(
-            scan=scan.act,
-            sweep=sweep.act,
-            follow=follow.act if self.config.use_reasoner else greedy.act,
-            enrich=enrich.act,
-            approach=approach.act,
-        )
+        self.uses_value_map = self.config.value_map and not self.config.use_reasoner  # VLFM
+        if self.uses_value_map and scorer_factory is None:
+            raise ValueError(f"{name}: the value map (agent.value_map) needs an image-text scorer")
+        self.modes = self._modes()
         self._reasoner_factory = reasoner_factory
         self._grounder_factory = grounder_factory
+        self._scorer_factory = scorer_factory
         self.state: EpisodeState | None = None  # the running episode's state (none between episodes)
+
+    def _modes(self) -> Modes:
+        """The mode handlers: DRIVE-Nav's direction following, VLFM's value-map frontier choice (with its own end
+        of the start scan) or the greedy nearest frontier."""
+        if self.config.use_reasoner:
+            start, following = scan.act, follow.act
+        elif self.uses_value_map:
+            start, following = vlfm.scan, vlfm.act
+        else:
+            start, following = scan.act, greedy.act
+        return Modes(scan=start, sweep=sweep.act, follow=following, enrich=enrich.act, approach=approach.act)
 
     # ----------------------------------------------------------------- episode set-up
 
@@ -106,7 +118,16 @@ class DriveNavAgent(Agent):
         grounder.begin_episode(truth, seed)
         search = self._target_search(goal_text, grounder, reasoner)
         turns = full_scan_turns(self.tuning.turn)
-        return EpisodeState(mapper, pipeline, views, planner, reasoner, search, scan_turns=turns)
+        values = self._value_search(mapper, truth)
+        return EpisodeState(mapper, pipeline, views, planner, reasoner, search, scan_turns=turns, values=values)
+
+    def _value_search(self, mapper: OccupancyMapper, truth: GroundTruth | None) -> ValueSearch | None:
+        """VLFM's scorer, begun on the episode, and an empty value map on the mapper's grid (None unless VLFM)."""
+        if not self.uses_value_map or self._scorer_factory is None:
+            return None
+        scorer = self._scorer_factory()
+        scorer.begin_episode(truth)
+        return ValueSearch(scorer, ValueMap(mapper.grid, mapper.config.max_depth, self.config.vlfm))
 
     def _target_search(self, goal_text: str, grounder: Grounder, reasoner: Reasoner) -> TargetSearch:
         """Grounding, prompt enrichment and cross-frame verification as switched on, with the paper's rounds,
@@ -138,14 +159,21 @@ class DriveNavAgent(Agent):
 
     # ----------------------------------------------------------------- what the episode cost and did
 
+    def _calls(self) -> list[ModelCall]:
+        """This episode's model calls: the reasoner's and, for VLFM, the scorer's (kind ``score``)."""
+        if self.state is None:
+            return []
+        values = self.state.values
+        return [*self.state.reasoner.calls, *(values.scorer.calls if values is not None else [])]
+
     @property
     def model_calls(self) -> int:
-        return len(self.state.reasoner.calls) if self.state is not None else 0
+        return len(self._calls())
 
     def episode_stats(self) -> ModelStats:
         if self.state is None:
             return super().episode_stats()
-        calls, search = self.state.reasoner.calls, self.state.search
+        calls, search = self._calls(), self.state.search
         kinds = sorted({c.kind for c in calls})
         return ModelStats(
             vlm_calls_by_kind={k: sum(c.kind == k for c in calls) for k in kinds},
@@ -170,6 +198,8 @@ class DriveNavAgent(Agent):
         timings: dict[str, float] = {}
         start = time.perf_counter()
         ctx = self._map(state, observation, timings)
+        if state.values is not None:
+            self._update_values(state.values, state.mapper, observation, timings)
         mark = time.perf_counter()
         carry_over(loop, ctx)
         self._record_views(state, observation, ctx)
@@ -198,6 +228,19 @@ class DriveNavAgent(Agent):
         ctx = perceive(state.pipeline, observation.pose, snapshot, frontiers, state.goal)
         timings.update({f"directions.{k}": v for k, v in ctx.result.timings_ms.items()})
         return ctx
+
+    def _update_values(
+        self, values: ValueSearch, mapper: OccupancyMapper, observation: Observation, timings: dict[str, float]
+    ) -> None:
+        """VLFM: score the frame against the goal, then spread the score over the value map (on the mapper's grid,
+        which may have grown this step); the scorer and the map update are timed apart."""
+        start = time.perf_counter()
+        score = values.scorer.score(self.goal_text, observation)
+        timings["scorer"] = _ms_since(start)
+        mark = time.perf_counter()
+        values.value_map.follow(mapper.grid)
+        values.value_map.update(score, observation.pose, observation.depth, observation.intrinsics)
+        timings["value_map"] = _ms_since(mark)
 
     def _record_views(self, state: EpisodeState, observation: Observation, ctx: StepContext) -> None:
         """Keep the views of live and recently retired directions, and record a view of every direction the camera

@@ -5,6 +5,7 @@ It heads for the nearest frontier point -- least weighted-FMM travel time, at le
 and keeps it until it is explored or cannot be reached; a goal the planner cannot reach is skipped for
 ``blacklist_steps``. A new segment (revisit metric, Sec. V-C) starts when it switches to a different frontier,
 not when its frontier recedes. The start scan, the target approach and the stops are those of DRIVE-Nav.
+VLFM's frontier choice (:mod:`drivenav.agent.vlfm`) drives, skips and starts segments with the same functions.
 """
 
 from __future__ import annotations
@@ -21,13 +22,19 @@ from drivenav.types import Action, Observation
 
 def act(loop: Loop, observation: Observation, ctx: StepContext) -> Action:
     """The next step toward the greedy goal; STOP when no frontier is left to go to."""
-    state = loop.state
-    paths = _open_paths(loop, ctx)
+    paths = open_paths(loop, ctx)
     if not paths:
         return loop.stop("no_frontier")
     chosen = _keep_goal(loop, paths)
     if chosen is None:
         chosen = _new_goal(loop, ctx, paths)
+    return drive(loop, observation, ctx, chosen)
+
+
+def drive(loop: Loop, observation: Observation, ctx: StepContext, chosen: FrontierPath) -> Action:
+    """The planner's next step along ``chosen``'s path to its frontier point; a goal it cannot reach is skipped
+    for ``blacklist_steps`` (the goal is cleared) and the robot turns toward its bearing meanwhile."""
+    state = loop.state
     state.goal = chosen.target
     action = state.planner.act(chosen.path, ctx.pose, observation.collided, ctx.free)
     if action is not None:
@@ -37,13 +44,18 @@ def act(loop: Loop, observation: Observation, ctx: StepContext) -> Action:
     return turn_toward(ctx.pose.yaw, chosen.bearing, loop.tuning.turn) or Action.TURN_LEFT
 
 
-def _open_paths(loop: Loop, ctx: StepContext) -> list[FrontierPath]:
+def open_paths(loop: Loop, ctx: StepContext) -> list[FrontierPath]:
     """This step's frontier paths, less those ending near a goal that failed within ``blacklist_steps``."""
     memory, reach = loop.state.greedy, loop.tuning.config.min_goal_distance
     memory.failed_goals = [(g, until) for g, until in memory.failed_goals if until >= loop.step]
     return [
         p for p in ctx.result.paths.values() if not any(math.dist(p.target, g) < reach for g, _ in memory.failed_goals)
     ]
+
+
+def far_enough(loop: Loop, paths: list[FrontierPath]) -> list[FrontierPath]:
+    """The paths at least ``min_goal_distance`` long (all of them if none is): the goals a new choice considers."""
+    return [p for p in paths if p.travel_time >= loop.tuning.config.min_goal_distance] or paths
 
 
 def _keep_goal(loop: Loop, paths: list[FrontierPath]) -> FrontierPath | None:
@@ -58,19 +70,20 @@ def _keep_goal(loop: Loop, paths: list[FrontierPath]) -> FrontierPath | None:
 
 def _new_goal(loop: Loop, ctx: StepContext, paths: list[FrontierPath]) -> FrontierPath:
     """The nearest frontier point at least ``min_goal_distance`` away (the nearest of all if none is)."""
-    far_enough = [p for p in paths if p.travel_time >= loop.tuning.config.min_goal_distance]
-    chosen = min(far_enough or paths, key=lambda p: p.travel_time)
-    _switch_frontier(loop, ctx, chosen.frontier_id)
+    chosen = min(far_enough(loop, paths), key=lambda p: p.travel_time)
+    switch_frontier(loop, ctx, chosen.frontier_id)
     loop.state.planner.reset()
     return chosen
 
 
-def _switch_frontier(loop: Loop, ctx: StepContext, frontier_id: int) -> None:
+def switch_frontier(loop: Loop, ctx: StepContext, frontier_id: int) -> bool:
     """A new goal starts a segment unless it lies on the frontier headed for so far (the same frontier, receded
-    by at most one forward step beyond the merge tolerance)."""
+    by at most one forward step beyond the merge tolerance); True when it started one."""
     memory = loop.state.greedy
     points = next(f.points for f in ctx.frontiers if f.frontier_id == frontier_id)
     tolerance = loop.tuning.paper.directions.merge_tolerance + loop.tuning.sim.forward_step
-    if not waypoints_coincide(points, memory.goal_frontier, tolerance):
+    switched = not waypoints_coincide(points, memory.goal_frontier, tolerance)
+    if switched:
         loop.start_segment()
     memory.goal_frontier = points
+    return switched

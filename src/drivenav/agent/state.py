@@ -21,7 +21,8 @@ from drivenav.agent.target import TargetSearch
 from drivenav.directions import Direction, DirectionPipeline
 from drivenav.inspection import RepresentativeViews
 from drivenav.mapping.occupancy import OccupancyMapper
-from drivenav.semantics.protocols import Reasoner
+from drivenav.mapping.value_map import ValueMap
+from drivenav.semantics.protocols import ImageTextScorer, Reasoner
 from drivenav.types import Action
 
 
@@ -45,6 +46,26 @@ class GreedyMemory:
 
 
 @dataclass
+class ValueMemory:
+    """What VLFM's frontier choice (:mod:`drivenav.agent.vlfm`) remembers (``itm_policy.py`` ``BaseITMPolicy``): the
+    frontier point pursued and its value when chosen (``_last_frontier``, ``_last_value``), and every (robot
+    position, frontier point, top two values) choice made (``AcyclicEnforcer``'s history)."""
+
+    point: Point | None = None
+    value: float = float("-inf")
+    history: set[tuple[Point, Point, tuple[float, ...]]] = field(default_factory=set)
+
+
+@dataclass
+class ValueSearch:
+    """VLFM's image-text scorer and value map of one episode (the ``vlfm`` method), and its frontier memory."""
+
+    scorer: ImageTextScorer
+    value_map: ValueMap
+    memory: ValueMemory = field(default_factory=ValueMemory)
+
+
+@dataclass
 class EpisodeState:
     """One episode's maps, models and decision state.
 
@@ -54,7 +75,8 @@ class EpisodeState:
     step's directions and ``gone`` the retired ones with the step they went (Sec. IV-A b). ``event_heading`` is
     the heading when the current inspection event began (Sec. IV-A c). ``descriptions`` and ``enriched`` are the
     reasoner's words on each direction and the directions enrichment has run on (Sec. IV-B); ``target`` is the
-    candidate approached (Sec. IV-C) and ``goal`` the point the planner heads for.
+    candidate approached (Sec. IV-C) and ``goal`` the point the planner heads for. ``values`` is VLFM's scorer
+    and value map (the ``vlfm`` method only).
     """
 
     mapper: OccupancyMapper
@@ -80,6 +102,7 @@ class EpisodeState:
     target: int | None = None
     detour_steps: int = 0
     greedy: GreedyMemory = field(default_factory=GreedyMemory)
+    values: ValueSearch | None = None
     counts: EpisodeCounts = field(default_factory=EpisodeCounts)
 
     def activity(self, action: Action) -> str:

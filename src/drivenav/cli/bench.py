@@ -1,5 +1,5 @@
-"""Speed benchmarks and the paper's tables: ``bench sim|directions|mapping|agent|episodes|robot`` (one figure
-each, or one JSON object), ``bench ablations`` (Tables II, V, VI, VII) and ``benchmark generate`` (the fixed,
+"""Speed benchmarks and the paper's tables: ``bench sim|directions|mapping|agent|episodes|robot|grounder`` (one
+figure each, or one JSON object), ``bench ablations`` (Tables II, V, VI, VII) and ``benchmark generate`` (the fixed,
 versioned embedded benchmark)."""
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from drivenav.cli.common import (
 from drivenav.errors import InputError
 from drivenav.eval.options import episode_count, path, positive
 from drivenav.eval.worlds import chosen_world
+from drivenav.methods import ALL_METHODS
 
 if TYPE_CHECKING:
     from drivenav.episode import Episode
@@ -46,6 +47,7 @@ def add_bench(commands: Commands) -> None:
     agent = sub.add_parser("agent", help="agent compute per step (models excluded) and per-module breakdown")
     agent.add_argument("--episodes", type=int, default=4)
     agent.add_argument("--max-steps", type=int, default=150)
+    agent.add_argument("--agent", default="drive-nav", choices=ALL_METHODS, help="the method timed (default drive-nav)")
     agent.add_argument("--json", action="store_true", help="print one JSON object")
     agent.set_defaults(handler=_cmd_bench_agent)
     _add_bench_ablations(sub)
@@ -57,6 +59,7 @@ def add_bench(commands: Commands) -> None:
     robot.add_argument("--repeats", type=int, default=200)
     robot.add_argument("--json", action="store_true", help="print one JSON object")
     robot.set_defaults(handler=_cmd_bench_robot)
+    _add_bench_grounder(sub)
 
 
 def _add_bench_ablations(sub: Commands) -> None:
@@ -83,6 +86,29 @@ def _add_bench_ablations(sub: Commands) -> None:
     add_model_options(parser)
     add_config_options(parser)
     parser.set_defaults(handler=_cmd_bench_ablations)
+
+
+def _add_bench_grounder(sub: Commands) -> None:
+    from drivenav.semantics.registry import DTYPES
+
+    parser = sub.add_parser(
+        "grounder",
+        help="SAM3 / OWLv2 per 640x480 frame in process: latency, stage split, GPU memory (no weights needed)",
+    )
+    parser.add_argument("--detector", choices=("sam3", "owlv2"), default="sam3")
+    parser.add_argument(
+        "--detector-model", default="", help="checkpoint dir or HF-cache model id (default: the detector's, if cached)"
+    )
+    parser.add_argument(
+        "--random-weights", action="store_true", help="the full-size architecture with random weights, even if cached"
+    )
+    parser.add_argument("--tiny", action="store_true", help="the tests' tiny random models (a smoke test of the bench)")
+    parser.add_argument("--device", default=None, help="cpu or cuda (default: cuda when visible)")
+    parser.add_argument("--dtype", choices=DTYPES, default="auto", help="default auto: bf16 on CUDA, else fp32")
+    parser.add_argument("--frames", type=int, default=10, help="timed frames, one at a time (default 10)")
+    parser.add_argument("--batch", type=int, default=1, help="B > 1: also time a batched forward of B frames")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.set_defaults(handler=_cmd_bench_grounder)
 
 
 def add_benchmark(commands: Commands) -> None:
@@ -118,7 +144,9 @@ def _cmd_bench_mapping(args: argparse.Namespace) -> int:
 def _cmd_bench_agent(args: argparse.Namespace) -> int:
     from drivenav.eval.agent_bench import bench_agent
 
-    result = bench_agent(positive(args.episodes, "--episodes"), positive(args.max_steps, "--max-steps"))
+    result = bench_agent(
+        positive(args.episodes, "--episodes"), positive(args.max_steps, "--max-steps"), agent_name=args.agent
+    )
     return print_bench(result, args.json)
 
 
@@ -132,6 +160,29 @@ def _cmd_bench_robot(args: argparse.Namespace) -> int:
     from drivenav.brain.bench import bench_robot
 
     return print_bench(bench_robot(positive(args.repeats, "--repeats")), args.json)
+
+
+def _cmd_bench_grounder(args: argparse.Namespace) -> int:
+    from dataclasses import asdict
+
+    from drivenav.eval.grounder_bench import GrounderBenchOptions, bench_grounder
+
+    options = GrounderBenchOptions(
+        detector=args.detector,
+        checkpoint=args.detector_model,
+        random_weights=args.random_weights,
+        tiny=args.tiny,
+        device=args.device,
+        dtype=args.dtype,
+        frames=positive(args.frames, "--frames"),
+        batch=positive(args.batch, "--batch"),
+    )
+    try:
+        result = bench_grounder(options)
+    except ImportError as error:  # torch / transformers / torchvision: the models extra
+        extra = f"the models extra for {args.detector} (pip install 'drivenav[models]')"
+        raise InputError("command line", "--detector", extra, str(error).splitlines()[0]) from None
+    return print_bench(asdict(result), args.json)
 
 
 def _cmd_bench_ablations(args: argparse.Namespace) -> int:

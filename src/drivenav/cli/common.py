@@ -33,6 +33,9 @@ OPTION_KEYS = {
     "vlm_record": "models.vlm_record",
     "vlm_replay": "models.vlm_replay",
     "detector_model": "models.detector_model",
+    "scorer": "models.scorer",
+    "scorer_model": "models.scorer_model",
+    "dtype": "models.dtype",
 }
 """The dedicated options that set a settings key (``--seed`` -> ``run.seed``, ...)."""
 
@@ -67,17 +70,27 @@ def add_config_options(parser: argparse.ArgumentParser) -> None:
 
 
 def add_model_options(parser: argparse.ArgumentParser) -> None:
-    from drivenav.semantics.registry import DETECTORS, REASONERS, ModelSpec
+    from drivenav.semantics.registry import DETECTORS, DTYPES, REASONERS, SCORERS, ModelSpec
 
     default = ModelSpec()
-    models = parser.add_argument_group("models (reasoner = the VLM's role, detector = SAM3's role; sets models.*)")
+    models = parser.add_argument_group(
+        "models (reasoner = the VLM's role, detector = SAM3's role, scorer = VLFM's BLIP-2; sets models.*)"
+    )
     models.add_argument("--reasoner", help=f"one of {', '.join(REASONERS)} (default {default.reasoner})")
     models.add_argument("--detector", help=f"one of {', '.join(DETECTORS)} (default {default.detector})")
+    models.add_argument(
+        "--scorer", help=f"the vlfm method's image-text scorer: one of {', '.join(SCORERS)} (default {default.scorer})"
+    )
     models.add_argument("--vlm-base-url", help=f"OpenAI-compatible endpoint (default {default.vlm_base_url})")
     models.add_argument("--vlm-model", help=f"default {default.vlm_model}")
-    models.add_argument("--vlm-record", help="record every reasoner request/answer to this file")
-    models.add_argument("--vlm-replay", help="with --reasoner replay: answer from this recording")
+    models.add_argument("--vlm-record", help="record every reasoner and scorer request/answer to this file")
+    models.add_argument("--vlm-replay", help="with --reasoner replay or --scorer replay: answer from this recording")
     models.add_argument("--detector-model", help="local checkpoint dir or HF-cache model id")
+    models.add_argument(
+        "--dtype",
+        help=f"the detector's weights: one of {', '.join(DTYPES)} (default {default.dtype}: bf16 on CUDA, else fp32)",
+    )
+    models.add_argument("--scorer-model", help="local checkpoint dir or HF-cache model id (default: the scorer's own)")
 
 
 def add_execution_options(parser: argparse.ArgumentParser) -> None:

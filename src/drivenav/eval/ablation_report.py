@@ -21,7 +21,6 @@ from drivenav.eval.ablation_data import (
 from drivenav.eval.compare import Comparison
 from drivenav.eval.paper_tables import (
     TABLE_II,
-    TABLE_II_VLFM,
     TABLE_V,
     TABLE_VI,
     TABLE_VI_MODULES,
@@ -209,7 +208,6 @@ def _table_ii(table: Comparison) -> list[str]:
         "",
         "| method | ours | avg steps | avg revisits | retraced | retraced m | paper steps | paper revisits |",
         "|---|---|---|---|---|---|---|---|",
-        f"| VLFM | (not implemented) | - | - | - | - | {TABLE_II_VLFM[0]:.1f} | {TABLE_II_VLFM[1]:.3f} |",
     ]
     for row in rows:
         common = table.methods[row.method].common

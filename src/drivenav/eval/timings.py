@@ -4,8 +4,9 @@ Every episode trace keeps the agent's per-step latencies in ``step_ms``, one col
 (``{"mapping": [..], "directions.fmm": [..], ...}``, milliseconds, one value per step). Table VII (paper
 Sec. V-E, runtime) is then computed from the very episodes of a benchmark run rather than a separate pass.
 
-Compute per step = mapping + directions + inspection + policy; model calls (grounding, reasoning) are reported
-separately, as latency per call and calls per episode.
+Compute per step = mapping + directions + inspection + VLFM's value-map update + policy; model calls (grounding,
+reasoning, VLFM's image-text scorer) are reported separately, as latency per call and calls per episode. The
+value map's and the scorer's rows appear only for agents that time them (``vlfm``).
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from drivenav.agent.trace import DirectionSelected, of_type
 from drivenav.eval.trace import EpisodeTrace, StepColumns
 from drivenav.jsonstream import JsonObject
 
-COMPUTE_KEYS = ("mapping", "directions.total", "inspection", "policy")
+COMPUTE_KEYS = ("mapping", "directions.total", "inspection", "value_map", "policy")
 MODULES = {
     "mapping (depth -> maps, frontiers)": "mapping",
     "directions: distance transforms": "directions.distance_transforms",
@@ -30,6 +31,11 @@ MODULES = {
     "policy (planner, inspection events, decisions)": "policy",
     "grounding (detector, model)": "grounding",
 }
+VALUE_MODULES = {
+    "value map (score -> FOV cone, fusion)": "value_map",
+    "image-text scorer (model)": "scorer",
+}
+"""VLFM's modules: rows of the table only where a step timed them."""
 
 
 def to_columns(steps: Sequence[Mapping[str, float]]) -> StepColumns:
@@ -61,8 +67,10 @@ def runtime_table(
     if not steps:
         raise ValueError("runtime_table needs at least one timed step")
     compute = [sum(step.get(key, 0.0) for key in COMPUTE_KEYS) for step in steps]
+    timed = {key for step in steps for key in step}
+    rows = {**MODULES, **{name: key for name, key in VALUE_MODULES.items() if key in timed}}
     modules: dict[str, JsonObject] = {
-        name: {**summary([s.get(key, 0.0) for s in steps]), "invocation": "every step"} for name, key in MODULES.items()
+        name: {**summary([s.get(key, 0.0) for s in steps]), "invocation": "every step"} for name, key in rows.items()
     }
     modules["direction selection (reasoner)"] = {"invocations": decisions, "invocation": "decision points"}
     return {

@@ -110,6 +110,29 @@ class EmbeddedReasonerConfig:
             raise ValueError(f"exploration_weight must be >= 0, got {self.exploration_weight}")
 
 
+def relatedness(label: str, goal: str, truth: GroundTruth | None, embedder: TextEmbedder) -> float:
+    """How related a label is to the goal: 1 for the goal's own category (``truth``'s vocabulary), else the cosine
+    similarity of the two texts' embeddings."""
+    if category_key(label, truth) == category_key(goal, truth):
+        return 1.0
+    return embedder.similarity(normalize_phrase(label), normalize_phrase(goal))
+
+
+def semantic_value(related: Sequence[tuple[float, float]], config: EmbeddedReasonerConfig) -> float:
+    """The ``semantic`` term of a view (module docstring): the max over its visible labels, given as
+    ``(relatedness, share of the image)``, of ``ramp(relatedness) * area_weight(share)``; 0 with none visible."""
+    return max((_ramp(r, config) * _area_weight(share, config) for r, share in related), default=0.0)
+
+
+def _ramp(related: float, config: EmbeddedReasonerConfig) -> float:
+    floor = config.unrelated_similarity
+    return min(max((related - floor) / (1.0 - floor), 0.0), 1.0)
+
+
+def _area_weight(share: float, config: EmbeddedReasonerConfig) -> float:
+    return config.area_floor + (1.0 - config.area_floor) * share / (share + config.area_half_share)
+
+
 @dataclass(frozen=True)
 class _Assessment:
     """What one candidate's view shows, as the reasoner judged it."""
@@ -146,9 +169,7 @@ class EmbeddedReasoner:
 
     def relatedness(self, label: str, goal: str) -> float:
         """1 for the goal's own category, else the cosine similarity of the two texts."""
-        if category_key(label, self._truth) == category_key(goal, self._truth):
-            return 1.0
-        return self.embedder.similarity(normalize_phrase(label), normalize_phrase(goal))
+        return relatedness(label, goal, self._truth, self.embedder)
 
     def visible(self, semantic: NDArray[np.int32] | None) -> list[tuple[str, int]]:
         """What an image shows: its visible labels and their areas, largest first (nothing without semantics)."""
@@ -205,7 +226,7 @@ class EmbeddedReasoner:
             return _Assessment(candidate, exploration, 0, None)
         pixels = view.semantic.size if view.semantic is not None else 1
         related = [(self.relatedness(label, goal), area / pixels, area) for label, area in shown]
-        semantic = max((self._ramp(r) * self._area_weight(share) for r, share, _ in related), default=0.0)
+        semantic = semantic_value([(r, share) for r, share, _ in related], self.config)
         target_area = max((area for r, _, area in related if r >= self.config.sure_similarity), default=0)
         names = ", ".join(label for label, _ in shown) or "nothing recognisable"
         return _Assessment(candidate, semantic + exploration, target_area, f"shows: {names}")
@@ -214,14 +235,6 @@ class EmbeddedReasoner:
         c = self.config
         worth = direction_score(candidate, c.distance_scale)
         return c.exploration_weight * worth / (worth + c.exploration_half)
-
-    def _ramp(self, relatedness: float) -> float:
-        floor = self.config.unrelated_similarity
-        return min(max((relatedness - floor) / (1.0 - floor), 0.0), 1.0)
-
-    def _area_weight(self, share: float) -> float:
-        c = self.config
-        return c.area_floor + (1.0 - c.area_floor) * share / (share + c.area_half_share)
 
     def _propose(self, goal: str, view: View, failed: Sequence[str]) -> str:
         tried = {normalize_phrase(phrase) for phrase in failed}
@@ -242,10 +255,10 @@ class EmbeddedReasoner:
         label = self._labels.get(int(ids[int(np.argmax(counts))]))
         if label is None:
             return "not"
-        relatedness = self.relatedness(label, goal)
-        if relatedness >= self.config.sure_similarity:
+        related = self.relatedness(label, goal)
+        if related >= self.config.sure_similarity:
             return "sure"
-        return "uncertain" if relatedness >= self.config.uncertain_similarity else "not"
+        return "uncertain" if related >= self.config.uncertain_similarity else "not"
 
 
 def goal_phrases(goal: str, truth: GroundTruth | None) -> list[str]:

@@ -1,7 +1,8 @@
-"""The two model interfaces of DRIVE-Nav: a reasoner (the VLM's role) and a grounder (the segmenter's role).
+"""The model interfaces: DRIVE-Nav's reasoner (the VLM's role) and grounder (the segmenter's role), and the
+image-text scorer of the VLFM baseline (BLIP-2 ITM's role).
 
-Backends (a geometric stand-in, the embedded world's ground-truth detector, and later real VLMs, SAM3, OWLv2)
-implement these protocols; the agent only sees them. Positions and bearings are in the episode frame.
+Backends (a geometric stand-in, the embedded world's ground-truth detector, real VLMs, SAM3, OWLv2, BLIP-2,
+SigLIP) implement these protocols; the agent only sees them. Positions and bearings are in the episode frame.
 """
 
 from __future__ import annotations
@@ -142,7 +143,7 @@ class Verdict:
 class ModelCall:
     """Bookkeeping of one model call for the episode record: its kind, latency and outcome.
 
-    ``kind`` is ``select_direction``, ``propose_prompt`` or ``verify``; ``outcome`` is ``ok``, ``repaired``
+    ``kind`` is ``select_direction``, ``propose_prompt``, ``verify`` or ``score``; ``outcome`` is ``ok``, ``repaired``
     (a malformed answer fixed by one repair request), ``fallback`` (deterministic answer after a failure) or
     ``replayed``.
     """
@@ -199,3 +200,26 @@ class Grounder(Protocol):
         ...
 
     def segment(self, observation: Observation, phrase: str) -> list[Detection]: ...
+
+
+class ImageTextScorer(Protocol):
+    """How well a frame matches a text about the target: the value VLFM spreads over its map (Yokoyama et al.,
+    ICRA 2024; BLIP-2 ITM's cosine with "Seems like there is a {target} ahead.").
+
+    ``score`` returns one similarity for the whole frame, higher meaning more promising; its scale is the
+    backend's own (BLIP-2's cosine in [-1, 1], SigLIP's probability, the embedded stand-in's value in [0, 1)), and
+    only comparisons within one backend matter. ``goal`` is the target's name: the backend puts it into its text.
+    ``observation`` is the current frame: real models read its RGB image, stand-ins its instance image where the
+    world has one (without it they answer a neutral 0), so a world's deferred RGB image is rendered only for
+    models that look at it. ``calls`` grows by one :class:`ModelCall` of kind ``score`` per frame scored. Nothing
+    a model returns may raise out of ``score`` (a non-finite similarity is a ``fallback`` call answering 0).
+    """
+
+    name: str
+    calls: list[ModelCall]
+
+    def begin_episode(self, truth: GroundTruth | None) -> None:
+        """Start an episode; ``truth`` is the world's ground truth, given only to stand-ins that need it."""
+        ...
+
+    def score(self, goal: str, observation: Observation) -> float: ...

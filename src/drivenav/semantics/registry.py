@@ -1,10 +1,11 @@
-"""Reasoner and grounder backends by command-line name (``--reasoner``, ``--detector``).
+"""Reasoner, grounder and scorer backends by command-line name (``--reasoner``, ``--detector``, ``--scorer``).
 
-Each role (the VLM's reasoning of Sec. IV-B/IV-C, the segmenter's grounding) has one :class:`ModelRegistry`: a
+Each role (the VLM's reasoning of Sec. IV-B/IV-C, the segmenter's grounding, the VLFM baseline's image-text
+scoring) has one :class:`ModelRegistry`: a
 name maps to a :class:`Backend`, which builds the model from a picklable :class:`ModelSpec` (so that worker
 processes build their own) and says what the model needs. Backends import their heavy modules only when built,
-so the command line reads the names here without loading numpy. A new backend is one ``add`` line; a new role (a
-scorer, say) is one more registry.
+so the command line reads the names here without loading numpy. A new backend is one ``add`` line; a new role is
+one more registry.
 """
 
 from __future__ import annotations
@@ -17,14 +18,20 @@ from typing import TYPE_CHECKING, Generic, TypeVar
 from drivenav.errors import InputError
 
 if TYPE_CHECKING:  # the command line reads the names here without loading numpy
-    from drivenav.semantics.protocols import Grounder, Reasoner
+    from drivenav.semantics.protocols import Grounder, ImageTextScorer, Reasoner
 
 Model = TypeVar("Model")
 
 
 @dataclass(frozen=True)
 class ModelSpec:
-    """Which models an agent uses and how to reach them."""
+    """Which models an agent uses and how to reach them.
+
+    ``detector_model`` / ``scorer_model``: the grounder's / scorer's checkpoint (empty: the backend's default).
+    ``vlm_record`` / ``vlm_replay``: the one file that records / replays both the reasoner's and the scorer's
+    answers. ``dtype``: the grounder's weights and inputs, one of :data:`DTYPES` (``auto``: bf16 on a CUDA device
+    that supports it, fp32 elsewhere).
+    """
 
     reasoner: str = "embedded"
     detector: str = "embedded"
@@ -33,6 +40,13 @@ class ModelSpec:
     vlm_record: str = ""
     vlm_replay: str = ""
     detector_model: str = ""
+    scorer: str = "embedded"
+    scorer_model: str = ""
+    dtype: str = "auto"
+
+
+DTYPES = ("auto", "float32", "bfloat16", "float16")
+"""The values of ``models.dtype`` (``--dtype``)."""
 
 
 def _no_check(spec: ModelSpec) -> None:
@@ -114,7 +128,9 @@ def _read_recording(spec: ModelSpec) -> None:
     """The recording exists and reads: a missing or malformed one fails before any episode."""
     if not Path(spec.vlm_replay).is_file():
         raise InputError(spec.vlm_replay or "command line", "--vlm-replay", "a file written with --vlm-record")
-    make_reasoner(spec)
+    from drivenav.semantics.replay import Recording
+
+    Recording(Path(spec.vlm_replay))
 
 
 def _geometric_reasoner(spec: ModelSpec) -> Reasoner:
@@ -139,18 +155,18 @@ def _sam3_grounder(spec: ModelSpec) -> Grounder:
     try:
         from drivenav.semantics.sam3_grounder import Sam3Grounder
 
-        return Sam3Grounder(spec.detector_model or "facebook/sam3")
+        return Sam3Grounder(spec.detector_model or "facebook/sam3", dtype=spec.dtype)
     except ImportError as error:
-        raise _models_extra_missing(spec, error) from None
+        raise _models_extra_missing("--detector", spec.detector, error) from None
 
 
 def _owlv2_grounder(spec: ModelSpec) -> Grounder:
     try:
         from drivenav.semantics.owlv2_grounder import Owlv2Grounder
 
-        return Owlv2Grounder(spec.detector_model or "google/owlv2-base-patch16-ensemble")
+        return Owlv2Grounder(spec.detector_model or "google/owlv2-base-patch16-ensemble", dtype=spec.dtype)
     except ImportError as error:
-        raise _models_extra_missing(spec, error) from None
+        raise _models_extra_missing("--detector", spec.detector, error) from None
 
 
 def _load_weights(spec: ModelSpec) -> None:
@@ -158,12 +174,12 @@ def _load_weights(spec: ModelSpec) -> None:
     make_grounder(spec)
 
 
-def _models_extra_missing(spec: ModelSpec, error: ImportError) -> InputError:
-    """SAM3 or OWLv2 without the ``models`` extra (transformers): one line naming it."""
+def _models_extra_missing(option: str, name: str, error: ImportError) -> InputError:
+    """A transformers backend (SAM3, OWLv2, BLIP-2, SigLIP) without the ``models`` extra: one line naming it."""
     return InputError(
         "command line",
-        "--detector",
-        f"the models extra for {spec.detector} (pip install 'drivenav[models]')",
+        option,
+        f"the models extra for {name} (pip install 'drivenav[models]')",
         _import_problem(error),
     )
 
@@ -187,8 +203,51 @@ GROUNDER_BACKENDS.add("ground-truth", Backend(_ground_truth_grounder, reads_labe
 GROUNDER_BACKENDS.add("sam3", Backend(_sam3_grounder, connect=_load_weights))
 GROUNDER_BACKENDS.add("owlv2", Backend(_owlv2_grounder, connect=_load_weights))
 
+
+def _embedded_scorer(spec: ModelSpec) -> ImageTextScorer:
+    from drivenav.semantics.embedded_scorer import EmbeddedScorer
+
+    return EmbeddedScorer()
+
+
+def _blip2_scorer(spec: ModelSpec) -> ImageTextScorer:
+    try:
+        from drivenav.semantics.itm_scorer import BLIP2_ITM_CHECKPOINT, Blip2ItmScorer
+
+        return Blip2ItmScorer(spec.scorer_model or BLIP2_ITM_CHECKPOINT)
+    except ImportError as error:
+        raise _models_extra_missing("--scorer", spec.scorer, error) from None
+
+
+def _siglip_scorer(spec: ModelSpec) -> ImageTextScorer:
+    try:
+        from drivenav.semantics.itm_scorer import SIGLIP_CHECKPOINT, SiglipScorer
+
+        return SiglipScorer(spec.scorer_model or SIGLIP_CHECKPOINT)
+    except ImportError as error:
+        raise _models_extra_missing("--scorer", spec.scorer, error) from None
+
+
+def _load_scorer_weights(spec: ModelSpec) -> None:
+    """Loads the scorer's weights now: a missing checkpoint fails before any episode."""
+    SCORER_BACKENDS.get(spec.scorer).build(spec)
+
+
+def _replay_scorer(spec: ModelSpec) -> ImageTextScorer:
+    from drivenav.semantics.replay import ReplayScorer
+
+    return ReplayScorer(Path(spec.vlm_replay))
+
+
+SCORER_BACKENDS: ModelRegistry[ImageTextScorer] = ModelRegistry("--scorer")
+SCORER_BACKENDS.add("embedded", Backend(_embedded_scorer, reads_labels=True))
+SCORER_BACKENDS.add("blip2-itm", Backend(_blip2_scorer, connect=_load_scorer_weights))
+SCORER_BACKENDS.add("siglip", Backend(_siglip_scorer, connect=_load_scorer_weights))
+SCORER_BACKENDS.add("replay", Backend(_replay_scorer, check=_read_recording))
+
 REASONERS = REASONER_BACKENDS.names
 DETECTORS = GROUNDER_BACKENDS.names
+SCORERS = SCORER_BACKENDS.names
 
 
 def model_requirements(spec: ModelSpec) -> frozenset[str]:
@@ -197,6 +256,12 @@ def model_requirements(spec: ModelSpec) -> frozenset[str]:
 
     reads = REASONER_BACKENDS.reads_labels(spec.reasoner) or GROUNDER_BACKENDS.reads_labels(spec.detector)
     return frozenset({SEMANTIC}) if reads else frozenset()
+
+
+def scorer_reads_labels(spec: ModelSpec) -> bool:
+    """Whether the chosen scorer reads ground-truth labels (the embedded stand-in): an agent that scores frames
+    then needs ``semantic``. Kept apart from :func:`model_requirements`, since only the VLFM method scores."""
+    return SCORER_BACKENDS.reads_labels(spec.scorer)
 
 
 def make_reasoner(spec: ModelSpec) -> Reasoner:
@@ -214,10 +279,21 @@ def make_grounder(spec: ModelSpec) -> Grounder:
     return GROUNDER_BACKENDS.get(spec.detector).build(spec)
 
 
+def make_scorer(spec: ModelSpec) -> ImageTextScorer:
+    """The image-text scorer named by ``spec`` (the VLFM baseline's value source), wrapped in a recorder when
+    ``vlm_record`` is set (the reasoner's file: one recording holds both)."""
+    scorer = SCORER_BACKENDS.get(spec.scorer).build(spec)
+    if spec.vlm_record:
+        from drivenav.semantics.replay import RecordingScorer
+
+        scorer = RecordingScorer(scorer, Path(spec.vlm_record))
+    return scorer
+
+
 def _check_record_path(path: Path) -> None:
     """``--vlm-record`` names a file this process can append to (not a directory, in a writable folder)."""
     if path.is_dir():
-        raise InputError(path, "--vlm-record", "a file to append the reasoner's records to", "a directory")
+        raise InputError(path, "--vlm-record", "a file to append the models' records to", "a directory")
     try:
         with path.open("a", encoding="utf-8"):
             pass
@@ -227,12 +303,15 @@ def _check_record_path(path: Path) -> None:
 
 def check_models(spec: ModelSpec) -> None:
     """Fail fast, before any episode: unknown names, a missing replay file, an unwritable record file, an
-    unreachable VLM server, missing weights (cheap checks first)."""
-    reasoner = REASONER_BACKENDS.get(spec.reasoner)
-    grounder = GROUNDER_BACKENDS.get(spec.detector)
-    reasoner.check(spec)
-    grounder.check(spec)
+    unreachable VLM server, missing weights (cheap checks first, the reasoner's, grounder's and scorer's)."""
+    backends = (
+        REASONER_BACKENDS.get(spec.reasoner),
+        GROUNDER_BACKENDS.get(spec.detector),
+        SCORER_BACKENDS.get(spec.scorer),
+    )
+    for backend in backends:
+        backend.check(spec)
     if spec.vlm_record:
         _check_record_path(Path(spec.vlm_record))
-    reasoner.connect(spec)
-    grounder.connect(spec)
+    for backend in backends:
+        backend.connect(spec)

@@ -1,14 +1,18 @@
-"""Record a reasoner's answers and replay them without the model (reproducible runs of Sec. IV's VLM questions).
+"""Record a reasoner's and a scorer's answers and replay them without the model (reproducible runs of Sec. IV's
+VLM questions and of the VLFM baseline's image-text scores).
 
-:class:`RecordingReasoner` wraps any reasoner and appends one JSON line per question to a file::
+:class:`RecordingReasoner` wraps any reasoner, and :class:`RecordingScorer` any image-text scorer, and each appends
+one JSON line per question to a file (both may share one file: one recording of a run holds every kind)::
 
-    {"key": "<sha256>", "kind": "select_direction", "summary": "...", "answer": {...}}
+    {"key": "<sha256>", "kind": "select_direction", "goal": "...", "summary": "...", "answer": {...}}
 
 The key is the SHA-256 of a canonical JSON of the question: its kind and inputs (goal; candidate labels,
 bearings, turns and travel times rounded to 1e-4, frontier cells; SHA-256, shape and dtype of every image
-array; the description and failed prompts; the verification frames). :class:`ReplayReasoner` answers from such
-a file, in recording order when one question was asked several times. A question missing from the file raises
-:class:`ReplayMissError`, naming the question: the replay does not match the run.
+array; the description and failed prompts; the verification frames; the scored frame). A score's answer is
+``{"score": <float>}``, the float exactly as the scorer returned it. :class:`ReplayReasoner` and
+:class:`ReplayScorer` answer from such a file, each its own kinds, in recording order when one question was asked
+several times. A question missing from the file raises :class:`ReplayMissError`, naming the question: the replay
+does not match the run.
 """
 
 from __future__ import annotations
@@ -21,7 +25,7 @@ from collections import defaultdict
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any, Generic, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -31,6 +35,7 @@ from drivenav.jsonstream import JsonObject
 from drivenav.semantics.protocols import (
     JUDGEMENTS,
     Candidate,
+    ImageTextScorer,
     ModelCall,
     Proposal,
     Reasoner,
@@ -39,10 +44,12 @@ from drivenav.semantics.protocols import (
     VerificationFrame,
     View,
 )
-from drivenav.types import GroundTruth
+from drivenav.types import GroundTruth, Observation
 
-Answer = Selection | Proposal | Verdict
-A = TypeVar("A", Selection, Proposal, Verdict)
+Answer = Selection | Proposal | Verdict | float
+A = TypeVar("A", Selection, Proposal, Verdict, float)
+
+SCORE = "score"  # the kind of an image-text scorer's question
 
 
 @dataclass(frozen=True)
@@ -118,7 +125,14 @@ def verify_request(goal: str, frame: VerificationFrame, earlier: Sequence[Verifi
     return Request("verify", goal, inputs, f"frame of step {frame.step}, earlier steps {[f.step for f in earlier]}")
 
 
+def score_request(goal: str, rgb: NDArray[np.uint8]) -> Request:
+    shape = "x".join(str(n) for n in rgb.shape)
+    return Request(SCORE, goal, {"rgb": array_digest(rgb)}, f"frame of shape {shape}")
+
+
 def answer_to_json(answer: Answer) -> JsonObject:
+    if isinstance(answer, float):
+        return {SCORE: answer}
     if isinstance(answer, Selection):
         return {
             "label": answer.label,
@@ -160,10 +174,19 @@ def _descriptions(data: JsonObject) -> dict[int, str]:
     return {int(label): text for label, text in descriptions.items()}
 
 
+def _score(data: JsonObject) -> float:
+    value = data.get(SCORE)
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise AnswerFieldError(SCORE, "a number", value)
+    return float(value)
+
+
 def answer_from_json(kind: str, data: Any) -> Answer:
     """The inverse of :func:`answer_to_json`; a bad field raises :class:`AnswerFieldError` naming it."""
     if not isinstance(data, dict):
         raise AnswerFieldError("", "an object", data)
+    if kind == SCORE:
+        return _score(data)
     fallback = _field(data, "fallback", bool, "true or false")
     if kind == "select_direction":
         return Selection(
@@ -177,21 +200,34 @@ def answer_from_json(kind: str, data: Any) -> Answer:
     if kind == "propose_prompt":
         return Proposal(_field(data, "phrase", str, "a text"), fallback=fallback)
     if kind != "verify":
-        raise AnswerFieldError("kind", "select_direction, propose_prompt or verify", kind)
+        raise AnswerFieldError("kind", "select_direction, propose_prompt, verify or score", kind)
     judgement = next((j for j in JUDGEMENTS if j == data.get("judgement")), None)
     if judgement is None:
         raise AnswerFieldError("judgement", " or ".join(JUDGEMENTS), data.get("judgement"))
     return Verdict(judgement, fallback=fallback)
 
 
-class RecordingReasoner:
-    """Implements :class:`~drivenav.semantics.protocols.Reasoner` by asking ``inner`` and recording to ``path``.
+def _append(path: Path, request: Request, answer: Answer) -> None:
+    """One record line, written out at once."""
+    record = {
+        "key": request.key,
+        "kind": request.kind,
+        "goal": request.goal,
+        "summary": request.summary,
+        "answer": answer_to_json(answer),
+    }
+    with path.open("a", encoding="utf-8") as file:
+        file.write(json.dumps(record, sort_keys=True) + "\n")
 
-    Records are appended (an existing file is extended) and written out after every question.
-    """
 
-    def __init__(self, inner: Reasoner, path: Path) -> None:
-        self.inner = inner
+M = TypeVar("M", Reasoner, ImageTextScorer)
+
+
+class _Recorder(Generic[M]):
+    """A model ``inner`` whose answers are recorded to ``path``: its name and its calls are the inner model's."""
+
+    def __init__(self, inner: M, path: Path) -> None:
+        self.inner: M = inner
         self.path = Path(path)
         self.name = inner.name
 
@@ -202,6 +238,13 @@ class RecordingReasoner:
     @calls.setter
     def calls(self, value: list[ModelCall]) -> None:
         self.inner.calls = value
+
+
+class RecordingReasoner(_Recorder[Reasoner]):
+    """Implements :class:`~drivenav.semantics.protocols.Reasoner` by asking ``inner`` and recording to ``path``.
+
+    Records are appended (an existing file is extended) and written out after every question.
+    """
 
     def begin_episode(self, goal: str, truth: GroundTruth | None) -> None:
         self.inner.begin_episode(goal, truth)
@@ -217,30 +260,31 @@ class RecordingReasoner:
         return self._record(verify_request(goal, frame, earlier), self.inner.verify(goal, frame, earlier))
 
     def _record(self, request: Request, answer: A) -> A:
-        record = {
-            "key": request.key,
-            "kind": request.kind,
-            "goal": request.goal,
-            "summary": request.summary,
-            "answer": answer_to_json(answer),
-        }
-        with self.path.open("a", encoding="utf-8") as file:
-            file.write(json.dumps(record, sort_keys=True) + "\n")
+        _append(self.path, request, answer)
         return answer
 
 
-class ReplayReasoner:
-    """Implements :class:`~drivenav.semantics.protocols.Reasoner` from a file written by :class:`RecordingReasoner`.
+class RecordingScorer(_Recorder[ImageTextScorer]):
+    """Implements :class:`~drivenav.semantics.protocols.ImageTextScorer` by asking ``inner`` and recording to
+    ``path`` (appended, written out after every score, as :class:`RecordingReasoner` does)."""
 
-    ``calls`` records outcome ``replayed``. A question not in the file raises :class:`ReplayMissError`; a file
-    that is missing or malformed raises :class:`~drivenav.errors.InputError` at construction.
+    def begin_episode(self, truth: GroundTruth | None) -> None:
+        self.inner.begin_episode(truth)
+
+    def score(self, goal: str, observation: Observation) -> float:
+        value = float(self.inner.score(goal, observation))
+        _append(self.path, score_request(goal, observation.rgb), value)
+        return value
+
+
+class Recording:
+    """Every answer of a file written by the recorders, by question key (each line checked when read).
+
+    A file that is missing or malformed raises :class:`~drivenav.errors.InputError` at construction.
     """
-
-    name = "replay"
 
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
-        self.calls: list[ModelCall] = []
         self._answers: dict[str, list[Answer]] = defaultdict(list)
         self._per_goal: dict[tuple[str, str], int] = defaultdict(int)
         self._served: dict[str, int] = defaultdict(int)
@@ -276,20 +320,9 @@ class ReplayReasoner:
         self._answers[str(record["key"])].append(answer)
         self._per_goal[kind, goal] += 1
 
-    def begin_episode(self, goal: str, truth: GroundTruth | None) -> None:
-        self.calls = []
-
-    def select_direction(self, goal: str, candidates: Sequence[Candidate]) -> Selection:
-        return self._answer(select_request(goal, candidates), Selection)
-
-    def propose_prompt(self, goal: str, view: View, description: str, failed: Sequence[str]) -> Proposal:
-        return self._answer(propose_request(goal, view, description, failed), Proposal)
-
-    def verify(self, goal: str, frame: VerificationFrame, earlier: Sequence[VerificationFrame]) -> Verdict:
-        return self._answer(verify_request(goal, frame, earlier), Verdict)
-
-    def _answer(self, request: Request, expected: type[A]) -> A:
-        """The next recorded answer to ``request`` (the last one again once all were served)."""
+    def answer(self, request: Request, expected: type[A], calls: list[ModelCall]) -> A:
+        """The next recorded answer to ``request`` (the last one again once all were served), with a ``replayed``
+        call appended to ``calls``; :class:`ReplayMissError` if the file holds none."""
         start = time.perf_counter()
         answers = self._answers.get(request.key, [])
         index = min(self._served[request.key], len(answers) - 1)
@@ -297,5 +330,55 @@ class ReplayReasoner:
         if not isinstance(answer, expected):
             raise ReplayMissError(self.path, request, self._per_goal[request.kind, request.goal])
         self._served[request.key] += 1
-        self.calls.append(ModelCall(request.kind, (time.perf_counter() - start) * 1000.0, "replayed"))
+        calls.append(ModelCall(request.kind, (time.perf_counter() - start) * 1000.0, "replayed"))
         return answer
+
+
+class ReplayReasoner:
+    """Implements :class:`~drivenav.semantics.protocols.Reasoner` from a file written by :class:`RecordingReasoner`
+    (its other kinds, such as scores, are read and left alone).
+
+    ``calls`` records outcome ``replayed``. A question not in the file raises :class:`ReplayMissError`; a file
+    that is missing or malformed raises :class:`~drivenav.errors.InputError` at construction.
+    """
+
+    name = "replay"
+
+    def __init__(self, path: Path) -> None:
+        self.path = Path(path)
+        self.calls: list[ModelCall] = []
+        self._recording = Recording(self.path)
+
+    def begin_episode(self, goal: str, truth: GroundTruth | None) -> None:
+        self.calls = []
+
+    def select_direction(self, goal: str, candidates: Sequence[Candidate]) -> Selection:
+        return self._recording.answer(select_request(goal, candidates), Selection, self.calls)
+
+    def propose_prompt(self, goal: str, view: View, description: str, failed: Sequence[str]) -> Proposal:
+        return self._recording.answer(propose_request(goal, view, description, failed), Proposal, self.calls)
+
+    def verify(self, goal: str, frame: VerificationFrame, earlier: Sequence[VerificationFrame]) -> Verdict:
+        return self._recording.answer(verify_request(goal, frame, earlier), Verdict, self.calls)
+
+
+class ReplayScorer:
+    """Implements :class:`~drivenav.semantics.protocols.ImageTextScorer` from a file written by
+    :class:`RecordingScorer` (the reasoner's kinds in it are read and left alone).
+
+    ``calls`` records outcome ``replayed``. A frame and goal not in the file raise :class:`ReplayMissError`; a
+    file that is missing or malformed raises :class:`~drivenav.errors.InputError` at construction.
+    """
+
+    name = "replay"
+
+    def __init__(self, path: Path) -> None:
+        self.path = Path(path)
+        self.calls: list[ModelCall] = []
+        self._recording = Recording(self.path)
+
+    def begin_episode(self, truth: GroundTruth | None) -> None:
+        self.calls = []
+
+    def score(self, goal: str, observation: Observation) -> float:
+        return self._recording.answer(score_request(goal, observation.rgb), float, self.calls)

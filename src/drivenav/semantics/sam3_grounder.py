@@ -3,30 +3,46 @@
 DRIVE-Nav uses SAM3 directly as its open-vocabulary detector: every step it segments the target category (or an
 enriched phrase) in the RGB frame and returns one instance mask per match. Through transformers this is
 ``Sam3Processor`` (image + text prompt) -> ``Sam3Model`` -> ``post_process_instance_segmentation``, whose score is
-the query's probability times the image-level presence probability. The released processor's image half needs
-torchvision. The paper measures about 270 ms per SAM3 call on its RTX 4090 deployment machine (Sec. V-E).
+the query's probability times the image-level presence probability. The released processor's image half is
+torchvision's only (the fast image processor, which runs on the model's device). The paper measures about 270 ms
+per SAM3 call on its RTX 4090 deployment machine (Sec. V-E).
+
+The forward is split as ``Sam3Model`` allows: ``get_text_features`` once per phrase and episode,
+``get_vision_features`` once per frame, then the forward on both (``text_embeds`` / ``vision_embeds``), which runs
+the same layers on the same tensors as the plain forward.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from PIL import Image
+import numpy as np
+from numpy.typing import NDArray
 
-from drivenav.semantics.hf_common import fit_phrase, load_pair, pick_device, ranked_detections, run_model
+from drivenav.semantics.hf_common import TransformersGrounder, load_fast_processor, load_pair, ranked_detections
 from drivenav.semantics.protocols import Detection
-from drivenav.types import GroundTruth, Observation
 
 SAM3_EXPECTED = "a local SAM3 checkpoint directory or a model id in the Hugging Face cache"
 
 
-class Sam3Grounder:
+@dataclass(frozen=True)
+class Sam3Text:
+    """One phrase's text encoder output (``Sam3Model.get_text_features``) and its attention mask (batch of one)."""
+
+    features: Any
+    attention_mask: Any
+
+
+class Sam3Grounder(TransformersGrounder):
     """Implements :class:`~drivenav.semantics.protocols.Grounder` with a transformers SAM3 checkpoint.
 
     ``model`` is a checkpoint directory or a cached model id (never downloaded). Instances scoring strictly above
     ``score_threshold`` are kept; mask probabilities above ``mask_threshold`` form the mask, resized to the frame.
-    ``model_obj`` / ``processor_obj`` inject already-built objects (tests, shared GPU copies) instead of loading.
+    ``dtype`` is ``models.dtype`` (``auto``, ``float32``, ``bfloat16``, ``float16``). ``model_obj`` /
+    ``processor_obj`` inject already-built objects (tests, shared GPU copies) instead of loading.
     """
 
     name = "sam3"
@@ -38,37 +54,47 @@ class Sam3Grounder:
         score_threshold: float = 0.5,
         mask_threshold: float = 0.5,
         *,
+        dtype: str = "auto",
         model_obj: Any = None,
         processor_obj: Any = None,
     ) -> None:
         from transformers import Sam3Model, Sam3Processor
 
-        loaded, self.processor = load_pair(
-            Sam3Model.from_pretrained, Sam3Processor.from_pretrained, model, SAM3_EXPECTED, model_obj, processor_obj
+        fast_processor = load_fast_processor(Sam3Processor.from_pretrained)
+        loaded, processor = load_pair(
+            Sam3Model.from_pretrained, fast_processor, model, SAM3_EXPECTED, model_obj, processor_obj
         )
-        self.model = loaded.to(pick_device(device)).eval()
+        super().__init__(loaded, processor, device, dtype)
         self.score_threshold = score_threshold
         self.mask_threshold = mask_threshold
 
-    def begin_episode(self, truth: GroundTruth | None, seed: int) -> None:
-        """Nothing to reset: SAM3 grounds every frame independently and deterministically."""
+    def encode_text(self, text: str) -> Sam3Text:
+        input_ids, attention_mask = self.tokens(text)
+        return Sam3Text(
+            self.model.get_text_features(input_ids=input_ids, attention_mask=attention_mask), attention_mask
+        )
 
-    def segment(self, observation: Observation, phrase: str) -> list[Detection]:
-        """Every instance of ``phrase`` in the frame, best score first, masks at the frame's size.
+    def encode_vision(self, pixels: Any) -> Any:
+        return self.model.get_vision_features(pixel_values=pixels)
 
-        A phrase longer than the text encoder's 32 tokens loses its last words (:func:`fit_phrase`); the detections
-        still carry ``phrase`` as given.
-        """
-        height, width = observation.rgb.shape[:2]
-        text = fit_phrase(self.processor.tokenizer, phrase, self.model.config.text_config.max_position_embeddings)
-        batch = self.processor(images=Image.fromarray(observation.rgb), text=text, return_tensors="pt")
-        outputs = run_model(self.model, batch)
-        result = self.processor.post_process_instance_segmentation(
+    def decode(self, vision: Any, text: Sam3Text) -> Any:
+        from transformers.modeling_outputs import BaseModelOutputWithPooling
+
+        batch = vision.fpn_hidden_states[0].shape[0]
+        features, mask = text.features, text.attention_mask
+        if batch > 1:  # one phrase for every frame of the batch (the forward reads only the pooled output)
+            features = BaseModelOutputWithPooling(pooler_output=features.pooler_output.expand(batch, -1, -1))
+            mask = mask.expand(batch, -1)
+        return self.model(vision_embeds=vision, text_embeds=features, attention_mask=mask)
+
+    def postprocess(self, outputs: Any, frames: Sequence[NDArray[np.uint8]], phrase: str) -> list[list[Detection]]:
+        results = self.processor.post_process_instance_segmentation(
             outputs,
             threshold=self.score_threshold,
             mask_threshold=self.mask_threshold,
-            target_sizes=[(height, width)],
-        )[0]
-        scores = result["scores"].float().cpu().numpy()
-        masks = result["masks"].bool().cpu().numpy()
-        return ranked_detections(scores, masks, phrase)
+            target_sizes=[frame.shape[:2] for frame in frames],
+        )
+        return [
+            ranked_detections(result["scores"].float().cpu().numpy(), result["masks"].bool().cpu().numpy(), phrase)
+            for result in results
+        ]

@@ -1,0 +1,203 @@
+"""``drivenav bench grounder``: how long the SAM3 or OWLv2 grounder takes on a 640x480 frame, in process.
+
+Weights are not needed: without a checkpoint (or with ``--random-weights``) the model is the full-size
+architecture of transformers' default configuration with random weights (:mod:`drivenav.eval.random_grounders`),
+which costs the same time as the released one. ``--tiny`` uses the tests' tiny configuration instead (a smoke test
+of the bench itself; its times measure nothing but the plumbing).
+
+Each timed frame is new (its vision features are computed), the phrase is the same (its text features are encoded
+once, as in an episode); frames are random pixels. One frame is split into the grounder's stages: preprocessing
+(:meth:`~drivenav.semantics.hf_common.TransformersGrounder.preprocess`), forward (vision features and decoding) and
+postprocessing (masks at the frame's size, detections). On CUDA every stage ends with a synchronisation.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, Final
+
+import numpy as np
+from numpy.typing import NDArray
+
+from drivenav.errors import InputError
+from drivenav.semantics.hf_common import DETECTOR_OPTION, TransformersGrounder, pick_device, resolve_dtype
+
+FRAME_HEIGHT: Final[int] = 480
+FRAME_WIDTH: Final[int] = 640
+"""Issue 37's frame, the HM3D-OVON / Habitat ObjectNav camera's 640x480."""
+WARMUP_FRAMES: Final[int] = 2
+"""Untimed frames first: lazy initialisation, allocator growth, kernel selection."""
+PHRASE: Final[str] = "chair"
+SERVED_NOTE: Final[str] = (
+    "served_ms_per_frame: the served path (one model copy batching every worker's frames) is not built yet"
+)
+
+
+@dataclass(frozen=True)
+class GrounderBenchOptions:
+    """What ``bench grounder`` runs. ``checkpoint``: a checkpoint directory or cached model id; empty for the
+    detector's default one when it is in the Hugging Face cache, else random weights. ``random_weights`` / ``tiny``:
+    random weights whatever is cached, on the full-size / tiny configuration. ``device``: None for CUDA when
+    visible. ``batch`` > 1 adds a batched forward of that many frames."""
+
+    detector: str = "sam3"
+    checkpoint: str = ""
+    random_weights: bool = False
+    tiny: bool = False
+    device: str | None = None
+    dtype: str = "auto"
+    frames: int = 10
+    batch: int = 1
+
+
+@dataclass(frozen=True)
+class GrounderBenchResult:
+    """Per-frame milliseconds (medians over the timed frames; ``p90_ms`` the 90th percentile of the whole), the
+    setting they were measured in, and GPU memory (peak allocated, MiB; None on the CPU)."""
+
+    detector: str
+    model: str
+    device: str
+    dtype: str
+    image_processor: str
+    frames: int
+    frame: str
+    median_ms: float
+    p90_ms: float
+    preprocess_ms: float
+    forward_ms: float
+    postprocess_ms: float
+    batch: int
+    batch_ms_per_frame: float | None
+    served_ms_per_frame: float | None
+    gpu_memory_mb: float | None
+    notes: str
+
+
+@dataclass(frozen=True)
+class _FrameTiming:
+    preprocess: float
+    forward: float
+    postprocess: float
+
+    @property
+    def total(self) -> float:
+        return self.preprocess + self.forward + self.postprocess
+
+
+def bench_grounder(options: GrounderBenchOptions) -> GrounderBenchResult:
+    """Build the grounder, warm it up, time ``options.frames`` frames one at a time (and batched when asked)."""
+    import torch
+
+    _check(options)
+    device = pick_device(options.device)
+    on_cuda = device.startswith("cuda")
+    if on_cuda and not torch.cuda.is_available():
+        raise InputError("command line", "--device", "cpu, or cuda where a GPU is visible", device)
+    if on_cuda:
+        torch.cuda.reset_peak_memory_stats()
+    grounder, model = _grounder(options, device)
+    frames = _frames(WARMUP_FRAMES + options.frames)
+    for rgb in frames[:WARMUP_FRAMES]:
+        _time_frame(grounder, rgb, device)
+    timings = [_time_frame(grounder, rgb, device) for rgb in frames[WARMUP_FRAMES:]]
+    totals = [t.total for t in timings]
+    dtype = str(resolve_dtype(options.dtype, device)).removeprefix("torch.")
+    tf32 = " TF32 matmuls (fp32 on CUDA);" if on_cuda and dtype == "float32" else ""
+    return GrounderBenchResult(
+        detector=options.detector,
+        model=model,
+        device=device,
+        dtype=dtype,
+        image_processor=getattr(grounder.processor.image_processor, "backend", "unknown"),
+        frames=options.frames,
+        frame=f"{FRAME_WIDTH}x{FRAME_HEIGHT}",
+        median_ms=_ms(np.median(totals)),
+        p90_ms=_ms(np.percentile(totals, 90)),
+        preprocess_ms=_ms(np.median([t.preprocess for t in timings])),
+        forward_ms=_ms(np.median([t.forward for t in timings])),
+        postprocess_ms=_ms(np.median([t.postprocess for t in timings])),
+        batch=options.batch,
+        batch_ms_per_frame=_batched(grounder, options, device) if options.batch > 1 else None,
+        served_ms_per_frame=None,
+        gpu_memory_mb=round(torch.cuda.max_memory_allocated() / 2**20, 1) if on_cuda else None,
+        notes=f"text features encoded once (cached per episode);{tf32} {SERVED_NOTE}",
+    )
+
+
+def _grounder(options: GrounderBenchOptions, device: str) -> tuple[TransformersGrounder, str]:
+    """The grounder and a description of its model: the checkpoint's, else random weights (tiny or full size)."""
+    from drivenav.eval.random_grounders import random_owlv2, random_sam3
+    from drivenav.semantics.owlv2_grounder import Owlv2Grounder
+    from drivenav.semantics.sam3_grounder import Sam3Grounder
+
+    kind = {"sam3": Sam3Grounder, "owlv2": Owlv2Grounder}[options.detector]
+    if options.checkpoint:
+        return kind(options.checkpoint, device, dtype=options.dtype), options.checkpoint
+    if not (options.random_weights or options.tiny):
+        try:
+            default = kind(device=device, dtype=options.dtype)
+            return default, "the default checkpoint (from the Hugging Face cache)"
+        except InputError:  # not in the cache: random weights time the same
+            pass
+    build = {"sam3": random_sam3, "owlv2": random_owlv2}[options.detector]
+    model, processor = build(options.tiny)
+    described = "tiny test configuration" if options.tiny else "full-size default configuration"
+    grounder = kind(device=device, dtype=options.dtype, model_obj=model, processor_obj=processor)
+    return grounder, f"{described}, random weights"
+
+
+def _frames(count: int) -> list[NDArray[np.uint8]]:
+    rng = np.random.default_rng(0)
+    return [rng.integers(0, 256, (FRAME_HEIGHT, FRAME_WIDTH, 3), dtype=np.uint8) for _ in range(count)]
+
+
+def _time_frame(grounder: TransformersGrounder, rgb: NDArray[np.uint8], device: str) -> _FrameTiming:
+    """One frame through the grounder's stages, as :meth:`~TransformersGrounder.segment` runs them."""
+    import torch
+
+    with torch.inference_mode():
+        text = grounder.text_features(PHRASE)
+        pixels, preprocess = _timed(lambda: grounder.preprocess([rgb]), device)
+        outputs, forward = _timed(lambda: grounder.decode(grounder.encode_vision(pixels), text), device)
+        _, postprocess = _timed(lambda: grounder.postprocess(outputs, [rgb], PHRASE), device)
+    return _FrameTiming(preprocess, forward, postprocess)
+
+
+def _batched(grounder: TransformersGrounder, options: GrounderBenchOptions, device: str) -> float:
+    """Milliseconds per frame of :meth:`~TransformersGrounder.segment_batch` on ``options.batch`` frames (the
+    median of ``max(1, frames // batch)`` batches after one untimed batch)."""
+    frames = _frames(options.batch)
+    repeats = max(1, options.frames // options.batch)
+    seconds = [_timed(lambda: grounder.segment_batch(frames, PHRASE), device)[1] for _ in range(repeats + 1)]
+    return _ms(np.median(seconds[1:]) / options.batch)
+
+
+def _timed(work: Callable[[], Any], device: str) -> tuple[Any, float]:
+    """``work()`` and the seconds it took (on CUDA, until the device is done)."""
+    start = time.perf_counter()
+    result = work()
+    _synchronize(device)
+    return result, time.perf_counter() - start
+
+
+def _synchronize(device: str) -> None:
+    if device.startswith("cuda"):
+        import torch
+
+        torch.cuda.synchronize()
+
+
+def _ms(seconds: float | np.floating[Any]) -> float:
+    return round(float(seconds) * 1000.0, 3)
+
+
+def _check(options: GrounderBenchOptions) -> None:
+    """The choices that argparse cannot check, one InputError each: a checkpoint goes without ``--random-weights``
+    and ``--tiny``."""
+    if options.checkpoint and (options.random_weights or options.tiny):
+        raise InputError(
+            "command line", DETECTOR_OPTION, "no checkpoint with --random-weights or --tiny", options.checkpoint
+        )
