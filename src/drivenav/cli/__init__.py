@@ -18,7 +18,9 @@ from drivenav.cli.bench import add_bench, add_benchmark
 from drivenav.cli.common import Handler
 from drivenav.cli.episodes import add_episodes
 from drivenav.cli.evaluate import add_compare, add_config, add_demo, add_doctor, add_eval, add_run, add_viz
+from drivenav.cli.report import add_report
 from drivenav.cli.robot import SERVING, add_robot
+from drivenav.cli.serve import add_serve
 from drivenav.errors import InputError, RunStoppedError, WorkerDiedError
 from drivenav.threads import limit_blas_threads
 
@@ -34,7 +36,9 @@ COMMANDS = (
     add_viz,
     add_compare,
     add_demo,
+    add_report,
     add_robot,
+    add_serve,
     add_doctor,
 )
 """Each command group's parser, in the order ``--help`` lists them."""

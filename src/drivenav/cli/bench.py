@@ -107,6 +107,9 @@ def _add_bench_grounder(sub: Commands) -> None:
     parser.add_argument("--dtype", choices=DTYPES, default="auto", help="default auto: bf16 on CUDA, else fp32")
     parser.add_argument("--frames", type=int, default=10, help="timed frames, one at a time (default 10)")
     parser.add_argument("--batch", type=int, default=1, help="B > 1: also time a batched forward of B frames")
+    parser.add_argument(
+        "--clients", type=int, default=0, help="K > 0: also time the served path with K concurrent clients (loopback)"
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.set_defaults(handler=_cmd_bench_grounder)
 
@@ -176,6 +179,7 @@ def _cmd_bench_grounder(args: argparse.Namespace) -> int:
         dtype=args.dtype,
         frames=positive(args.frames, "--frames"),
         batch=positive(args.batch, "--batch"),
+        clients=positive(args.clients, "--clients") if args.clients else 0,
     )
     try:
         result = bench_grounder(options)
@@ -188,8 +192,9 @@ def _cmd_bench_grounder(args: argparse.Namespace) -> int:
 def _cmd_bench_ablations(args: argparse.Namespace) -> int:
     """``bench ablations``: every method on the same episodes (``--benchmark``'s frozen ones by default), then the
     report's tables; the pictures are drawn by the viz floor's picture-maker, passed in."""
-    from drivenav.eval.ablations import parse_methods, run_ablations
+    from drivenav.eval.ablations import RUNS_DIR, parse_methods, run_ablations
     from drivenav.eval.report import shown
+    from drivenav.report.site import write_report
     from drivenav.viz.run_pictures import render_pictures
 
     methods = parse_methods(args.methods)
@@ -206,6 +211,7 @@ def _cmd_bench_ablations(args: argparse.Namespace) -> int:
         sr, spl = (shown(value, "{:5.1f} %", 100.0) for value in (entry.success_rate, entry.spl))
         print(f"{name:<20} SR {sr}  SPL {spl}  errors {entry.errors}")
     print(f"tables: {args.out / 'ablations.md'}  data: {args.out / 'ablations.json'}, {args.out / 'ablations.csv'}")
+    print(f"report: {write_report([args.out / RUNS_DIR / m for m in methods], args.out / 'report')}")
     return 0
 
 

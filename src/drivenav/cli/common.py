@@ -36,6 +36,8 @@ OPTION_KEYS = {
     "scorer": "models.scorer",
     "scorer_model": "models.scorer_model",
     "dtype": "models.dtype",
+    "detector_url": "models.detector_url",
+    "detector_keys": "models.detector_keys",
 }
 """The dedicated options that set a settings key (``--seed`` -> ``run.seed``, ...)."""
 
@@ -91,6 +93,11 @@ def add_model_options(parser: argparse.ArgumentParser) -> None:
         help=f"the detector's weights: one of {', '.join(DTYPES)} (default {default.dtype}: bf16 on CUDA, else fp32)",
     )
     models.add_argument("--scorer-model", help="local checkpoint dir or HF-cache model id (default: the scorer's own)")
+    models.add_argument(
+        "--detector-url",
+        help=f"with --detector remote: a 'drivenav serve grounder' endpoint (default {default.detector_url})",
+    )
+    models.add_argument("--detector-keys", help="with --detector remote off loopback: the CURVE key folder")
 
 
 def add_execution_options(parser: argparse.ArgumentParser) -> None:
@@ -132,7 +139,7 @@ def settings(args: argparse.Namespace, agent: str | None) -> Settings:
     from drivenav.settings import load_settings
 
     given = given_options(args)
-    for key in ("models.vlm_record", "models.vlm_replay"):
+    for key in ("models.vlm_record", "models.vlm_replay", "models.detector_keys"):
         if given.get(key):
             given[key] = str(Path(str(given[key])).resolve())
     if "run.seed" in given:
@@ -151,15 +158,16 @@ def check_world_options(args: argparse.Namespace, world: WorldEntry) -> None:
             other.refuse_options(args)
 
 
-def run_spec(args: argparse.Namespace, agent: str) -> RunSpec:
-    """The world (``--env``) and the resolved settings for ``agent``; models are checked before any work."""
+def run_spec(args: argparse.Namespace, agent: str, connect: bool = True) -> RunSpec:
+    """The world (``--env``) and the resolved settings for ``agent``; models are checked before any work (with
+    ``connect=False`` the cheap checks only: a shared detector's server loads its model)."""
     from drivenav.eval.runner import RunSpec
     from drivenav.semantics.registry import check_models
 
     world = chosen_world(args)
     check_world_options(args, world)
     resolved = settings(args, agent)
-    check_models(resolved.models)
+    check_models(resolved.models, connect)
     return RunSpec(world.build(args, resolved), resolved)
 
 

@@ -46,6 +46,12 @@ def add_eval(commands: Commands) -> None:
     parser.add_argument("--out", required=True, type=path, help="run directory (rerun to resume)")
     add_max_steps(parser)
     add_execution_options(parser)
+    parser.add_argument(
+        "--share-detector",
+        action="store_true",
+        help="one copy of the detector for every worker: served on a free loopback port for the run (--detector "
+        "remote for the workers; the server's log is DIR/grounder-server.log)",
+    )
     add_model_options(parser)
     add_config_options(parser)
     parser.set_defaults(handler=_cmd_eval)
@@ -123,9 +129,19 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     from drivenav.eval.runner import evaluate
 
     pool = executor(args)
-    spec = run_spec(args, args.agent)  # an unknown agent or setting fails before any work
+    spec = run_spec(args, args.agent, connect=not args.share_detector)  # an unknown agent or setting fails first
+    if args.share_detector:
+        from drivenav.eval.shared_detector import check_shareable
+
+        check_shareable(spec.settings.models, pool)
     make_directory(args.out)
-    summary = evaluate(episodes(args, spec), spec, args.out, pool)
+    if args.share_detector:
+        from drivenav.eval.shared_detector import shared_detector
+
+        with shared_detector(spec.settings.models, args.out) as served:
+            summary = evaluate(episodes(args, spec), spec, args.out, pool, served=served)
+    else:
+        summary = evaluate(episodes(args, spec), spec, args.out, pool)
     print(format_table(summary, f"{args.agent} on {world_label(args)}"))
     print(f"results: {args.out / EPISODES_FILE}  summary: {args.out / SUMMARY_FILE}")
     return 0
@@ -180,10 +196,12 @@ def _cmd_viz(args: argparse.Namespace) -> int:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from drivenav.viz.demo import run_demo
+    from drivenav.report.site import write_report
+    from drivenav.viz.demo import DEMO_AGENTS, run_demo
 
     index = run_demo(args.out, positive(args.episodes, "--episodes"), args.seed)
-    print(f"demo results and pictures: {args.out.resolve()}  (start with {index})")
+    site = write_report([args.out / agent for agent, _ in DEMO_AGENTS], args.out / "report")
+    print(f"demo results and pictures: {args.out.resolve()}  (start with {index}, or {site.resolve()} in a browser)")
     return 0
 
 

@@ -1,4 +1,5 @@
-"""``drivenav bench grounder``: how long the SAM3 or OWLv2 grounder takes on a 640x480 frame, in process.
+"""``drivenav bench grounder``: how long the SAM3 or OWLv2 grounder takes on a 640x480 frame, in process and
+served.
 
 Weights are not needed: without a checkpoint (or with ``--random-weights``) the model is the full-size
 architecture of transformers' default configuration with random weights (:mod:`drivenav.eval.random_grounders`),
@@ -9,13 +10,22 @@ Each timed frame is new (its vision features are computed), the phrase is the sa
 once, as in an episode); frames are random pixels. One frame is split into the grounder's stages: preprocessing
 (:meth:`~drivenav.semantics.hf_common.TransformersGrounder.preprocess`), forward (vision features and decoding) and
 postprocessing (masks at the frame's size, detections). On CUDA every stage ends with a synchronisation.
+
+``--clients K`` also times the served path (:mod:`drivenav.semantics.grounder_server`), with the grounder served
+from this process on loopback: ``served_ms_per_frame`` is the throughput of K client threads each grounding
+``frames`` frames one after another through a server batching up to K frames (wall time over every frame), and
+``served_overhead_ms`` is what serving adds to one frame at batch 1 (one client, a server that never waits: the
+median latency of a served frame minus that of the same frame in process, both through ``segment_batch``). The
+clients share this process with the server, so on a CPU they also compete for its cores.
 """
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from typing import Any, Final
 
 import numpy as np
@@ -23,6 +33,8 @@ from numpy.typing import NDArray
 
 from drivenav.errors import InputError
 from drivenav.semantics.hf_common import DETECTOR_OPTION, TransformersGrounder, pick_device, resolve_dtype
+from drivenav.types import CameraIntrinsics, Observation, Pose
+from drivenav.wire.protocol import Message
 
 FRAME_HEIGHT: Final[int] = 480
 FRAME_WIDTH: Final[int] = 640
@@ -30,9 +42,11 @@ FRAME_WIDTH: Final[int] = 640
 WARMUP_FRAMES: Final[int] = 2
 """Untimed frames first: lazy initialisation, allocator growth, kernel selection."""
 PHRASE: Final[str] = "chair"
-SERVED_NOTE: Final[str] = (
-    "served_ms_per_frame: the served path (one model copy batching every worker's frames) is not built yet"
-)
+BENCH_HFOV_DEG: Final[float] = 79.0
+"""The HM3D-OVON camera's horizontal field of view (the served frame's intrinsics; the grounders do not read it)."""
+SERVED_NOTE: Final[str] = "served_ms_per_frame: --clients K times the served path (one model copy, K workers)"
+OVERHEAD_FRAMES: Final[int] = 2
+"""Untimed frames through a fresh server first (its text cache, the sockets' connection)."""
 
 
 @dataclass(frozen=True)
@@ -40,7 +54,8 @@ class GrounderBenchOptions:
     """What ``bench grounder`` runs. ``checkpoint``: a checkpoint directory or cached model id; empty for the
     detector's default one when it is in the Hugging Face cache, else random weights. ``random_weights`` / ``tiny``:
     random weights whatever is cached, on the full-size / tiny configuration. ``device``: None for CUDA when
-    visible. ``batch`` > 1 adds a batched forward of that many frames."""
+    visible. ``batch`` > 1 adds a batched forward of that many frames; ``clients`` > 0 the served path with that many
+    concurrent clients."""
 
     detector: str = "sam3"
     checkpoint: str = ""
@@ -50,12 +65,14 @@ class GrounderBenchOptions:
     dtype: str = "auto"
     frames: int = 10
     batch: int = 1
+    clients: int = 0
 
 
 @dataclass(frozen=True)
 class GrounderBenchResult:
     """Per-frame milliseconds (medians over the timed frames; ``p90_ms`` the 90th percentile of the whole), the
-    setting they were measured in, and GPU memory (peak allocated, MiB; None on the CPU)."""
+    setting they were measured in, and GPU memory (peak allocated, MiB; None on the CPU). The served figures (module
+    docstring) are None without clients."""
 
     detector: str
     model: str
@@ -71,7 +88,9 @@ class GrounderBenchResult:
     postprocess_ms: float
     batch: int
     batch_ms_per_frame: float | None
+    clients: int
     served_ms_per_frame: float | None
+    served_overhead_ms: float | None
     gpu_memory_mb: float | None
     notes: str
 
@@ -106,6 +125,7 @@ def bench_grounder(options: GrounderBenchOptions) -> GrounderBenchResult:
     totals = [t.total for t in timings]
     dtype = str(resolve_dtype(options.dtype, device)).removeprefix("torch.")
     tf32 = " TF32 matmuls (fp32 on CUDA);" if on_cuda and dtype == "float32" else ""
+    served = _served(grounder, options, device) if options.clients else None
     return GrounderBenchResult(
         detector=options.detector,
         model=model,
@@ -121,7 +141,9 @@ def bench_grounder(options: GrounderBenchOptions) -> GrounderBenchResult:
         postprocess_ms=_ms(np.median([t.postprocess for t in timings])),
         batch=options.batch,
         batch_ms_per_frame=_batched(grounder, options, device) if options.batch > 1 else None,
-        served_ms_per_frame=None,
+        clients=options.clients,
+        served_ms_per_frame=served.ms_per_frame if served else None,
+        served_overhead_ms=served.overhead_ms if served else None,
         gpu_memory_mb=round(torch.cuda.max_memory_allocated() / 2**20, 1) if on_cuda else None,
         notes=f"text features encoded once (cached per episode);{tf32} {SERVED_NOTE}",
     )
@@ -173,6 +195,81 @@ def _batched(grounder: TransformersGrounder, options: GrounderBenchOptions, devi
     repeats = max(1, options.frames // options.batch)
     seconds = [_timed(lambda: grounder.segment_batch(frames, PHRASE), device)[1] for _ in range(repeats + 1)]
     return _ms(np.median(seconds[1:]) / options.batch)
+
+
+@dataclass(frozen=True)
+class _Served:
+    ms_per_frame: float
+    overhead_ms: float
+
+
+def _served(grounder: TransformersGrounder, options: GrounderBenchOptions, device: str) -> _Served:
+    """The served path's throughput with ``options.clients`` clients and its batch-1 overhead (module docstring)."""
+    from drivenav.semantics.grounder_server import GrounderServer, serving
+    from drivenav.semantics.serve_config import ServeConfig
+    from drivenav.semantics.served import ServedInfo
+
+    def server(config: ServeConfig) -> GrounderServer:
+        info = ServedInfo(options.detector, "bench", device, "bench", ("rgb",), False, config.batch, config.batch_ms)
+        return GrounderServer(lambda: grounder, info, "tcp://127.0.0.1:*", None, config)
+
+    frames = _frames(OVERHEAD_FRAMES + options.frames)
+    local = [_timed(partial(grounder.segment_batch, [rgb], PHRASE), device)[1] for rgb in frames]
+    with serving(server(ServeConfig(batch=1, batch_ms=0.0))) as endpoint:
+        remote = [_served_seconds(endpoint, frames)[OVERHEAD_FRAMES:]]
+    overhead = np.median(remote[0]) - np.median(local[OVERHEAD_FRAMES:])
+    with serving(server(ServeConfig(batch=options.clients))) as endpoint:
+        wall = _concurrent_seconds(endpoint, frames, options.clients)
+    return _Served(_ms(wall / (options.clients * options.frames)), _ms(overhead))
+
+
+def _served_seconds(
+    endpoint: str, frames: list[NDArray[np.uint8]], ready: threading.Barrier | None = None
+) -> list[float]:
+    """Each frame's seconds through a served grounder at ``endpoint``, one after another (after ``ready``)."""
+    from drivenav.semantics.served import GrounderClient, RemoteGrounder, ServedInfo
+
+    client = GrounderClient(endpoint)
+    try:
+        info = ServedInfo.from_json(client.request(Message("HELLO", client.next_id())).body)
+        grounder = RemoteGrounder(client, info)
+        grounder.begin_episode(None, 0)
+        if ready is not None:
+            ready.wait()
+        observations = [_observation(rgb, step) for step, rgb in enumerate(frames)]
+        return [_timed(partial(grounder.segment, frame, PHRASE), "cpu")[1] for frame in observations]
+    finally:
+        client.close()
+
+
+def _concurrent_seconds(endpoint: str, frames: list[NDArray[np.uint8]], clients: int) -> float:
+    """Wall seconds for ``clients`` threads each grounding ``frames`` (after the first :data:`OVERHEAD_FRAMES`)
+    through the server at ``endpoint``, all started together."""
+    ready = threading.Barrier(clients + 1)
+    threads = [
+        threading.Thread(target=_served_seconds, args=(endpoint, frames[OVERHEAD_FRAMES:], ready))
+        for _ in range(clients)
+    ]
+    for thread in threads:
+        thread.start()
+    ready.wait()
+    start = time.perf_counter()
+    for thread in threads:
+        thread.join()
+    return time.perf_counter() - start
+
+
+def _observation(rgb: NDArray[np.uint8], step: int) -> Observation:
+    """A bench frame as an observation (the served grounder reads its RGB image only)."""
+    return Observation(
+        rgb=rgb,
+        depth=np.zeros(rgb.shape[:2], dtype=np.float32),
+        semantic=None,
+        pose=Pose(0.0, 0.0, 0.0),
+        intrinsics=CameraIntrinsics.from_hfov(FRAME_WIDTH, FRAME_HEIGHT, BENCH_HFOV_DEG),
+        step=step,
+        collided=False,
+    )
 
 
 def _timed(work: Callable[[], Any], device: str) -> tuple[Any, float]:

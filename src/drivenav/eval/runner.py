@@ -34,6 +34,7 @@ from drivenav.eval.report import Summary, summarize
 from drivenav.eval.rundir import RunDirectory
 from drivenav.eval.timings import to_columns
 from drivenav.eval.trace import EpisodeError, EpisodeTrace
+from drivenav.semantics.registry import ModelSpec
 from drivenav.settings import Settings
 from drivenav.types import SEMANTIC, Action, Observation
 
@@ -298,16 +299,21 @@ def evaluate(
     out: Path,
     executor: Executor | None = None,
     show_progress: bool = True,
+    served: ModelSpec | None = None,
 ) -> Summary:
     """Run every unfinished episode, append its record, and write ``summary.json``; returns the summary.
 
     The run directory is locked for the run (a second evaluation into it is refused) and must have been
     started with the same settings and episodes (else an :class:`InputError` names the first difference).
-    A progress bar goes to standard error.
+    A progress bar goes to standard error. ``served``: the models the workers use instead of the spec's (its
+    detector served to them all, ``eval --share-detector``); the run directory records the spec's.
     """
     executor = executor or Executor()
+    recorded = spec
+    if served is not None:
+        spec = replace(spec, settings=replace(spec.settings, models=served))
     preflight(spec, executor, len(episodes))
-    with RunDirectory.open(out, spec.env, spec.settings, episodes) as run:
+    with RunDirectory.open(out, recorded.env, recorded.settings, episodes) as run:
         done = run.finished
         todo = [e for e in episodes if e.episode_id not in done]
         label = f"{spec.agent} (resuming)" if done else spec.agent

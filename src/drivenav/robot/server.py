@@ -10,7 +10,6 @@ whose request id was already seen (a client's retry) is answered again, never ex
 from __future__ import annotations
 
 import contextlib
-import json
 import logging
 import threading
 import time
@@ -25,13 +24,12 @@ import zmq
 from zmq.utils.monitor import recv_monitor_message
 
 from drivenav.envs.base import EpisodeMeasures, episode_pose
-from drivenav.errors import InputError, one_line
+from drivenav.errors import one_line
 from drivenav.jsonstream import JsonObject
 from drivenav.robot.parts import MotionExecutor, MotionResult, SensorFrame, SensorSource
 from drivenav.types import Action, Pose
 from drivenav.wire.protocol import (
     MAX_ARRAY_BYTES,
-    MAX_HEADER_BYTES,
     REQUESTS,
     Message,
     ProtocolError,
@@ -43,14 +41,12 @@ from drivenav.wire.protocol import (
     occupancy_body,
     rgb_to_jpeg,
 )
-from drivenav.wire.security import check_bind, secure_server
+from drivenav.wire.router import Frames, RouterSocket, error_reply, loose_id
 
 if TYPE_CHECKING:
     from drivenav.robot.lidar import LidarOccupancy
 
 log = logging.getLogger(__name__)
-
-Frames = list[bytes | memoryview]
 
 
 @dataclass(frozen=True)
@@ -248,11 +244,6 @@ class RobotSession:
         )
 
 
-def error_reply(request_id: str, error: str) -> Message:
-    """An ERROR reply naming what was wrong."""
-    return Message("ERROR", request_id or "?", status="error", body={"error": error})
-
-
 class RobotServer:
     """A :class:`RobotSession` behind a ZMQ ROUTER socket bound at ``bind`` (CURVE with ``keys``).
 
@@ -261,25 +252,16 @@ class RobotServer:
     """
 
     def __init__(self, session: RobotSession, bind: str, keys: Path | None = None) -> None:
-        check_bind(bind, keys)
         self.session = session
         self.config = session.config
+        self._router = RouterSocket(bind, keys, self.config.max_message_bytes)
         self._replies: OrderedDict[str, Frames] = OrderedDict()
         self._motion: _Motion | None = None
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="drivenav-motion")
         self._last_heard = time.monotonic()
-        self._context: zmq.Context[Any] = zmq.Context()
-        self._socket = self._context.socket(zmq.ROUTER)
-        self._socket.setsockopt(zmq.LINGER, 0)
-        self._socket.setsockopt(zmq.MAXMSGSIZE, self.config.max_message_bytes)
-        self._auth = secure_server(self._context, self._socket, keys) if keys is not None else None
-        self._monitor = self._socket.get_monitor_socket()
-        try:
-            self._socket.bind(bind)
-        except zmq.ZMQError as error:  # in use, or a host this machine does not have
-            self.close()
-            raise InputError("command line", "--bind", "an address free to serve on", f"{bind}: {error}") from None
-        self.endpoint = str(self._socket.getsockopt_string(zmq.LAST_ENDPOINT))
+        self._socket = self._router.socket
+        self._monitor = self._router.monitor
+        self.endpoint = self._router.endpoint
 
     def serve(self, stop: threading.Event | None = None) -> None:
         """Answer requests until ``stop`` is set (or Ctrl-C); the robot is stopped on the way out."""
@@ -287,7 +269,7 @@ class RobotServer:
         poller = zmq.Poller()
         poller.register(self._socket, zmq.POLLIN)
         poller.register(self._monitor, zmq.POLLIN)
-        log.info("serving the robot on %s%s", self.endpoint, " (CURVE)" if self._auth else "")
+        log.info("serving the robot on %s%s", self.endpoint, " (CURVE)" if self._router.curve else "")
         try:
             while not stop.is_set():
                 events = dict(poller.poll(self.config.poll_ms))
@@ -301,33 +283,24 @@ class RobotServer:
 
     def close(self) -> None:
         self._pool.shutdown(wait=True)
-        self._socket.disable_monitor()
-        self._monitor.close(linger=0)
-        self._socket.close(linger=0)
-        if self._auth is not None:
-            self._auth.stop()
-        self._context.term()
+        self._router.close()
 
     def _receive(self) -> None:
         """One message from a brain, answered; nothing in it can stop the server (an unexpected fault is logged
         and answered as an ERROR)."""
-        frames = self._socket.recv_multipart(copy=False)
+        identity, body = self._router.receive()
         self._last_heard = time.monotonic()
-        identity = frames[0].bytes
-        body = frames[1:]
-        if body and len(body[0]) == 0:  # a REQ client's (or our DEALER client's) empty delimiter
-            body = body[1:]
         try:
             self._answer(identity, body)
         except Exception as error:
             log.exception("a request could not be answered")
-            self._send(identity, encode(error_reply(_loose_id(body), f"the robot failed: {one_line(error)}")))
+            self._send(identity, encode(error_reply(loose_id(body), f"the robot failed: {one_line(error)}")))
 
     def _answer(self, identity: bytes, body: list[Any]) -> None:
         try:
             request = decode([f.buffer for f in body], REQUESTS)
         except ProtocolError as error:
-            self._send(identity, encode(error_reply(_loose_id(body), str(error))))
+            self._send(identity, encode(error_reply(loose_id(body), str(error))))
             return
         cached = self._replies.get(request.request_id)
         if cached is not None and request.type != "PING":
@@ -388,7 +361,7 @@ class RobotServer:
         self._send(identity, frames)
 
     def _send(self, identity: bytes, frames: Frames) -> None:
-        self._socket.send_multipart([identity, b"", *frames], copy=False)
+        self._router.send(identity, frames)
 
     def _log_socket_event(self) -> None:
         event = recv_monitor_message(self._monitor)
@@ -402,18 +375,6 @@ class RobotServer:
             log.info("a brain disconnected")
         elif kind in (zmq.EVENT_HANDSHAKE_FAILED_AUTH, zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL):
             log.warning("a connection failed its CURVE handshake (a key not in the allow-list?)")
-
-
-def _loose_id(frames: list[Any]) -> str:
-    """The request id of a message that failed to decode, where its header still says one (a short string)."""
-    if not frames or len(frames[0]) > MAX_HEADER_BYTES:
-        return "?"
-    try:
-        header = json.loads(bytes(frames[0].buffer))
-    except (ValueError, UnicodeDecodeError, RecursionError):
-        return "?"
-    value = header.get("id") if isinstance(header, dict) else None
-    return value if isinstance(value, str) and 0 < len(value) <= 128 else "?"
 
 
 @contextlib.contextmanager

@@ -12,10 +12,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Generic, TypeVar
 
 from drivenav.errors import InputError
+from drivenav.semantics.serve_config import DEFAULT_BIND
 
 if TYPE_CHECKING:  # the command line reads the names here without loading numpy
     from drivenav.semantics.protocols import Grounder, ImageTextScorer, Reasoner
@@ -30,7 +32,13 @@ class ModelSpec:
     ``detector_model`` / ``scorer_model``: the grounder's / scorer's checkpoint (empty: the backend's default).
     ``vlm_record`` / ``vlm_replay``: the one file that records / replays both the reasoner's and the scorer's
     answers. ``dtype``: the grounder's weights and inputs, one of :data:`DTYPES` (``auto``: bf16 on a CUDA device
-    that supports it, fp32 elsewhere).
+    that supports it, fp32 elsewhere); ``detector_device``: where a transformers grounder runs (empty: CUDA when
+    visible, else the CPU). ``detector_url`` / ``detector_keys``: with ``detector`` ``remote``, the served
+    grounder's endpoint (``drivenav serve grounder``) and the CURVE key folder when it is not on loopback;
+    ``detector_timeout_s``: how long a request may go unanswered before its episode ends as an error (long enough
+    for a batch of full-size forwards on a CPU); ``detector_served``: the detector the server runs, when the
+    workers must know it (set by ``eval --share-detector``; required for a served stand-in that reads ground-truth
+    labels, whose agents then ask the world for them; empty: a model that reads images).
     """
 
     reasoner: str = "embedded"
@@ -43,6 +51,11 @@ class ModelSpec:
     scorer: str = "embedded"
     scorer_model: str = ""
     dtype: str = "auto"
+    detector_device: str = ""
+    detector_url: str = DEFAULT_BIND
+    detector_keys: str = ""
+    detector_timeout_s: float = 60.0
+    detector_served: str = ""
 
 
 DTYPES = ("auto", "float32", "bfloat16", "float16")
@@ -59,6 +72,7 @@ class Backend(Generic[Model]):
 
     ``build`` makes it from a :class:`ModelSpec` (importing its module then). ``reads_labels``: it reads the
     world's ground-truth instance labels (the embedded stand-ins), so agents using it need ``semantic``.
+    ``observes``: the images of an observation it reads (what a served grounder's clients send it).
     ``check`` runs cheap local checks before any episode (a file to read); ``connect`` the costly ones (a server
     to reach, weights to load), which run after every cheap check so that a typo fails at once.
     """
@@ -67,6 +81,7 @@ class Backend(Generic[Model]):
     reads_labels: bool = False
     check: Callable[[ModelSpec], None] = _no_check
     connect: Callable[[ModelSpec], None] = _no_check
+    observes: tuple[str, ...] = ("rgb",)
 
 
 class ModelRegistry(Generic[Model]):
@@ -155,7 +170,7 @@ def _sam3_grounder(spec: ModelSpec) -> Grounder:
     try:
         from drivenav.semantics.sam3_grounder import Sam3Grounder
 
-        return Sam3Grounder(spec.detector_model or "facebook/sam3", dtype=spec.dtype)
+        return _placed(Sam3Grounder, spec)(spec.detector_model or "facebook/sam3", dtype=spec.dtype)
     except ImportError as error:
         raise _models_extra_missing("--detector", spec.detector, error) from None
 
@@ -164,9 +179,35 @@ def _owlv2_grounder(spec: ModelSpec) -> Grounder:
     try:
         from drivenav.semantics.owlv2_grounder import Owlv2Grounder
 
-        return Owlv2Grounder(spec.detector_model or "google/owlv2-base-patch16-ensemble", dtype=spec.dtype)
+        owlv2 = _placed(Owlv2Grounder, spec)
+        return owlv2(spec.detector_model or "google/owlv2-base-patch16-ensemble", dtype=spec.dtype)
     except ImportError as error:
         raise _models_extra_missing("--detector", spec.detector, error) from None
+
+
+def _placed(kind: Callable[..., Model], spec: ModelSpec) -> Callable[..., Model]:
+    """A transformers grounder's constructor given ``detector_device`` when set (else the grounder's choice)."""
+    return partial(kind, device=spec.detector_device) if spec.detector_device else kind
+
+
+def _remote_grounder(spec: ModelSpec) -> Grounder:
+    from drivenav.semantics.served import remote_grounder
+
+    return remote_grounder(spec)
+
+
+def _check_detector_url(spec: ModelSpec) -> None:
+    """``detector_url`` is a ``tcp://HOST:PORT`` (or ``ipc://``) endpoint, with keys off loopback."""
+    from drivenav.semantics.served import check_detector_url
+
+    check_detector_url(spec)
+
+
+def _reach_grounder(spec: ModelSpec) -> None:
+    """The served grounder answers HELLO (before any episode)."""
+    from drivenav.semantics.served import reach_server
+
+    reach_server(spec)
 
 
 def _load_weights(spec: ModelSpec) -> None:
@@ -198,10 +239,11 @@ REASONER_BACKENDS.add("replay", Backend(_replay_reasoner, check=_read_recording)
 REASONER_BACKENDS.add("geometric", Backend(_geometric_reasoner))
 
 GROUNDER_BACKENDS: ModelRegistry[Grounder] = ModelRegistry("--detector")
-GROUNDER_BACKENDS.add("embedded", Backend(_embedded_grounder, reads_labels=True))
-GROUNDER_BACKENDS.add("ground-truth", Backend(_ground_truth_grounder, reads_labels=True))
+GROUNDER_BACKENDS.add("embedded", Backend(_embedded_grounder, reads_labels=True, observes=("depth", "semantic")))
+GROUNDER_BACKENDS.add("ground-truth", Backend(_ground_truth_grounder, reads_labels=True, observes=("semantic",)))
 GROUNDER_BACKENDS.add("sam3", Backend(_sam3_grounder, connect=_load_weights))
 GROUNDER_BACKENDS.add("owlv2", Backend(_owlv2_grounder, connect=_load_weights))
+GROUNDER_BACKENDS.add("remote", Backend(_remote_grounder, check=_check_detector_url, connect=_reach_grounder))
 
 
 def _embedded_scorer(spec: ModelSpec) -> ImageTextScorer:
@@ -254,8 +296,14 @@ def model_requirements(spec: ModelSpec) -> frozenset[str]:
     """The privileged inputs the chosen models need: the embedded stand-ins read ground-truth labels."""
     from drivenav.types import SEMANTIC
 
-    reads = REASONER_BACKENDS.reads_labels(spec.reasoner) or GROUNDER_BACKENDS.reads_labels(spec.detector)
+    reads = REASONER_BACKENDS.reads_labels(spec.reasoner) or GROUNDER_BACKENDS.reads_labels(grounder_model(spec))
     return frozenset({SEMANTIC}) if reads else frozenset()
+
+
+def grounder_model(spec: ModelSpec) -> str:
+    """The detector that grounds: ``detector``, or for ``remote`` the one its server runs (``detector_served``,
+    empty where it is not said)."""
+    return spec.detector_served if spec.detector == "remote" else spec.detector
 
 
 def scorer_reads_labels(spec: ModelSpec) -> bool:
@@ -301,9 +349,10 @@ def _check_record_path(path: Path) -> None:
         raise InputError(path, "--vlm-record", "a writable file path", error.strerror or str(error)) from None
 
 
-def check_models(spec: ModelSpec) -> None:
+def check_models(spec: ModelSpec, connect: bool = True) -> None:
     """Fail fast, before any episode: unknown names, a missing replay file, an unwritable record file, an
-    unreachable VLM server, missing weights (cheap checks first, the reasoner's, grounder's and scorer's)."""
+    unreachable VLM server, missing weights (cheap checks first, the reasoner's, grounder's and scorer's).
+    ``connect=False`` runs the cheap checks only (a shared detector is loaded by its own server process)."""
     backends = (
         REASONER_BACKENDS.get(spec.reasoner),
         GROUNDER_BACKENDS.get(spec.detector),
@@ -313,5 +362,7 @@ def check_models(spec: ModelSpec) -> None:
         backend.check(spec)
     if spec.vlm_record:
         _check_record_path(Path(spec.vlm_record))
+    if not connect:
+        return
     for backend in backends:
         backend.connect(spec)

@@ -1,6 +1,9 @@
-"""The brain's end of the protocol: requests with timeouts, heartbeats and retries (docs/robot.md).
+"""The client end of the wire: requests with timeouts, heartbeats and retries (docs/robot.md).
 
-A DEALER socket speaks to the robot's ROUTER (REQ-compatible envelopes). While a reply is awaited the client sends
+:class:`WireClient` speaks one :class:`Dialect` of the framing (a protocol name, the replies it accepts, what its
+server is called in errors): :class:`RobotClient` is the brain's end of the robot protocol; the served grounder's
+client (:mod:`drivenav.semantics.served`) is another. A DEALER socket speaks to the server's ROUTER
+(REQ-compatible envelopes). While a reply is awaited the client sends
 a PING every ``heartbeat_s`` (the robot's deadman stays fed during long motions; its PONGs show it is alive). When
 nothing at all comes back for ``timeout_s``, the socket is closed and re-created and the request re-sent under the
 same request id (the Lazy Pirate pattern; the robot never executes a STEP twice), up to ``retries`` times; then
@@ -16,22 +19,41 @@ import uuid
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import zmq
 
-from drivenav.wire.protocol import REPLIES, Message, ProtocolError, decode, encode
+from drivenav.wire.protocol import PROTOCOL, REPLIES, Message, ProtocolError, decode, encode
 from drivenav.wire.security import secure_client
 
 log = logging.getLogger(__name__)
 
 
-class RobotUnavailableError(RuntimeError):
-    """The robot did not answer (after every retry) or answered with an ERROR (its body in ``details``)."""
+class PeerUnavailableError(RuntimeError):
+    """The server did not answer (after every retry) or answered with an ERROR (its body in ``details``)."""
 
     def __init__(self, message: str, details: Mapping[str, Any] | None = None) -> None:
         super().__init__(message)
         self.details: Mapping[str, Any] = details or {}
+
+
+class RobotUnavailableError(PeerUnavailableError):
+    """The robot did not answer (after every retry) or answered with an ERROR (its body in ``details``)."""
+
+
+@dataclass(frozen=True)
+class Dialect:
+    """One protocol over the framing: its ``protocol`` name, the reply types a client accepts, how its server is
+    named in errors (``peer``), the option that names the client's CURVE keys and the error a failure raises."""
+
+    protocol: str
+    replies: tuple[str, ...]
+    peer: str
+    keys_option: str
+    error: type[PeerUnavailableError]
+
+
+ROBOT = Dialect(PROTOCOL, REPLIES, "the robot", "--robot-keys", RobotUnavailableError)
 
 
 @dataclass(frozen=True)
@@ -45,8 +67,10 @@ class ClientConfig:
     max_message_bytes: int = 64 * 2**20
 
 
-class RobotClient:
-    """Requests to the robot at ``address`` (CURVE with the keys in ``keys``)."""
+class WireClient:
+    """Requests to the server at ``address`` (CURVE with the keys in ``keys``) in the class's :attr:`dialect`."""
+
+    dialect: ClassVar[Dialect]
 
     def __init__(self, address: str, keys: Path | None = None, config: ClientConfig | None = None) -> None:
         self.address = address
@@ -62,7 +86,7 @@ class RobotClient:
         sock.setsockopt(zmq.LINGER, 0)
         sock.setsockopt(zmq.MAXMSGSIZE, self.config.max_message_bytes)
         if self.keys is not None:
-            secure_client(sock, self.keys)
+            secure_client(sock, self.keys, self.dialect.keys_option)
         sock.connect(self.address)
         return sock
 
@@ -71,8 +95,9 @@ class RobotClient:
         return f"{self._session}-{next(self._counter)}"
 
     def request(self, message: Message) -> Message:
-        """Send ``message`` and return the robot's reply to it (an ERROR reply raises :class:`RobotUnavailableError`
-        naming the robot's error)."""
+        """Send ``message`` and return the server's reply to it; silence after every retry, or an ERROR reply (named),
+        raises the dialect's :class:`PeerUnavailableError`."""
+        dialect = self.dialect
         for attempt in range(self.config.retries + 1):
             if attempt:
                 log.warning(
@@ -84,23 +109,22 @@ class RobotClient:
             reply = self._await(message.request_id)
             if reply is not None:
                 if reply.type == "ERROR":
-                    raise RobotUnavailableError(
-                        f"the robot refused {message.type}: {reply.body.get('error', '?')}", reply.body
-                    )
+                    error = reply.body.get("error", "?")
+                    raise dialect.error(f"{dialect.peer} refused {message.type}: {error}", reply.body)
                 return reply
         waited = (self.config.retries + 1) * self.config.timeout_s
-        raise RobotUnavailableError(f"no reply from the robot at {self.address} to {message.type} in {waited:.0f} s")
+        raise dialect.error(f"no reply from {dialect.peer} at {self.address} to {message.type} in {waited:g} s")
 
     def _send(self, message: Message) -> None:
         """Queue ``message``; without a connection to queue it on (a refused CURVE handshake drops it), it is not
         sent and the silence that follows leads to a retry."""
         try:
-            self._socket.send_multipart([b"", *encode(message)], flags=zmq.NOBLOCK, copy=False)
+            self._socket.send_multipart([b"", *encode(message, self.dialect.protocol)], flags=zmq.NOBLOCK, copy=False)
         except zmq.Again:
             log.debug("no connection to %s to send %s on", self.address, message.type)
 
     def _await(self, request_id: str) -> Message | None:
-        """The reply to ``request_id``, or None after ``timeout_s`` without a frame from the robot."""
+        """The reply to ``request_id``, or None after ``timeout_s`` without a frame from the server."""
         heard = time.monotonic()
         next_ping = heard + self.config.heartbeat_s
         while time.monotonic() - heard < self.config.timeout_s:
@@ -120,11 +144,17 @@ class RobotClient:
         if frames and len(frames[0]) == 0:
             frames = frames[1:]
         try:
-            return decode([f.buffer for f in frames], REPLIES)
+            return decode([f.buffer for f in frames], self.dialect.replies, self.dialect.protocol)
         except ProtocolError as error:
-            log.warning("ignored a malformed reply from the robot: %s", error)
+            log.warning("ignored a malformed reply from %s: %s", self.dialect.peer, error)
             return None
 
     def close(self) -> None:
         self._socket.close(linger=0)
         self._context.term()
+
+
+class RobotClient(WireClient):
+    """Requests to the robot at ``address`` (CURVE with the keys in ``keys``): the brain's end."""
+
+    dialect = ROBOT

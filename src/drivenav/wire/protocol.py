@@ -190,16 +190,17 @@ class Message:
     arrays: Mapping[str, NDArray[Any]] = field(default_factory=dict)
 
 
-def encode(message: Message) -> list[bytes | memoryview]:
+def encode(message: Message, protocol: str = PROTOCOL) -> list[bytes | memoryview]:
     """The frames of ``message``: its JSON header, then each array's bytes (C order, little-endian, no copy when
-    the array already is)."""
+    the array already is). ``protocol`` names the dialect in the header (the robot's, or another protocol that
+    reuses this framing: the served grounder's)."""
     specs, buffers = [], []
     for name, array in message.arrays.items():
         wire = _wire_array(array)
         specs.append({"name": name, "dtype": wire.dtype.str, "shape": list(wire.shape)})
         buffers.append(wire.data.cast("B") if wire.size else b"")
     header = {
-        "protocol": PROTOCOL,
+        "protocol": protocol,
         "version": VERSION,
         "type": message.type,
         "id": message.request_id,
@@ -235,12 +236,12 @@ def _pose_json(pose: Pose | None) -> list[float] | None:
     return None if pose is None else [pose.x, pose.y, pose.yaw]
 
 
-def decode(frames: Sequence[bytes | memoryview], kinds: Sequence[str]) -> Message:
-    """The message in ``frames``, one of the types ``kinds`` (:data:`REQUESTS` or :data:`REPLIES`); a
-    :class:`ProtocolError` names the first thing wrong."""
+def decode(frames: Sequence[bytes | memoryview], kinds: Sequence[str], protocol: str = PROTOCOL) -> Message:
+    """The message in ``frames``, one of the types ``kinds`` (:data:`REQUESTS` or :data:`REPLIES`, or another
+    dialect's) of the protocol ``protocol``; a :class:`ProtocolError` names the first thing wrong."""
     if not frames:
         raise ProtocolError("header", "a JSON header frame")
-    header = _header(frames[0])
+    header = _header(frames[0], protocol)
     kind = header.get("type")
     if kind not in kinds:
         raise ProtocolError("type", f"one of {', '.join(kinds)}", kind)
@@ -262,7 +263,7 @@ def decode(frames: Sequence[bytes | memoryview], kinds: Sequence[str]) -> Messag
     )
 
 
-def _header(frame: bytes | memoryview) -> dict[str, JSON]:
+def _header(frame: bytes | memoryview, protocol: str) -> dict[str, JSON]:
     """The header frame as a JSON object, checked before anything is built from it: its size, then (while parsing)
     each integer's digits, then its nesting depth."""
     if len(frame) > MAX_HEADER_BYTES:
@@ -279,8 +280,8 @@ def _header(frame: bytes | memoryview) -> dict[str, JSON]:
         raise ProtocolError("header", "a JSON object", type(header).__name__)
     if _depth(header) > MAX_HEADER_DEPTH:
         raise ProtocolError("header", f"JSON nested at most {MAX_HEADER_DEPTH} deep", "deeper")
-    if header.get("protocol") != PROTOCOL:
-        raise ProtocolError("protocol", repr(PROTOCOL), header.get("protocol"))
+    if header.get("protocol") != protocol:
+        raise ProtocolError("protocol", repr(protocol), header.get("protocol"))
     if header.get("version") != VERSION:
         raise ProtocolError("version", f"protocol version {VERSION}", header.get("version"))
     return header

@@ -75,12 +75,13 @@ def server_keys(directory: Path) -> KeyPair:
     return pair
 
 
-def client_keys(directory: Path) -> tuple[KeyPair, bytes]:
-    """The brain's key pair and the robot's public key from ``directory`` (``--robot-keys``)."""
-    pair = _secret_pair(directory / f"{CLIENT}.key_secret", "--robot-keys")
+def client_keys(directory: Path, option: str = "--robot-keys") -> tuple[KeyPair, bytes]:
+    """The client's key pair and the server's public key from ``directory`` (``option``: ``--robot-keys`` for the
+    brain, ``--detector-keys`` for a served grounder's client)."""
+    pair = _secret_pair(directory / f"{CLIENT}.key_secret", option)
     server_file = directory / f"{SERVER}.key"
     if not server_file.is_file():
-        raise InputError(server_file, "--robot-keys", "the robot's public key file server.key")
+        raise InputError(server_file, option, "the server's public key file server.key")
     server_public, _ = zmq.auth.load_certificate(str(server_file))
     return pair, server_public
 
@@ -145,9 +146,10 @@ def secure_server(context: zmq.Context[Any], sock: zmq.Socket[Any], directory: P
     return auth
 
 
-def secure_client(sock: zmq.Socket[Any], directory: Path) -> None:
-    """Make ``sock`` a CURVE client with the brain's key pair, trusting only the robot's public key."""
-    pair, server_public = client_keys(directory)
+def secure_client(sock: zmq.Socket[Any], directory: Path, option: str = "--robot-keys") -> None:
+    """Make ``sock`` a CURVE client with the client's key pair, trusting only the server's public key (``option``
+    names the keys in errors)."""
+    pair, server_public = client_keys(directory, option)
     sock.curve_secretkey = pair.secret
     sock.curve_publickey = pair.public
     sock.curve_serverkey = server_public

@@ -1,0 +1,1 @@
+"""The run report: runs, their comparison and every episode as one static HTML site (``drivenav report``)."""

@@ -1,0 +1,226 @@
+"""One episode page per (episode, run): what happened, from the record and the trace.
+
+The page shows the record's measures; the top-down picture with the decisions, the other pictures and the video
+where there are some; each direction decision with the candidate directions offered (the step of the
+representative view each had then), the one chosen and the reasoner's answer; the detections, the verification
+verdicts and the target decisions; the prompt enrichment; the per-step module timings as a small plot; links to
+the trace and the record (copied into the site) and to the same episode in the other runs.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from drivenav.agent.trace import (
+    DetectionEvent,
+    DirectionSelected,
+    Event,
+    TargetAccepted,
+    TargetRejected,
+    TargetSetAside,
+    VerificationEvent,
+    of_type,
+)
+from drivenav.eval.records import EpisodeRecord, missed_cause
+from drivenav.eval.report import shown
+from drivenav.eval.trace import EpisodeTrace
+from drivenav.report.config import ReportConfig
+from drivenav.report.html import Cell, element, esc, link, page, table, void
+from drivenav.report.timing_plot import timing_svg
+from drivenav.viz.saved_trace import SavedTrace
+from drivenav.viz.thumbnails import capture_step
+
+ROOT = "../../../"  # from runs/<run>/episodes/<page> to the site's folder
+
+
+@dataclass(frozen=True)
+class Sibling:
+    """The same episode in another run: its name, its page (from the site's folder) and whether it succeeded."""
+
+    run: str
+    href: str
+    success: str
+
+
+@dataclass(frozen=True)
+class EpisodeView:
+    """Everything an episode page shows; paths are relative to the page."""
+
+    run: str
+    record: EpisodeRecord
+    trace: EpisodeTrace | None
+    saved: SavedTrace | None  # the trace placed in the world (None without the run's copy of the episode)
+    pictures: tuple[str, ...]
+    video: str | None
+    trace_file: str | None
+    record_file: str
+    siblings: tuple[Sibling, ...]
+    note: str = ""  # why a picture or the trace is missing
+
+
+def _facts(record: EpisodeRecord) -> str:
+    cause = record.failure_cause
+    if cause == "missed_target":
+        cause += f" ({missed_cause(record)})"
+    calls = ", ".join(f"{kind} {n}" for kind, n in sorted(record.stats.vlm_calls_by_kind.items()))
+    facts = [
+        ("goal", record.object_category),
+        ("scene", record.scene_id),
+        ("success", shown(record.success, "{:.0f}")),
+        ("SPL", shown(record.spl, "{:.3f}")),
+        ("steps", str(record.steps)),
+        ("path length", shown(record.path_length, "{:.2f} m")),
+        ("geodesic distance", shown(record.geodesic_distance, "{:.2f} m")),
+        ("distance to goal at the end", shown(record.distance_to_goal, "{:.2f} m")),
+        ("revisits", f"{record.revisits} (retraced: {shown(record.retraced_revisits, '{:.0f}')})"),
+        ("collisions", shown(record.collisions, "{:.0f}")),
+        ("stop reason", record.stop_reason),
+        ("failure cause", cause or "-"),
+        ("VLM calls", f"{record.vlm_calls}" + (f" ({calls})" if calls else "")),
+        ("error", record.error or "-"),
+    ]
+    items = "".join(element("dt", esc(name)) + element("dd", esc(value)) for name, value in facts)
+    return element("dl", items, {"class": "facts"})
+
+
+def _media(view: EpisodeView) -> str:
+    figures = "".join(
+        element("figure", void("img", {"src": src, "alt": f"{Path(src).stem} of episode {view.record.episode_id}"}))
+        for src in view.pictures
+    )
+    if view.video is not None:
+        figures += element("figure", element("video", "", {"src": view.video, "controls": "", "preload": "metadata"}))
+    if not figures:
+        figures = element("p", "No picture of this episode (see the report's --pictures and --max-pictures).")
+    return element("h2", "Pictures", {"id": "pictures"}) + figures
+
+
+def _degrees(radians: float) -> str:
+    return f"{math.degrees(radians):.0f}°"
+
+
+def _offered(view: EpisodeView, event: DirectionSelected) -> str:
+    """The candidates of a decision, the chosen one in bold, each with the step its representative view was taken."""
+    parts = []
+    for label in event.candidates:
+        step = None if view.saved is None else capture_step(view.saved, label, event.step)
+        text = esc(f"D{label}" + ("" if step is None else f" (view of step {step})"))
+        parts.append(element("strong", text) if label == event.label else text)
+    return ", ".join(parts) or "-"
+
+
+Rows = Iterable[Sequence[Cell | str]]
+
+
+def _section(anchor: str, title: str, header: Sequence[str], rows: Rows, count: int, limit: int) -> str:
+    """A heading and a table of at most ``limit`` rows (``count`` in all), or "None."."""
+    heading = element("h2", esc(title), {"id": anchor})
+    if not count:
+        return heading + element("p", "None.")
+    more = element("p", f"The first {limit} of {count}; the rest are in the trace.") if count > limit else ""
+    return heading + table(header, rows) + more
+
+
+def _decisions(view: EpisodeView, events: Sequence[Event], limit: int) -> str:
+    decisions = of_type(events, DirectionSelected)
+    rows: Rows = (
+        [
+            str(e.step),
+            Cell(_offered(view, e)),
+            f"D{e.label}",
+            _degrees(e.bearing),
+            e.reason + (" (fallback)" if e.fallback else ""),
+        ]
+        for e in decisions[:limit]
+    )
+    header = ["step", "directions offered (chosen in bold)", "chosen", "bearing", "reasoner's answer"]
+    return _section("decisions", f"Direction decisions ({len(decisions)})", header, rows, len(decisions), limit)
+
+
+def _point(point: tuple[float, float]) -> str:
+    return f"({point[0]:.2f}, {point[1]:.2f})"
+
+
+def _detections(events: Sequence[Event], limit: int) -> str:
+    found = of_type(events, DetectionEvent)
+    rows = ([str(e.step), e.phrase, f"{e.score:.3f}", _point(e.position)] for e in found[:limit])
+    header = ["step", "phrase", "score", "position (episode frame, m)"]
+    return _section("detections", f"Detections ({len(found)})", header, rows, len(found), limit)
+
+
+def _target_row(event: Event) -> list[Cell | str]:
+    """A verification verdict or a target decision as one row: step, candidate, what happened, where."""
+    if isinstance(event, VerificationEvent):
+        return [str(event.step), str(event.candidate), f"verification: {event.outcome}", "-"]
+    if isinstance(event, TargetAccepted):
+        return [str(event.step), str(event.candidate), "accepted as the target", _point(event.position)]
+    if isinstance(event, TargetRejected):
+        return [str(event.step), str(event.candidate), f"rejected ({event.reason})", _point(event.position)]
+    assert isinstance(event, TargetSetAside)
+    what = f"set aside until step {event.until} (unreachable)"
+    return [str(event.step), str(event.candidate), what, _point(event.position)]
+
+
+TARGET_EVENTS = (VerificationEvent, TargetAccepted, TargetRejected, TargetSetAside)
+
+
+def _verification(events: Sequence[Event], limit: int) -> str:
+    found = [e for e in events if isinstance(e, TARGET_EVENTS)]
+    rows = (_target_row(e) for e in found[:limit])
+    header = ["step", "candidate", "verdict or decision", "position (episode frame, m)"]
+    return _section("verification", f"Verification and targets ({len(found)})", header, rows, len(found), limit)
+
+
+def _enrichment(record: EpisodeRecord, events: Sequence[Event]) -> str:
+    """Prompt enrichment: the rounds asked of the reasoner, the phrase that grounded the target, the detections of
+    phrases other than the goal's."""
+    stats = record.stats
+    heading = element("h2", "Prompt enrichment", {"id": "enrichment"})
+    if not stats.enrich_rounds:
+        return heading + element("p", "No enrichment round.")
+    goal = record.object_category.lower()
+    enriched = sorted({e.phrase for e in of_type(events, DetectionEvent) if e.phrase.lower() != goal})
+    text = f"{stats.enrich_rounds} round(s) proposing a detector phrase for \u201c{record.object_category}\u201d"
+    text += f"; the phrase that grounded the target: \u201c{stats.phrase}\u201d" if stats.phrase else "; none grounded"
+    if enriched:
+        text += "; detections of the phrases " + ", ".join(f"\u201c{p}\u201d" for p in enriched)
+    return heading + element("p", esc(text + "."))
+
+
+def _links(view: EpisodeView) -> str:
+    files = [link(view.record_file, "the record (JSON)")]
+    if view.trace_file is not None:
+        files.append(link(view.trace_file, "the trace (JSON)"))
+    items = "".join(element("li", item) for item in files)
+    others = "".join(element("li", link(ROOT + s.href, s.run) + esc(f": success {s.success}")) for s in view.siblings)
+    html = element("h2", "Files", {"id": "files"}) + element("ul", items)
+    if others:
+        html += element("h2", "This episode in the other runs", {"id": "others"}) + element("ul", others)
+    return html
+
+
+def _error(trace: EpisodeTrace | None) -> str:
+    if trace is None or trace.error is None:
+        return ""
+    return element("h2", "Error", {"id": "error"}) + element("pre", esc(trace.error.traceback))
+
+
+def episode_html(view: EpisodeView, config: ReportConfig) -> str:
+    """The whole page."""
+    record = view.record
+    events = () if view.trace is None else view.trace.events
+    title = f"Episode {record.episode_id} · {view.run}"
+    back = element("p", link(f"{ROOT}episodes.html#method={view.run}", f"all episodes of {view.run}"))
+    body = element("h1", esc(title)) + back + _facts(record)
+    if view.note:
+        body += element("p", esc(view.note), {"class": "note"})
+    body += _media(view) + _decisions(view, events, config.rows_per_table)
+    body += _detections(events, config.rows_per_table) + _verification(events, config.rows_per_table)
+    body += _enrichment(record, events)
+    timings = timing_svg({} if view.trace is None else view.trace.step_ms, config)
+    body += element("h2", "Module time per step", {"id": "timings"}) + timings
+    body += _error(view.trace) + _links(view)
+    return page(title, body, ROOT)

@@ -1,0 +1,72 @@
+"""The paper's tables on the index page, when the report's runs form an ablation set (runs of the methods of
+Tables II, V or VI on the same episodes).
+
+The tables are ``ablations.md`` itself: read from the ``ablations.json`` that ``bench ablations`` wrote beside the
+runs when it covers exactly these runs, else built from the runs as ``bench ablations`` builds it
+(:func:`drivenav.eval.ablations.build_report`), then written by
+:func:`~drivenav.eval.ablation_report.format_markdown` and shown as HTML. Its pictures section is left out: the
+report's episode pages show every picture.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from dataclasses import replace
+
+from drivenav.eval.ablation_data import AblationReport, Pictures
+from drivenav.eval.ablation_report import format_markdown
+from drivenav.eval.ablations import RUNS_DIR, build_report
+from drivenav.eval.paper_tables import TABLE_II, TABLE_V, TABLE_VI
+from drivenav.eval.runner import RunSpec
+from drivenav.eval.worlds import recorded_world
+from drivenav.report.markdown import to_html
+from drivenav.report.runs import Run
+
+ABLATIONS_JSON = "ablations.json"
+PAPER_METHODS = frozenset(row.method for table in (TABLE_II, TABLE_V, TABLE_VI) for row in table)
+LEFT_OUT = frozenset({"Pictures"})
+
+
+def is_ablation_set(runs: Sequence[Run]) -> bool:
+    """Two or more runs, named by their methods, at least one a method of the paper's tables, on one episode set."""
+    names = {run.name for run in runs}
+    episode_sets = {frozenset(r.episode_id for r in run.records) for run in runs}
+    return len(runs) > 1 and bool(names & PAPER_METHODS) and len(episode_sets) == 1
+
+
+def paper_tables_html(runs: Sequence[Run]) -> str | None:
+    """The tables as HTML, or None when the runs are no ablation set (or have no ``run.json`` to build them)."""
+    if not is_ablation_set(runs):
+        return None
+    report = _stored(runs) or _built(runs)
+    if report is None:
+        return None
+    return to_html(format_markdown(replace(report, pictures=Pictures())), heading_shift=1, leave_out=LEFT_OUT)
+
+
+def _stored(runs: Sequence[Run]) -> AblationReport | None:
+    """The ``ablations.json`` of a ``bench ablations`` folder holding exactly these runs (None otherwise)."""
+    parents = {run.path.resolve().parent for run in runs}
+    if len(parents) != 1 or next(iter(parents)).name != RUNS_DIR:
+        return None
+    path = next(iter(parents)).parent / ABLATIONS_JSON
+    if not path.is_file():
+        return None
+    report = AblationReport.from_json(json.loads(path.read_text(encoding="utf-8")), path)
+    if set(report.methods) != {run.name for run in runs}:
+        return None
+    if any(report.methods[run.name].episodes != run.entry.episodes for run in runs):
+        return None  # written before the runs finished
+    return report
+
+
+def _built(runs: Sequence[Run]) -> AblationReport | None:
+    first = runs[0].info
+    if first is None:
+        return None
+    _, env = recorded_world(first.world, runs[0].path)
+    dirs = {run.name: run.path for run in runs}
+    records = {run.name: {r.episode_id: r for r in run.records} for run in runs}
+    episodes = len(runs[0].records)
+    return build_report(dirs, records, RunSpec(env, first.config), episodes, runs[0].splits)

@@ -1,0 +1,104 @@
+"""An episode's pictures and video for its page: those already drawn are reused, the missing ones drawn once.
+
+A picture already drawn is found, in this order, in the report's own folder (an earlier report into the same
+``--out``), in the run's ``viz/`` folder (``drivenav viz``, the demo) and in the ``pictures/<method>/`` folder of a
+``bench ablations`` directory holding the run; it is copied into the site. A missing top-down picture is drawn
+when asked: the map with the trajectory, decisions, detections and goals (:func:`drivenav.viz.topdown.draw_episode`,
+on a blank floor for worlds whose scenes drivenav cannot draw), or with ``views`` the whole of ``drivenav viz``
+(the last decisions' representative views, the start and end views).
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+from drivenav.envs.embedded.scene import Scene
+from drivenav.episode import Episode
+from drivenav.eval.ablations import RUNS_DIR
+from drivenav.eval.records import EpisodeRecord
+from drivenav.eval.rundir import trace_path
+from drivenav.eval.worlds import recorded_world
+from drivenav.jsonstream import JsonObject
+from drivenav.viz.episode import render_episode_pictures, trace_picture
+from drivenav.viz.run_pictures import PICTURES_DIR
+from drivenav.viz.saved_trace import SavedTrace
+from drivenav.viz.topdown import draw_episode
+
+SUFFIXES = ("_topdown.png", "_start_view.png", "_end_view.png", ".mp4")
+"""The files ``drivenav viz`` writes per episode, by the suffix after the episode's stem; the top-down one first."""
+
+
+@dataclass(frozen=True)
+class EpisodeMedia:
+    """An episode's pictures (top-down first) and video inside the run's site folder (``None``/empty: none)."""
+
+    pictures: tuple[Path, ...] = ()
+    video: Path | None = None
+
+
+def drawn_folders(run_path: Path, run_name: str) -> list[Path]:
+    """Where pictures of the run may already be: its ``viz/`` and its ``bench ablations`` pictures folder."""
+    folders = [run_path / "viz"]
+    if run_path.parent.name == RUNS_DIR:
+        folders.append(run_path.parent.parent / PICTURES_DIR / run_name)
+    return folders
+
+
+def gather(stem: str, target: Path, sources: list[Path]) -> EpisodeMedia:
+    """The episode's files in ``target`` (copied there from the first source folder that has each)."""
+    found: list[Path] = []
+    for suffix in SUFFIXES:
+        name = f"{stem}{suffix}"
+        if not (target / name).is_file():
+            source = next((folder / name for folder in sources if (folder / name).is_file()), None)
+            if source is None:
+                continue
+            target.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(source, target / name)
+        found.append(target / name)
+    pictures = tuple(path for path in found if path.suffix == ".png")
+    video = next((path for path in found if path.suffix == ".mp4"), None)
+    return EpisodeMedia(pictures, video)
+
+
+PNG_LEVEL = 1  # zlib level of the drawn maps: a third of the default's time to write, for about 1.5 times the bytes
+SCENES_KEPT = 16  # scenes kept per drawing process (workers take the pages in scene order)
+
+
+@lru_cache(maxsize=SCENES_KEPT)
+def _scene(world: str, scene_id: str, source: str) -> Scene | None:
+    """A scene of a recorded world (``world``: its ``run.json`` record as JSON text), or None for worlds whose scenes
+    drivenav cannot draw; a few are kept per process."""
+    entry, spec = recorded_world(json.loads(world), source)
+    return None if entry.scenes is None else entry.scenes(spec)(scene_id)
+
+
+@dataclass(frozen=True)
+class Drawing:
+    """What a missing picture is drawn from: the run's folder and world record, the episode, its trace and record."""
+
+    run_path: Path
+    world: JsonObject
+    episode: Episode
+    trace: SavedTrace
+    record: EpisodeRecord
+
+
+def draw(drawing: Drawing, folder: Path, views: bool) -> None:
+    """Draw the episode's top-down picture into ``folder`` (with ``views``: every picture ``drivenav viz`` makes,
+    but no video)."""
+    episode = drawing.episode
+    if views:
+        render_episode_pictures(drawing.run_path, episode.episode_id, folder, video=False)
+        return
+    scene = _scene(json.dumps(drawing.world, sort_keys=True), episode.scene_id, str(drawing.run_path))
+    if scene is None:
+        trace_picture(episode, drawing.trace, drawing.record, folder)
+        return
+    picture = draw_episode(scene, episode, drawing.trace, drawing.record)
+    folder.mkdir(parents=True, exist_ok=True)
+    picture.save(folder / f"{trace_path(folder, episode.episode_id).stem}{SUFFIXES[0]}", compress_level=PNG_LEVEL)

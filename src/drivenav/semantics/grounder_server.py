@@ -1,0 +1,332 @@
+"""``drivenav serve grounder``: one grounder copy answering every worker, with dynamic batching (issue 37).
+
+:class:`GrounderServer` puts a grounder behind a ROUTER socket (:class:`~drivenav.wire.router.RouterSocket`:
+loopback unless CURVE keys are given) and speaks :mod:`drivenav.semantics.served`'s protocol. SEGMENT requests
+wait in a queue until ``batch`` of them are there or the oldest has waited ``batch_ms``, whichever comes first;
+HELLO, BEGIN and PING are answered at once, between batches.
+
+A grounder that reads images (SAM3, OWLv2) is one shared copy: a batch's frames are grouped by phrase and frame
+size, and each group is one :meth:`~drivenav.semantics.hf_common.TransformersGrounder.segment_batch` forward (the
+text features of a phrase are encoded once for every worker; after ``phrases`` distinct phrases the cache is
+emptied). A stand-in that reads ground-truth labels (the embedded detector, the ground-truth one) is one instance
+per episode, begun by BEGIN with the episode's truth and seed as in process; the last ``episodes`` are kept.
+
+Nothing a client sends stops the server: a malformed or unknown request, or a grounder failing on one, is an ERROR
+reply naming it, and the server goes on.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import threading
+import time
+from collections import Counter, OrderedDict
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+import zmq
+from numpy.typing import NDArray
+from zmq.utils.monitor import recv_monitor_message
+
+from drivenav.errors import InputError, one_line
+from drivenav.semantics.protocols import Detection, Grounder
+from drivenav.semantics.registry import GROUNDER_BACKENDS, ModelSpec
+from drivenav.semantics.serve_config import DEFAULT_BIND, ServeConfig
+from drivenav.semantics.served import (
+    GROUNDER_PROTOCOL,
+    REQUESTS,
+    SegmentRequest,
+    ServedInfo,
+    TableVocabulary,
+    detections_reply,
+    read_begin,
+    read_segment,
+)
+from drivenav.wire.protocol import MAX_ARRAY_BYTES, Message, ProtocolError, decode, encode
+from drivenav.wire.router import RouterSocket, error_reply, loose_id
+
+log = logging.getLogger(__name__)
+
+
+@runtime_checkable
+class BatchGrounder(Protocol):
+    """A grounder that segments one phrase in several frames in one forward (the transformers grounders)."""
+
+    def segment_batch(self, frames: Sequence[NDArray[np.uint8]], phrase: str) -> list[list[Detection]]: ...
+
+
+@dataclass
+class _Pending:
+    identity: bytes
+    request: SegmentRequest
+    arrived: float
+
+
+@dataclass
+class _Session:
+    """A stand-in's episode: its grounder and the vocabulary each SEGMENT's phrase extends."""
+
+    grounder: Grounder
+    vocabulary: TableVocabulary | None
+
+
+@dataclass
+class _Phrases:
+    """The distinct phrases whose text features the shared grounder holds (emptied past ``limit``)."""
+
+    limit: int
+    seen: set[str] = field(default_factory=set)
+
+    def admit(self, phrase: str, grounder: Grounder) -> None:
+        if phrase in self.seen:
+            return
+        if len(self.seen) >= self.limit:
+            grounder.begin_episode(None, 0)  # the transformers grounders forget their text features
+            self.seen.clear()
+        self.seen.add(phrase)
+
+
+class GrounderServer:
+    """``factory``'s grounder served at ``bind`` (CURVE with ``keys``) as ``info`` describes it: one shared
+    instance, or one per episode for a stand-in that reads labels (``info.labels``).
+
+    ``batch_sizes`` counts the batches run by their size.
+    """
+
+    def __init__(
+        self,
+        factory: Callable[[], Grounder],
+        info: ServedInfo,
+        bind: str = DEFAULT_BIND,
+        keys: Path | None = None,
+        config: ServeConfig | None = None,
+    ) -> None:
+        self.info = info
+        self.config = config or ServeConfig(info.batch, info.batch_ms)
+        self._factory = factory
+        self._shared = None if info.labels else factory()
+        self._sessions: OrderedDict[str, _Session] = OrderedDict()
+        self._phrases = _Phrases(self.config.phrases)
+        self._pending: list[_Pending] = []
+        self.batch_sizes: Counter[int] = Counter()
+        self._router = RouterSocket(bind, keys, MAX_ARRAY_BYTES)
+        self.endpoint = self._router.endpoint
+
+    def serve(self, stop: threading.Event | None = None) -> None:
+        """Answer requests until ``stop`` is set (or Ctrl-C)."""
+        stop = stop or threading.Event()
+        poller = zmq.Poller()
+        poller.register(self._router.socket, zmq.POLLIN)
+        poller.register(self._router.monitor, zmq.POLLIN)
+        log.info("serving the grounder %s on %s", self.info.detector, self.endpoint)
+        while not stop.is_set():
+            events = dict(poller.poll(self._wait_ms()))
+            if self._router.monitor in events:
+                _log_socket_event(self._router.monitor)
+            if self._router.socket in events:
+                self._drain()
+            if self._due():
+                self._run_batch()
+
+    def close(self) -> None:
+        self._router.close()
+
+    # -- requests ------------------------------------------------------------------------------------------------
+    def _drain(self) -> None:
+        """Every request already here, up to a full batch."""
+        while len(self._pending) < self.config.batch and self._router.socket.poll(0, zmq.POLLIN):
+            self._receive()
+
+    def _receive(self) -> None:
+        identity, frames = self._router.receive()
+        try:
+            request = decode([f.buffer for f in frames], REQUESTS, GROUNDER_PROTOCOL)
+        except ProtocolError as error:
+            self._send(identity, error_reply(loose_id(frames), str(error)))
+            return
+        try:
+            reply = self._answer(identity, request)
+        except ProtocolError as error:
+            reply = error_reply(request.request_id, str(error))
+        except Exception as error:
+            log.exception("%s could not be answered", request.type)
+            reply = error_reply(request.request_id, f"{request.type} failed on the server: {one_line(error)}")
+        if reply is not None:
+            self._send(identity, reply)
+
+    def _answer(self, identity: bytes, request: Message) -> Message | None:
+        """The reply to a request answered at once; a SEGMENT is queued (None)."""
+        if request.type == "PING":
+            return Message("PONG", request.request_id)
+        if request.type == "HELLO":
+            return Message("WELCOME", request.request_id, body=self.info.to_json())
+        if request.type == "BEGIN":
+            return self._begin(request)
+        segment = read_segment(request)
+        if self._shared is None:
+            self._session(segment.episode)  # an unknown episode is refused now, not after the batch
+        self._pending.append(_Pending(identity, segment, time.monotonic()))
+        return None
+
+    def _begin(self, request: Message) -> Message:
+        if self._shared is not None:
+            raise ProtocolError("type", "no BEGIN: this server's grounder reads no ground truth", request.type)
+        begin = read_begin(request)
+        grounder = self._factory()
+        grounder.begin_episode(begin.truth, begin.seed)
+        self._sessions[begin.episode] = _Session(grounder, begin.vocabulary)
+        while len(self._sessions) > self.config.episodes:
+            self._sessions.popitem(last=False)
+        return Message("BEGUN", request.request_id)
+
+    def _session(self, episode: str) -> _Session:
+        session = self._sessions.get(episode)
+        if session is None:
+            expected = "an episode begun on this server (BEGIN first; a restarted server forgets its episodes)"
+            raise ProtocolError("body.episode", expected, episode)
+        self._sessions.move_to_end(episode)
+        return session
+
+    # -- batches -------------------------------------------------------------------------------------------------
+    def _wait_ms(self) -> int:
+        """How long to wait for a request: until the oldest queued one's batch is due, else ``poll_ms``."""
+        if not self._pending:
+            return self.config.poll_ms
+        left = self._pending[0].arrived + self.config.batch_ms / 1000.0 - time.monotonic()
+        return max(0, int(left * 1000.0 + 0.999))
+
+    def _due(self) -> bool:
+        if not self._pending:
+            return False
+        waited = time.monotonic() - self._pending[0].arrived
+        return len(self._pending) >= self.config.batch or waited * 1000.0 >= self.config.batch_ms
+
+    def _run_batch(self) -> None:
+        batch = self._pending[: self.config.batch]
+        del self._pending[: self.config.batch]
+        self.batch_sizes[len(batch)] += 1
+        if self._shared is None:
+            for pending in batch:
+                self._answer_segments([pending], self._segment_alone)
+            return
+        groups: dict[tuple[str, tuple[int, ...]], list[_Pending]] = {}
+        for pending in batch:
+            key = (pending.request.phrase, pending.request.observation.depth.shape)
+            groups.setdefault(key, []).append(pending)
+        for group in groups.values():
+            self._answer_segments(group, self._segment_shared)
+
+    def _answer_segments(
+        self, group: list[_Pending], segment: Callable[[list[SegmentRequest]], list[list[Detection]]]
+    ) -> None:
+        """Each request of ``group`` answered with its detections, or all with one ERROR when grounding failed."""
+        requests = [p.request for p in group]
+        try:
+            found = segment(requests)
+            replies = [
+                detections_reply(r.request_id, r.phrase, d, _size(r)) for r, d in zip(requests, found, strict=True)
+            ]
+        except ProtocolError as error:
+            replies = [error_reply(r.request_id, str(error)) for r in requests]
+        except Exception as error:
+            log.exception("grounding %r failed", requests[0].phrase)
+            replies = [error_reply(r.request_id, f"grounding failed: {one_line(error)}") for r in requests]
+        for pending, reply in zip(group, replies, strict=True):
+            self._send(pending.identity, reply)
+
+    def _segment_shared(self, requests: list[SegmentRequest]) -> list[list[Detection]]:
+        """One phrase in frames of one size, in one forward where the grounder batches."""
+        assert self._shared is not None
+        phrase = requests[0].phrase
+        self._phrases.admit(phrase, self._shared)
+        if isinstance(self._shared, BatchGrounder):
+            return self._shared.segment_batch([r.observation.rgb for r in requests], phrase)
+        return [self._shared.segment(r.observation, phrase) for r in requests]
+
+    def _segment_alone(self, requests: list[SegmentRequest]) -> list[list[Detection]]:
+        """A stand-in's episode grounds its one request, the phrase's category added to its vocabulary first."""
+        (request,) = requests
+        session = self._session(request.episode)
+        if session.vocabulary is not None:
+            session.vocabulary.table.update(request.canonical)
+        return [session.grounder.segment(request.observation, request.phrase)]
+
+    def _send(self, identity: bytes, reply: Message) -> None:
+        self._router.send(identity, encode(reply, GROUNDER_PROTOCOL))
+
+
+def _size(request: SegmentRequest) -> tuple[int, int]:
+    height, width = request.observation.depth.shape[:2]
+    return height, width
+
+
+def _log_socket_event(monitor: zmq.Socket[Any]) -> None:
+    event = recv_monitor_message(monitor)
+    if event["event"] == zmq.EVENT_DISCONNECTED:
+        log.info("a client disconnected")
+    elif event["event"] in (zmq.EVENT_HANDSHAKE_FAILED_AUTH, zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL):
+        log.warning("a connection failed its CURVE handshake (a key not in the allow-list?)")
+
+
+# -- building and running a server ------------------------------------------------------------------------------------
+
+
+def served_info(spec: ModelSpec, grounder: Grounder, config: ServeConfig) -> ServedInfo:
+    """What a server of ``spec.detector`` says of itself, from the built ``grounder`` (its model's device and
+    dtype where it has a model)."""
+    backend = GROUNDER_BACKENDS.get(spec.detector)
+    model = getattr(grounder, "model", None)
+    device = str(getattr(model, "device", "cpu"))
+    dtype = str(getattr(model, "dtype", "none")).removeprefix("torch.")
+    name = spec.detector_model or "default"
+    return ServedInfo(
+        spec.detector, name, device, dtype, backend.observes, backend.reads_labels, config.batch, config.batch_ms
+    )
+
+
+def build_server(spec: ModelSpec, bind: str, keys: Path | None, config: ServeConfig) -> GrounderServer:
+    """A server of ``spec.detector`` (any but ``remote``), its model loaded (a missing one: one InputError line)."""
+    if spec.detector == "remote":
+        local = ", ".join(name for name in GROUNDER_BACKENDS.names if name != "remote")
+        raise InputError("command line", "--detector", f"a detector run in this process ({local})", "remote")
+    backend = GROUNDER_BACKENDS.get(spec.detector)
+
+    def factory() -> Grounder:
+        return backend.build(spec)
+
+    probe = factory()
+    info = served_info(spec, probe, config)
+    return GrounderServer((lambda: probe) if not info.labels else factory, info, bind, keys, config)
+
+
+def run_server(spec: ModelSpec, bind: str, keys: Path | None, config: ServeConfig) -> None:
+    """Serve ``spec``'s grounder until Ctrl-C (or SIGTERM); the first line printed names the endpoint."""
+    server = build_server(spec, bind, keys, config)
+    info = server.info
+    print(
+        f"serving the grounder {info.detector} ({info.model}, {info.device}, {info.dtype}; batch {config.batch} or "
+        f"{config.batch_ms:g} ms) on {server.endpoint}{' with CURVE' if keys else ''} (Ctrl-C stops)",
+        flush=True,
+    )
+    try:
+        server.serve()
+    finally:
+        server.close()
+
+
+@contextlib.contextmanager
+def serving(server: GrounderServer) -> Iterator[str]:
+    """``server`` served from a background thread for the duration; yields its endpoint, closes it after."""
+    stop = threading.Event()
+    thread = threading.Thread(target=server.serve, args=(stop,), daemon=True, name="drivenav-grounder-server")
+    thread.start()
+    try:
+        yield server.endpoint
+    finally:
+        stop.set()
+        thread.join()
+        server.close()

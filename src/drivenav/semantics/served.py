@@ -1,0 +1,443 @@
+"""One grounder for every worker: the served grounder's protocol and its client, ``--detector remote`` (issue 37).
+
+``drivenav serve grounder`` (:mod:`drivenav.semantics.grounder_server`) holds one copy of the model and batches the
+requests of every worker; a worker grounds through :class:`RemoteGrounder`, a
+:class:`~drivenav.semantics.protocols.Grounder` like the others, at ``models.detector_url``. The wire is the robot
+protocol's framing (:mod:`drivenav.wire.protocol`: a JSON header and raw array frames, size and nesting limits,
+never pickle; loopback by default, CURVE keys off it) under its own protocol name, ``drivenav-grounder``:
+
+========== ======================================================== ===============================================
+request    header and arrays                                        reply
+========== ======================================================== ===============================================
+HELLO      --                                                       WELCOME: :class:`ServedInfo` (the detector, its
+                                                                    model, device and dtype, the images it reads,
+                                                                    whether it reads ground-truth labels, batching)
+BEGIN      ``episode`` key, ``seed``, the label ``names`` and their BEGUN (sent only to a server whose grounder
+           ``canonical`` categories; arrays ``label_ids`` and        reads ground-truth labels: a stand-in, begun
+           ``label_names`` (int32: instance id, index in names)     per episode as in process)
+SEGMENT    ``episode``, ``phrase``, the frame's ``height`` and      DETECTIONS: ``phrase``; arrays ``masks`` (uint8
+           ``width``, ``canonical`` (the phrase's category, for a   N x H x ceil(W / 8), each row's bits packed,
+           stand-in); step, pose, intrinsics; arrays: the images    ``numpy.packbits``) and ``scores`` (float64)
+           WELCOME names (``rgb`` uint8, ``depth`` float32,
+           ``semantic`` int32)
+PING       --                                                       PONG
+========== ======================================================== ===============================================
+
+A malformed or unknown request gets an ERROR naming what was wrong, and the server keeps serving. Images and
+scores travel exactly (depth as float32 metres, not the robot's millimetres), so served and in-process detections
+are the same: exactly at batch one in fp32, and within a batched matrix product's rounding when the server batched
+frames of several workers.
+
+The client waits ``models.detector_timeout_s`` of silence (the server answers heartbeats between batches, so a busy
+server is not a silent one): then the request raises :class:`GrounderUnavailableError` and the episode waiting on
+it ends as an ``error`` whose one line names the server. The next episode's start asks the server once more; a
+server still gone stops the run (:class:`~drivenav.errors.RunStoppedError`, finished episodes saved), as a robot
+gone does: no run waits on a dead server.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import uuid
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any, Final
+
+import numpy as np
+from numpy.typing import NDArray
+
+from drivenav.errors import InputError, RunStoppedError
+from drivenav.jsonstream import JsonObject
+from drivenav.semantics.protocols import Detection
+from drivenav.semantics.registry import GROUNDER_BACKENDS, ModelSpec
+from drivenav.types import CategoryVocabulary, GroundTruth, Observation
+from drivenav.wire.client import ClientConfig, Dialect, PeerUnavailableError, WireClient
+from drivenav.wire.protocol import JSON, Message, ProtocolError
+from drivenav.wire.security import check_endpoint, client_keys, is_loopback
+
+GROUNDER_PROTOCOL: Final[str] = "drivenav-grounder"
+REQUESTS: Final[tuple[str, ...]] = ("HELLO", "BEGIN", "SEGMENT", "PING")
+REPLIES: Final[tuple[str, ...]] = ("WELCOME", "BEGUN", "DETECTIONS", "PONG", "ERROR")
+MAX_PHRASE_CHARS: Final[int] = 512
+"""A phrase longer than this is refused (an enriched prompt is a few words; the text encoders keep 16-32 tokens)."""
+IMAGES: Final[dict[str, tuple[str, int]]] = {"rgb": ("|u1", 3), "depth": ("<f4", 2), "semantic": ("<i4", 2)}
+"""The images a SEGMENT may carry: dtype and dimensions (``rgb`` is H x W x 3, the others H x W)."""
+HELLO_TIMEOUT_S: Final[float] = 10.0
+"""The longest wait for a WELCOME before any episode (a server still loading its model has not bound yet)."""
+HEARTBEAT_S: Final[float] = 1.0
+"""A waiting client's PING interval: the PONGs a server sends between batches show it is busy, not gone."""
+
+
+class GrounderUnavailableError(PeerUnavailableError):
+    """The grounder server did not answer a request in time (gone, or stalled) or refused it."""
+
+
+GROUNDER = Dialect(GROUNDER_PROTOCOL, REPLIES, "the grounder server", "--detector-keys", GrounderUnavailableError)
+
+
+class GrounderClient(WireClient):
+    """Requests to a served grounder (a DEALER socket; one per thread)."""
+
+    dialect = GROUNDER
+
+
+@dataclass(frozen=True)
+class ServedInfo:
+    """What a server says of itself (WELCOME): its ``detector`` and ``model``, ``device`` and ``dtype``, the images
+    its grounder reads (``observes``), whether it reads ground-truth labels (``labels``: a stand-in, begun per
+    episode with BEGIN), and its batching (``batch`` frames or ``batch_ms`` milliseconds)."""
+
+    detector: str
+    model: str
+    device: str
+    dtype: str
+    observes: tuple[str, ...]
+    labels: bool
+    batch: int
+    batch_ms: float
+
+    def to_json(self) -> JsonObject:
+        return {**asdict(self), "observes": list(self.observes)}
+
+    @staticmethod
+    def from_json(body: Mapping[str, JSON]) -> ServedInfo:
+        detector, model, device, dtype = (_text(body, name) for name in ("detector", "model", "device", "dtype"))
+        observes = body.get("observes")
+        if not isinstance(observes, list) or not all(name in IMAGES for name in observes):
+            raise ProtocolError("body.observes", f"a list of image names ({', '.join(IMAGES)})", observes)
+        labels, batch, batch_ms = body.get("labels"), body.get("batch"), body.get("batch_ms")
+        if not isinstance(labels, bool):
+            raise ProtocolError("body.labels", "true or false", labels)
+        if isinstance(batch, bool) or not isinstance(batch, int) or batch < 1:
+            raise ProtocolError("body.batch", "an integer >= 1", batch)
+        if isinstance(batch_ms, bool) or not isinstance(batch_ms, (int, float)) or not math.isfinite(batch_ms):
+            raise ProtocolError("body.batch_ms", "a finite number", batch_ms)
+        return ServedInfo(detector, model, device, dtype, tuple(observes), labels, batch, float(batch_ms))
+
+
+def _text(body: Mapping[str, JSON], name: str, limit: int = 256) -> str:
+    value = body.get(name)
+    if not isinstance(value, str) or len(value) > limit:
+        raise ProtocolError(f"body.{name}", f"a string of at most {limit} characters", value)
+    return value
+
+
+# -- BEGIN: a stand-in's ground truth ------------------------------------------------------------------------------
+
+
+class TableVocabulary:
+    """A world's vocabulary as far as a served stand-in needs it: the categories of the names it was told (the
+    episode's instance labels at BEGIN, each phrase with its SEGMENT). The stand-ins read :meth:`canonical` only."""
+
+    def __init__(self, table: Mapping[str, str | None]) -> None:
+        self.table: dict[str, str | None] = dict(table)
+
+    def canonical(self, name: str) -> str | None:
+        return self.table.get(name)
+
+    def synonyms(self, category: str) -> tuple[str, ...]:
+        return ()
+
+
+def begin_request(request_id: str, episode: str, truth: GroundTruth | None, seed: int) -> Message:
+    """BEGIN of ``episode``: the ground truth a stand-in reads (its instance labels and their categories)."""
+    labels = dict(truth.labels or {}) if truth is not None else {}
+    names = sorted(set(labels.values()))
+    index = {name: i for i, name in enumerate(names)}
+    vocabulary = truth.vocabulary if truth is not None else None
+    body: JsonObject = {
+        "episode": episode,
+        "seed": seed,
+        "truth": truth is not None,
+        "names": names,
+        "canonical": None if vocabulary is None else [vocabulary.canonical(name) for name in names],
+    }
+    arrays: dict[str, NDArray[Any]] = {
+        "label_ids": np.fromiter(labels, dtype=np.int32, count=len(labels)),
+        "label_names": np.fromiter((index[labels[i]] for i in labels), dtype=np.int32, count=len(labels)),
+    }
+    return Message("BEGIN", request_id, body=body, arrays=arrays)
+
+
+@dataclass(frozen=True)
+class BeginRequest:
+    """A BEGIN as the server reads it: the episode key, its seed and the ground truth to begin the stand-in with
+    (its vocabulary a :class:`TableVocabulary` that each SEGMENT's phrase extends)."""
+
+    episode: str
+    seed: int
+    truth: GroundTruth | None
+    vocabulary: TableVocabulary | None
+
+
+def read_begin(message: Message) -> BeginRequest:
+    body = message.body
+    episode, seed = _episode(body), body.get("seed")
+    if isinstance(seed, bool) or not isinstance(seed, int):
+        raise ProtocolError("body.seed", "an integer", seed)
+    names, canonical = body.get("names"), body.get("canonical")
+    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+        raise ProtocolError("body.names", "a list of label names", names)
+    ids, indices = (_int_vector(message, name) for name in ("label_ids", "label_names"))
+    if ids.shape != indices.shape or bool(np.any((indices < 0) | (indices >= len(names)))):
+        raise ProtocolError("arrays.label_names", f"one index in names (0-{len(names) - 1}) per label id", indices)
+    vocabulary = None
+    if canonical is not None:
+        valid = isinstance(canonical, list) and len(canonical) == len(names)
+        if not valid or not all(c is None or isinstance(c, str) for c in canonical):
+            raise ProtocolError("body.canonical", "null or one category (or null) per name", canonical)
+        vocabulary = TableVocabulary(dict(zip(names, canonical, strict=True)))
+    if not body.get("truth", False):
+        return BeginRequest(episode, seed, None, None)
+    labels = {int(i): names[int(n)] for i, n in zip(ids.tolist(), indices.tolist(), strict=True)}
+    return BeginRequest(episode, seed, GroundTruth(labels=labels, vocabulary=vocabulary), vocabulary)
+
+
+def _int_vector(message: Message, name: str) -> NDArray[np.int32]:
+    array = message.arrays.get(name)
+    if array is None or array.dtype != np.int32 or array.ndim != 1:
+        raise ProtocolError(f"arrays.{name}", "an int32 vector", None if array is None else array.shape)
+    return array
+
+
+def _episode(body: Mapping[str, JSON]) -> str:
+    value = body.get("episode")
+    if not isinstance(value, str) or not value or len(value) > 128:
+        raise ProtocolError("body.episode", "an episode key (a non-empty string of at most 128 characters)", value)
+    return value
+
+
+# -- SEGMENT and DETECTIONS -------------------------------------------------------------------------------------------
+
+
+def segment_request(
+    request_id: str,
+    episode: str,
+    observation: Observation,
+    phrase: str,
+    observes: Sequence[str],
+    vocabulary: CategoryVocabulary | None = None,
+) -> Message:
+    """SEGMENT of ``phrase`` in ``observation``, carrying only the images in ``observes`` (a deferred RGB image
+    is not rendered for a stand-in that reads none) and, with a ``vocabulary``, the phrase's category."""
+    height, width = observation.depth.shape[:2]
+    body: JsonObject = {"episode": episode, "phrase": phrase, "height": height, "width": width}
+    if vocabulary is not None:
+        body["canonical"] = vocabulary.canonical(phrase)
+    arrays = {name: image for name in observes if (image := _image(observation, name)) is not None}
+    return Message(
+        "SEGMENT",
+        request_id,
+        step=observation.step,
+        pose=observation.pose,
+        intrinsics=observation.intrinsics,
+        collided=observation.collided,
+        body=body,
+        arrays=arrays,
+    )
+
+
+def _image(observation: Observation, name: str) -> NDArray[Any] | None:
+    """The observation's image called ``name`` (``rgb`` renders a deferred one)."""
+    if name == "rgb":
+        return observation.rgb
+    return observation.depth if name == "depth" else observation.semantic
+
+
+@dataclass(frozen=True)
+class SegmentRequest:
+    """A SEGMENT as the server reads it: the episode key, the phrase, its category when a vocabulary is in use
+    (``canonical``: empty, or ``{phrase: category or None}``) and the observation rebuilt from what was sent."""
+
+    request_id: str
+    episode: str
+    phrase: str
+    canonical: Mapping[str, str | None]
+    observation: Observation
+
+
+def read_segment(message: Message) -> SegmentRequest:
+    """The SEGMENT in ``message``, every image checked against the frame's size; an image not sent reads as
+    absent (``semantic``), NaN (``depth``) or, for ``rgb``, an error when read."""
+    body = message.body
+    phrase = body.get("phrase")
+    if not isinstance(phrase, str) or not phrase.strip() or len(phrase) > MAX_PHRASE_CHARS:
+        raise ProtocolError("body.phrase", f"a phrase of at most {MAX_PHRASE_CHARS} characters", phrase)
+    height, width = body.get("height"), body.get("width")
+    if not all(isinstance(n, int) and not isinstance(n, bool) and n > 0 for n in (height, width)):
+        raise ProtocolError("body.height/width", "the frame's size in pixels", (height, width))
+    assert isinstance(height, int) and isinstance(width, int)
+    for name, array in message.arrays.items():
+        _check_image(name, array, (height, width))
+    canonical = body.get("canonical")
+    if canonical is not None and not isinstance(canonical, str):
+        raise ProtocolError("body.canonical", "the phrase's category or null", canonical)
+    if message.pose is None or message.intrinsics is None:
+        raise ProtocolError("pose/intrinsics", "the frame's pose and camera intrinsics")
+    arrays = message.arrays
+    depth = arrays.get("depth")
+    observation = Observation.deferred(
+        _sent_rgb(arrays.get("rgb")),
+        depth if depth is not None else np.broadcast_to(np.float32(np.nan), (height, width)),
+        arrays.get("semantic"),
+        message.pose,
+        message.intrinsics,
+        message.step,
+        message.collided,
+    )
+    table = {phrase: canonical} if "canonical" in body else {}
+    return SegmentRequest(message.request_id, _episode(body), phrase, table, observation)
+
+
+def _check_image(name: str, array: NDArray[Any], size: tuple[int, int]) -> None:
+    if name not in IMAGES:
+        raise ProtocolError(f"arrays.{name}", f"one of the images {', '.join(IMAGES)}")
+    dtype, ndim = IMAGES[name]
+    expected = (*size, 3) if ndim == 3 else size
+    if array.dtype.str != dtype or array.shape != expected:
+        raise ProtocolError(f"arrays.{name}", f"{dtype} {expected}", f"{array.dtype.str} {array.shape}")
+
+
+def _sent_rgb(rgb: NDArray[np.uint8] | None) -> Callable[[], NDArray[np.uint8]]:
+    """The rendering call of a rebuilt observation's RGB image: the one sent, or an error naming what is missing."""
+
+    def render() -> NDArray[np.uint8]:
+        if rgb is None:
+            raise ProtocolError("arrays.rgb", "the RGB image (this grounder reads it: the client sent none)")
+        return rgb
+
+    return render
+
+
+def detections_reply(request_id: str, phrase: str, detections: Sequence[Detection], size: tuple[int, int]) -> Message:
+    """DETECTIONS: the masks' rows bit-packed into one uint8 array, the scores as float64 (exact)."""
+    for detection in detections:
+        if detection.mask.shape != size:
+            raise ValueError(f"a detection mask of {detection.mask.shape}, not the frame's {size}")
+    masks = np.stack([d.mask for d in detections]) if detections else np.zeros((0, *size), dtype=bool)
+    arrays: dict[str, NDArray[Any]] = {
+        "masks": np.packbits(masks, axis=-1),
+        "scores": np.array([d.score for d in detections], dtype=np.float64),
+    }
+    return Message("DETECTIONS", request_id, body={"phrase": phrase}, arrays=arrays)
+
+
+def read_detections(message: Message, phrase: str, size: tuple[int, int]) -> list[Detection]:
+    """The detections of a DETECTIONS reply to ``phrase`` on a frame of ``size`` (a malformed one is a
+    :class:`~drivenav.wire.protocol.ProtocolError`)."""
+    masks, scores = message.arrays.get("masks"), message.arrays.get("scores")
+    if scores is None or scores.dtype != np.float64 or scores.ndim != 1 or not np.all(np.isfinite(scores)):
+        raise ProtocolError("arrays.scores", "a float64 vector of finite scores")
+    packed = (len(scores), size[0], (size[1] + 7) // 8)
+    if masks is None or masks.dtype != np.uint8 or masks.shape != packed:
+        raise ProtocolError("arrays.masks", f"uint8 {packed}", None if masks is None else masks.shape)
+    if message.body.get("phrase") != phrase:
+        raise ProtocolError("body.phrase", repr(phrase), message.body.get("phrase"))
+    unpacked = np.unpackbits(masks, axis=-1, count=size[1]).astype(bool)
+    return [Detection(unpacked[i], float(scores[i]), phrase) for i in range(len(scores))]
+
+
+# -- the client -------------------------------------------------------------------------------------------------------
+
+
+class RemoteGrounder:
+    """Implements :class:`~drivenav.semantics.protocols.Grounder` with a served grounder (module docstring).
+
+    Each episode has a fresh key; a server that grounds with a stand-in is sent the episode's ground truth
+    (BEGIN), any other is asked whether it is there (PING).
+    """
+
+    name = "remote"
+
+    def __init__(self, client: GrounderClient, info: ServedInfo) -> None:
+        self.client = client
+        self.info = info
+        self._episode = ""
+        self._vocabulary: CategoryVocabulary | None = None
+
+    def begin_episode(self, truth: GroundTruth | None, seed: int) -> None:
+        """Begin an episode on the server; a server that does not answer (or refuses) stops the run (one line)."""
+        self._episode = uuid.uuid4().hex
+        self._vocabulary = truth.vocabulary if truth is not None and self.info.labels else None
+        request = (
+            begin_request(self.client.next_id(), self._episode, truth, seed)
+            if self.info.labels
+            else Message("PING", self.client.next_id())
+        )
+        try:
+            self.client.request(request)
+        except GrounderUnavailableError as error:
+            raise RunStoppedError(
+                f"{error} (at an episode's start): finished episodes are saved; restart or fix the grounder server "
+                "(drivenav serve grounder) and rerun the same command to resume"
+            ) from None
+
+    def segment(self, observation: Observation, phrase: str) -> list[Detection]:
+        """The server's detections of ``phrase`` in the frame (a :class:`GrounderUnavailableError` when it does
+        not answer in time or refuses)."""
+        request = segment_request(
+            self.client.next_id(), self._episode, observation, phrase, self.info.observes, self._vocabulary
+        )
+        reply = self.client.request(request)
+        if reply.type != "DETECTIONS":
+            raise GrounderUnavailableError(f"the grounder server answered {reply.type} to SEGMENT")
+        height, width = observation.depth.shape[:2]
+        return read_detections(reply, phrase, (height, width))
+
+
+@functools.cache
+def _connection(url: str, keys: str, timeout_s: float) -> tuple[GrounderClient, ServedInfo]:
+    """This process's client of the server at ``url`` and what it said in its WELCOME (one connection a process,
+    kept for its episodes)."""
+    hello = GrounderClient(url, Path(keys) if keys else None, ClientConfig(min(timeout_s, HELLO_TIMEOUT_S), 0))
+    try:
+        info = ServedInfo.from_json(hello.request(Message("HELLO", hello.next_id())).body)
+    finally:
+        hello.close()
+    config = ClientConfig(timeout_s=timeout_s, retries=0, heartbeat_s=min(HEARTBEAT_S, timeout_s))
+    return GrounderClient(url, Path(keys) if keys else None, config), info
+
+
+def connect(spec: ModelSpec) -> tuple[GrounderClient, ServedInfo]:
+    """The connection to ``spec``'s server and its WELCOME; a server that runs another detector than
+    ``detector_served`` says is an :class:`~drivenav.errors.InputError`."""
+    client, info = _connection(spec.detector_url, spec.detector_keys, spec.detector_timeout_s)
+    if spec.detector_served and info.detector != spec.detector_served:
+        expected = f"{info.detector} (what the server at {spec.detector_url} runs)"
+        raise InputError("settings", "models.detector_served", expected, spec.detector_served)
+    if info.labels and not spec.detector_served:
+        expected = f"{info.detector}: the server runs a stand-in that reads ground-truth labels"
+        raise InputError("settings", "models.detector_served", expected, "(empty)")
+    return client, info
+
+
+def remote_grounder(spec: ModelSpec) -> RemoteGrounder:
+    """``--detector remote``: a grounder served at ``models.detector_url``."""
+    client, info = connect(spec)
+    return RemoteGrounder(client, info)
+
+
+def reach_server(spec: ModelSpec) -> None:
+    """The server at ``detector_url`` answers HELLO: else one line naming ``--detector-url`` (before any episode)."""
+    try:
+        connect(spec)
+    except (PeerUnavailableError, ProtocolError) as error:
+        expected = "a grounder server that answers (drivenav serve grounder)"
+        raise InputError("command line", "--detector-url", expected, f"{spec.detector_url}: {error}") from None
+
+
+def check_detector_url(spec: ModelSpec) -> None:
+    """``detector_url`` is an endpoint; off loopback it needs ``detector_keys`` (CURVE), whose files are read now;
+    ``detector_served`` names a detector run in process (or nothing)."""
+    check_endpoint(spec.detector_url, "--detector-url")
+    if spec.detector_keys:
+        client_keys(Path(spec.detector_keys), "--detector-keys")
+    elif not is_loopback(spec.detector_url):
+        expected = "a key folder (drivenav robot keys DIR) to reach a grounder off this host: CURVE is required"
+        raise InputError("command line", "--detector-keys", expected, spec.detector_url)
+    local = [name for name in GROUNDER_BACKENDS.names if name != "remote"]
+    if spec.detector_served and spec.detector_served not in local:
+        expected = f"empty or one of {', '.join(local)}"
+        raise InputError("settings", "models.detector_served", expected, spec.detector_served)
