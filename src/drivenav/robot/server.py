@@ -41,7 +41,7 @@ from drivenav.wire.protocol import (
     occupancy_body,
     rgb_to_jpeg,
 )
-from drivenav.wire.router import Frames, RouterSocket, error_reply, loose_id
+from drivenav.wire.router import Frames, RouterSocket, error_reply, in_background, loose_id
 
 if TYPE_CHECKING:
     from drivenav.robot.lidar import LidarOccupancy
@@ -381,13 +381,5 @@ class RobotServer:
 def served(session: RobotSession, keys: Path | None = None, bind: str = "tcp://127.0.0.1:*") -> Iterator[str]:
     """``session`` served from a background thread for the duration (a free loopback port by default); yields the
     endpoint."""
-    server = RobotServer(session, bind, keys)
-    stop = threading.Event()
-    thread = threading.Thread(target=server.serve, args=(stop,), daemon=True)
-    thread.start()
-    try:
-        yield server.endpoint
-    finally:
-        stop.set()
-        thread.join()
-        server.close()
+    with in_background(RobotServer(session, bind, keys), "drivenav-robot-server") as endpoint:
+        yield endpoint

@@ -47,7 +47,7 @@ from drivenav.semantics.served import (
     read_segment,
 )
 from drivenav.wire.protocol import MAX_ARRAY_BYTES, Message, ProtocolError, decode, encode
-from drivenav.wire.router import RouterSocket, error_reply, loose_id
+from drivenav.wire.router import RouterSocket, error_reply, in_background, loose_id
 
 log = logging.getLogger(__name__)
 
@@ -321,12 +321,5 @@ def run_server(spec: ModelSpec, bind: str, keys: Path | None, config: ServeConfi
 @contextlib.contextmanager
 def serving(server: GrounderServer) -> Iterator[str]:
     """``server`` served from a background thread for the duration; yields its endpoint, closes it after."""
-    stop = threading.Event()
-    thread = threading.Thread(target=server.serve, args=(stop,), daemon=True, name="drivenav-grounder-server")
-    thread.start()
-    try:
-        yield server.endpoint
-    finally:
-        stop.set()
-        thread.join()
-        server.close()
+    with in_background(server, "drivenav-grounder-server") as endpoint:
+        yield endpoint

@@ -10,9 +10,12 @@ sets libzmq's per-frame size limit, admits only the allow-listed keys when given
 
 from __future__ import annotations
 
+import contextlib
 import json
+import threading
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import zmq
 
@@ -82,3 +85,29 @@ def loose_id(frames: list[Any]) -> str:
         return "?"
     value = header.get("id") if isinstance(header, dict) else None
     return value if isinstance(value, str) and 0 < len(value) <= 128 else "?"
+
+
+class Serving(Protocol):
+    """A server on a :class:`RouterSocket`: it serves until ``stop`` is set, then closes."""
+
+    @property
+    def endpoint(self) -> str: ...
+
+    def serve(self, stop: threading.Event | None = None) -> None: ...
+
+    def close(self) -> None: ...
+
+
+@contextlib.contextmanager
+def in_background(server: Serving, name: str) -> Iterator[str]:
+    """``server`` served from a daemon thread called ``name`` for the duration; yields its endpoint, stops the
+    thread and closes the server after."""
+    stop = threading.Event()
+    thread = threading.Thread(target=server.serve, args=(stop,), daemon=True, name=name)
+    thread.start()
+    try:
+        yield server.endpoint
+    finally:
+        stop.set()
+        thread.join()
+        server.close()
