@@ -21,7 +21,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
 import zmq
-from zmq.utils.monitor import recv_monitor_message
 
 from drivenav.envs.base import EpisodeMeasures, episode_pose
 from drivenav.errors import one_line
@@ -364,8 +363,7 @@ class RobotServer:
         self._router.send(identity, frames)
 
     def _log_socket_event(self) -> None:
-        event = recv_monitor_message(self._monitor)
-        kind = event["event"]
+        kind = self._router.connection_event()
         if kind == zmq.EVENT_DISCONNECTED and (self._motion is not None or self.session.in_episode):
             log.warning(
                 "the brain disconnected mid-episode (a frame over max_message_bytes=%d drops a connection silently)",
@@ -373,8 +371,6 @@ class RobotServer:
             )
         elif kind == zmq.EVENT_DISCONNECTED:
             log.info("a brain disconnected")
-        elif kind in (zmq.EVENT_HANDSHAKE_FAILED_AUTH, zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL):
-            log.warning("a connection failed its CURVE handshake (a key not in the allow-list?)")
 
 
 @contextlib.contextmanager

@@ -25,12 +25,11 @@ from collections import Counter, OrderedDict
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Protocol, runtime_checkable
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 import zmq
 from numpy.typing import NDArray
-from zmq.utils.monitor import recv_monitor_message
 
 from drivenav.errors import InputError, one_line
 from drivenav.semantics.protocols import Detection, Grounder
@@ -126,7 +125,7 @@ class GrounderServer:
         while not stop.is_set():
             events = dict(poller.poll(self._wait_ms()))
             if self._router.monitor in events:
-                _log_socket_event(self._router.monitor)
+                _log_socket_event(self._router)
             if self._router.socket in events:
                 self._drain()
             if self._due():
@@ -264,12 +263,9 @@ def _size(request: SegmentRequest) -> tuple[int, int]:
     return height, width
 
 
-def _log_socket_event(monitor: zmq.Socket[Any]) -> None:
-    event = recv_monitor_message(monitor)
-    if event["event"] == zmq.EVENT_DISCONNECTED:
+def _log_socket_event(router: RouterSocket) -> None:
+    if router.connection_event() == zmq.EVENT_DISCONNECTED:
         log.info("a client disconnected")
-    elif event["event"] in (zmq.EVENT_HANDSHAKE_FAILED_AUTH, zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL):
-        log.warning("a connection failed its CURVE handshake (a key not in the allow-list?)")
 
 
 # -- building and running a server ------------------------------------------------------------------------------------

@@ -12,16 +12,20 @@ from __future__ import annotations
 
 import contextlib
 import json
+import logging
 import threading
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, Protocol
 
 import zmq
+from zmq.utils.monitor import recv_monitor_message
 
 from drivenav.errors import InputError
 from drivenav.wire.protocol import MAX_HEADER_BYTES, Message
 from drivenav.wire.security import check_bind, secure_server
+
+log = logging.getLogger(__name__)
 
 Frames = list[bytes | memoryview]
 
@@ -60,6 +64,14 @@ class RouterSocket:
     def send(self, identity: bytes, frames: Frames) -> None:
         """Send ``frames`` to the client ``identity`` (with an empty delimiter, as REQ-style envelopes want)."""
         self.socket.send_multipart([identity, b"", *frames], copy=False)
+
+    def connection_event(self) -> int:
+        """The next event of the monitor socket (``zmq.EVENT_*``); a failed CURVE handshake is logged here, for
+        every server alike."""
+        kind = int(recv_monitor_message(self.monitor)["event"])
+        if kind in (zmq.EVENT_HANDSHAKE_FAILED_AUTH, zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL):
+            log.warning("a connection failed its CURVE handshake (a key not in the allow-list?)")
+        return kind
 
     def close(self) -> None:
         self.socket.disable_monitor()
