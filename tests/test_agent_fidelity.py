@@ -3,17 +3,21 @@ unreachable targets set aside rather than rejected, the decision counters and th
 
 from __future__ import annotations
 
+import json
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from agent_scenes import episode_for, t_junction
+from drivenav.agent.base import ExplorerStats
+from drivenav.agent.body import ExplorerAgent
 from drivenav.agent.context import StepContext
-from drivenav.agent.decision import candidates
-from drivenav.agent.drivenav import DriveNavAgent
-from drivenav.agent.relabel import carry_over
-from drivenav.agent.state import EpisodeState
+from drivenav.agent.explorers.directions.decision import candidates
+from drivenav.agent.explorers.directions.explorer import DirectionsExplorer
+from drivenav.agent.explorers.directions.memory import Directions
+from drivenav.agent.explorers.directions.relabel import carry_over
 from drivenav.agent.target import SearchConfig, TargetSearch
 from drivenav.agent.trace import DirectionSelected, InspectionStarted, Trace, of_type
 from drivenav.agents import make_agent
@@ -21,6 +25,7 @@ from drivenav.directions.tracking import DirectionTracker
 from drivenav.directions.types import Direction, DirectionResult, TrackingUpdate
 from drivenav.envs.embedded.env import EmbeddedEnv
 from drivenav.envs.vocabulary import VOCABULARY
+from drivenav.errors import InputError
 from drivenav.eval.records import EpisodeRecord, missed_cause
 from drivenav.eval.runner import run_episode
 from drivenav.inspection.views import RepresentativeViews
@@ -78,9 +83,9 @@ def _direction(label: int, bearing_deg: float) -> Direction:
     return Direction(label, math.radians(bearing_deg), (label,), (math.radians(bearing_deg),), point, point, far)
 
 
-def _agent_at(name: str, bearings_deg: dict[int, float], heading_deg: float) -> tuple[DriveNavAgent, StepContext]:
+def _agent_at(name: str, bearings_deg: dict[int, float], heading_deg: float) -> tuple[ExplorerAgent, StepContext]:
     agent = make_agent(load_settings(name))
-    assert isinstance(agent, DriveNavAgent)
+    assert isinstance(agent, ExplorerAgent)
     agent.reset("chair", 0, GroundTruth({}, VOCABULARY))
     directions = tuple(_direction(label, b) for label, b in sorted(bearings_deg.items()))
     pose = Pose(0.0, 0.0, math.radians(heading_deg))
@@ -89,13 +94,14 @@ def _agent_at(name: str, bearings_deg: dict[int, float], heading_deg: float) -> 
     return agent, ctx
 
 
-def _state(agent: DriveNavAgent) -> EpisodeState:
-    assert agent.state is not None
-    return agent.state
+def _state(agent: ExplorerAgent) -> Directions:
+    """The directions explorer's memory of the running episode."""
+    assert isinstance(agent.explorer, DirectionsExplorer)
+    return agent.explorer.memory
 
 
-def _offered(agent: DriveNavAgent, ctx: StepContext, reason: str) -> list[int]:
-    return [c.label for c in candidates(agent.loop(), ctx, reason)]
+def _offered(agent: ExplorerAgent, ctx: StepContext, reason: str) -> list[int]:
+    return [c.label for c in candidates(_state(agent), agent.loop(), ctx, reason)]
 
 
 AROUND = {0: 0.0, 1: 90.0, 2: 120.0, 3: 150.0, 4: 180.0, 5: -100.0, 6: -130.0}
@@ -107,13 +113,13 @@ def test_decisions_after_the_start_scan_offer_only_the_forward_240_degrees() -> 
     assert _offered(agent, ctx, "vanished") == [0, 1, 2, 5]  # |alpha| <= 120 deg
     _state(agent).event_heading = math.radians(180.0)  # an inspection event measures alpha from where it began
     assert _offered(agent, ctx, "inspection") == [1, 2, 3, 4, 5, 6]  # all but 0 deg
-    assert agent.decision_stats().dead_end_decisions == 0
+    assert _state(agent).counts.dead_end_decisions == 0
 
 
 def test_a_dead_end_offers_the_rear_range() -> None:
     agent, ctx = _agent_at("drive-nav", {0: 170.0, 1: -160.0}, 0.0)
     assert _offered(agent, ctx, "vanished") == [0, 1]
-    assert agent.decision_stats().dead_end_decisions == 1
+    assert _state(agent).counts.dead_end_decisions == 1
 
 
 @pytest.mark.parametrize("name", ["no-240", "direction-360"])
@@ -125,28 +131,28 @@ def test_360_methods_decide_among_every_direction(name: str) -> None:
 def test_a_merged_followed_direction_is_still_followed_without_a_decision() -> None:
     agent, ctx = _agent_at("drive-nav", {0: 10.0, 1: 40.0}, 0.0)
     _state(agent).selected, _state(agent).inspected = 0, {0, 1}
-    carry_over(agent.loop(), ctx)
+    carry_over(_state(agent), agent.loop(), ctx)
     merged = Direction(2, math.radians(25.0), (0, 1), (), np.zeros((1, 2)), np.zeros((1, 2)), (3.0, 1.0))
     result = DirectionResult((merged,), {}, (), tracking=TrackingUpdate(merged={2: (0, 1)}))
-    carry_over(agent.loop(), StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
+    carry_over(_state(agent), agent.loop(), StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
     episode = _state(agent)
     assert episode.selected == 2 and 2 in episode.inspected and episode.views.has_view(2)
-    stats = agent.decision_stats()
+    stats = _state(agent).counts
     assert (stats.followed_through_relabel, stats.selected_lost, stats.labels_merged) == (1, 0, 1)
 
 
 def test_a_direction_back_at_a_removed_ones_place_keeps_its_inspected_state() -> None:
     agent, ctx = _agent_at("drive-nav", {0: 10.0, 1: 90.0}, 0.0)
     _state(agent).inspected = {0, 1}
-    carry_over(agent.loop(), ctx)
+    carry_over(_state(agent), agent.loop(), ctx)
     gone = DirectionResult((ctx.directions[0],), {}, (), tracking=TrackingUpdate(removed=(1,)))
-    carry_over(agent.loop(), StepContext(ctx.pose, None, [], gone, None))  # type: ignore[arg-type]
+    carry_over(_state(agent), agent.loop(), StepContext(ctx.pose, None, [], gone, None))  # type: ignore[arg-type]
     again = _direction(1, 90.0)
     back = Direction(5, again.bearing, (1,), (), again.waypoints, again.points, again.farthest_point)
     result = DirectionResult((ctx.directions[0], back), {}, (), tracking=TrackingUpdate(created=(5,)))
-    carry_over(agent.loop(), StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
+    carry_over(_state(agent), agent.loop(), StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
     assert 5 in _state(agent).inspected
-    assert agent.decision_stats().labels_reidentified == 1
+    assert _state(agent).counts.labels_reidentified == 1
 
 
 # ----------------------------------------------------------------------------------------------- targets
@@ -207,15 +213,28 @@ def test_missed_targets_are_broken_down_by_what_the_agent_did() -> None:
     assert missed_cause(_missed(target_candidates=1)) == "detected_not_accepted"
 
 
-def test_records_carry_the_decision_counters_and_read_older_schemas() -> None:
-    record = _missed(inspection_events=3, labels_created=7)
+def test_records_carry_the_explorer_counters_and_read_older_schemas() -> None:
+    counters = {"inspection_events": 3, "labels_created": 7, "decisions": {"scan": 1, "inspection": 2}}
+    record = replace(_missed(target_candidates=1), explorer=ExplorerStats("directions", counters))
     data = record.to_json()
-    assert data["schema_version"] == 4 and data["inspection_events"] == 3 and data["labels_created"] == 7
-    assert "decisions" not in data and "decisions_by_reason" in data  # flat beside the other keys
-    old = {k: v for k, v in data.items() if k not in ("inspection_events", "labels_created", "retraced_m")}
-    assert EpisodeRecord.from_json({**old, "schema_version": 2}).decisions.inspection_events == 0
-    before_traces = {k: v for k, v in data.items() if k != "trace"}
+    assert data["schema_version"] == 5 and data["target_candidates"] == 1  # the body's counters flat ...
+    assert data["explorer"] == {"name": "directions", "counters": counters}  # ... the explorer's under its name
+    assert EpisodeRecord.from_json(json.loads(json.dumps(data))) == record
+    schema_4 = {k: v for k, v in data.items() if k != "explorer"} | {"schema_version": 4, "inspection_events": 3}
+    schema_4 |= {"labels_created": 7, "decisions_by_reason": {"scan": 1, "inspection": 2}, "labels_merged": 0}
+    old = EpisodeRecord.from_json(schema_4)  # the flat DRIVE-Nav counters become the method's explorer's
+    assert old.explorer == ExplorerStats("directions", {**counters, "labels_merged": 0}) and old.body == record.body
+    greedy = EpisodeRecord.from_json({**schema_4, "agent": "nearest-frontier"})
+    assert greedy.explorer is not None and greedy.explorer.name == "greedy"
+    assert EpisodeRecord.from_json({**schema_4, "agent": "oracle"}).explorer is None
+    bare = {k: v for k, v in schema_4.items() if k not in ("inspection_events", "labels_created", "retraced_m")}
+    assert EpisodeRecord.from_json({**bare, "schema_version": 2}).explorer == ExplorerStats(
+        "directions", {"decisions": {"scan": 1, "inspection": 2}, "labels_merged": 0}
+    )
+    before_traces = {k: v for k, v in schema_4.items() if k != "trace"}
     assert EpisodeRecord.from_json({**before_traces, "schema_version": 3}).trace == ""
+    with pytest.raises(InputError, match=r"record\.explorer\.counters"):
+        EpisodeRecord.from_json({**data, "explorer": {"name": "directions", "counters": {"decisions": "many"}}})
 
 
 # ----------------------------------------------------------------------------------------------- revisits
@@ -250,19 +269,20 @@ def test_an_episode_record_accounts_for_every_step_and_decision() -> None:
     env = EmbeddedEnv(lambda _: scene, SIM)
     agent = make_agent(load_settings("drive-nav"))
     record, trace = run_episode(env, agent, episode_for(scene, (12.0, 2.5), math.pi / 2, "plant", ""), 0, 500)
-    stats = record.decisions
-    assert sum(stats.steps_by_activity.values()) == record.steps
-    assert stats.steps_by_activity["start_scan"] == 12 and stats.decisions_by_reason["scan"] == 1
-    selected = of_type(trace.events, DirectionSelected)
-    assert sum(stats.decisions_by_reason.values()) == len(selected)
-    assert stats.inspection_events == len(of_type(trace.events, InspectionStarted))
-    assert stats.labels_created >= 1 and record.retraced_revisits == 0
+    steps, explorer = record.body.steps_by_activity, record.explorer
+    assert sum(steps.values()) == record.steps and steps["start_scan"] == 12
+    assert explorer is not None and explorer.name == "directions"
+    decisions = explorer.counters["decisions"]
+    assert isinstance(decisions, dict) and decisions["scan"] == 1
+    assert sum(decisions.values()) == len(of_type(trace.events, DirectionSelected))
+    assert explorer.counters["inspection_events"] == len(of_type(trace.events, InspectionStarted))
+    assert explorer.counters["labels_created"] >= 1 and record.retraced_revisits == 0
 
 
 def test_a_split_off_branch_is_new_but_a_flickering_one_is_not() -> None:
     agent, ctx = _agent_at("drive-nav", {0: 10.0, 1: 40.0}, 0.0)
     _state(agent).inspected = {0, 1}
-    carry_over(agent.loop(), ctx)
+    carry_over(_state(agent), agent.loop(), ctx)
     merged = Direction(
         2,
         math.radians(25.0),
@@ -273,12 +293,12 @@ def test_a_split_off_branch_is_new_but_a_flickering_one_is_not() -> None:
         (3.0, 1.0),
     )
     result = DirectionResult((merged,), {}, (), tracking=TrackingUpdate(merged={2: (0, 1)}))
-    carry_over(agent.loop(), StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
+    carry_over(_state(agent), agent.loop(), StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
     flicker = Direction(3, math.radians(40.0), (1,), (), ctx.directions[1].waypoints, np.zeros((1, 2)), (3.0, 2.0))
     result = DirectionResult((merged, flicker), {}, (), tracking=TrackingUpdate(created=(3,)))
-    carry_over(agent.loop(), StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
+    carry_over(_state(agent), agent.loop(), StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
     assert 3 in _state(agent).inspected  # label 1 again, split off the merge a step later
     branch = _direction(4, -60.0)  # a branch at a place no retired direction held
     result = DirectionResult((merged, flicker, branch), {}, (), tracking=TrackingUpdate(created=(4,)))
-    carry_over(agent.loop(), StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
-    assert 4 not in _state(agent).inspected and agent.decision_stats().labels_reidentified == 1
+    carry_over(_state(agent), agent.loop(), StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
+    assert 4 not in _state(agent).inspected and _state(agent).counts.labels_reidentified == 1

@@ -7,7 +7,7 @@ import math
 import pytest
 
 from agent_scenes import carved_scene, episode_for, t_junction
-from drivenav.agent.drivenav import DriveNavAgent
+from drivenav.agent.body import ExplorerAgent
 from drivenav.agent.trace import DirectionSelected, EventT, InspectionStarted, ScanStarted, of_type
 from drivenav.agents import make_agent
 from drivenav.envs.embedded.env import EmbeddedEnv
@@ -110,7 +110,7 @@ def test_every_variant_runs_an_episode_to_the_end(name: str) -> None:
     [episode] = generate_episodes(library, 1, seed=4)
     env = EmbeddedEnv(library.load, SIM)
     agent = make_agent(load_settings(name))
-    assert isinstance(agent, DriveNavAgent)
+    assert isinstance(agent, ExplorerAgent)
     record, trace = run_episode(env, agent, episode, 0, 80)
     assert record.error == ""
     assert record.stop_reason in {"timeout", "target_reached", "no_frontier"}

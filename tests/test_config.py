@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from drivenav.agent.drivenav import DriveNavAgent
+from drivenav.agent.body import ExplorerAgent
 from drivenav.agent.oracle import OracleAgent
 from drivenav.agents import make_agent
 from drivenav.cli import main
@@ -102,7 +102,7 @@ def test_bad_config_files_and_names(tmp_path: Path) -> None:
     for config, words in (
         (str(broken), ["broken.yaml", "a YAML mapping"]),
         (str(listed), ["list.yaml", "a YAML mapping"]),
-        (str(unknown), ["unknown.yaml", "'papr'", "sim, mapping, paper, agent, models, run"]),
+        (str(unknown), ["unknown.yaml", "'papr'", "sim, mapping, paper, agent, explorer, models, run"]),
         (str(flat), ["flat.yaml", "'paper.speed'", "a mapping with keys lam, r_obs", "got 3"]),
         ("no-such-preset", ["--config", "paper, quick"]),
     ):
@@ -123,8 +123,8 @@ EXPECTED = {
     "no-weighted-fmm": {"enrich": False, "verify": False, "weighted": False},
     "no-240": {"enrich": False, "verify": False, "restrict_forward": False},
     "direction-360": {"decision_scan": True},
-    "nearest-frontier": {"use_reasoner": False, "enrich": False, "verify": False},
-    "vlfm": {"use_reasoner": False, "value_map": True, "enrich": False, "verify": False},
+    "nearest-frontier": {"explorer": "greedy", "enrich": False, "verify": False},
+    "vlfm": {"explorer": "vlfm", "enrich": False, "verify": False},
 }
 
 
@@ -132,6 +132,8 @@ def _switches(settings: Settings) -> dict[str, object]:
     p = settings.paper
     return {
         **{k: v for k, v in settings_to_dict(settings)["agent"].items()},
+        "explorer": settings.explorer.name,
+        "decision_scan": settings.explorer.directions.decision_scan,  # type: ignore[attr-defined]
         "cluster_span_deg": p.directions.cluster_span_deg,
         "weighted": p.speed.weighted,
         "restrict_forward": p.inspection.restrict_forward,
@@ -145,7 +147,7 @@ def test_every_method_is_a_preset_over_the_defaults(name: str) -> None:
     changed = {k: v for k, v in _switches(settings).items() if default[k] != v}
     assert changed == EXPECTED[name]
     agent = make_agent(settings)
-    assert isinstance(agent, DriveNavAgent) and agent.name == name
+    assert isinstance(agent, ExplorerAgent) and agent.name == name
     assert agent.config == settings.agent and agent.paper == settings.paper
     assert agent.sim == settings.sim == SimConfig() and agent.mapping == settings.mapping == MapTuning()
 

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from conftest import REPO, run_cli
-from drivenav.agent.drivenav import DriveNavAgent
+from drivenav.agent.body import ExplorerAgent
 from drivenav.envs.embedded.env import EmbeddedSpec
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.eval.episodes import generate_episodes, load_episodes, save_episodes
@@ -206,7 +206,7 @@ def test_a_worker_releases_the_agents_maps_between_episodes_and_changes_no_recor
     for episode in episodes:
         record, _ = worker.run(episode)
         agent = worker.agent
-        assert isinstance(agent, DriveNavAgent)
+        assert isinstance(agent, ExplorerAgent)
         assert agent.state is None  # its maps, directions pipeline and views with it
         fresh, _ = run_episode(worker.env, build_agent(spec), episode, spec.seed, spec.max_steps)
         assert replace(record, stats=fresh.stats) == fresh  # model latencies aside

@@ -4,8 +4,8 @@ and behind ``TYPE_CHECKING`` included).
 drivenav is built in floors. A module imports only from floors below its own, so there is no import loop between
 folders and a lower floor never sees a higher one:
 
-1. the neutral base: errors, grid, types, the JSON and YAML readers, the kernels' ``jit``, the paper's constants,
-   metrics, the episode format, the method names;
+1. the neutral base: errors, grid, types, the JSON and YAML readers, the kernels' ``jit``, the entry-point
+   registries (``plugins``), the paper's constants, metrics, the episode format, the method names;
 2. ``wire``, the message framing and sockets below every end that speaks it: the brain-robot protocol's two ends
    (``envs.robot``, ``robot``) and the served grounder's (``semantics.served``, ``semantics.grounder_server``);
 3. the algorithmic core, numpy in and dataclasses out: ``mapping``, ``semantics`` (protocols and the embedded
@@ -30,7 +30,7 @@ PACKAGE = Path(__file__).parents[1] / "src" / "drivenav"
 
 FLOORS: tuple[str, ...] = (
     "errors", "grid", "types", "jsonstream", "validation", "jit", "instances", "metrics", "packing", "threads",
-    "paper", "methods", "episode",
+    "plugins", "paper", "methods", "episode",
     "wire",
     "mapping", "semantics", "directions", "inspection", "agent",
     "settings", "agents",
@@ -133,13 +133,18 @@ def test_the_checks_see_violations(tmp_path: Path) -> None:
 
 
 def test_the_settings_read_the_agents_config_without_importing_the_agent() -> None:
-    """``drivenav config show`` and every settings check read ``AgentConfig`` from ``agent/config.py``: the
-    settings floor loads no agent behaviour."""
+    """``drivenav config show`` and every settings check read ``AgentConfig`` from ``agent/config.py`` and each
+    explorer's section from its entry's ``config`` module: the settings floor loads no agent behaviour."""
     agent_imports = {m for m in imported_modules(PACKAGE / "settings.py") if m.startswith("drivenav.agent")}
-    assert agent_imports == {"drivenav.agent.config"}
-    code = "import sys, drivenav.settings; print(sorted(m for m in sys.modules if m.startswith('drivenav.agent.')))"
-    loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
-    assert loaded.strip() == "['drivenav.agent.config']"
+    assert agent_imports <= {"drivenav.agent.config", "drivenav.agent.explorers"}
+    code = (
+        "import sys, drivenav.settings as s; s.load_settings('vlfm')\n"
+        "print(sorted(m for m in sys.modules if m.startswith('drivenav.agent.')))"
+    )
+    loaded = eval(subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout)
+    assert "drivenav.agent.config" in loaded and "drivenav.agent.explorers.vlfm.config" in loaded
+    packages = {"drivenav.agent.explorers", *(m.rpartition(".")[0] for m in loaded if m.endswith(".config"))}
+    assert [m for m in loaded if not m.endswith(".config") and m not in packages] == []
 
 
 @pytest.mark.parametrize("floor", ["mapping", "directions", "inspection", "semantics", "agent"])

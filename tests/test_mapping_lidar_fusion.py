@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from drivenav.agent.drivenav import DriveNavAgent
+from drivenav.agent.body import ExplorerAgent
 from drivenav.envs.vocabulary import VOCABULARY
 from drivenav.mapping.config import MappingConfig, MapTuning
 from drivenav.mapping.occupancy import OccupancyMapper
@@ -216,7 +216,7 @@ def test_fuse_lidar_is_a_mapping_key_off_by_default() -> None:
 
 def _agent_maps(fuse_lidar: bool, occupancy: LocalOccupancy | None) -> tuple[MapSnapshot, int]:
     """The agent's maps after one step at the origin facing the wall, and its frontier count."""
-    agent = DriveNavAgent(SIM, mapping=MapTuning(fuse_lidar=fuse_lidar))
+    agent = ExplorerAgent(SIM, mapping=MapTuning(fuse_lidar=fuse_lidar))
     agent.reset("chair", 0, GroundTruth({}, VOCABULARY))
     pose, k = Pose(0.0, 0.0, 0.0), SIM.intrinsics
     rgb, semantic = np.zeros((k.height, k.width, 3), np.uint8), np.zeros((k.height, k.width), np.int32)

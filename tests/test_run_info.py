@@ -1,8 +1,9 @@
 """``run.json`` as a typed :class:`RunInfo`: the file keeps its format, reading it rebuilds the settings, and a
 hand-edited value is one :class:`InputError` naming ``config.KEY``.
 
-``tests/data/run.json`` is the ``run.json`` of a ``bench ablations`` run (drive-nav, seed 3, geometric reasoner)
-as written before ``RunInfo.config`` was typed.
+``tests/data/run.json`` is the ``run.json`` of a ``bench ablations`` run (drive-nav, seed 3, geometric reasoner);
+``tests/data/run-before-explorers.json`` is the same run's as written before explorers had settings sections of
+their own (and before ``RunInfo.config`` was typed).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from drivenav.jsonstream import JsonObject
 from drivenav.settings import load_settings
 
 RUN_JSON = Path(__file__).parent / "data" / "run.json"
+BEFORE_EXPLORERS = Path(__file__).parent / "data" / "run-before-explorers.json"
 
 
 def _written() -> JsonObject:
@@ -34,6 +36,17 @@ def test_a_run_json_written_before_reads_back_to_the_same_file() -> None:
     assert info.world == {"name": "embedded", "scenes": "procedural:3", "seed": 3}
     # written as rundir writes it (sorted keys, two-space indent)
     assert json.dumps(info.to_json(), indent=2, sort_keys=True) + "\n" == RUN_JSON.read_text(encoding="utf-8")
+
+
+def test_a_run_json_from_before_explorers_reads_as_the_same_settings() -> None:
+    """An older drivenav's run directory still reads (report, viz); a resume into it is refused, since its tree
+    is written otherwise."""
+    older = json.loads(BEFORE_EXPLORERS.read_text(encoding="utf-8"))
+    info = RunInfo.from_json(older, BEFORE_EXPLORERS)
+    assert info.config == RunInfo.from_json(_written(), RUN_JSON).config
+    assert "use_reasoner" in older["config"]["agent"] and info.config.explorer.name == "directions"
+    with pytest.raises(InputError, match=r"config\.agent"):
+        info.check_resume(older, BEFORE_EXPLORERS)
 
 
 def test_the_settings_read_back_are_those_the_run_was_started_with() -> None:

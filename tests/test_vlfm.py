@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from agent_scenes import carved_scene, episode_for, t_junction
-from drivenav.agent.drivenav import DriveNavAgent
-from drivenav.agent.state import ValueMemory
+from drivenav.agent.body import ExplorerAgent
+from drivenav.agent.explorers import explorer_entry
+from drivenav.agent.explorers.vlfm.explorer import Ranked, ValueMemory, VlfmExplorer, best_acyclic, kept, rank
 from drivenav.agent.trace import DirectionSelected, ScanStarted
-from drivenav.agent.vlfm import Ranked, best_acyclic, kept, rank
 from drivenav.agents import make_agent
 from drivenav.directions.types import FrontierPath
 from drivenav.envs.embedded.env import EmbeddedEnv
@@ -26,7 +26,7 @@ from drivenav.mapping.types import Frontier
 from drivenav.mapping.value_map import UNSEEN_VALUE, ValueMap, ValueMapConfig
 from drivenav.semantics.protocols import ModelCall
 from drivenav.semantics.registry import make_grounder
-from drivenav.settings import load_settings
+from drivenav.settings import explorer_section, load_settings
 from drivenav.types import SEMANTIC, Action, GroundTruth, Observation, SimConfig
 
 SIM = SimConfig()
@@ -119,12 +119,14 @@ def test_a_cue_seen_in_the_start_scan_steers_the_first_frontier(cue_x: float) ->
     sofa = ObjectInstance(2, "sofa", (cue_x, 12.5), (0.8, 0.4, 0.8))
     scene = carved_scene("test/cue", [(2.0, 11.25, 22.0, 12.75)], [plant, sofa])
     settings = load_settings("vlfm")
-    agent = DriveNavAgent(
+    agent = ExplorerAgent(
         SIM,
         settings.agent,
         settings.paper,
         settings.mapping,
         "vlfm",
+        explorer_entry("vlfm"),
+        explorer_section(settings, "vlfm"),
         grounder_factory=partial(make_grounder, settings.models),
         scorer_factory=partial(_SeesInstance, 2),
         requires=frozenset({SEMANTIC}),
@@ -142,7 +144,7 @@ def test_vlfm_finds_the_target_with_the_embedded_scorer() -> None:
     scene = t_junction(target_on_left=True)
     env = EmbeddedEnv(lambda _: scene, SIM)
     agent = make_agent(load_settings("vlfm"))
-    assert isinstance(agent, DriveNavAgent) and agent.uses_value_map and SEMANTIC in agent.requires
+    assert isinstance(agent, ExplorerAgent) and agent.explorer_type is VlfmExplorer and SEMANTIC in agent.requires
     record, trace = run_episode(env, agent, episode_for(scene, (12.0, 2.5), math.pi / 2, "plant"), 0, SIM.max_steps)
     assert record.success == 1 and record.stop_reason == "target_reached", record
     assert [Action(a) for a in trace.actions[:12]] == [Action.TURN_LEFT] * 12
@@ -154,9 +156,11 @@ def test_vlfm_finds_the_target_with_the_embedded_scorer() -> None:
     assert record.vlm_calls == record.steps
 
 
-def test_a_value_map_needs_the_reasoner_off_and_a_scorer() -> None:
+def test_the_vlfm_explorer_needs_a_scorer_and_the_old_switches_are_gone() -> None:
+    """VLFM is an explorer (``explorer.name=vlfm``), not a switch of DRIVE-Nav's agent: the switches that made it
+    one are refused with one line naming them."""
     with pytest.raises(InputError, match=r"agent\.value_map"):
         make_agent(load_settings("drive-nav", overrides=["agent.value_map=true"]))
     settings = load_settings("vlfm")
     with pytest.raises(ValueError, match="scorer"):
-        DriveNavAgent(SIM, settings.agent, settings.paper, settings.mapping, "vlfm")
+        ExplorerAgent(SIM, settings.agent, settings.paper, settings.mapping, "vlfm", explorer_entry("vlfm"))

@@ -1,7 +1,8 @@
 """Agents by ``--agent`` name, built from the configuration tree (:mod:`drivenav.settings`).
 
 This sits on the floor above the settings: the agent package below knows no settings, only the typed parts it is
-given (the simulator's sensor set-up, the paper's constants of Sec. IV, the agent switches, the mapper tuning).
+given (the simulator's sensor set-up, the paper's constants of Sec. IV, the body's switches, the explorer's
+section, the mapper tuning).
 """
 
 from __future__ import annotations
@@ -11,7 +12,8 @@ from collections.abc import Callable
 from functools import partial
 
 from drivenav.agent.base import Agent
-from drivenav.agent.drivenav import DriveNavAgent
+from drivenav.agent.body import ExplorerAgent, explorer_class
+from drivenav.agent.explorers import explorer_entry
 from drivenav.errors import InputError
 from drivenav.methods import REFERENCE_AGENTS, agent_names, method_named
 from drivenav.semantics.registry import (
@@ -21,32 +23,32 @@ from drivenav.semantics.registry import (
     model_requirements,
     scorer_reads_labels,
 )
-from drivenav.settings import Settings
+from drivenav.settings import Settings, explorer_section
 from drivenav.types import SEMANTIC, SimConfig
 
 
 def make_agent(settings: Settings) -> Agent:
-    """A fresh agent ``settings.run.agent``; DRIVE-Nav variants take the paper's constants, the agent switches,
-    the mapper tuning and the models of ``settings`` (VLFM's value map also the image-text scorer). An unknown name
-    is an :class:`InputError` on ``--agent``; a value map with the reasoner on, one on ``agent.value_map``."""
+    """A fresh agent ``settings.run.agent``: the body with the explorer ``settings.explorer.name`` and its section,
+    the paper's constants, the body's switches, the mapper tuning and the models of ``settings`` (an explorer that
+    scores frames also the image-text scorer). An unknown name is an :class:`InputError` on ``--agent``."""
     name = settings.run.agent
     if name in REFERENCE_AGENTS:
         return reference_agent(name)(settings.sim)
     if method_named(name) is None:
         raise InputError("command line", "--agent", f"one of {', '.join(agent_names())}", name)
-    agent = settings.agent
-    if agent.value_map and agent.use_reasoner:
-        raise InputError("settings", "agent.value_map", "false unless agent.use_reasoner is false (VLFM)", True)
+    entry = explorer_entry(settings.explorer.name)
     models = settings.models
     requires = model_requirements(models)
-    if agent.value_map and scorer_reads_labels(models):
+    if explorer_class(entry).uses_scorer and scorer_reads_labels(models):
         requires |= {SEMANTIC}
-    return DriveNavAgent(
+    return ExplorerAgent(
         settings.sim,
         settings.agent,
         settings.paper,
         settings.mapping,
         name=name,
+        explorer=entry,
+        explorer_config=explorer_section(settings, entry.name),
         reasoner_factory=partial(make_reasoner, models),
         grounder_factory=partial(make_grounder, models),
         requires=requires,

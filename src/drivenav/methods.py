@@ -1,9 +1,13 @@
 """The methods of the paper's tables as presets over the configuration tree: one list, used by the agent registry,
 ``bench ablations`` and the docs.
 
-Each method is a set of dotted overrides of :class:`~drivenav.settings.Settings` on top of the paper's defaults
-(``drive-nav`` is the defaults themselves). "Full Directional Reasoning Pipeline" (Tables V, VI) is DRIVE-Nav
-without prompt enrichment and cross-frame verification.
+Each method is an explorer (``explorer.name``, :mod:`drivenav.agent.explorers`) plus dotted overrides of
+:class:`~drivenav.settings.Settings` on top of the paper's defaults: the body's switches (``agent.enrich``,
+``agent.verify``) and constants. The explorer's entry may set body switches of its own first (VLFM and the greedy
+baseline turn enrichment and verification off); the method's overrides come after. ``drive-nav`` is the defaults
+themselves. "Full Directional Reasoning Pipeline" (Tables V, VI) is DRIVE-Nav without prompt enrichment and
+cross-frame verification. An explorer that another package registers (entry-point group ``drivenav.explorers``)
+is a method of its own name.
 """
 
 from __future__ import annotations
@@ -12,6 +16,8 @@ from dataclasses import dataclass
 from importlib import resources
 from typing import Literal
 
+from drivenav.plugins import plugins_of
+
 PaperTable = Literal["II", "V", "VI"]  # II: analytical comparison; V: directional components; VI: module ablation
 
 _DIRECTIONAL = ("agent.enrich=false", "agent.verify=false")
@@ -19,12 +25,15 @@ _DIRECTIONAL = ("agent.enrich=false", "agent.verify=false")
 
 @dataclass(frozen=True)
 class Method:
-    """One agent variant: its ``--agent`` name, the paper's tables it appears in, what it is, its overrides."""
+    """One agent variant: its ``--agent`` name, the paper's tables it appears in, what it is, its overrides, and the
+    explorer it runs (``plugin``: one another package registers, a method of its own name)."""
 
     name: str
     tables: tuple[PaperTable, ...]
     description: str
     overrides: tuple[str, ...] = ()
+    explorer: str = "directions"
+    plugin: bool = False
 
 
 METHODS: tuple[Method, ...] = (
@@ -32,7 +41,7 @@ METHODS: tuple[Method, ...] = (
         "frontier",
         ("VI",),
         "raw frontiers as candidates (no clustering), a 360 deg scan at every decision",
-        (*_DIRECTIONAL, "paper.directions.cluster_span_deg=0.0", "agent.decision_scan=true"),
+        (*_DIRECTIONAL, "paper.directions.cluster_span_deg=0.0", "explorer.directions.decision_scan=true"),
     ),
     Method(
         "directional",
@@ -58,19 +67,17 @@ METHODS: tuple[Method, ...] = (
         (*_DIRECTIONAL, "paper.inspection.restrict_forward=false"),
     ),
     Method(
-        "direction-360", ("II",), "DRIVE-Nav with a full 360 deg scan at every decision", ("agent.decision_scan=true",)
-    ),
-    Method(
-        "nearest-frontier",
+        "direction-360",
         ("II",),
-        "greedy nearest frontier: no views, no reasoner",
-        ("agent.use_reasoner=false", "agent.enrich=false", "agent.verify=false"),
+        "DRIVE-Nav with a full 360 deg scan at every decision",
+        ("explorer.directions.decision_scan=true",),
     ),
+    Method("nearest-frontier", ("II",), "greedy nearest frontier: no views, no reasoner", explorer="greedy"),
     Method(
         "vlfm",
         ("II",),
         "VLFM (Yokoyama et al. 2024): value map from image-text scores, highest-value frontier",
-        ("agent.use_reasoner=false", "agent.value_map=true", "agent.enrich=false", "agent.verify=false"),
+        explorer="vlfm",
     ),
 )
 """DRIVE-Nav and its baselines / ablations (paper Tables II, V, VI), in the order of the ablation report."""
@@ -86,7 +93,18 @@ loading agent code). A new reference agent is its module and one line here."""
 
 def method_named(name: str) -> Method | None:
     """The method called ``name`` (an ``--agent`` name), or None for a reference agent or an unknown name."""
-    return next((m for m in METHODS if m.name == name), None)
+    return next((m for m in METHODS if m.name == name), None) or _plugin_methods().get(name)
+
+
+def _plugin_methods() -> dict[str, Method]:
+    """The explorers other packages register (by entry-point name, nothing imported), each a method of its own
+    name; a name that a method or reference agent already has stays theirs."""
+    taken = {*ALL_METHODS, *REFERENCE_AGENTS}
+    return {
+        p.name: Method(p.name, (), f"the {p.name} explorer of {p.source}", explorer=p.name, plugin=True)
+        for p in plugins_of("drivenav.explorers")
+        if p.name not in taken
+    }
 
 
 ALL_METHODS = tuple(method.name for method in METHODS)
@@ -96,8 +114,8 @@ PRESETS = "data/configs"  # the --config presets shipped with drivenav, under th
 
 
 def agent_names() -> list[str]:
-    """Every ``--agent`` name: the methods of the paper's tables and the reference agents."""
-    return sorted([*REFERENCE_AGENTS, *ALL_METHODS])
+    """Every ``--agent`` name: the methods of the paper's tables, the reference agents and plug-in explorers."""
+    return sorted([*REFERENCE_AGENTS, *ALL_METHODS, *_plugin_methods()])
 
 
 def preset_names() -> list[str]:

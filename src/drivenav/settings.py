@@ -1,7 +1,8 @@
 """The configuration tree: sensor and body, mapper, the paper's constants, agent switches, models, run.
 
 Built in layers with OmegaConf structured configs (as habitat-lab builds its own): the defaults (every value the
-paper's), then the ``--agent`` method's preset (:mod:`drivenav.methods`), then each ``--config NAME_OR_FILE`` in
+paper's), then the ``--agent`` method's preset (:mod:`drivenav.methods`: its explorer, the body switches the
+explorer's entry sets, then the method's own overrides), then each ``--config NAME_OR_FILE`` in
 order (a preset shipped in ``drivenav/data/configs/`` or a YAML file), then the dedicated command-line options that
 were given (``--seed``, ``--max-steps``, ``--reasoner``, ...), then each ``--set KEY=VALUE`` in order.
 ``drivenav config show`` prints the result; ``run.json`` records it. A wrong key, type or value is one
@@ -12,14 +13,21 @@ them in radians through properties). The step budget is ``sim.max_steps`` (one v
 ``mapping`` holds only the mapper's own tuning (:class:`~drivenav.mapping.config.MapTuning`); depth range, camera
 height, agent radius and grid resolution follow from ``sim`` (:meth:`~drivenav.mapping.config.MappingConfig.from_sim`),
 so the mapper always matches the sensor.
+
+``explorer`` holds ``explorer.name`` (the exploration method, :mod:`drivenav.agent.explorers`) and one section per
+registered explorer (``explorer.directions``, ``explorer.greedy``, ``explorer.vlfm``, and any plug-in's), each its
+entry's config class with the source's constants as defaults. The tree's type is made once per process from the
+registered explorers (:func:`explorer_settings_type`).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import cache
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -29,6 +37,7 @@ from omegaconf import DictConfig, ListConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from drivenav.agent.config import AgentConfig
+from drivenav.agent.explorers import DEFAULT_EXPLORER, EXPLORERS, explorer_entry
 from drivenav.errors import InputError
 from drivenav.jsonstream import JsonObject
 from drivenav.mapping.config import MapTuning
@@ -37,12 +46,15 @@ from drivenav.paper import DriveNavConfig
 from drivenav.semantics.registry import DETECTORS, DTYPES, REASONERS, SCORERS, ModelSpec
 from drivenav.types import SimConfig
 
+log = logging.getLogger(__name__)
+
 YAML_HEADER = """\
 # drivenav configuration: load it back with --config FILE, change one value with --set KEY=VALUE.
 # Units: lengths in metres, angles in degrees (*_deg), sim.max_steps in actions (the step budget).
 # sim: sensor and body (Habitat ObjectNav); mapping: the mapper's tuning (its depth range, camera height,
-# agent radius and grid resolution come from sim); paper: DRIVE-Nav's constants (Sec. IV); agent: the method's
-# switches (Tables II, V, VI); models: reasoner, detector and scorer; run: the agent's name and the run seed.
+# agent radius and grid resolution come from sim); paper: DRIVE-Nav's constants (Sec. IV); agent: the body's
+# switches (Table VI) and tuning; explorer: the exploration method (explorer.name) and each explorer's constants;
+# models: reasoner, detector and scorer; run: the agent's name and the run seed.
 """
 
 
@@ -55,6 +67,43 @@ class RunSettings:
 
 
 @dataclass(frozen=True)
+class ExplorerSettings:
+    """The exploration method an agent runs (``explorer.name``) and, in the type :func:`explorer_settings_type`
+    makes, one section per registered explorer."""
+
+    name: str = DEFAULT_EXPLORER
+
+    def __reduce__(self) -> tuple[Any, tuple[str, dict[str, object]]]:
+        """Rebuilt in another process (worker processes, Ray), where the type is made anew."""
+        sections = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "name"}
+        return _explorer_settings, (self.name, sections)
+
+
+@cache
+def explorer_settings_type() -> type[ExplorerSettings]:
+    """:class:`ExplorerSettings` with a section per registered explorer (made once per process): each its entry's
+    config class with its defaults. A plug-in explorer whose entry cannot be loaded gets no section (one warning
+    line); choosing it is an error."""
+    sections: list[tuple[str, type, Any]] = []
+    for name in EXPLORERS.names:
+        try:
+            config = explorer_entry(name).config
+        except InputError as error:
+            log.warning("drivenav: %s", error)
+            continue
+        sections.append((name, config, field(default_factory=config)))
+    made = dataclasses.make_dataclass("ExplorerSettings", sections, bases=(ExplorerSettings,), frozen=True)
+    made.__module__ = __name__
+    return made
+
+
+def _explorer_settings(name: str = DEFAULT_EXPLORER, sections: Mapping[str, object] | None = None) -> ExplorerSettings:
+    """The ``explorer`` section of the tree: ``name`` and every registered explorer's section (defaults for those
+    not given)."""
+    return explorer_settings_type()(name=name, **(sections or {}))
+
+
+@dataclass(frozen=True)
 class Settings:
     """Everything an evaluation is set up with (the paper's values by default)."""
 
@@ -62,8 +111,16 @@ class Settings:
     mapping: MapTuning = field(default_factory=MapTuning)
     paper: DriveNavConfig = field(default_factory=DriveNavConfig)
     agent: AgentConfig = field(default_factory=AgentConfig)
+    explorer: ExplorerSettings = field(default_factory=_explorer_settings)
     models: ModelSpec = field(default_factory=ModelSpec)
     run: RunSettings = field(default_factory=RunSettings)
+
+
+def explorer_section(settings: Settings, name: str) -> object:
+    """The settings section of the explorer ``name`` (its entry's defaults when the tree has none: a plug-in
+    that could not be loaded when the tree's type was made)."""
+    section = getattr(settings.explorer, name, None) if name != "name" else None
+    return section if section is not None else explorer_entry(name).config()
 
 
 def load_settings(
@@ -113,10 +170,15 @@ def _resolve(tree: DictConfig) -> Settings:
 
 
 def _method_layer(agent: str) -> DictConfig:
+    """The method's explorer, the body switches its explorer's entry sets, then the method's own overrides."""
     if agent not in agent_names():
         raise InputError("command line", "--agent", f"one of {', '.join(agent_names())}", agent)
     method = method_named(agent)
-    return OmegaConf.from_dotlist([*(method.overrides if method else ()), f"run.agent={agent}"])
+    preset: list[str] = []
+    if method is not None:
+        entry = explorer_entry(method.explorer)
+        preset = [f"explorer.name={entry.name}", *entry.body, *method.overrides]
+    return OmegaConf.from_dotlist([*preset, f"run.agent={agent}"])
 
 
 def _config_layer(config: str) -> DictConfig:
@@ -282,6 +344,7 @@ def check_values(settings: Settings) -> None:
         ("models.detector", DETECTORS, "--detector"),
         ("models.scorer", SCORERS, "--scorer"),
         ("models.dtype", DTYPES, "--dtype"),
+        ("explorer.name", EXPLORERS.names, "--set explorer.name=NAME"),
     )
     for key, names, option in choices:
         if leaves[key] not in names:
@@ -298,13 +361,39 @@ def settings_from_dict(tree: JsonObject) -> Settings:
     checks its layers: the tree merged over the defaults, then :func:`check_values`. A wrong key, type or value is
     one :class:`~drivenav.errors.InputError` on the source ``settings`` naming the dotted key."""
     try:
-        layer = OmegaConf.create(tree)
+        layer = OmegaConf.create(_before_explorers(tree))
     except (OmegaConfBaseException, ValueError) as error:
         expected = "settings as 'drivenav config show' prints them"
         raise InputError("settings", "<settings>", expected, str(error)) from None
     settings = _resolve(_merge(_writable(OmegaConf.structured(Settings)), layer, "settings"))
     check_values(settings)
     return settings
+
+
+_LEGACY_AGENT_KEYS = {  # the agent's keys before explorers had sections of their own -> where they went
+    "decision_scan": ("directions",),
+    "reidentify_steps": ("directions",),
+    "min_goal_distance": ("greedy", "vlfm"),
+}
+
+
+def _before_explorers(tree: JsonObject) -> JsonObject:
+    """A tree written before explorers had their own sections (no ``explorer``; ``agent.use_reasoner``,
+    ``agent.value_map``, ``agent.vlfm``, ...: a ``run.json`` of an older drivenav) in today's shape, so that older
+    run directories are still read; any other tree as it is."""
+    agent = tree.get("agent")
+    if "explorer" in tree or not isinstance(agent, dict) or "use_reasoner" not in agent:
+        return tree
+    agent = dict(agent)
+    use_reasoner, value_map = agent.pop("use_reasoner"), agent.pop("value_map", False)
+    name = "directions" if use_reasoner else "vlfm" if value_map else "greedy"
+    sections: dict[str, JsonObject] = {"vlfm": dict(agent.pop("vlfm", {}))}
+    for key, targets in _LEGACY_AGENT_KEYS.items():
+        if key in agent:
+            value = agent.pop(key)
+            for target in targets:
+                sections.setdefault(target, {})[key] = value
+    return {**tree, "agent": agent, "explorer": {"name": name, **sections}}
 
 
 def settings_to_yaml(settings: Settings) -> str:

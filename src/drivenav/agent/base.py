@@ -26,32 +26,33 @@ class ModelStats:
     phrase: str = ""
 
 
-@dataclass(frozen=True)
-class DecisionStats:
-    """How an episode's exploration went (Sec. IV-A b-c): direction labels the tracker created, merged and
-    removed; inspection events; reasoner decisions by trigger (``scan``, ``inspection``, ``vanished``, ``stuck``);
-    decisions at a dead end (no still-relevant direction in the forward 240 deg, so the rear range was offered);
-    how often the followed direction was carried over a relabelling (``followed_through_relabel``) or lost its label
-    with no successor (``selected_lost``); fresh labels recognised as a retired direction (removed, or merged
-    away) back at its place (``labels_reidentified``); steps by activity (``start_scan``, ``scan``, ``sweep``,
-    ``follow``, ``enrich``, ``approach``, ``escape`` for collision recovery, ``stop``) and turn reversals (a left turn
-    right after a right one, or the reverse: oscillation); and what became of target detections (Sec. IV-C):
-    candidates entered into the object map, accepted, and set aside because the agent could not get to them."""
+CounterValue = int | float | dict[str, int]
+"""One counter of an episode: a number, or counts by kind (decisions by trigger, steps by activity)."""
 
-    labels_created: int = 0
-    labels_merged: int = 0
-    labels_removed: int = 0
-    inspection_events: int = 0
-    decisions_by_reason: dict[str, int] = field(default_factory=dict)
-    dead_end_decisions: int = 0
-    followed_through_relabel: int = 0
-    selected_lost: int = 0
-    labels_reidentified: int = 0
+
+@dataclass(frozen=True)
+class BodyStats:
+    """What the body did in an episode, for every exploration method: steps by activity (``start_scan``, ``scan``,
+    ``sweep``, ``follow``, ``enrich``, ``approach``, ``escape`` for collision recovery, ``stop``: the explorer names
+    its own activities, the body adds ``approach``, ``escape`` and ``stop``) and turn reversals (a left turn right
+    after a right one, or the reverse: oscillation); and what became of target detections (Sec. IV-C): candidates
+    entered into the object map, accepted, and set aside because the agent could not get to them."""
+
     steps_by_activity: dict[str, int] = field(default_factory=dict)
     turn_reversals: int = 0
     target_candidates: int = 0
     targets_accepted: int = 0
     targets_set_aside: int = 0
+
+
+@dataclass(frozen=True)
+class ExplorerStats:
+    """The exploration method's own counters in an episode: its explorer's name (``explorer.name``) and the counters
+    it keeps (:meth:`~drivenav.agent.explorer.Explorer.counters`, e.g. DRIVE-Nav's labels, inspection events and
+    decisions by trigger)."""
+
+    name: str
+    counters: dict[str, CounterValue] = field(default_factory=dict)
 
 
 class Agent(ABC):
@@ -101,9 +102,13 @@ class Agent(ABC):
         """Model calls by kind, enrichment and verification of this episode (none for model-free agents)."""
         return ModelStats()
 
-    def decision_stats(self) -> DecisionStats:
-        """Labels, inspection events, decisions and steps by activity of this episode (none for other agents)."""
-        return DecisionStats()
+    def body_stats(self) -> BodyStats:
+        """Steps by activity and target detections of this episode (none for agents without the body)."""
+        return BodyStats()
+
+    def explorer_stats(self) -> ExplorerStats | None:
+        """The exploration method's name and counters of this episode (None for agents without an explorer)."""
+        return None
 
     def start_segment(self, step: int) -> None:
         """Mark that a new frontier-selection segment begins at ``step`` (paper Sec. V-C revisits)."""

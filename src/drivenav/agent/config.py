@@ -1,13 +1,15 @@
-"""The agent's own settings: the switches that compose DRIVE-Nav and its baselines, and the tuning the paper does
-not give (the paper's constants are :class:`~drivenav.paper.DriveNavConfig`). Plain frozen dataclasses, so the
-settings layer reads them without importing the agent (VLFM's constants come from the value map's module, which
-needs only numpy and the grid)."""
+"""The agent body's own settings and how an exploration method registers itself: plain frozen dataclasses, so the
+settings layer reads them without importing agent behaviour.
+
+The body (:mod:`drivenav.agent.body`) does what every method shares -- mapping, grounding with enrichment and
+cross-frame verification where switched on, the approach and STOP, collision recovery, segments -- with the tuning
+of :class:`AgentConfig`; the paper's constants are :class:`~drivenav.paper.DriveNavConfig` beside it. Where to
+explore next is an *explorer*'s (:mod:`drivenav.agent.explorer`), registered by an :class:`ExplorerEntry`.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-
-from drivenav.mapping.value_map import ValueMapConfig
 
 
 @dataclass(frozen=True)
@@ -23,22 +25,34 @@ class PlannerConfig:
 
 @dataclass(frozen=True)
 class AgentConfig:
-    """Switches composing DRIVE-Nav and its baselines (paper Tables II, V, VI), and the agent's own tuning (ours:
-    the paper does not give these); the paper's constants are a :class:`~drivenav.paper.DriveNavConfig` beside
-    them. ``value_map`` makes the ``use_reasoner=False`` baseline VLFM (``vlfm``), whose constants are ``vlfm``."""
+    """The body's switches (paper Table VI: ``enrich``, ``verify``) and its own tuning (ours: the paper does not give
+    these); the paper's constants are a :class:`~drivenav.paper.DriveNavConfig` beside them and the exploration
+    method's are its explorer's section (``explorer.<name>``)."""
 
-    use_reasoner: bool = True  # False: greedy nearest frontier, no views, no reasoner
-    value_map: bool = False  # with use_reasoner False: VLFM's value map and highest-value frontier (agent/vlfm.py)
     enrich: bool = True  # prompt enrichment (Sec. IV-B)
     verify: bool = True  # cross-frame verification (Sec. IV-C)
-    decision_scan: bool = False  # True: a full 360 deg scan at every decision point
     stop_distance: float = 0.9  # metres from the target's nearest observed point within which to STOP ...
     # ... once the target is in the current frame (goal view points are positions that see the object).
     give_up_distance: float = 1.0  # a stuck approach this close to the target still STOPs
-    blacklist_steps: int = 40  # steps a direction (or greedy goal) that could not be followed is left out
-    min_goal_distance: float = 1.0  # greedy baseline: frontier points nearer than this (metres) are not goals
+    blacklist_steps: int = 40  # steps a direction, frontier goal or target that could not be reached is left out
     replan_shift: float = 0.3  # metres the approach goal may move before this step's path is re-planned
-    reidentify_steps: int = 500  # steps a removed direction is remembered, to recognise it under a fresh label
     approach_detour_steps: int = 60  # steps an approach may go through frontiers before the target is set aside
     planner: PlannerConfig = field(default_factory=PlannerConfig)
-    vlfm: ValueMapConfig = field(default_factory=ValueMapConfig)  # VLFM's constants (Yokoyama et al., ICRA 2024)
+
+
+@dataclass(frozen=True)
+class ExplorerEntry:
+    """An exploration method's registration (the object an entry point of group ``drivenav.explorers`` names).
+
+    ``name`` is its settings section (``explorer.<name>``) and the value of ``explorer.name`` that picks it;
+    ``config`` the frozen dataclass of that section, whose defaults are the method's source's constants;
+    ``explorer`` the ``module:Class`` of its :class:`~drivenav.agent.explorer.Explorer`, imported when an agent is
+    built; ``body`` the dotted overrides of the body's switches its method preset sets (``agent.enrich=false``).
+    A plug-in explorer is also an ``--agent`` name: its own method, ``explorer.name=<name>`` plus ``body``.
+    """
+
+    name: str
+    config: type
+    explorer: str
+    description: str
+    body: tuple[str, ...] = ()

@@ -276,16 +276,24 @@ def _decisions(methods: Methods) -> list[str]:
         "",
         "Means per episode (reasoner calls: median and mean). Decisions by trigger: the start scan (and every "
         "decision of the 360 deg scanning methods), an inspection event, the followed direction gone, the "
-        "planner stuck; a dead end offers the rear range because no direction is left in the forward 240 deg.",
+        "planner stuck; a dead end offers the rear range because no direction is left in the forward 240 deg. "
+        "`-`: the method's explorer keeps no such counter.",
         "",
         "| method | reasoner calls (median / mean) | " + " | ".join(name for _, name in DECISION_COLUMNS) + " |",
         "|---|---|" + "---|" * len(DECISION_COLUMNS),
     ]
     for name, entry in methods.items():
         calls = f"{_number(entry.median_vlm_calls, '{:g}')} / {_number(entry.vlm_calls, '{:.1f}')}"
-        cells = " | ".join(f"{entry.decisions.get(key, 0.0):.2f}" for key, _ in DECISION_COLUMNS)
+        cells = " | ".join(_counter(entry.decisions, key) for key, _ in DECISION_COLUMNS)
         lines.append(f"| `{name}` | {calls} | {cells} |")
     return lines
+
+
+def _counter(means: dict[str, float], key: str) -> str:
+    """A counter's mean; ``-`` where the explorer keeps no such counter (``decisions.scan``: none of its kind is
+    ``decisions``)."""
+    kept = key.split(".")[0] in means
+    return f"{means.get(key, 0.0):.2f}" if kept else "-"
 
 
 def _steps(methods: Methods) -> list[str]:

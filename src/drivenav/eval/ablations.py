@@ -11,13 +11,12 @@ passes :func:`drivenav.viz.run_pictures.render_pictures`): eval draws nothing it
 from __future__ import annotations
 
 import json
-from collections import Counter
+from collections import Counter, defaultdict
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Protocol
 
-from drivenav.agent.base import DecisionStats
 from drivenav.episode import Episode
 from drivenav.errors import InputError
 from drivenav.eval.ablation_data import (
@@ -136,16 +135,21 @@ def missed_counts(records: list[EpisodeRecord]) -> dict[str, int]:
 
 
 def decision_means(records: list[EpisodeRecord]) -> dict[str, float]:
-    """Per-episode means of the decision counters (:class:`~drivenav.agent.base.DecisionStats`); decisions and
-    steps broken down by reason and activity under ``decisions.REASON`` and ``steps.ACTIVITY``."""
-    started = [r.decisions for r in records if not r.is_error] or [DecisionStats()]
-    totals: Counter[str] = Counter()
-    for stats in started:
-        totals.update({k: v for k, v in asdict(stats).items() if isinstance(v, int)})
-        totals.update({f"decisions.{k}": v for k, v in stats.decisions_by_reason.items()})
-        totals.update({f"steps.{k}": v for k, v in stats.steps_by_activity.items()})
-        totals["decisions"] += sum(stats.decisions_by_reason.values())
-    return {key: round(value / len(started), 3) for key, value in sorted(totals.items())}
+    """Per-episode means of the body's counters (:class:`~drivenav.agent.base.BodyStats`) and the explorer's
+    (:class:`~drivenav.agent.base.ExplorerStats`); counts by kind under ``NAME.KIND`` with their sum under ``NAME``
+    (``decisions.scan``, ``decisions``), and steps by activity under ``steps.ACTIVITY``."""
+    started = [r for r in records if not r.is_error]
+    totals: defaultdict[str, float] = defaultdict(float)
+    for record in started:
+        body = record.body
+        for key, count in [*asdict(body).items(), *((f"steps.{k}", v) for k, v in body.steps_by_activity.items())]:
+            if isinstance(count, int):
+                totals[key] += count
+        for name, value in (record.explorer.counters if record.explorer else {}).items():
+            for key, count in value.items() if isinstance(value, dict) else ():
+                totals[f"{name}.{key}"] += count
+            totals[name] += sum(value.values()) if isinstance(value, dict) else value
+    return {key: round(value / max(len(started), 1), 3) for key, value in sorted(totals.items())}
 
 
 def _spls_by_episode(records: list[EpisodeRecord]) -> list[float]:

@@ -3,12 +3,16 @@
 Every key of the results contract (``episode_id``, ``scene_id``, ``object_category``, ``success``, ``spl``, ``steps``,
 ``path_length``, ``geodesic_distance``, ``distance_to_goal``, ``revisits``, ``collisions``, ``stop_reason``,
 ``vlm_calls``) keeps its name. The world's measures may be ``None`` (a robot has no ground truth: they are
-``null``, never 0). The agent's model statistics (:class:`~drivenav.agent.base.ModelStats`) and decision counters
-(:class:`~drivenav.agent.base.DecisionStats`) are written flat, beside the other keys; ``retraced_revisits`` and
+``null``, never 0). The agent's model statistics (:class:`~drivenav.agent.base.ModelStats`) and the body's counters
+(:class:`~drivenav.agent.base.BodyStats`: steps by activity, turn reversals, target detections) are written flat,
+beside the other keys; the exploration method's counters under ``explorer`` (``{"name": ..., "counters": {...}}``,
+:class:`~drivenav.agent.base.ExplorerStats`; ``null`` for an agent without an explorer); ``retraced_revisits`` and
 ``retraced_m`` are the segmentation-free revisit count (:func:`drivenav.metrics.retraced`); ``trace`` names the
 episode's trace file in the run directory ("" when it could not be written). ``schema_version`` 1 is the untyped
-record written before it existed, 2 the record before the decision counters, 3 the record before ``trace``: all read
-the same. Every value is checked against its field's type when read (``success: "yes"`` names the line and field).
+record written before it existed, 2 the record before the decision counters, 3 the record before ``trace``, 4 the
+record before ``explorer``, whose DRIVE-Nav counters were flat beside the others: all read the same (the flat
+counters of a record before 5 become its explorer's, the explorer named by the record's method). Every value is
+checked against its field's type when read (``success: "yes"`` names the line and field).
 """
 
 from __future__ import annotations
@@ -17,15 +21,27 @@ import json
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
-from drivenav.agent.base import DecisionStats, ModelStats
+from drivenav.agent.base import BodyStats, CounterValue, ExplorerStats, ModelStats
 from drivenav.errors import InputError
 from drivenav.jsonstream import JsonObject
+from drivenav.methods import REFERENCE_AGENTS, method_named
 
-SCHEMA_VERSION = 4
+SCHEMA_VERSION = 5
 ERROR = "error"  # the stop reason and failure cause of an episode that an exception ended
 
-_STATS_KEYS = tuple(f.name for f in fields(ModelStats))
-_DECISION_KEYS = tuple(f.name for f in fields(DecisionStats))
+LEGACY_EXPLORER_KEYS = (
+    "labels_created",
+    "labels_merged",
+    "labels_removed",
+    "inspection_events",
+    "decisions_by_reason",
+    "dead_end_decisions",
+    "followed_through_relabel",
+    "selected_lost",
+    "labels_reidentified",
+)
+"""The DRIVE-Nav counters a record before schema 5 kept flat beside the others (``decisions_by_reason`` is now
+the explorer's ``decisions``)."""
 
 
 @dataclass(frozen=True)
@@ -54,7 +70,8 @@ class EpisodeRecord:
     error: str = ""
     privileged: tuple[str, ...] = ()
     stats: ModelStats = field(default_factory=ModelStats)
-    decisions: DecisionStats = field(default_factory=DecisionStats)
+    body: BodyStats = field(default_factory=BodyStats)
+    explorer: ExplorerStats | None = None
     trace: str = ""
     schema_version: int = SCHEMA_VERSION
 
@@ -63,11 +80,11 @@ class EpisodeRecord:
         return self.stop_reason == ERROR
 
     def to_json(self) -> JsonObject:
-        """The JSON object written to ``episodes.jsonl`` (model statistics and decision counters flat beside the
-        other keys)."""
+        """The JSON object written to ``episodes.jsonl`` (model statistics and the body's counters flat beside the
+        other keys, the explorer's under ``explorer``)."""
         data = asdict(self)
         data.update(data.pop("stats"))
-        data.update(data.pop("decisions"))
+        data.update(data.pop("body"))
         data["privileged"] = list(self.privileged)
         return data
 
@@ -78,16 +95,52 @@ class EpisodeRecord:
         if not isinstance(data, dict):
             raise InputError(source, "record", "a JSON object", type(data).__name__)
         stats = ModelStats(**_typed(ModelStats, data, source))
-        decisions = DecisionStats(**_typed(DecisionStats, data, source))
+        body = BodyStats(**_typed(BodyStats, data, source))
+        explorer = _explorer(data, source)
         data = {**data, "privileged": data.get("privileged", [])}
-        values = _typed(EpisodeRecord, data, source, skip=frozenset({"stats", "decisions"}))
+        values = _typed(EpisodeRecord, data, source, skip=frozenset({"stats", "body", "explorer"}))
         values["privileged"] = tuple(values["privileged"])
         values.setdefault("schema_version", 1)
         values.setdefault("canonical_category", data.get("object_category", ""))
         try:
-            return EpisodeRecord(**values, stats=stats, decisions=decisions)
+            return EpisodeRecord(**values, stats=stats, body=body, explorer=explorer)
         except TypeError as error:
             raise InputError(source, "record", "the keys of an episode record", str(error)) from None
+
+
+def _explorer(data: JsonObject, source: str | Path) -> ExplorerStats | None:
+    """The record's explorer and its counters; a record before schema 5 had its DRIVE-Nav counters flat, and its
+    explorer is its method's (none for a reference agent)."""
+    if "explorer" in data:
+        return _explorer_object(data["explorer"], source)
+    agent = data.get("agent")
+    if not isinstance(agent, str) or agent in REFERENCE_AGENTS:
+        return None
+    method = method_named(agent)
+    legacy = {key: data[key] for key in LEGACY_EXPLORER_KEYS if key in data}
+    if "decisions_by_reason" in legacy:
+        legacy["decisions"] = legacy.pop("decisions_by_reason")
+    return _explorer_object({"name": method.explorer if method else "directions", "counters": legacy}, source)
+
+
+def _explorer_object(value: object, source: str | Path) -> ExplorerStats | None:
+    """``{"name": str, "counters": {name: number or {kind: count}}}``, or null."""
+    if value is None:
+        return None
+    if not isinstance(value, dict) or not isinstance(value.get("name"), str):
+        raise InputError(source, "record.explorer", '{"name": the explorer, "counters": {...}} or null', value)
+    counters = value.get("counters", {})
+    if not (isinstance(counters, dict) and all(_is_counter(v) for v in counters.values())):
+        expected = "a mapping of counter names to numbers or to {kind: count}"
+        raise InputError(source, "record.explorer.counters", expected, counters)
+    typed: dict[str, CounterValue] = dict(counters)
+    return ExplorerStats(value["name"], typed)
+
+
+def _is_counter(value: object) -> bool:
+    if isinstance(value, dict):
+        return all(isinstance(k, str) and _fits(v, "int") for k, v in value.items())
+    return _fits(value, "int") or _fits(value, "float")
 
 
 _SCALARS: dict[str, tuple[type, ...]] = {"str": (str,), "int": (int,), "bool": (bool,), "float": (int, float)}
@@ -157,12 +210,12 @@ def missed_cause(record: EpisodeRecord) -> str:
     (Sec. IV-C): the detector never produced a candidate; verification rejected every candidate; candidates were
     still pending at the end; the agent could not get to one and set it aside; or one was accepted but not
     reached in the step budget."""
-    decisions = record.decisions
-    if decisions.target_candidates == 0:
+    body = record.body
+    if body.target_candidates == 0:
         return "never_detected"
-    if decisions.targets_set_aside:
+    if body.targets_set_aside:
         return "set_aside_unreachable"
-    if decisions.targets_accepted:
+    if body.targets_accepted:
         return "accepted_not_reached"
     if record.stats.verifications.get("rejected", 0):
         return "rejected_by_verification"

@@ -23,7 +23,7 @@ from tqdm import tqdm
 from tqdm.contrib.logging import logging_redirect_tqdm
 
 from drivenav import metrics
-from drivenav.agent.base import Agent, DecisionStats, ModelStats
+from drivenav.agent.base import Agent, BodyStats, ModelStats
 from drivenav.agents import make_agent
 from drivenav.envs.base import Env, EnvSpec, EpisodeMeasures
 from drivenav.episode import Episode
@@ -191,7 +191,8 @@ def _record(
         failure_cause=failure_cause(measures.success, stop_reason, measures.target_seen),
         privileged=tuple(sorted(agent.requires)),
         stats=stats,
-        decisions=agent.decision_stats() if path.positions else DecisionStats(),
+        body=agent.body_stats() if path.positions else BodyStats(),
+        explorer=agent.explorer_stats(),
     )
 
 

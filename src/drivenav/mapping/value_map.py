@@ -52,7 +52,7 @@ all >= 0."""
 @dataclass(frozen=True)
 class ValueMapConfig:
     """VLFM's constants (bdaiinstitute/vlfm): the value map's and those of its frontier choice
-    (:mod:`drivenav.agent.vlfm`)."""
+    (:mod:`drivenav.agent.explorers.vlfm.explorer`)."""
 
     min_confidence: float = 0.25  # value_map.py ValueMap._min_confidence: the confidence at the FOV's edge
     decision_threshold: float = 0.35  # value_map.py ValueMap._decision_threshold: weaker new data is dropped ...

@@ -5,30 +5,29 @@ starts the approach, otherwise the direction is followed. Each direction is enri
 
 from __future__ import annotations
 
+from drivenav.agent.approach import track_target
 from drivenav.agent.context import StepContext
+from drivenav.agent.explorers.directions.memory import Directions, Phase
 from drivenav.agent.loop import Loop
-from drivenav.agent.modes.approach import track_target
-from drivenav.agent.state import Mode
 from drivenav.grid import wrap_angle
 from drivenav.inspection import turn_toward
 from drivenav.semantics.protocols import View
 from drivenav.types import Action, Observation
 
 
-def act(loop: Loop, observation: Observation, ctx: StepContext) -> Action:
+def act(d: Directions, loop: Loop, observation: Observation, ctx: StepContext) -> Action:
     """Face the direction whose view shows the target, then run prompt enrichment on that frame."""
-    state = loop.state
-    direction = ctx.directions.get(state.enrich_label) if state.enrich_label is not None else None
+    direction = ctx.directions.get(d.enrich_label) if d.enrich_label is not None else None
     if direction is None:  # the direction is gone: follow
-        state.mode = Mode.FOLLOW
+        d.enter(loop, Phase.FOLLOW)
         return loop.policy(observation, ctx)
     action = turn_toward(ctx.pose.yaw, direction.bearing, loop.tuning.turn)
     if action is not None:
         return action
     error = abs(wrap_angle(ctx.pose.yaw - direction.bearing))
     view = View(direction.label, observation.rgb, observation.semantic, ctx.pose, direction.bearing, error, loop.step)
-    state.enriched.add(direction.label)
-    state.search.enrich(observation, view, state.descriptions.get(direction.label, ""), loop.trace)
-    state.mode = Mode.FOLLOW
+    d.enriched.add(direction.label)
+    loop.state.search.enrich(observation, view, d.descriptions.get(direction.label, ""), loop.trace)
+    d.enter(loop, Phase.FOLLOW)
     track_target(loop)
     return loop.policy(observation, ctx)

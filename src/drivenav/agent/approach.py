@@ -4,7 +4,7 @@ within ``stop_distance`` once it is accepted and in view.
 While no mapped free cell leads to the target yet, the robot drives through the frontier nearest to it (a target
 seen beyond the mapped space); a target it cannot get to is set aside for a while, never rejected (only
 verification rejects). :func:`track_target` switches the loop into and out of this mode as candidates appear,
-are accepted or go.
+are accepted or go. The approach is the body's: every exploration method shares it.
 """
 
 from __future__ import annotations
@@ -13,7 +13,6 @@ import math
 
 from drivenav.agent.context import Point, Polyline, StepContext, replan
 from drivenav.agent.loop import Loop
-from drivenav.agent.state import Mode
 from drivenav.inspection import turn_toward
 from drivenav.mapping.objects import ObjectCandidate, nearest_point
 from drivenav.types import Action, Observation
@@ -37,14 +36,15 @@ def track_target(loop: Loop) -> None:
     state = loop.state
     current = state.search.current()
     if state.target is not None and (current is None or current.candidate_id != state.target):
-        state.target, state.goal = None, None  # back to the followed direction (a decision if it is gone)
-        state.mode = Mode.FOLLOW
+        state.target, state.goal = None, None  # back to exploring, from where the explorer left off
+        state.approaching = False
+        loop.explorer.resume(loop)
         state.planner.reset()
         loop.start_segment()
     if current is not None and state.target is None:
         state.target = current.candidate_id
         state.detour_steps = 0
-        state.mode = Mode.APPROACH
+        state.approaching = True
         state.planner.reset()
         loop.start_segment()
 

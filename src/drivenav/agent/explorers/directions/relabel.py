@@ -10,47 +10,45 @@ over its frontiers.
 from __future__ import annotations
 
 from drivenav.agent.context import StepContext
+from drivenav.agent.explorers.directions.memory import Directions
 from drivenav.agent.loop import Loop
 from drivenav.directions import Direction
 from drivenav.directions.tracking import waypoints_coincide
 
 
-def carry_over(loop: Loop, ctx: StepContext) -> None:
+def carry_over(d: Directions, loop: Loop, ctx: StepContext) -> None:
     """Count this step's label changes and carry inspected state, views and the followed direction over them."""
-    state, update = loop.state, ctx.result.tracking
-    counts = state.counts
+    update, counts = ctx.result.tracking, d.counts
     counts.labels_created += len(update.created)
     counts.labels_merged += len(update.merged)
     counts.labels_removed += len(update.removed)
     for child, parents in update.merged.items():
-        relabel(loop, child, parents, ctx.directions[child].bearing)
+        relabel(d, child, parents, ctx.directions[child].bearing)
     retired = [label for parents in update.merged.values() for label in parents]
-    _remember_retired(loop, (*update.removed, *retired))
+    _remember_retired(d, loop, (*update.removed, *retired))
     for label in update.created:
-        _reidentify(loop, ctx.directions[label])
-    if state.selected is not None and state.selected not in ctx.directions:
-        _follow_successor(loop, ctx)
-    state.followed = ctx.directions.get(state.selected) if state.selected is not None else None
-    state.previous = ctx.directions
+        _reidentify(d, loop, ctx.directions[label])
+    if d.selected is not None and d.selected not in ctx.directions:
+        _follow_successor(d, loop, ctx)
+    d.followed = ctx.directions.get(d.selected) if d.selected is not None else None
+    d.previous = ctx.directions
 
 
-def relabel(loop: Loop, label: int, parents: tuple[int, ...], bearing: float) -> None:
+def relabel(d: Directions, label: int, parents: tuple[int, ...], bearing: float) -> None:
     """``label`` takes over from ``parents``: inspected if one of them was, and their view facing it best."""
-    state = loop.state
-    if state.inspected.intersection(parents):
-        state.inspected.add(label)
-    state.views.inherit(label, parents, bearing)
+    if d.inspected.intersection(parents):
+        d.inspected.add(label)
+    d.views.inherit(label, parents, bearing)
 
 
-def _remember_retired(loop: Loop, removed: tuple[int, ...]) -> None:
+def _remember_retired(d: Directions, loop: Loop, removed: tuple[int, ...]) -> None:
     """Keep the directions retired within ``reidentify_steps``, with this step's newly retired ones."""
-    state = loop.state
-    horizon = loop.step - loop.tuning.config.reidentify_steps
-    state.gone = {label: gone for label, gone in state.gone.items() if gone[1] >= horizon}
-    state.gone.update({label: (state.previous[label], loop.step) for label in removed if label in state.previous})
+    horizon = loop.step - d.config.reidentify_steps
+    d.gone = {label: gone for label, gone in d.gone.items() if gone[1] >= horizon}
+    d.gone.update({label: (d.previous[label], loop.step) for label in removed if label in d.previous})
 
 
-def _reidentify(loop: Loop, direction: Direction) -> None:
+def _reidentify(d: Directions, loop: Loop, direction: Direction) -> None:
     """A fresh label at the place of a direction whose label was retired earlier (removed, or merged into
     another) is that direction again, no newly revealed one: it keeps its inspected state and view. (Without
     this, a cluster flickering between one and two directions started an inspection event at every split.) A
@@ -58,37 +56,36 @@ def _reidentify(loop: Loop, direction: Direction) -> None:
     tolerance = loop.tuning.paper.directions.merge_tolerance
     former = tuple(
         label
-        for label, (gone, _) in loop.state.gone.items()
+        for label, (gone, _) in d.gone.items()
         if waypoints_coincide(direction.waypoints, gone.waypoints, tolerance)
     )
     if former:
-        loop.state.counts.labels_reidentified += 1
-        relabel(loop, direction.label, former, direction.bearing)
+        d.counts.labels_reidentified += 1
+        relabel(d, direction.label, former, direction.bearing)
 
 
-def _follow_successor(loop: Loop, ctx: StepContext) -> None:
+def _follow_successor(d: Directions, loop: Loop, ctx: StepContext) -> None:
     """The followed direction lost its label: follow its successor, or nothing (a decision follows)."""
-    state = loop.state
-    successor = _successor(loop, ctx)
+    successor = _successor(d, loop, ctx)
     if successor is None:
-        state.counts.selected_lost += 1
-        state.selected = None
+        d.counts.selected_lost += 1
+        d.selected = None
         return
-    assert state.selected is not None
-    state.counts.followed_through_relabel += 1
-    relabel(loop, successor.label, (state.selected,), successor.bearing)
-    state.selected = successor.label
+    assert d.selected is not None
+    d.counts.followed_through_relabel += 1
+    relabel(d, successor.label, (d.selected,), successor.bearing)
+    d.selected = successor.label
 
 
-def _successor(loop: Loop, ctx: StepContext) -> Direction | None:
+def _successor(d: Directions, loop: Loop, ctx: StepContext) -> Direction | None:
     """The direction that took over the followed one's frontiers under a fresh label, if any."""
-    state, update = loop.state, ctx.result.tracking
-    merged = [child for child, parents in update.merged.items() if state.selected in parents]
+    update = ctx.result.tracking
+    merged = [child for child, parents in update.merged.items() if d.selected in parents]
     if merged:
         return ctx.directions[merged[0]]
-    if state.followed is None:
+    if d.followed is None:
         return None
     tolerance = loop.tuning.paper.directions.merge_tolerance
     fresh = [ctx.directions[label] for label in update.created]
-    same = [d for d in fresh if waypoints_coincide(d.waypoints, state.followed.waypoints, tolerance)]
+    same = [x for x in fresh if waypoints_coincide(x.waypoints, d.followed.waypoints, tolerance)]
     return same[0] if same else None

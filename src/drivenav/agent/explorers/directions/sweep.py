@@ -10,46 +10,45 @@ starts a full 360 deg scan instead.
 from __future__ import annotations
 
 from drivenav.agent.context import StepContext
-from drivenav.agent.decision import decide
+from drivenav.agent.explorers.directions.decision import decide
+from drivenav.agent.explorers.directions.memory import Directions, Phase
+from drivenav.agent.explorers.directions.scan import start as start_scan
 from drivenav.agent.loop import Loop
-from drivenav.agent.modes.scan import start as start_scan
-from drivenav.agent.state import Mode
 from drivenav.agent.trace import InspectionStarted
 from drivenav.inspection import needs_inspection, plan_sweep, turn_toward
 from drivenav.types import Action, Observation
 
 
-def act(loop: Loop, observation: Observation, ctx: StepContext) -> Action:
+def act(d: Directions, loop: Loop, observation: Observation, ctx: StepContext) -> Action:
     """Turn toward the next yaw of the sweep; once every yaw is faced, decide."""
-    action = _continue_sweep(loop, ctx.pose.yaw)
-    return action if action is not None else decide(loop, observation, ctx, "inspection")
+    action = _continue_sweep(d, loop, ctx.pose.yaw)
+    return action if action is not None else decide(d, loop, observation, ctx, "inspection")
 
 
-def inspection_event(loop: Loop, ctx: StepContext) -> bool:
+def inspection_event(d: Directions, loop: Loop, ctx: StepContext) -> bool:
     """Start an inspection event if new forward directions lack views; True if rotation starts."""
-    state = loop.state
     fresh = [
-        d
-        for d in needs_inspection(ctx.result.directions, state.views, ctx.pose.yaw, loop.tuning.paper.inspection)
-        if d.label not in state.inspected
+        direction
+        for direction in needs_inspection(ctx.result.directions, d.views, ctx.pose.yaw, loop.tuning.paper.inspection)
+        if direction.label not in d.inspected
     ]
     if not fresh:
         return False
-    state.inspected.update(ctx.directions)
-    state.event_heading = ctx.pose.yaw
-    state.counts.inspection_events += 1
-    if loop.tuning.config.decision_scan:
-        start_scan(loop)
+    d.inspected.update(ctx.directions)
+    d.event_heading = ctx.pose.yaw
+    d.counts.inspection_events += 1
+    if d.config.decision_scan:
+        start_scan(d, loop)
         return True
-    state.pending_yaws = plan_sweep(ctx.pose.yaw, [d.bearing for d in fresh], loop.tuning.turn)
-    loop.trace.add(InspectionStarted(loop.step, tuple(d.label for d in fresh), tuple(state.pending_yaws)))
-    state.mode = Mode.SWEEP
+    d.pending_yaws = plan_sweep(ctx.pose.yaw, [direction.bearing for direction in fresh], loop.tuning.turn)
+    loop.trace.add(InspectionStarted(loop.step, tuple(x.label for x in fresh), tuple(d.pending_yaws)))
+    d.enter(loop, Phase.SWEEP)
     return True
 
 
-def _continue_sweep(loop: Loop, yaw: float) -> Action | None:
+def _continue_sweep(d: Directions, loop: Loop, yaw: float) -> Action | None:
     """The turn toward the first yaw not yet faced, or None when the sweep is done."""
-    pending = loop.state.pending_yaws
+    pending = d.pending_yaws
     while pending:
         action = turn_toward(yaw, pending[0], loop.tuning.turn)
         if action is not None:

@@ -1,0 +1,230 @@
+"""The agent body every exploration method shares (paper Sec. IV overview), and the agent it makes with an explorer.
+
+Each step: depth + pose update the maps; one weighted-FMM solve of the directions pipeline turns the frontiers into
+tracked directions and gives every frontier's path and the path to the current goal (Sec. IV-A a-b); the explorer
+reads what it needs of the frame (:meth:`~drivenav.agent.explorer.Explorer.observe`: DRIVE-Nav's representative
+views, VLFM's value map); the target search grounds the target (Sec. IV-B, IV-C). Then the body's approach drives
+to a target candidate, verifying it on the way, and STOPs (:mod:`~drivenav.agent.approach`); otherwise the explorer
+decides where to explore next (:meth:`~drivenav.agent.explorer.Explorer.act`). Collision recovery is the local
+planner's; segments (the revisit metric) are marked by both.
+
+What the body does is switched by :class:`~drivenav.agent.config.AgentConfig` (``enrich``, ``verify``, Table VI);
+the method's exploration by its explorer (``explorer.name``, :mod:`drivenav.agent.explorers`). An episode's state
+is one :class:`~drivenav.agent.state.BodyState` and one explorer, made by :meth:`ExplorerAgent.reset` and dropped
+by :meth:`ExplorerAgent.end_episode`.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+from drivenav.agent import approach
+from drivenav.agent.base import Agent, BodyStats, ExplorerStats, ModelStats
+from drivenav.agent.config import AgentConfig, ExplorerEntry
+from drivenav.agent.context import StepContext, perceive
+from drivenav.agent.explorer import Explorer, ExplorerSetup, counter_values
+from drivenav.agent.explorers import DEFAULT_EXPLORER, explorer_entry
+from drivenav.agent.loop import Loop, Tuning
+from drivenav.agent.planner import LocalPlanner
+from drivenav.agent.state import BodyState
+from drivenav.agent.target import SearchConfig, TargetSearch
+from drivenav.directions import DirectionPipeline
+from drivenav.errors import InputError
+from drivenav.mapping.config import MappingConfig, MapTuning
+from drivenav.mapping.occupancy import OccupancyMapper
+from drivenav.paper import DriveNavConfig
+from drivenav.plugins import load_object
+from drivenav.semantics.geometric import GeometricReasoner
+from drivenav.semantics.ground_truth import GroundTruthGrounder
+from drivenav.semantics.protocols import Grounder, ImageTextScorer, ModelCall, Reasoner
+from drivenav.types import SEMANTIC, Action, GroundTruth, Observation, SimConfig
+
+
+def explorer_class(entry: ExplorerEntry) -> type[Explorer]:
+    """The :class:`~drivenav.agent.explorer.Explorer` an entry names, imported now; one that cannot be imported or
+    is no explorer is one :class:`~drivenav.errors.InputError` line naming the entry."""
+    expected = f"the Explorer class {entry.explorer!r} of explorer {entry.name}"
+    try:
+        found = load_object(entry.explorer)
+    except Exception as error:
+        raise InputError(f"explorer {entry.name}", "explorer", expected, f"{type(error).__name__}: {error}") from None
+    if not (isinstance(found, type) and issubclass(found, Explorer)):
+        raise InputError(f"explorer {entry.name}", "explorer", expected, found)
+    return found
+
+
+class ExplorerAgent(Agent):
+    """The body with an explorer: DRIVE-Nav (``drive-nav``), its baselines, VLFM and any registered method."""
+
+    def __init__(
+        self,
+        sim: SimConfig,
+        config: AgentConfig | None = None,
+        paper: DriveNavConfig | None = None,
+        mapping: MapTuning | None = None,
+        name: str = "drive-nav",
+        explorer: ExplorerEntry | None = None,
+        explorer_config: object | None = None,
+        reasoner_factory: Callable[[], Reasoner] = GeometricReasoner,
+        grounder_factory: Callable[[], Grounder] = GroundTruthGrounder,
+        requires: frozenset[str] = frozenset({SEMANTIC}),
+        scorer_factory: Callable[[], ImageTextScorer] | None = None,
+    ) -> None:
+        super().__init__(sim)
+        self.requires = requires  # what the models read of the world's ground truth (the default grounder: labels)
+        self.name = name
+        self.config = config or AgentConfig()
+        self.paper = paper or DriveNavConfig()
+        self.mapping = mapping or MapTuning()
+        self.tuning = Tuning(sim, self.config, self.paper)
+        self.explorer_entry = explorer or explorer_entry(DEFAULT_EXPLORER)
+        self.explorer_config = explorer_config if explorer_config is not None else self.explorer_entry.config()
+        self.explorer_type = explorer_class(self.explorer_entry)
+        if self.explorer_type.uses_scorer and scorer_factory is None:
+            raise ValueError(f"{name}: the {self.explorer_entry.name} explorer needs an image-text scorer")
+        self._reasoner_factory = reasoner_factory
+        self._grounder_factory = grounder_factory
+        self._scorer_factory = scorer_factory
+        self._grounder: Grounder | None = None  # built at the first episode and kept: weights load once
+        self._scorer: ImageTextScorer | None = None  # likewise
+        self.state: BodyState | None = None  # the running episode's state (none between episodes)
+        self.explorer: Explorer | None = None  # the running episode's explorer
+
+    # ----------------------------------------------------------------- episode set-up
+
+    def reset(self, goal_text: str, seed: int, truth: GroundTruth | None = None) -> None:
+        super().reset(goal_text, seed, truth)
+        self.state = self._begin(goal_text, seed, truth)
+        self.explorer = self.explorer_type(self._explorer_setup(goal_text, truth, self.state.mapper))
+        self.explorer.begin(self.loop())
+
+    def _begin(self, goal_text: str, seed: int, truth: GroundTruth | None) -> BodyState:
+        """A new episode: empty maps, a fresh planner, the models begun on the goal.
+
+        The grounder (SAM3, OWLv2: gigabytes of weights) is built at the first episode and begun anew at each; the
+        reasoner (a client or a stand-in) is built per episode."""
+        mapper = OccupancyMapper(MappingConfig.from_sim(self.sim, self.mapping))
+        pipeline = DirectionPipeline(self.paper)
+        planner = LocalPlanner.from_config(self.sim, self.config.planner)
+        reasoner = self._reasoner_factory()
+        reasoner.begin_episode(goal_text, truth)
+        if self._grounder is None:
+            self._grounder = self._grounder_factory()
+        grounder = self._grounder
+        grounder.begin_episode(truth, seed)
+        search = self._target_search(goal_text, grounder, reasoner)
+        return BodyState(mapper, pipeline, planner, reasoner, search)
+
+    def _explorer_setup(self, goal_text: str, truth: GroundTruth | None, mapper: OccupancyMapper) -> ExplorerSetup:
+        """What the explorer is made from; the image-text scorer (BLIP-2: gigabytes) is built at the first episode
+        of an explorer that uses one, and kept."""
+        if self.explorer_type.uses_scorer and self._scorer is None and self._scorer_factory is not None:
+            self._scorer = self._scorer_factory()
+        scorer = self._scorer if self.explorer_type.uses_scorer else None
+        return ExplorerSetup(self.explorer_config, self.tuning, goal_text, truth, mapper, scorer)
+
+    def _target_search(self, goal_text: str, grounder: Grounder, reasoner: Reasoner) -> TargetSearch:
+        """Grounding, prompt enrichment and cross-frame verification as switched on, with the paper's rounds,
+        frames and frame spacing (Sec. IV-B, IV-C)."""
+        semantics = self.paper.semantics
+        config = SearchConfig(
+            self.config.enrich,
+            self.config.verify,
+            semantics.enrich_rounds,
+            semantics.verify_frames,
+            semantics.verify_spacing_steps,
+        )
+        search = TargetSearch(self.sim, config, grounder, reasoner)
+        search.begin(goal_text)
+        return search
+
+    def end_episode(self) -> None:
+        """Drop the episode: its maps, directions pipeline and the explorer's memory (tens of MB on a large floor
+        plan) go before the next scene loads, not after (worker memory). Safe before any :meth:`reset` (a world
+        that failed to reset the worker's first episode)."""
+        super().end_episode()
+        self.state = None
+        self.explorer = None
+
+    def loop(self) -> Loop:
+        """What the approach and the explorer work with this step: this agent, its tuning, the episode."""
+        if self.state is None or self.explorer is None:
+            raise RuntimeError(f"{self.name}: no episode is running (reset the agent first)")
+        return Loop(self, self.tuning, self.state, self.explorer, approach.act)
+
+    # ----------------------------------------------------------------- what the episode cost and did
+
+    def _calls(self) -> list[ModelCall]:
+        """This episode's model calls: the reasoner's and the explorer's (VLFM's scorer: kind ``score``)."""
+        if self.state is None or self.explorer is None:
+            return []
+        return [*self.state.reasoner.calls, *self.explorer.model_calls()]
+
+    @property
+    def model_calls(self) -> int:
+        return len(self._calls())
+
+    def episode_stats(self) -> ModelStats:
+        if self.state is None:
+            return super().episode_stats()
+        calls, search = self._calls(), self.state.search
+        kinds = sorted({c.kind for c in calls})
+        return ModelStats(
+            vlm_calls_by_kind={k: sum(c.kind == k for c in calls) for k in kinds},
+            vlm_latency_ms={k: round(sum(c.latency_ms for c in calls if c.kind == k), 2) for k in kinds},
+            vlm_fallbacks=sum(c.outcome == "fallback" for c in calls),
+            enrich_rounds=search.enrich_rounds,
+            verifications={k: search.verifications.get(k, 0) for k in ("accepted", "rejected", "uncertain")},
+            phrase=search.phrase,
+        )
+
+    def body_stats(self) -> BodyStats:
+        if self.state is None:
+            return super().body_stats()
+        return self.state.counts.freeze(*self.state.search.outcome())
+
+    def explorer_stats(self) -> ExplorerStats | None:
+        if self.explorer is None:
+            return ExplorerStats(self.explorer_entry.name)
+        return ExplorerStats(self.explorer_entry.name, counter_values(self.explorer.counters()))
+
+    # ----------------------------------------------------------------- one step
+
+    def decide(self, observation: Observation) -> Action:
+        """Perceive (maps, directions, the explorer's reading, grounding), then approach or explore; time each
+        part."""
+        loop = self.loop()
+        state = loop.state
+        timings: dict[str, float] = {}
+        start = time.perf_counter()
+        ctx = self._map(state, observation, timings)
+        loop.explorer.observe(loop, observation, ctx, timings)
+        mark = time.perf_counter()
+        state.search.observe(observation, self.trace)
+        approach.track_target(loop)
+        timings["grounding"] = _ms_since(mark)
+        mark = time.perf_counter()
+        action = loop.policy(observation, ctx)
+        state.counts.count_step(action, state.activity(action) or loop.explorer.activity(state.planner.escaping))
+        timings["policy"] = _ms_since(mark)
+        timings["total"] = _ms_since(start)
+        self.step_timings.append(timings)
+        return action
+
+    def _map(self, state: BodyState, observation: Observation, timings: dict[str, float]) -> StepContext:
+        """Update the maps with the frame (and a robot's LiDAR, Sec. V-E) and solve for this step's directions."""
+        start = time.perf_counter()
+        mapper = state.mapper
+        mapper.update(observation.depth, observation.intrinsics, observation.pose)
+        if observation.occupancy is not None and mapper.config.fuse_lidar:
+            mapper.fuse_occupancy(observation.occupancy)
+        snapshot, frontiers = mapper.snapshot(), mapper.frontiers()
+        timings["mapping"] = _ms_since(start)
+        ctx = perceive(state.pipeline, observation.pose, snapshot, frontiers, state.goal)
+        timings.update({f"directions.{k}": v for k, v in ctx.result.timings_ms.items()})
+        return ctx
+
+
+def _ms_since(start: float) -> float:
+    return (time.perf_counter() - start) * 1000.0

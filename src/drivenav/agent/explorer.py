@@ -1,0 +1,94 @@
+"""Explorers: where an object-navigation method explores next, on the one agent body (:mod:`drivenav.agent.body`).
+
+The body does what every method shares: the maps, the directions pipeline's weighted-FMM solve (every frontier's
+path), the target search (grounding, prompt enrichment and cross-frame verification as switched on), the approach
+and STOP, collision recovery in the planner, and segments. An :class:`Explorer` is one episode's exploration: made
+at reset from its settings section (:class:`ExplorerSetup`), it is its own per-episode memory and is dropped with
+the episode. Each step the body calls :meth:`Explorer.observe` after mapping (what the method reads of the frame:
+representative views, a value map) and, unless the approach acts, :meth:`Explorer.act`.
+
+An explorer is registered by an :class:`~drivenav.agent.config.ExplorerEntry` under the entry-point group
+``drivenav.explorers`` (:mod:`drivenav.agent.explorers`); docs/extending.md walks through a new one.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import asdict, dataclass, is_dataclass
+from typing import TYPE_CHECKING, ClassVar
+
+from drivenav.agent.base import CounterValue
+from drivenav.types import Action, GroundTruth, Observation
+
+if TYPE_CHECKING:
+    from drivenav.agent.context import StepContext
+    from drivenav.agent.loop import Loop, Tuning
+    from drivenav.mapping.occupancy import OccupancyMapper
+    from drivenav.semantics.protocols import ImageTextScorer, ModelCall
+
+
+@dataclass(frozen=True)
+class ExplorerSetup:
+    """What an explorer is made from at an episode's start: its settings section (``config``, an instance of its
+    entry's config class), the agent's tuning, the episode's goal text and ground truth (for stand-in models), the
+    mapper (its grid) and, for an explorer that scores frames (:attr:`Explorer.uses_scorer`), the worker's
+    image-text scorer, built once per worker."""
+
+    config: object
+    tuning: Tuning
+    goal_text: str
+    truth: GroundTruth | None
+    mapper: OccupancyMapper
+    scorer: ImageTextScorer | None = None
+
+
+class Explorer(ABC):
+    """One episode's exploration: its memory and its step hooks."""
+
+    uses_scorer: ClassVar[bool] = False
+    """Whether the explorer scores frames with the image-text scorer (``models.scorer``)."""
+
+    @abstractmethod
+    def __init__(self, setup: ExplorerSetup) -> None:
+        """The episode's exploration begins: empty memory, made from ``setup`` (its section is ``setup.config``)."""
+
+    def begin(self, loop: Loop) -> None:
+        """The episode starts (after the body's reset): record the explorer's first events (none by default)."""
+        return None
+
+    def observe(self, loop: Loop, observation: Observation, ctx: StepContext, timings: dict[str, float]) -> None:
+        """What the explorer reads of this step's frame and solve, before the target search and the policy (its
+        parts timed into ``timings``, in ms); nothing by default."""
+        return None
+
+    @abstractmethod
+    def act(self, loop: Loop, observation: Observation, ctx: StepContext) -> Action:
+        """The next action toward where to explore, when the approach does not act (STOP through
+        :meth:`~drivenav.agent.loop.Loop.stop` when nothing is left to explore)."""
+
+    def resume(self, loop: Loop) -> None:
+        """The approach gave its target up: exploring goes on from where the explorer left off (nothing to do by
+        default)."""
+        return None
+
+    @abstractmethod
+    def activity(self, escaping: bool) -> str:
+        """The name of the explorer's mode for the steps-by-activity counter (``escaping``: the planner is
+        recovering from a collision)."""
+
+    def counters(self) -> object:
+        """The explorer's counters of the episode (a dataclass of numbers and counts by kind), for its record."""
+        return None
+
+    def model_calls(self) -> list[ModelCall]:
+        """The model calls the explorer made this episode beyond the body's reasoner (e.g. the scorer's)."""
+        return []
+
+
+def counter_values(counters: object) -> dict[str, CounterValue]:
+    """An explorer's :meth:`~Explorer.counters` as the record's mapping (dataclass fields in order)."""
+    if counters is None:
+        return {}
+    if not is_dataclass(counters) or isinstance(counters, type):
+        raise TypeError(f"explorer counters must be a dataclass instance, got {type(counters).__name__}")
+    return dict(asdict(counters))

@@ -1,0 +1,24 @@
+"""DRIVE-Nav's explorer (paper Sec. IV-A): its settings section ``explorer.directions`` and its registration."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from drivenav.agent.config import ExplorerEntry
+
+
+@dataclass(frozen=True)
+class DirectionsConfig:
+    """The directions explorer's switches and tuning; the paper's constants it reads are ``paper.directions`` and
+    ``paper.inspection`` (:class:`~drivenav.paper.DriveNavConfig`)."""
+
+    decision_scan: bool = False  # True: a full 360 deg scan at every decision point (Table II: direction-360)
+    reidentify_steps: int = 500  # ours: steps a removed direction is remembered, to recognise it under a fresh label
+
+
+EXPLORER = ExplorerEntry(
+    "directions",
+    DirectionsConfig,
+    "drivenav.agent.explorers.directions.explorer:DirectionsExplorer",
+    "DRIVE-Nav: persistent directions, inspection events, one reasoner decision among the forward directions",
+)

@@ -1,0 +1,110 @@
+"""What DRIVE-Nav's explorer remembers in one episode (paper Sec. IV-A b-c), and its counters.
+
+:class:`Phase` names the explorer's modes (Sec. IV overview): the start scan, the inspection sweep, following a
+direction and prompt enrichment; the body's approach is the fifth. :class:`Directions` is the explorer's memory,
+which the mode modules (:mod:`~drivenav.agent.explorers.directions.scan` and its siblings) share.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass, field
+from enum import Enum
+
+from drivenav.agent.explorers.directions.config import DirectionsConfig
+from drivenav.agent.loop import Loop
+from drivenav.directions import Direction
+from drivenav.inspection import RepresentativeViews
+
+
+class Phase(Enum):
+    """The explorer's mode; its value names the steps spent in it (``steps_by_activity``)."""
+
+    SCAN = "scan"
+    SWEEP = "sweep"
+    FOLLOW = "follow"
+    ENRICH = "enrich"
+
+
+@dataclass(frozen=True)
+class DirectionCounters:
+    """How an episode's exploration went (Sec. IV-A b-c): direction labels the tracker created, merged and removed;
+    inspection events; reasoner decisions by trigger (``scan``, ``inspection``, ``vanished``, ``stuck``); decisions
+    at a dead end (no still-relevant direction in the forward 240 deg, so the rear range was offered); how often the
+    followed direction was carried over a relabelling (``followed_through_relabel``) or lost its label with no
+    successor (``selected_lost``); fresh labels recognised as a retired direction (removed, or merged away) back at
+    its place (``labels_reidentified``)."""
+
+    labels_created: int = 0
+    labels_merged: int = 0
+    labels_removed: int = 0
+    inspection_events: int = 0
+    decisions: dict[str, int] = field(default_factory=dict)
+    dead_end_decisions: int = 0
+    followed_through_relabel: int = 0
+    selected_lost: int = 0
+    labels_reidentified: int = 0
+
+
+@dataclass
+class DirectionTally:
+    """The episode's :class:`DirectionCounters`, while it runs."""
+
+    labels_created: int = 0
+    labels_merged: int = 0
+    labels_removed: int = 0
+    inspection_events: int = 0
+    decisions: Counter[str] = field(default_factory=Counter)
+    dead_end_decisions: int = 0
+    followed_through_relabel: int = 0
+    selected_lost: int = 0
+    labels_reidentified: int = 0
+
+    def freeze(self) -> DirectionCounters:
+        values = {name: getattr(self, name) for name in DirectionCounters.__dataclass_fields__}
+        return DirectionCounters(**{**values, "decisions": dict(sorted(self.decisions.items()))})
+
+
+@dataclass
+class Directions:
+    """One episode's directions, views and decision state.
+
+    ``scan_turns`` are the start scan's turns left; ``inspected`` holds the labels an inspection event or decision
+    has already covered, ``blacklist`` the directions that could not be followed (label -> step until which they are
+    left out), ``selected`` the direction followed and ``followed`` that direction as of the previous step;
+    ``previous`` holds the previous step's directions and ``gone`` the retired ones with the step they went (Sec.
+    IV-A b). ``event_heading`` is the heading when the current inspection event began (Sec. IV-A c).
+    ``descriptions`` and ``enriched`` are the reasoner's words on each direction and the directions enrichment has
+    run on (Sec. IV-B). ``counts`` are the episode's counters.
+    """
+
+    config: DirectionsConfig
+    views: RepresentativeViews
+    scan_turns: int
+    phase: Phase = Phase.SCAN
+    pending_yaws: list[float] = field(default_factory=list)
+    inspected: set[int] = field(default_factory=set)
+    blacklist: dict[int, int] = field(default_factory=dict)
+    descriptions: dict[int, str] = field(default_factory=dict)
+    enriched: set[int] = field(default_factory=set)
+    enrich_label: int | None = None
+    selected: int | None = None
+    followed: Direction | None = None
+    previous: dict[int, Direction] = field(default_factory=dict)
+    gone: dict[int, tuple[Direction, int]] = field(default_factory=dict)
+    event_heading: float = 0.0
+    counts: DirectionTally = field(default_factory=DirectionTally)
+
+    def enter(self, loop: Loop, phase: Phase) -> None:
+        """Switch to ``phase``: the explorer acts from now on (an approach under way gives way to it)."""
+        self.phase = phase
+        loop.explore()
+
+    def activity(self, escaping: bool) -> str:
+        """The steps-by-activity name of the current mode: ``start_scan`` for the scan before the first decision,
+        ``escape`` for collision recovery while following."""
+        if self.phase is Phase.FOLLOW and escaping:
+            return "escape"
+        if self.phase is Phase.SCAN:
+            return "scan" if self.counts.decisions else "start_scan"
+        return str(self.phase.value)

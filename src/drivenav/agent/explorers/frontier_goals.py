@@ -1,0 +1,69 @@
+"""Driving to a chosen frontier point, as the frontier-choosing explorers do (the greedy baseline, VLFM): the
+planner's step along the weighted-FMM path to the frontier point, goals the planner could not reach skipped for a
+while, and a new segment (revisit metric, Sec. V-C) when the explorer switches to a different frontier, not when
+its frontier recedes."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from drivenav.agent.context import Point, StepContext
+from drivenav.agent.loop import Loop
+from drivenav.directions.tracking import waypoints_coincide
+from drivenav.directions.types import FrontierPath
+from drivenav.inspection import turn_toward
+from drivenav.types import Action, Observation
+
+
+@dataclass
+class FrontierGoals:
+    """An episode's frontier goals: the goals the planner could not reach, each with the step until which it is
+    skipped (``agent.blacklist_steps``), the cells of the frontier headed for, and how many goals were skipped.
+    ``min_goal_distance``: a new choice considers frontier points at least this far (metres; all if none is)."""
+
+    min_goal_distance: float
+    failed_goals: list[tuple[Point, int]] = field(default_factory=list)
+    goal_frontier: NDArray[np.float64] = field(default_factory=lambda: np.empty((0, 2)))
+    skipped: int = 0
+
+    def open_paths(self, loop: Loop, ctx: StepContext) -> list[FrontierPath]:
+        """This step's frontier paths, less those ending near a goal that failed within ``blacklist_steps``."""
+        reach = self.min_goal_distance
+        self.failed_goals = [(g, until) for g, until in self.failed_goals if until >= loop.step]
+        return [
+            p
+            for p in ctx.result.paths.values()
+            if not any(math.dist(p.target, g) < reach for g, _ in self.failed_goals)
+        ]
+
+    def far_enough(self, paths: list[FrontierPath]) -> list[FrontierPath]:
+        """The paths at least ``min_goal_distance`` long (all of them if none is): the goals a new choice considers."""
+        return [p for p in paths if p.travel_time >= self.min_goal_distance] or paths
+
+    def drive(self, loop: Loop, observation: Observation, ctx: StepContext, chosen: FrontierPath) -> Action:
+        """The planner's next step along ``chosen``'s path to its frontier point; a goal it cannot reach is skipped
+        for ``blacklist_steps`` (the goal is cleared) and the robot turns toward its bearing meanwhile."""
+        state = loop.state
+        state.goal = chosen.target
+        action = state.planner.act(chosen.path, ctx.pose, observation.collided, ctx.free)
+        if action is not None:
+            return action
+        self.failed_goals.append((chosen.target, loop.step + loop.tuning.config.blacklist_steps))
+        self.skipped += 1
+        state.goal = None
+        return turn_toward(ctx.pose.yaw, chosen.bearing, loop.tuning.turn) or Action.TURN_LEFT
+
+    def switch_frontier(self, loop: Loop, ctx: StepContext, frontier_id: int) -> bool:
+        """A new goal starts a segment unless it lies on the frontier headed for so far (the same frontier, receded
+        by at most one forward step beyond the merge tolerance); True when it started one."""
+        points = next(f.points for f in ctx.frontiers if f.frontier_id == frontier_id)
+        tolerance = loop.tuning.paper.directions.merge_tolerance + loop.tuning.sim.forward_step
+        switched = not waypoints_coincide(points, self.goal_frontier, tolerance)
+        if switched:
+            loop.start_segment()
+        self.goal_frontier = points
+        return switched

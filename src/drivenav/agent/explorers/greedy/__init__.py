@@ -1,0 +1,1 @@
+"""The greedy nearest-frontier explorer (paper Table II): :mod:`~drivenav.agent.explorers.greedy.explorer`."""

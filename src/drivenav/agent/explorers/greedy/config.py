@@ -1,0 +1,24 @@
+"""The greedy nearest-frontier explorer (paper Table II's greedy baseline): its settings section
+``explorer.greedy`` and its registration."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from drivenav.agent.config import ExplorerEntry
+
+
+@dataclass(frozen=True)
+class GreedyConfig:
+    """The greedy baseline's tuning (ours: the paper does not give it)."""
+
+    min_goal_distance: float = 1.0  # metres: frontier points nearer than this are not goals (all are if none is)
+
+
+EXPLORER = ExplorerEntry(
+    "greedy",
+    GreedyConfig,
+    "drivenav.agent.explorers.greedy.explorer:GreedyExplorer",
+    "the nearest frontier point by weighted-FMM travel time, kept until explored (no views, no reasoner)",
+    ("agent.enrich=false", "agent.verify=false"),
+)

@@ -1,0 +1,91 @@
+"""The greedy frontier baseline (``nearest-frontier``, ``explorer.name=greedy``; paper Table II): no views, no
+reasoner while it explores.
+
+It heads for the nearest frontier point -- least weighted-FMM travel time, at least ``min_goal_distance`` away --
+and keeps it until it is explored or cannot be reached; a goal the planner cannot reach is skipped for
+``blacklist_steps`` (:class:`~drivenav.agent.explorers.frontier_goals.FrontierGoals`). A new segment (revisit
+metric, Sec. V-C) starts when it switches to a different frontier, not when its frontier recedes.
+
+It opens like DRIVE-Nav: the 360 deg start scan, then one reasoner decision among the directions (with no views)
+whose first step it takes, and whose frontier point is its first goal (DRIVE-Nav's modes,
+:mod:`drivenav.agent.explorers.directions`, on a memory of its own). The target approach and the stops are the
+body's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from drivenav.agent.context import StepContext
+from drivenav.agent.explorer import Explorer, ExplorerSetup
+from drivenav.agent.explorers.directions.config import DirectionsConfig
+from drivenav.agent.explorers.directions.explorer import MODES, begin_directions
+from drivenav.agent.explorers.directions.memory import Phase
+from drivenav.agent.explorers.frontier_goals import FrontierGoals
+from drivenav.agent.explorers.greedy.config import GreedyConfig
+from drivenav.agent.loop import Loop
+from drivenav.agent.trace import ScanStarted
+from drivenav.directions.types import FrontierPath
+from drivenav.types import Action, Observation
+
+
+@dataclass(frozen=True)
+class GreedyCounters:
+    """The greedy baseline's episode: its opening decision (``decisions``, by trigger) and the frontier goals it
+    skipped because the planner could not reach them."""
+
+    decisions: dict[str, int] = field(default_factory=dict)
+    goals_skipped: int = 0
+
+
+class GreedyExplorer(Explorer):
+    """The nearest frontier (module docstring)."""
+
+    def __init__(self, setup: ExplorerSetup) -> None:
+        if not isinstance(setup.config, GreedyConfig):
+            raise TypeError(f"the greedy explorer takes a GreedyConfig, not {type(setup.config).__name__}")
+        self.opening = begin_directions(setup, DirectionsConfig())
+        self.goals = FrontierGoals(setup.config.min_goal_distance)
+
+    def begin(self, loop: Loop) -> None:
+        loop.trace.add(ScanStarted(0, self.opening.scan_turns))
+
+    def act(self, loop: Loop, observation: Observation, ctx: StepContext) -> Action:
+        """The opening's scan and decision, then the next step toward the nearest frontier point; STOP when no
+        frontier is left to go to."""
+        if self.opening.phase is not Phase.FOLLOW:
+            return MODES[self.opening.phase](self.opening, loop, observation, ctx)
+        paths = self.goals.open_paths(loop, ctx)
+        if not paths:
+            return loop.stop("no_frontier")
+        chosen = self._keep_goal(loop, paths)
+        if chosen is None:
+            chosen = self._new_goal(loop, ctx, paths)
+        return self.goals.drive(loop, observation, ctx, chosen)
+
+    def resume(self, loop: Loop) -> None:
+        self.opening.enter(loop, Phase.FOLLOW)
+
+    def activity(self, escaping: bool) -> str:
+        return self.opening.activity(escaping)
+
+    def counters(self) -> GreedyCounters:
+        decisions = dict(sorted(self.opening.counts.decisions.items()))
+        return GreedyCounters(decisions, self.goals.skipped)
+
+    def _keep_goal(self, loop: Loop, paths: list[FrontierPath]) -> FrontierPath | None:
+        """The path to the frontier point nearest the current goal, if one lies within the merge tolerance."""
+        goal = loop.state.goal
+        if goal is None:
+            return None
+        tolerance = loop.tuning.paper.directions.merge_tolerance
+        current = [p for p in paths if math.dist(p.target, goal) <= tolerance]
+        return min(current, key=lambda p: math.dist(p.target, goal)) if current else None
+
+    def _new_goal(self, loop: Loop, ctx: StepContext, paths: list[FrontierPath]) -> FrontierPath:
+        """The nearest frontier point at least ``min_goal_distance`` away (the nearest of all if none is)."""
+        chosen = min(self.goals.far_enough(paths), key=lambda p: p.travel_time)
+        self.goals.switch_frontier(loop, ctx, chosen.frontier_id)
+        loop.state.planner.reset()
+        return chosen
