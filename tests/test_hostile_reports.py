@@ -208,6 +208,10 @@ def test_a_resume_never_writes_through_a_link_out_of_the_run(finished: Path, tmp
     with pytest.raises(InputError, match=r"\.lock.*a link out of it"):
         evaluate(_episodes(), _spec(), run, show_progress=False)
     assert secret_file.read_bytes() == intact
+    (run / LOCK_FILE).unlink()
+    (run / "summary.json.tmp").symlink_to(secret_file)  # a temporary file left as a link
+    evaluate(_episodes(), _spec(), run, show_progress=False)
+    assert secret_file.read_bytes() == intact and json.loads((run / "summary.json").read_text())["episodes"] == 3
 
 
 # ------------------------------------------------------------------------- one site folder per run, owned files

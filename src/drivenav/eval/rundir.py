@@ -93,7 +93,10 @@ def inside(root: Path, name: str | Path) -> Path | None:
 
 
 def write_json_atomic(path: Path, payload: Any) -> None:
+    """Write ``payload`` to a fresh temporary file (one left there, a link included, is removed first: nothing is
+    written through it) and rename it over ``path``."""
     tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.unlink(missing_ok=True)
     tmp.write_text(json.dumps(payload, indent=2, sort_keys=True) + "\n", encoding="utf-8")
     os.replace(tmp, path)
 

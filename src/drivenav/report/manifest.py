@@ -12,12 +12,11 @@ of the site is refused, and nothing outside the folder is ever removed or writte
 from __future__ import annotations
 
 import json
-import os
 from collections.abc import Collection
 from pathlib import Path, PurePosixPath
 
 from drivenav.errors import InputError
-from drivenav.eval.rundir import inside
+from drivenav.eval.rundir import inside, write_json_atomic
 
 MANIFEST = "drivenav-report.json"
 FORMAT = 1  # the manifest's own format
@@ -73,13 +72,9 @@ def _plain(entry: object) -> bool:
 
 
 def _write(out: Path, files: Collection[str]) -> None:
-    """Write the manifest (to a fresh temporary file, then renamed over the old one: no link is followed)."""
+    """Write the manifest (a fresh file renamed over the old one: no link is followed)."""
     out.mkdir(parents=True, exist_ok=True)
-    path = out / MANIFEST
-    temporary = path.with_name(f"{MANIFEST}.tmp")
-    temporary.unlink(missing_ok=True)
-    temporary.write_text(json.dumps({"format": FORMAT, "files": sorted(files)}, indent=1) + "\n", encoding="utf-8")
-    os.replace(temporary, path)
+    write_json_atomic(out / MANIFEST, {"format": FORMAT, "files": sorted(files)})
 
 
 def _remove(out: Path, name: str) -> None:
