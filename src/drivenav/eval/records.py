@@ -8,16 +8,20 @@ Every key of the results contract (``episode_id``, ``scene_id``, ``object_catego
 ``retraced_m`` are the segmentation-free revisit count (:func:`drivenav.metrics.retraced`); ``trace`` names the
 episode's trace file in the run directory ("" when it could not be written). ``schema_version`` 1 is the untyped
 record written before it existed, 2 the record before the decision counters, 3 the record before ``trace``: all read
-the same. Every value is checked against its field's type when read (``success: "yes"`` names the line and field).
+the same. Every value is checked against its field's type and range when read, by every reader (a resume, ``compare``,
+``report``, ``viz``): ``success`` is 0, 1 or null, ``spl`` lies in [0, 1], and every other number (steps, distances,
+counts, latencies) is finite and >= 0 (``success: "yes"``, ``spl: 55.5`` or ``steps: -40`` names the line and field).
 """
 
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 from drivenav.agent.base import DecisionStats, ModelStats
+from drivenav.envs.base import EpisodeMeasures
 from drivenav.errors import InputError
 from drivenav.jsonstream import JsonObject
 
@@ -100,10 +104,42 @@ def _typed(kind: type, data: JsonObject, source: str | Path, skip: frozenset[str
         if item.name in skip or item.name not in data:
             continue
         annotation = str(item.type)
-        if not _has_type(data[item.name], annotation):
-            raise InputError(source, f"record.{item.name}", annotation, data[item.name])
-        values[item.name] = data[item.name]
+        value = data[item.name]
+        if not _has_type(value, annotation):
+            raise InputError(source, f"record.{item.name}", annotation, value)
+        expected = _out_of_range(item.name, value)
+        if expected:
+            raise InputError(source, f"record.{item.name}", expected, value)
+        values[item.name] = value
     return values
+
+
+_BOUNDED = {"success": "0, 1 or null", "spl": "a number in [0, 1] or null"}
+"""What the bounded fields expect; every other number of a record (steps, distances, counts, latencies) is finite
+and >= 0."""
+NON_NEGATIVE = "a finite number >= 0"
+
+
+def _out_of_range(name: str, value: object) -> str:
+    """What the field ``name`` expects when ``value`` (of its type) lies out of its range, else "" (NaN is in no
+    range)."""
+    numbers = _numbers(value)
+    if name == "success":
+        fits = all(number in (0, 1) for number in numbers)
+    elif name == "spl":
+        fits = all(0 <= number <= 1 for number in numbers)
+    else:
+        fits = all((isinstance(number, int) or math.isfinite(number)) and number >= 0 for number in numbers)
+    return "" if fits else _BOUNDED.get(name, NON_NEGATIVE)
+
+
+def _numbers(value: object) -> list[int | float]:
+    """The numbers in a record's value (itself, or a dictionary's values; booleans are no numbers)."""
+    if isinstance(value, dict):
+        return [number for item in value.values() for number in _numbers(item)]
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return [value]
+    return []
 
 
 def _has_type(value: object, annotation: str) -> bool:
@@ -123,6 +159,21 @@ def _fits(value: object, option: str) -> bool:
     if option not in _SCALARS or (isinstance(value, bool) and option != "bool"):
         return False
     return isinstance(value, _SCALARS[option])
+
+
+def checked_measures(measures: EpisodeMeasures) -> EpisodeMeasures:
+    """A world's measures, when each fits its record field's type and range; else a :class:`ValueError` naming it
+    (the episode then ends in an error: no record that the readers refuse is ever written, e.g. from a robot
+    reporting ``success: 7``)."""
+    annotations = {item.name: str(item.type) for item in fields(EpisodeRecord)}
+    for item in fields(EpisodeMeasures):
+        value, annotation = getattr(measures, item.name), annotations.get(item.name)
+        if annotation is None:
+            continue  # not recorded (target_seen)
+        expected = _out_of_range(item.name, value) if _has_type(value, annotation) else annotation
+        if expected:
+            raise ValueError(f"the world measured {item.name} = {value!r}; expected {expected}")
+    return measures
 
 
 def failure_cause(success: int | None, stop_reason: str, target_seen: bool | None) -> str:
