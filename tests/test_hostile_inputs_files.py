@@ -78,6 +78,11 @@ def test_a_habitat_split_file_copied_alone(tmp_path: Path, capsys: pytest.Captur
     _refused_file(capsys, tmp_path, payload, "'episodes'", "split file", "--env habitat")
 
 
+def test_an_hm3d_ovon_split_file_copied_alone(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    payload = {"goals_by_category": {}, "episodes": []}  # as HM3D-OVON's released split files are
+    _refused_file(capsys, tmp_path, payload, "'episodes'", "split file", "--env habitat")
+
+
 def test_a_view_point_off_the_navigable_area(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     episode = _episodes(1)[0]
     episode["goals"][0]["view_points"][0]["agent_state"]["position"] = [-50.0, 0.0, 50.0]

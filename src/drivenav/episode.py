@@ -19,6 +19,8 @@ from drivenav.validation import Fields
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
+DEFAULT_SCENE_DATASET = "default"  # habitat-lab's Episode.scene_dataset_config when a file names none
+CHILDREN = "children_object_categories"
 
 
 def world_to_habitat(x: float, y: float, height: float = 0.0) -> Vec3:
@@ -46,11 +48,16 @@ def quaternion_to_yaw(q: Quat | list[float]) -> float:
 
 @dataclass(frozen=True)
 class ViewPoint:
-    """A navigable position within 1.0 m of a goal object from which it is visible (Habitat view point)."""
+    """A navigable position within 1.0 m of a goal object from which it is visible (Habitat view point).
+
+    ``radius`` is HM3D-OVON's: the distance from the object at which its generator sampled the pose (metres), kept
+    as a file gives it; ``None`` where a file has none (drivenav's own episodes, ObjectNav v1).
+    """
 
     position: Vec3
     rotation: Quat
     iou: float = 1.0
+    radius: float | None = None
 
     @property
     def xy(self) -> tuple[float, float]:
@@ -59,12 +66,19 @@ class ViewPoint:
 
 @dataclass(frozen=True)
 class ObjectGoal:
-    """One instance of the target category and its view points."""
+    """One instance of the target category and its view points.
+
+    ``object_id`` is the instance number, what a semantic sensor shows of the object (``target_seen`` counts those
+    pixels); -1 where a file gives none. HM3D-OVON writes ids as text ``"<category>_<n>"`` (its own loader takes
+    ``n``): ``dataset_id`` keeps a file's text where it is not ``"<object_category>_<object_id>"``, the form
+    :func:`habitat_object_id` writes, so the file's id is written back as it was.
+    """
 
     object_id: int
     object_category: str
     position: Vec3
     view_points: tuple[ViewPoint, ...]
+    dataset_id: str | None = None
 
 
 @dataclass(frozen=True)
@@ -73,6 +87,9 @@ class Episode:
 
     ``object_category`` is the text given to the agent (possibly a synonym); ``info`` holds
     ``geodesic_distance`` (metres, start to the nearest view point), ``canonical_category`` and ``synonym``.
+    ``goals`` are every instance that counts for success: HM3D-OVON's include those of the
+    ``children_object_categories`` (its sub-categories present in the scene, each goal keeping its own category).
+    ``scene_dataset_config`` is habitat-sim's scene dataset of the scene (``"default"``: none named).
     """
 
     episode_id: str
@@ -82,6 +99,8 @@ class Episode:
     object_category: str
     goals: tuple[ObjectGoal, ...]
     info: JsonObject = field(default_factory=dict)
+    scene_dataset_config: str = DEFAULT_SCENE_DATASET
+    children_object_categories: tuple[str, ...] = ()
 
     @property
     def start_xy(self) -> tuple[float, float]:
@@ -103,21 +122,33 @@ class Episode:
 # -- the JSON form ----------------------------------------------------------------------------------------------
 
 
-def rounded(values: tuple[float, ...]) -> list[float]:
-    """Coordinates as episode files store them: 4 decimals (0.1 mm)."""
-    return [round(float(v), 4) for v in values]
+def rounded(values: tuple[float, ...], digits: int = 4) -> list[float]:
+    """Coordinates as episode files store them: 4 decimals (0.1 mm) unless ``digits`` says otherwise."""
+    return [round(float(v), digits) for v in values]
+
+
+def habitat_object_id(goal: ObjectGoal) -> str:
+    """A goal's id in HM3D-OVON's text form: the file's own where it had one, else ``"<category>_<n>"``."""
+    return goal.dataset_id if goal.dataset_id is not None else f"{goal.object_category}_{goal.object_id}"
+
+
+def view_point_to_dict(point: ViewPoint, digits: int = 4) -> JsonObject:
+    """A view point in the JSON form (``radius`` where it has one), coordinates to ``digits`` decimals."""
+    state = {"position": rounded(point.position, digits), "rotation": rounded(point.rotation, digits)}
+    item: JsonObject = {"agent_state": state, "iou": point.iou}
+    if point.radius is not None:
+        item["radius"] = point.radius
+    return item
 
 
 def goal_to_dict(goal: ObjectGoal) -> JsonObject:
-    """A goal instance in the HM3D-OVON / ObjectNav v1 JSON form (``object_id`` as the file's integer)."""
+    """A goal instance in drivenav's JSON form: ObjectNav v1's, ``object_id`` the integer (or the file's own text,
+    where a dataset gave one), view points with ``radius`` where they have one."""
     return {
-        "object_id": goal.object_id,
+        "object_id": goal.dataset_id if goal.dataset_id is not None else goal.object_id,
         "object_category": goal.object_category,
         "position": rounded(goal.position),
-        "view_points": [
-            {"agent_state": {"position": rounded(vp.position), "rotation": rounded(vp.rotation)}, "iou": vp.iou}
-            for vp in goal.view_points
-        ],
+        "view_points": [view_point_to_dict(vp) for vp in goal.view_points],
     }
 
 
@@ -165,7 +196,27 @@ def parse_episode_with(fields: Fields, name: str, item: JsonObject, goals: tuple
         object_category=sys.intern(parse_identifier(fields, f"{name}.object_category", item.get("object_category"))),
         goals=goals,
         info=parse_info(fields, f"{name}.info", item.get("info", {})),
+        scene_dataset_config=parse_scene_dataset(
+            fields, f"{name}.scene_dataset_config", item.get("scene_dataset_config")
+        ),
+        children_object_categories=tuple(fields.texts(item.get(CHILDREN) or [], f"{name}.{CHILDREN}")),
     )
+
+
+def parse_scene_dataset(fields: Fields, name: str, value: Any) -> str:
+    """An episode's ``scene_dataset_config``: a path, or habitat-lab's ``"default"`` where none is given."""
+    return DEFAULT_SCENE_DATASET if value is None else sys.intern(fields.text(value, name))
+
+
+def episode_extras(episode: Episode) -> JsonObject:
+    """The keys of an episode's JSON form that only some datasets have, where they differ from the defaults
+    (drivenav's own episodes have none, and their files stay as they were)."""
+    extras: JsonObject = {}
+    if episode.scene_dataset_config != DEFAULT_SCENE_DATASET:
+        extras["scene_dataset_config"] = episode.scene_dataset_config
+    if episode.children_object_categories:
+        extras[CHILDREN] = list(episode.children_object_categories)
+    return extras
 
 
 def parse_goals(fields: Fields, name: str, value: Any, require_goals: bool = True) -> tuple[ObjectGoal, ...]:
@@ -189,16 +240,40 @@ def parse_info(fields: Fields, name: str, value: Any) -> JsonObject:
 
 def parse_goal(fields: Fields, name: str, item: Any) -> ObjectGoal:
     item = fields.mapping(item, name)
-    view_points = []
-    for k, point in enumerate(fields.sequence(item.get("view_points"), f"{name}.view_points", 1)):
-        where = f"{name}.view_points[{k}]"
-        state = fields.mapping(fields.mapping(point, where).get("agent_state"), f"{where}.agent_state")
-        position = parse_vec3(fields, f"{where}.agent_state.position", state.get("position"))
-        rotation = parse_quat(fields, f"{where}.agent_state.rotation", state.get("rotation"))
-        view_points.append(ViewPoint(position, rotation, fields.number(point.get("iou", 1.0), f"{where}.iou")))
+    view_points = [
+        parse_view_point(fields, f"{name}.view_points[{k}]", point)
+        for k, point in enumerate(fields.sequence(item.get("view_points"), f"{name}.view_points", 1))
+    ]
+    category = parse_identifier(fields, f"{name}.object_category", item.get("object_category", "object"))
+    object_id, dataset_id = parse_object_id(fields, f"{name}.object_id", item.get("object_id", -1), category)
     return ObjectGoal(
-        object_id=fields.integer(item.get("object_id", -1), f"{name}.object_id"),
-        object_category=parse_identifier(fields, f"{name}.object_category", item.get("object_category", "object")),
+        object_id=object_id,
+        object_category=category,
         position=parse_vec3(fields, f"{name}.position", item.get("position")),
         view_points=tuple(view_points),
+        dataset_id=dataset_id,
     )
+
+
+def parse_view_point(fields: Fields, name: str, point: Any) -> ViewPoint:
+    state = fields.mapping(fields.mapping(point, name).get("agent_state"), f"{name}.agent_state")
+    radius = point.get("radius")
+    return ViewPoint(
+        position=parse_vec3(fields, f"{name}.agent_state.position", state.get("position")),
+        rotation=parse_quat(fields, f"{name}.agent_state.rotation", state.get("rotation")),
+        iou=fields.number(point.get("iou", 1.0), f"{name}.iou"),
+        radius=None if radius is None else fields.number(radius, f"{name}.radius", minimum=0.0),
+    )
+
+
+def parse_object_id(fields: Fields, name: str, value: Any, category: str) -> tuple[int, str | None]:
+    """A goal's ``object_id``: an integer, or text ending in ``_<n>`` or all digits (HM3D-OVON's
+    ``"<category>_<n>"``), whose ``n`` is the instance number; other text is kept with the number -1 (no
+    instance). Returns the number and the text where :func:`habitat_object_id` would not write it back as it was."""
+    if isinstance(value, int) and not isinstance(value, bool):
+        return value, None
+    if not isinstance(value, str) or not value.strip():
+        raise fields.error(name, "an integer, or a text id such as 'chair_3'", value)
+    number = value.rsplit("_", 1)[-1]
+    instance = int(number) if number.isascii() and number.isdigit() else -1
+    return instance, None if value == f"{category}_{instance}" else value

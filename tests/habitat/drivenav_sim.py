@@ -7,7 +7,8 @@ config, as the task writes it), ``step`` (also ``step(None)`` after STOP), ``ste
 (position array, ``quaternion.quaternion`` rotation), ``geodesic_distance``, ``previous_step_collided``, ``seed``,
 ``close``, and a ``pathfinder`` with ``try_step`` / ``try_step_no_sliding`` for the oracle's motion model. Raw depth
 is metres, as habitat-sim's. Scenes are the embedded library's (``SCENES``), found by the scene path's part
-after ``scene_datasets/``. Worker processes import it through ``--habitat-plugin drivenav_sim``.
+after ``scene_datasets/`` (an HM3D-form path by its house's name: :func:`embedded_scene_id`). Worker processes
+import it through ``--habitat-plugin drivenav_sim``.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import standins
 standins.install()  # also when a worker process imports this module as a --habitat-plugin
 
 import math
+import re
 from dataclasses import dataclass
 from types import SimpleNamespace
 from typing import Any
@@ -37,6 +39,7 @@ from drivenav.types import Action, Observation, SimConfig
 SIM_NAME = "DriveNavSim-v0"
 SCENES = "procedural"
 SCENE_FOLDER = f"{SCENES_DIR}/"
+HM3D_FORM = re.compile(r"hm3d/[^/]+/\d{5}-([^/]+)/\1\.basis\.glb")
 
 
 def sim_config(config: Any) -> SimConfig:
@@ -58,7 +61,12 @@ def sim_config(config: Any) -> SimConfig:
 
 
 def embedded_scene_id(scene: str) -> str:
-    return scene.split(SCENE_FOLDER, 1)[1] if SCENE_FOLDER in scene else scene
+    """The embedded scene of a scene path: its part after ``scene_datasets/``; a path in HM3D's form
+    (``hm3d/<split>/<NNNNN>-<name>/<name>.basis.glb``, as released episode files name scenes) names the procedural
+    house ``<name>``, so fixtures written like the released files run here."""
+    scene = scene.split(SCENE_FOLDER, 1)[1] if SCENE_FOLDER in scene else scene
+    match = HM3D_FORM.fullmatch(scene)
+    return f"procedural/{match.group(1)}" if match else scene
 
 
 @dataclass(frozen=True)

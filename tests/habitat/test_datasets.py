@@ -1,4 +1,4 @@
-"""The two Habitat layouts as habitat-lab reads them: HM3D-OVON through drivenav's ``OVON-v1`` dataset (children
+"""The two Habitat layouts as habitat-lab reads them: HM3D-OVON through drivenav's own dataset type (children
 categories count for success, episode ids kept) and ObjectNav v1 through habitat-lab's own reader (which numbers
 episodes per file; drivenav still finds each episode by its file id)."""
 
@@ -13,6 +13,7 @@ import pytest
 from worlds import SIM_OVERRIDE, export, settings_for
 
 from drivenav.envs.embedded.library import SceneLibrary
+from drivenav.envs.habitat.benchmarks import BENCHMARKS
 from drivenav.envs.habitat.env import HabitatEnv
 from drivenav.envs.habitat.layouts import goals_key, scene_name
 from drivenav.envs.habitat.spec import HabitatSpec
@@ -50,7 +51,7 @@ def _ovon_split(data_dir: Path, episode: Episode) -> HabitatSpec:
             goals_key(scene, "armchair"): [{**goal_to_dict(child), "radius": 0.5}],
         },
     }
-    root = data_dir / "datasets/ovon/hm3d/val_unseen"
+    root = data_dir / Path(BENCHMARKS["hm3d-ovon"].data_path.format(split="val_unseen")).parent
     _write(root / "val_unseen.json.gz", {"episodes": [], "category_to_task_category_id": {}})
     _write(root / "content" / f"{scene_name(scene)}.json.gz", content)
     return HabitatSpec("hm3d-ovon", "val_unseen", str(data_dir), (SIM_OVERRIDE,))

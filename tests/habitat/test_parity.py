@@ -1,7 +1,7 @@
 """Parity: the same episodes run directly in the embedded world and through habitat-lab's ``habitat.Env`` (its
 ObjectNav task, sensors, measures and dataset readers) on ``DriveNavSim-v0`` give the same action at every step
 and the same success, SPL and distance to goal, in both Habitat layouts (ObjectNav v1 read by habitat-lab's own
-reader, HM3D-OVON by drivenav's OVON-v1 dataset). A frame, sign, unit or normalisation error anywhere in the
+reader, HM3D-OVON by drivenav's own dataset type). A frame, sign, unit or normalisation error anywhere in the
 adapter changes what the agent sees, and so its actions.
 
 The oracle runs at the paper's 640x480; DRIVE-Nav and VLFM (with the embedded stand-in models, which read the
@@ -53,7 +53,7 @@ def test_same_actions_and_metrics_in_both_worlds(
     agent: str, half: int, episodes: list[Episode], tmp_path: Path
 ) -> None:
     """Each episode runs once directly, then through habitat.Env in each layout (hm3d-v1: ObjectNav v1 read by
-    habitat-lab; hm3d-ovon: HM3D-OVON read by drivenav's OVON-v1 dataset). One success distance (0.25 m) for
+    habitat-lab; hm3d-ovon: HM3D-OVON read by drivenav's own dataset type). One success distance (0.25 m) for
     both, so that one direct run is the reference of both."""
     direct: dict[str, tuple[EpisodeRecord, EpisodeTrace]] = {}
     for benchmark in ("hm3d-v1", "hm3d-ovon"):

@@ -68,7 +68,7 @@ def _cmd_episodes_export(args: argparse.Namespace) -> int:
     split = str(args.split)
     if not split or "/" in split or split.startswith("."):
         raise InputError("command line", "--split", "a split name such as val", split)
-    written = write_split(episodes, args.out / split / f"{split}.json.gz", args.format)
+    written = write_split(episodes, args.out / split / f"{split}.json.gz", args.format, source=args.episodes)
     print(f"wrote {len(episodes)} episodes as {args.format} to {written[0]} and {len(written) - 1} content files")
     return 0
 

@@ -51,14 +51,14 @@ def measured(
     target_seen: bool | None,
 ) -> EpisodeMeasures:
     """A world's raw metrics as every world reports them: distances to 0.1 mm, SPL to 1e-6, a non-finite
-    distance (no path to the goal) as ``None``."""
+    distance (no path to the goal) or SPL as ``None``."""
 
     def distance(value: float) -> float | None:
         return round(value, 4) if math.isfinite(value) else None
 
     return EpisodeMeasures(
         success=int(success),
-        spl=round(spl, 6),
+        spl=round(spl, 6) if math.isfinite(spl) else None,
         distance_to_goal=distance(distance_to_goal),
         path_length=round(path_length, 4),
         geodesic_distance=distance(geodesic_distance),

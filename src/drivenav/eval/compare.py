@@ -9,9 +9,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from drivenav.eval.records import EpisodeRecord, read_records
+from drivenav.eval.records import EpisodeRecord
 from drivenav.eval.report import Summary, shown, summarize
-from drivenav.eval.rundir import EPISODES_FILE
+from drivenav.eval.rundir import read_run
 from drivenav.jsonstream import JsonObject
 
 TABLE_II_MIN_DISTANCE = 10.0  # metres, start-to-goal geodesic distance (paper Sec. V-C)
@@ -21,8 +21,9 @@ RunRecords = dict[str, dict[str, EpisodeRecord]]
 
 
 def load_runs(run_dirs: dict[str, Path]) -> RunRecords:
-    """Per method, its finished episode records by episode id."""
-    return {name: {r.episode_id: r for r in read_records(d / EPISODES_FILE)} for name, d in run_dirs.items()}
+    """Per method, its finished episode records by episode id, each run checked as a resume checks it
+    (:func:`~drivenav.eval.rundir.read_run`)."""
+    return {name: {r.episode_id: r for r in read_run(d).records} for name, d in run_dirs.items()}
 
 
 def shared_ids(runs: RunRecords) -> set[str]:

@@ -4,7 +4,8 @@ A file is gzip-compressed JSON ``{"episodes": [...]}``; each episode carries ``e
 ``start_position`` and ``start_rotation`` (Habitat's y-up frame, see :mod:`drivenav.episode`),
 ``object_category`` (the text given to the agent, a synonym in some episodes as in HM3D-OVON's
 val_seen_synonyms), ``goals`` (every instance of the category with ``position`` and ``view_points``) and
-``info`` (``geodesic_distance``, ``canonical_category``, ``synonym``).
+``info`` (``geodesic_distance``, ``canonical_category``, ``synonym``); episodes read from a Habitat dataset keep
+its ``scene_dataset_config`` and ``children_object_categories`` where it has them.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from drivenav.envs.embedded.scene import Scene
 from drivenav.episode import (
     Episode,
     ObjectGoal,
+    episode_extras,
     goal_to_dict,
     parse_episode_with,
     parse_goals,
@@ -231,6 +233,7 @@ def _episode_dict(episode: Episode, goals: Any) -> JsonObject:
         "object_category": episode.object_category,
         "goals": goals,
         "info": dict(episode.info),
+        **episode_extras(episode),
     }
 
 
@@ -351,8 +354,9 @@ def _top_level(source: Path) -> JsonObject:
     return {**stream.members, "episodes": [None] * min(count, 1)} if stream.document is None else {"episodes": [None]}
 
 
-HABITAT_SPLIT_KEYS = ("category_to_task_category_id", "category_to_mp3d_category_id")
-"""Keys of a Habitat ObjectNav v1 / HM3D-OVON split file (its episodes live in ``content/<scene>.json.gz``)."""
+HABITAT_SPLIT_KEYS = ("category_to_task_category_id", "category_to_mp3d_category_id", "goals_by_category")
+"""Keys of a Habitat ObjectNav v1 / HM3D-OVON split file (its episodes live in ``content/<scene>.json.gz``;
+HM3D-OVON's holds only ``goals_by_category``, empty, and ``episodes``)."""
 
 
 def _refuse_habitat_layout(fields: Fields, data: JsonObject) -> None:
@@ -360,12 +364,12 @@ def _refuse_habitat_layout(fields: Fields, data: JsonObject) -> None:
     split file, the episodes in ``content/<scene>.json.gz`` beside it: the embedded world reads neither."""
     source = Path(fields.source)
     expected = "goals inside each episode (the embedded world's layout); a Habitat file runs with --env habitat"
-    if "goals_by_category" in data:
-        got = "Habitat ObjectNav v1 / HM3D-OVON content file: goals by category, episodes without goals"
-        raise fields.error("goals_by_category", expected, got)
     if data["episodes"] == [] and ((source.parent / "content").is_dir() or any(k in data for k in HABITAT_SPLIT_KEYS)):
         got = "[] in a Habitat ObjectNav v1 / HM3D-OVON split file: episodes in content/<scene>.json.gz"
         raise fields.error("episodes", expected, got)
+    if "goals_by_category" in data:
+        got = "Habitat ObjectNav v1 / HM3D-OVON content file: goals by category, episodes without goals"
+        raise fields.error("goals_by_category", expected, got)
 
 
 def _refuse_duplicates(fields: Fields, episodes: list[Episode]) -> None:

@@ -11,17 +11,20 @@ beside the other keys; the exploration method's counters under ``explorer`` (``{
 episode's trace file in the run directory ("" when it could not be written). ``schema_version`` 1 is the untyped
 record written before it existed, 2 the record before the decision counters, 3 the record before ``trace``, 4 the
 record before ``explorer``, whose DRIVE-Nav counters were flat beside the others: all read the same (the flat
-counters of a record before 5 become its explorer's, the explorer named by the record's method). Every value is
-checked against its field's type when read (``success: "yes"`` names the line and field).
+counters of a record before 5 become its explorer's, the explorer named by the record's method). Every value is checked against its field's type and range when read, by every reader (a resume, ``compare``,
+``report``, ``viz``): ``success`` is 0, 1 or null, ``spl`` lies in [0, 1], and every other number (steps, distances,
+counts, latencies) is finite and >= 0 (``success: "yes"``, ``spl: 55.5`` or ``steps: -40`` names the line and field).
 """
 
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 from drivenav.agent.base import BodyStats, CounterValue, ExplorerStats, ModelStats
+from drivenav.envs.base import EpisodeMeasures
 from drivenav.errors import InputError
 from drivenav.jsonstream import JsonObject
 from drivenav.methods import REFERENCE_AGENTS, method_named
@@ -130,17 +133,20 @@ def _explorer_object(value: object, source: str | Path) -> ExplorerStats | None:
     if not isinstance(value, dict) or not isinstance(value.get("name"), str):
         raise InputError(source, "record.explorer", '{"name": the explorer, "counters": {...}} or null', value)
     counters = value.get("counters", {})
-    if not (isinstance(counters, dict) and all(_is_counter(v) for v in counters.values())):
-        expected = "a mapping of counter names to numbers or to {kind: count}"
+    if not (isinstance(counters, dict) and all(_is_counter(k, v) for k, v in counters.items())):
+        expected = f"a mapping of counter names to numbers or to {{kind: count}}, each {NON_NEGATIVE}"
         raise InputError(source, "record.explorer.counters", expected, counters)
     typed: dict[str, CounterValue] = dict(counters)
     return ExplorerStats(value["name"], typed)
 
 
-def _is_counter(value: object) -> bool:
+def _is_counter(name: str, value: object) -> bool:
+    """A counter: a number, or counts by kind; finite and >= 0."""
     if isinstance(value, dict):
-        return all(isinstance(k, str) and _fits(v, "int") for k, v in value.items())
-    return _fits(value, "int") or _fits(value, "float")
+        typed = all(isinstance(k, str) and _fits(v, "int") for k, v in value.items())
+    else:
+        typed = _fits(value, "int") or _fits(value, "float")
+    return typed and not _out_of_range(name, value)
 
 
 _SCALARS: dict[str, tuple[type, ...]] = {"str": (str,), "int": (int,), "bool": (bool,), "float": (int, float)}
@@ -153,10 +159,42 @@ def _typed(kind: type, data: JsonObject, source: str | Path, skip: frozenset[str
         if item.name in skip or item.name not in data:
             continue
         annotation = str(item.type)
-        if not _has_type(data[item.name], annotation):
-            raise InputError(source, f"record.{item.name}", annotation, data[item.name])
-        values[item.name] = data[item.name]
+        value = data[item.name]
+        if not _has_type(value, annotation):
+            raise InputError(source, f"record.{item.name}", annotation, value)
+        expected = _out_of_range(item.name, value)
+        if expected:
+            raise InputError(source, f"record.{item.name}", expected, value)
+        values[item.name] = value
     return values
+
+
+_BOUNDED = {"success": "0, 1 or null", "spl": "a number in [0, 1] or null"}
+"""What the bounded fields expect; every other number of a record (steps, distances, counts, latencies) is finite
+and >= 0."""
+NON_NEGATIVE = "a finite number >= 0"
+
+
+def _out_of_range(name: str, value: object) -> str:
+    """What the field ``name`` expects when ``value`` (of its type) lies out of its range, else "" (NaN is in no
+    range)."""
+    numbers = _numbers(value)
+    if name == "success":
+        fits = all(number in (0, 1) for number in numbers)
+    elif name == "spl":
+        fits = all(0 <= number <= 1 for number in numbers)
+    else:
+        fits = all((isinstance(number, int) or math.isfinite(number)) and number >= 0 for number in numbers)
+    return "" if fits else _BOUNDED.get(name, NON_NEGATIVE)
+
+
+def _numbers(value: object) -> list[int | float]:
+    """The numbers in a record's value (itself, or a dictionary's values; booleans are no numbers)."""
+    if isinstance(value, dict):
+        return [number for item in value.values() for number in _numbers(item)]
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return [value]
+    return []
 
 
 def _has_type(value: object, annotation: str) -> bool:
@@ -176,6 +214,21 @@ def _fits(value: object, option: str) -> bool:
     if option not in _SCALARS or (isinstance(value, bool) and option != "bool"):
         return False
     return isinstance(value, _SCALARS[option])
+
+
+def checked_measures(measures: EpisodeMeasures) -> EpisodeMeasures:
+    """A world's measures, when each fits its record field's type and range; else a :class:`ValueError` naming it
+    (the episode then ends in an error: no record that the readers refuse is ever written, e.g. from a robot
+    reporting ``success: 7``)."""
+    annotations = {item.name: str(item.type) for item in fields(EpisodeRecord)}
+    for item in fields(EpisodeMeasures):
+        value, annotation = getattr(measures, item.name), annotations.get(item.name)
+        if annotation is None:
+            continue  # not recorded (target_seen)
+        expected = _out_of_range(item.name, value) if _has_type(value, annotation) else annotation
+        if expected:
+            raise ValueError(f"the world measured {item.name} = {value!r}; expected {expected}")
+    return measures
 
 
 def failure_cause(success: int | None, stop_reason: str, target_seen: bool | None) -> str:

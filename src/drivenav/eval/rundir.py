@@ -8,6 +8,12 @@ differing key (or ``episodes``), and so is resuming records without their ``run.
 torn last line off ``episodes.jsonl`` (readers never write) and refuses a second record of an episode or a record of
 an episode outside the run, naming its line. ``DIR/traces/`` holds one trace per episode under a bounded name that
 no two ids share (:func:`trace_path`); the record names it, and a trace that cannot be written never costs the record.
+
+Readers (``compare``, ``report``, ``viz``, ``bench ablations``' tables) read a run through :func:`read_run`, which
+checks it as a resume does, with the same checker and the same lines: every record's types and ranges
+(:meth:`EpisodeRecord.from_json`), one record per episode, only episodes of the run (those of its copy), and the
+copy itself against ``run.json``'s ``episodes_sha256``. Every file a run names is opened through :func:`inside`:
+resolved, links included, it must stay inside the run directory.
 """
 
 from __future__ import annotations
@@ -20,7 +26,7 @@ import os
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
 from typing import IO, Any
@@ -57,19 +63,40 @@ def episodes_sha256(episodes: Sequence[Episode]) -> str:
     return digest.hexdigest()
 
 
+def file_name(text: str) -> str:
+    """A file name for ``text`` that no other text shares: ``text`` itself when it is at most :data:`READABLE_ID`
+    letters, digits and ``-_.`` (not only dots), else a readable prefix and a hash of the whole text,
+    ``PREFIX~HASH`` (``~`` is in no plain name, so no two texts share a name, and it stays short whatever the
+    text's length). Episode ids name their traces with it, run names their folders in a report."""
+    plain = "".join(ch if ch.isascii() and (ch.isalnum() or ch in "-_.") else "_" for ch in text)
+    if plain == text and 0 < len(text) <= READABLE_ID and text.strip(".") != "":
+        return text
+    digest = hashlib.sha256(text.encode("utf-8", "surrogatepass")).hexdigest()[:16]
+    return f"{plain[:READABLE_ID]}~{digest}"
+
+
 def trace_path(out: Path, episode_id: str) -> Path:
-    """The trace file of ``episode_id``: ``ID.json`` for an id of at most :data:`READABLE_ID` letters, digits and
-    ``-_.`` (as before), else a readable prefix and a hash of the whole id, ``PREFIX~HASH.json`` (``~`` is in no
-    plain id, so no two ids share a name, and the name stays short whatever the id's length)."""
-    plain = "".join(ch if ch.isascii() and (ch.isalnum() or ch in "-_.") else "_" for ch in episode_id)
-    if plain == episode_id and 0 < len(episode_id) <= READABLE_ID and episode_id.strip(".") != "":
-        return out / TRACES_DIR / f"{episode_id}.json"
-    digest = hashlib.sha256(episode_id.encode("utf-8", "surrogatepass")).hexdigest()[:16]
-    return out / TRACES_DIR / f"{plain[:READABLE_ID]}~{digest}.json"
+    """The trace file of ``episode_id``: ``ID.json`` for a plain id (as before), else ``PREFIX~HASH.json``
+    (:func:`file_name`)."""
+    return out / TRACES_DIR / f"{file_name(episode_id)}.json"
+
+
+def inside(root: Path, name: str | Path) -> Path | None:
+    """``root / name`` with every link resolved, or None when it leads out of ``root`` (an absolute name, ``..``,
+    a link out of it or a link loop): the only way a reader opens a file that a run directory names."""
+    try:
+        base = root.resolve()
+        path = (base / name).resolve()
+    except (OSError, RuntimeError, ValueError):  # a link loop, a NUL in the name
+        return None
+    return path if path.is_relative_to(base) else None
 
 
 def write_json_atomic(path: Path, payload: Any) -> None:
+    """Write ``payload`` to a fresh temporary file (one left there, a link included, is removed first: nothing is
+    written through it) and rename it over ``path``."""
     tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.unlink(missing_ok=True)
     tmp.write_text(json.dumps(payload, indent=2, sort_keys=True) + "\n", encoding="utf-8")
     os.replace(tmp, path)
 
@@ -84,6 +111,49 @@ def make_directory(out: Path) -> None:
         raise InputError(out, "--out", "a directory drivenav can create", error.strerror) from None
     if not os.access(out, os.W_OK | os.X_OK) or not os.access(out / TRACES_DIR, os.W_OK | os.X_OK):
         raise InputError(out, "--out", "a writable directory", "no write permission")
+
+
+@dataclass(frozen=True)
+class RunContents:
+    """A run directory as its readers see it, checked (:func:`read_run`): ``run.json`` (None without one), the copy
+    of its episodes (None without one: a run killed before writing it), and its records in file order."""
+
+    info: RunInfo | None
+    episodes: tuple[Episode, ...] | None
+    records: tuple[EpisodeRecord, ...]
+
+
+def read_run(out: Path) -> RunContents:
+    """The run in ``out``, read only and checked as a resume checks it (see the module docstring): the first thing
+    that is not what drivenav wrote is one :class:`InputError` naming its file, line and field. Without a copy of
+    the episodes the records' episode ids cannot be checked; without ``run.json``, the copy cannot."""
+    results = run_file(out, EPISODES_FILE)
+    if results is None:
+        raise InputError(out, "RUN", "a run directory (episodes.jsonl written by 'drivenav eval')", "no episodes.jsonl")
+    info_file = run_file(out, RUN_FILE)
+    info = None if info_file is None else RunInfo.from_json(_read_json(info_file), info_file)
+    copy = run_file(out, EPISODES_COPY)
+    episodes = None
+    if copy is not None:
+        episodes = tuple(load_episodes(copy, require_goals=False))
+        if info is not None and episodes_sha256(episodes) != info.episodes_sha256:
+            expected = f"the episodes whose sha256 {RUN_FILE} records (episodes_sha256)"
+            raise InputError(copy, "episodes", expected, "a copy of other episodes")
+    ids = None if episodes is None else frozenset(e.episode_id for e in episodes)
+    return RunContents(info, episodes, tuple(read_records(results, ids)))
+
+
+def run_file(out: Path, name: str) -> Path | None:
+    """The run's file ``name`` (None when there is none); an :class:`InputError` when it leads out of the run
+    directory (:func:`inside`) or is no regular file (a folder, a pipe)."""
+    if inside(out, name) is None:
+        raise InputError(out / name, name, "a file inside the run directory", "a link out of it")
+    path = out / name
+    if not path.exists():
+        return None
+    if not path.is_file():
+        raise InputError(path, name, "a regular file written by 'drivenav eval'", "something else")
+    return path
 
 
 class RunDirectory:
@@ -105,16 +175,20 @@ class RunDirectory:
         left. A new run writes ``run.json`` and the copy of its episodes while its first episodes run
         (:class:`_Setup`)."""
         make_directory(out)
+        for name in (LOCK_FILE, RUN_FILE, EPISODES_FILE, EPISODES_COPY, SUMMARY_FILE):
+            run_file(out, name)  # never written through a link out of the run
+        if inside(out, TRACES_DIR) is None:
+            raise InputError(out / TRACES_DIR, TRACES_DIR, "a folder inside the run directory", "a link out of it")
         with _locked(out / LOCK_FILE):
-            run_file = out / RUN_FILE
+            info_file = out / RUN_FILE
             results = out / EPISODES_FILE
-            if run_file.exists():
+            if info_file.exists():
                 info = _run_info(world, settings, episodes)
-                info.check_resume(_read_json(run_file), run_file)
+                info.check_resume(_read_json(info_file), info_file)
                 setup = _Setup(partial(_repair_episodes_copy, out / EPISODES_COPY, episodes, info.episodes_sha256))
             elif results.exists() and results.stat().st_size:
                 raise InputError(
-                    run_file,
+                    info_file,
                     "run.json",
                     "the run.json of the run whose records are in episodes.jsonl, to resume it "
                     "(without it the settings cannot be checked: start a new --out)",

@@ -29,7 +29,7 @@ from drivenav.envs.base import Env, EnvSpec, EpisodeMeasures
 from drivenav.episode import Episode
 from drivenav.errors import InputError, RunStoppedError, one_line
 from drivenav.eval.executor import Executor
-from drivenav.eval.records import ERROR, EpisodeRecord, failure_cause
+from drivenav.eval.records import ERROR, EpisodeRecord, checked_measures, failure_cause
 from drivenav.eval.report import Summary, summarize
 from drivenav.eval.rundir import RunDirectory
 from drivenav.eval.timings import to_columns
@@ -143,8 +143,8 @@ def run_episode(
     measures = EpisodeMeasures()  # a failed reset measured nothing
     if path.positions:
         try:
-            measures = env.measures()
-        except Exception as exc:  # a world gone with its measures (a robot's link): the first error is kept
+            measures = checked_measures(env.measures())
+        except Exception as exc:  # a world gone with its measures (a robot's link), or out of range: the first is kept
             error = error or EpisodeError.of(exc)
     if error is not None:
         stop_reason = ERROR

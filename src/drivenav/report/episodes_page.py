@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 from drivenav.eval.records import EpisodeRecord
 from drivenav.eval.report import shown
+from drivenav.eval.rundir import file_name
 from drivenav.report.html import Attributes, Cell, element, esc, link, page, row, table, void
 from drivenav.report.runs import Run
 
@@ -105,7 +106,8 @@ def _number(value: float | None, template: str) -> Cell:
 
 
 def _id_order(episode_id: str) -> str:
-    return f"{int(episode_id):012d}" if episode_id.isdigit() else episode_id
+    """The sort key of an id in the table: a numeric id (ASCII digits) zero-padded, never converted to a number."""
+    return f"{episode_id:0>12}" if episode_id.isascii() and episode_id.isdigit() else episode_id
 
 
 def episode_rows(runs: Sequence[Run]) -> list[EpisodeRow]:
@@ -187,11 +189,8 @@ def pivot_pairs(runs: Sequence[Run]) -> dict[tuple[str, str], list[str]]:
 
 
 def _anchor(a: str, b: str) -> str:
-    return f"pair-{runs_slug(a)}--{runs_slug(b)}"
-
-
-def runs_slug(name: str) -> str:
-    return "".join(ch if ch.isascii() and ch.isalnum() else "-" for ch in name)
+    """The id of a pair's list: no two pairs share one (``~~`` is in no :func:`file_name`)."""
+    return f"pair-{file_name(a)}~~{file_name(b)}"
 
 
 def pivot_html(runs: Sequence[Run]) -> str:

@@ -2,10 +2,12 @@
 Tables II, V or VI on the same episodes).
 
 The tables are ``ablations.md`` itself: read from the ``ablations.json`` that ``bench ablations`` wrote beside the
-runs when it covers exactly these runs, else built from the runs as ``bench ablations`` builds it
+runs when it covers exactly these runs and its methods' numbers are theirs, else built from the runs as
+``bench ablations`` builds it
 (:func:`drivenav.eval.ablations.build_report`), then written by
 :func:`~drivenav.eval.ablation_report.format_markdown` and shown as HTML. Its pictures section is left out: the
-report's episode pages show every picture.
+report's episode pages show every picture. An ``ablations.json`` that is not what ``bench ablations`` writes (no
+JSON, another shape, values that do not print) is one :class:`~drivenav.errors.InputError` naming it.
 """
 
 from __future__ import annotations
@@ -14,12 +16,15 @@ import json
 from collections.abc import Sequence
 from dataclasses import replace
 
+from drivenav.errors import InputError
 from drivenav.eval.ablation_data import AblationReport, Pictures
 from drivenav.eval.ablation_report import format_markdown
 from drivenav.eval.ablations import RUNS_DIR, build_report
 from drivenav.eval.paper_tables import TABLE_II, TABLE_V, TABLE_VI
+from drivenav.eval.rundir import inside
 from drivenav.eval.runner import RunSpec
 from drivenav.eval.worlds import recorded_world
+from drivenav.jsonstream import DOCUMENT
 from drivenav.report.markdown import to_html
 from drivenav.report.runs import Run
 
@@ -39,26 +44,40 @@ def paper_tables_html(runs: Sequence[Run]) -> str | None:
     """The tables as HTML, or None when the runs are no ablation set (or have no ``run.json`` to build them)."""
     if not is_ablation_set(runs):
         return None
-    report = _stored(runs) or _built(runs)
-    if report is None:
-        return None
-    return to_html(format_markdown(replace(report, pictures=Pictures())), heading_shift=1, leave_out=LEFT_OUT)
+    markdown = _stored(runs)
+    if markdown is None:
+        report = _built(runs)
+        markdown = None if report is None else _markdown(report)
+    return None if markdown is None else to_html(markdown, heading_shift=1, leave_out=LEFT_OUT)
 
 
-def _stored(runs: Sequence[Run]) -> AblationReport | None:
-    """The ``ablations.json`` of a ``bench ablations`` folder holding exactly these runs (None otherwise)."""
+def _markdown(report: AblationReport) -> str:
+    return format_markdown(replace(report, pictures=Pictures()))
+
+
+def _stored(runs: Sequence[Run]) -> str | None:
+    """The tables of the ``ablations.json`` of a ``bench ablations`` folder holding exactly these runs, with their
+    numbers (None otherwise: written before the runs finished, or for other runs)."""
     parents = {run.path.resolve().parent for run in runs}
     if len(parents) != 1 or next(iter(parents)).name != RUNS_DIR:
         return None
-    path = next(iter(parents)).parent / ABLATIONS_JSON
+    folder = next(iter(parents)).parent
+    path = folder / ABLATIONS_JSON
     if not path.is_file():
         return None
-    report = AblationReport.from_json(json.loads(path.read_text(encoding="utf-8")), path)
-    if set(report.methods) != {run.name for run in runs}:
+    expected = "an ablations.json written by 'drivenav bench ablations'"
+    if inside(folder, ABLATIONS_JSON) is None:
+        raise InputError(path, DOCUMENT, f"{expected}, inside its folder", "a link out of it")
+    try:
+        report = AblationReport.from_json(json.loads(path.read_text(encoding="utf-8")), path)
+    except ValueError:
+        raise InputError(path, DOCUMENT, expected, "no JSON") from None
+    if report.methods != {run.name: run.entry for run in runs}:
         return None
-    if any(report.methods[run.name].episodes != run.entry.episodes for run in runs):
-        return None  # written before the runs finished
-    return report
+    try:
+        return _markdown(report)
+    except (TypeError, ValueError, KeyError, AttributeError, IndexError) as error:
+        raise InputError(path, DOCUMENT, expected, f"{type(error).__name__}: {error}") from None
 
 
 def _built(runs: Sequence[Run]) -> AblationReport | None:

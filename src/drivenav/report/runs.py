@@ -1,8 +1,10 @@
 """The runs a report shows, read from their run directories (any world: embedded, Habitat or robot).
 
 A run directory (``drivenav eval``, ``bench ablations``' ``runs/<method>/``) holds ``episodes.jsonl``, ``run.json``,
-the copy of its episodes and one trace per episode. A run is named by its folder; two runs whose folders share a
-name are told apart by their parent's name, then by a number.
+the copy of its episodes and one trace per episode; it is read and checked as a resume checks it
+(:func:`drivenav.eval.rundir.read_run`). A run is named by its folder; two runs whose folders share a name are told
+apart by their parent's name, then by a number. Its folder in the site is its name where that is a plain file name,
+else a readable prefix and a hash of the name (:func:`~drivenav.eval.rundir.file_name`): no two runs share one.
 """
 
 from __future__ import annotations
@@ -13,14 +15,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from drivenav.episode import Episode
-from drivenav.errors import InputError
 from drivenav.eval.ablation_data import MethodEntry
 from drivenav.eval.ablations import method_entry
-from drivenav.eval.episodes import load_episodes
 from drivenav.eval.ovon_episodes import episode_splits
-from drivenav.eval.records import EpisodeRecord, read_records
+from drivenav.eval.records import EpisodeRecord
 from drivenav.eval.run_info import RunInfo
-from drivenav.eval.rundir import EPISODES_COPY, EPISODES_FILE, RUN_FILE, trace_path
+from drivenav.eval.rundir import file_name, read_run, trace_path
 from drivenav.jsonstream import JsonObject
 
 
@@ -39,8 +39,8 @@ class Run:
 
     @property
     def slug(self) -> str:
-        """The run's folder name inside the site (file-name safe, unique among the report's runs)."""
-        return _safe(self.name)
+        """The run's folder name inside the site (file-name safe; distinct names give distinct folders)."""
+        return file_name(self.name)
 
     def stem(self, episode_id: str) -> str:
         """The file-name stem of an episode's files (its trace's, so that every world's ids fit)."""
@@ -49,10 +49,6 @@ class Run:
     def config(self) -> JsonObject:
         """``run.json``'s config tree, flattened to dotted keys (empty without ``run.json``)."""
         return {} if self.info is None else flatten(self.info.config_json())
-
-
-def _safe(name: str) -> str:
-    return "".join(ch if ch.isascii() and (ch.isalnum() or ch in "-_.") else "_" for ch in name).strip(".") or "run"
 
 
 def flatten(tree: JsonObject, prefix: str = "") -> JsonObject:
@@ -79,39 +75,23 @@ def run_names(paths: Sequence[Path]) -> list[str]:
 
 
 def load_run(path: Path, name: str) -> Run:
-    """The run in ``path``: an :class:`InputError` when it has no ``episodes.jsonl``."""
-    results = path / EPISODES_FILE
-    if not results.is_file():
-        raise InputError(
-            path, "RUN", "a run directory (episodes.jsonl written by 'drivenav eval')", "no episodes.jsonl"
-        )
-    records = tuple(sorted(read_records(results), key=_episode_order))
-    episodes = _episodes(path / EPISODES_COPY)
-    info = _info(path / RUN_FILE)
+    """The run in ``path``, checked (:func:`~drivenav.eval.rundir.read_run`): an :class:`InputError` when it has no
+    ``episodes.jsonl`` or holds what a resume would refuse."""
+    contents = read_run(path)
+    records = tuple(sorted(contents.records, key=episode_order))
+    episodes = {episode.episode_id: episode for episode in contents.episodes or ()}
     splits = episode_splits(list(episodes.values()))
-    return Run(name, path, info, records, episodes, splits, method_entry(list(records)))
+    return Run(name, path, contents.info, records, episodes, splits, method_entry(list(records)))
 
 
-def _episode_order(record: EpisodeRecord) -> tuple[int, str]:
-    """Numeric ids in number order, then the others by text."""
+def episode_order(record: EpisodeRecord) -> tuple[int, int, str, str]:
+    """Numeric ids (ASCII digits) in number order, then the others by text (no id is converted to a number:
+    ``'²'`` is a digit to Python, and a 5000-digit id is too long for ``int``)."""
     text = record.episode_id
-    return (int(text), "") if text.isdigit() else (1 << 62, text)
-
-
-def _episodes(path: Path) -> dict[str, Episode]:
-    if not path.is_file():
-        return {}
-    return {episode.episode_id: episode for episode in load_episodes(path, require_goals=False)}
-
-
-def _info(path: Path) -> RunInfo | None:
-    if not path.is_file():
-        return None
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except ValueError:
-        raise InputError(path, "run.json", "the JSON drivenav wrote") from None
-    return RunInfo.from_json(data, path)
+    if text.isascii() and text.isdigit():
+        number = text.lstrip("0")
+        return 0, len(number), number, text
+    return 1, 0, "", text
 
 
 def config_differences(runs: Sequence[Run]) -> list[str]:

@@ -3,6 +3,12 @@
 ``DIR`` holds everything the pages use (styles, script, pictures, videos, the traces and records they link to),
 so the site opens from a file path and can be copied anywhere. Episode pages, and the pictures they lack, are
 written by ``workers`` processes, each taking one run's episodes in slices.
+
+The report reads only its runs: each run is checked as a resume checks it
+(:func:`drivenav.eval.rundir.read_run`), and every file a run names (a record's ``trace``, a picture in ``viz/``)
+is resolved, links included, and copied only when it stays inside the run directory; a record naming a file
+outside is shown as such on its page. ``DIR`` holds none of the runs; the files the report writes there are listed
+in its manifest (:mod:`drivenav.report.manifest`), and a file it did not write is never overwritten.
 """
 
 from __future__ import annotations
@@ -19,7 +25,7 @@ from drivenav.episode import Episode
 from drivenav.errors import InputError
 from drivenav.eval.pool import run_in_pool
 from drivenav.eval.records import EpisodeRecord
-from drivenav.eval.rundir import TRACES_DIR, trace_path
+from drivenav.eval.rundir import TRACES_DIR, inside, trace_path
 from drivenav.eval.trace import EpisodeTrace
 from drivenav.jsonstream import JsonObject
 from drivenav.report.config import PictureChoice, ReportConfig
@@ -27,15 +33,18 @@ from drivenav.report.episode_page import EpisodeView, Sibling, episode_html
 from drivenav.report.episodes_page import episode_page_path, episodes_html, pivot_html, success_text
 from drivenav.report.html import ASSETS, SCRIPT, STYLE
 from drivenav.report.index_page import index_html
+from drivenav.report.manifest import claim, settle
 from drivenav.report.paper_tables import paper_tables_html
-from drivenav.report.pictures import Drawing, draw, drawn_folders, gather
+from drivenav.report.pictures import SUFFIXES, Drawing, EpisodeMedia, draw, drawn_folders, gather
 from drivenav.report.runs import Run, load_run, run_names
 from drivenav.viz.saved_trace import SavedTrace
 
 log = logging.getLogger(__name__)
 
 INDEX = "index.html"
+PICTURES = "pictures"  # a run's pictures in the site
 SLICE = 25  # episodes per task: small enough to share a run's pages between the workers
+SHOWN = 80  # characters of a record's trace name shown in a note
 
 
 @dataclass(frozen=True)
@@ -76,7 +85,9 @@ def write_report(paths: Sequence[Path], out: Path, config: ReportConfig | None =
     if not paths:
         raise InputError("command line", "RUN", "at least one run directory", "none")
     runs = [load_run(path, name) for path, name in zip(paths, run_names(paths), strict=True)]
-    out.mkdir(parents=True, exist_ok=True)
+    _check_out(out, runs)
+    files = site_files(runs)
+    claim(out, files)
     _copy_assets(out / ASSETS)
     tasks = page_tasks(runs, out, config)
     if config.workers > 1 and len(tasks) > 1:
@@ -89,7 +100,36 @@ def write_report(paths: Sequence[Path], out: Path, config: ReportConfig | None =
     (out / "pivot.html").write_text(pivot_html(runs), encoding="utf-8")
     index = out / INDEX
     index.write_text(index_html(runs, paper_tables_html(runs)), encoding="utf-8")
+    settle(out, files)
     return index
+
+
+def _check_out(out: Path, runs: Sequence[Run]) -> None:
+    """Refuse an ``--out`` that is a file, or that is or holds one of the runs (the site would write among the
+    runs' own files)."""
+    if out.exists() and not out.is_dir():
+        raise InputError(out, "--out", "a folder for the site", "an existing file")
+    site = out.resolve()
+    for run in runs:
+        if run.path.resolve().is_relative_to(site):
+            raise InputError(out, "--out", "a folder that holds none of the runs", f"it holds the run {run.path}")
+
+
+def site_files(runs: Sequence[Run]) -> list[str]:
+    """Every file the site may hold, relative to its folder: the pages and assets, and per episode its page,
+    record, trace and pictures (those it has are written; the manifest lists them all)."""
+    files = [INDEX, "episodes.html", "pivot.html", f"{ASSETS}/{STYLE}", f"{ASSETS}/{SCRIPT}"]
+    for run in runs:
+        for record in run.records:
+            stem = run.stem(record.episode_id)
+            folder = f"runs/{run.slug}"
+            files += [
+                f"{folder}/episodes/{stem}.html",
+                f"{folder}/records/{stem}.json",
+                f"{folder}/{TRACES_DIR}/{stem}.json",
+            ]
+            files += [f"{folder}/{PICTURES}/{stem}{suffix}" for suffix in SUFFIXES]
+    return files
 
 
 def _task_key(task: PageTask) -> str:
@@ -148,8 +188,12 @@ def write_pages(task: PageTask) -> int:
 
 
 def _read_trace(run: RunPlace, record: EpisodeRecord) -> tuple[Path | None, EpisodeTrace | None, str]:
-    """The trace file, the trace, and why there is none."""
-    path = run.path / record.trace if record.trace else trace_path(run.path, record.episode_id)
+    """The trace file, the trace, and why there is none (a trace that leads out of the run directory, links
+    resolved, is neither read nor copied)."""
+    name = record.trace or trace_path(Path(), record.episode_id).as_posix()
+    if inside(run.path, name) is None:
+        return None, None, f"Its trace {name[:SHOWN]!r} leads out of the run directory: not read, not copied."
+    path = run.path / name
     if not path.is_file():
         return None, None, "The run has no trace of this episode."
     try:
@@ -175,26 +219,27 @@ def _write_page(item: PageItem, site: Path, config: ReportConfig) -> int:
     trace_file, trace, note = _read_trace(run, record)
     saved, placement = _placed(trace, item.episode)
     sources = drawn_folders(run.path, run.name)
-    media = gather(stem, site / "pictures", sources)
+    media = gather(stem, site / PICTURES, sources)
+    notes = [note or placement, *_outside(media)]
     drawn = 0
     if not media.pictures and item.draw and saved is not None and item.episode is not None and run.world is not None:
         try:
-            draw(Drawing(run.path, run.world, item.episode, saved, record), site / "pictures", config.views)
-            media, drawn = gather(stem, site / "pictures", sources), 1
+            draw(Drawing(run.path, run.world, item.episode, saved, record), site / PICTURES, config.views)
+            media, drawn = gather(stem, site / PICTURES, sources), 1
         except (InputError, ValueError, OSError) as error:
-            note = f"Its picture could not be drawn: {error}"
-            log.warning("%s / %s: %s", run.name, record.episode_id, note)
+            notes.append(f"Its picture could not be drawn: {error}")
+            log.warning("%s / %s: %s", run.name, record.episode_id, notes[-1])
     view = EpisodeView(
         run.name,
         record,
         trace,
         saved,
-        tuple(f"../pictures/{p.name}" for p in media.pictures),
-        None if media.video is None else f"../pictures/{media.video.name}",
-        _copy_trace(trace_file, site),
+        tuple(f"../{PICTURES}/{p.name}" for p in media.pictures),
+        None if media.video is None else f"../{PICTURES}/{media.video.name}",
+        _copy_trace(trace_file, site, stem),
         _write_record(record, site, stem),
         item.siblings,
-        note or placement,
+        " ".join(note for note in notes if note),
     )
     page = site / "episodes" / f"{stem}.html"
     page.parent.mkdir(parents=True, exist_ok=True)
@@ -202,13 +247,19 @@ def _write_page(item: PageItem, site: Path, config: ReportConfig) -> int:
     return drawn
 
 
-def _copy_trace(path: Path | None, site: Path) -> str | None:
+def _outside(media: EpisodeMedia) -> list[str]:
+    """The notes on the pictures found that lead out of their folder (not copied)."""
+    return [f"Its picture {p.parent.name}/{p.name} leads out of {where}: not copied." for p, where in media.outside]
+
+
+def _copy_trace(path: Path | None, site: Path, stem: str) -> str | None:
+    """Copy the episode's trace (inside its run, checked) into the site under the episode's own name."""
     if path is None:
         return None
-    target = site / TRACES_DIR / path.name
+    target = site / TRACES_DIR / f"{stem}.json"
     target.parent.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(path, target)
-    return f"../{TRACES_DIR}/{path.name}"
+    return f"../{TRACES_DIR}/{target.name}"
 
 
 def _write_record(record: EpisodeRecord, site: Path, stem: str) -> str:

@@ -21,9 +21,8 @@ from drivenav.envs.embedded.render import Renderer
 from drivenav.envs.embedded.scene import Material, Scene
 from drivenav.episode import Episode
 from drivenav.errors import InputError
-from drivenav.eval.episodes import load_episodes
-from drivenav.eval.records import EpisodeRecord, read_records
-from drivenav.eval.rundir import EPISODES_COPY, EPISODES_FILE, RUN_FILE, trace_path
+from drivenav.eval.records import EpisodeRecord
+from drivenav.eval.rundir import EPISODES_COPY, RUN_FILE, inside, read_run, trace_path
 from drivenav.eval.trace import EpisodeTrace
 from drivenav.eval.worlds import recorded_world
 from drivenav.grid import GridSpec
@@ -89,24 +88,29 @@ def trace_picture(episode: Episode, trace: SavedTrace, record: EpisodeRecord | N
 
 
 def _load_episode(run_dir: Path, episode_id: str) -> tuple[Scene | None, Episode, SavedTrace, EpisodeRecord | None]:
-    run = _read_json(run_dir / RUN_FILE, "run")
+    """The episode's scene, episode, trace and record, from the run read and checked as every reader reads it
+    (:func:`~drivenav.eval.rundir.read_run`; its trace must stay inside the run directory too)."""
+    run = read_run(run_dir)
+    if run.info is None:
+        raise InputError(run_dir / RUN_FILE, "run", "a file written by 'drivenav eval'")
     copy = run_dir / EPISODES_COPY
-    if not copy.is_file():
+    if run.episodes is None:
         expected = "the run's copy of its episodes (written as its first episodes run; a resume writes it again)"
         raise InputError(copy, "RUN_DIR", expected, "missing")
-    episodes = {e.episode_id: e for e in load_episodes(copy, require_goals=False)}
+    episodes = {e.episode_id: e for e in run.episodes}
     if episode_id not in episodes:
         raise InputError(copy, "EPISODE_ID", "an episode id of this run", episode_id)
     episode = episodes[episode_id]
     path = trace_path(run_dir, episode_id)
+    if inside(run_dir, path.relative_to(run_dir)) is None:
+        raise InputError(path, "trace", "a file inside the run directory", "a link out of it")
     try:
         trace = SavedTrace.of(EpisodeTrace.from_json(_read_json(path, "trace"), path), episode)
     except (KeyError, TypeError, ValueError):
         raise InputError(path, "trace", "positions, yaws and events as written by 'drivenav eval'") from None
-    records = {r.episode_id: r for r in read_records(run_dir / EPISODES_FILE)}
-    world, spec = recorded_world(run.get("config", {}).get("env", {}), run_dir / RUN_FILE)
-    scene = None if world.scenes is None else world.scenes(spec)(episode.scene_id)
-    return scene, episode, trace, records.get(episode_id)
+    record = next((r for r in run.records if r.episode_id == episode_id), None)
+    world, spec = recorded_world(run.info.world, run_dir / RUN_FILE)
+    return world.scene(spec, episode.scene_id, copy), episode, trace, record
 
 
 def render_episode_pictures(

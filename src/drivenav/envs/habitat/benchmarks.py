@@ -14,9 +14,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 OBJECTNAV_V1 = "objectnav-v1"  # habitat-lab's ObjectNav-v1 layout: goals_by_category, content/<scene>.json.gz
-OVON = "ovon"  # HM3D-OVON: the same layout plus children_object_categories; read by drivenav's OVON-v1 dataset
+OVON = "ovon"  # HM3D-OVON: the same layout plus children_object_categories; read by drivenav's own dataset type
 LAYOUTS = (OBJECTNAV_V1, OVON)
-DATASET_TYPES = {OBJECTNAV_V1: "ObjectNav-v1", OVON: "OVON-v1"}
+DATASET_TYPES = {OBJECTNAV_V1: "ObjectNav-v1", OVON: "drivenav-OVON-v1"}  # habitat-lab's reader; drivenav's
+OVON_DATASET_TYPE = "OVON-v1"  # HM3D-OVON's own OVONDatasetV1, used where a --habitat-plugin registers it
 
 
 @dataclass(frozen=True)
@@ -47,7 +48,7 @@ BENCHMARKS: dict[str, HabitatBenchmark] = {
         HabitatBenchmark(
             "hm3d-ovon",
             _HM3D,
-            "datasets/ovon/hm3d/{split}/{split}.json.gz",
+            "datasets/ovon/hm3d/v1/{split}/{split}.json.gz",  # where HM3D-OVON's experiment configs read it
             _HM3D_SCENES,
             ("val_seen", "val_seen_synonyms", "val_unseen"),
             OVON,

@@ -35,8 +35,9 @@ def _quoted(path: str) -> str:
     return "'" + path.replace("\\", "\\\\").replace("'", "\\'") + "'"
 
 
-def paper_values(spec: HabitatSpec, sim: SimConfig) -> dict[str, str]:
-    """Hydra overrides (key -> value) that make habitat-lab's config match ``sim`` and the spec's split."""
+def paper_values(spec: HabitatSpec, sim: SimConfig, dataset_type: str | None = None) -> dict[str, str]:
+    """Hydra overrides (key -> value) that make habitat-lab's config match ``sim`` and the spec's split, read with
+    ``dataset_type`` (default: the benchmark's, drivenav's own for HM3D-OVON)."""
     data_dir = spec.data_dir.rstrip("/")
     camera = f"[0,{_number(sim.camera_height)},0]"
     values = {
@@ -47,7 +48,7 @@ def paper_values(spec: HabitatSpec, sim: SimConfig) -> dict[str, str]:
         f"{AGENT}.height": _number(sim.agent_height),
         f"{AGENT}.radius": _number(sim.agent_radius),
         "habitat.task.measurements.success.success_distance": _number(sim.success_distance),
-        "habitat.dataset.type": spec.bench.dataset_type,
+        "habitat.dataset.type": dataset_type or spec.bench.dataset_type,
         "habitat.dataset.split": spec.split,
         "habitat.dataset.data_path": _quoted(f"{data_dir}/{spec.bench.data_path}"),
         "habitat.dataset.scenes_dir": _quoted(str(spec.scenes_dir)),
@@ -66,15 +67,18 @@ def paper_values(spec: HabitatSpec, sim: SimConfig) -> dict[str, str]:
     return values
 
 
-def hydra_overrides(spec: HabitatSpec, sim: SimConfig) -> list[str]:
+def hydra_overrides(spec: HabitatSpec, sim: SimConfig, dataset_type: str | None = None) -> list[str]:
     """drivenav's values, except where the user's overrides set the same key, then the user's."""
     user_keys = {item.partition("=")[0].strip() for item in spec.overrides}
-    ours = [f"{key}={value}" for key, value in paper_values(spec, sim).items() if key not in user_keys]
+    values = paper_values(spec, sim, dataset_type)
+    ours = [f"{key}={value}" for key, value in values.items() if key not in user_keys]
     return [*ours, *spec.overrides]
 
 
 def habitat_config(spec: HabitatSpec, sim: SimConfig) -> DictConfig:
-    """The habitat-lab config of a run (``habitat.get_config`` plus the structural edits above)."""
+    """The habitat-lab config of a run (``habitat.get_config`` plus the structural edits above). HM3D-OVON's split
+    is read by drivenav's dataset type (registered here), or by HM3D-OVON's own ``OVON-v1`` where a plugin
+    imported before registered it (:func:`~drivenav.envs.habitat.ovon.dataset_type`)."""
     import habitat
     from habitat.config import read_write
     from habitat.config.default_structured_configs import (
@@ -82,7 +86,10 @@ def habitat_config(spec: HabitatSpec, sim: SimConfig) -> DictConfig:
         HabitatSimSemanticSensorConfig,
     )
 
-    config: DictConfig = habitat.get_config(spec.bench.habitat_config, hydra_overrides(spec, sim))
+    from drivenav.envs.habitat.ovon import dataset_type
+
+    overrides = hydra_overrides(spec, sim, dataset_type(spec.bench.layout))
+    config: DictConfig = habitat.get_config(spec.bench.habitat_config, overrides)
     with read_write(config):
         task: Any = config.habitat.task
         for action in DROPPED_ACTIONS:

@@ -99,10 +99,8 @@ class HabitatEnv:
 
         import habitat
 
-        from drivenav.envs.habitat import ovon  # noqa: F401  (registers the OVON-v1 dataset)
-
         self._config = sim
-        self._habitat_config = habitat_config(spec, sim)
+        self._habitat_config = habitat_config(spec, sim)  # also registers drivenav's HM3D-OVON dataset type
         dataset = habitat.make_dataset(
             self._habitat_config.habitat.dataset.type, config=self._habitat_config.habitat.dataset
         )

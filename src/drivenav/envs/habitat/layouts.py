@@ -3,35 +3,60 @@
 A split is ``{split}/{split}.json.gz`` (category maps, usually no episodes) plus ``{split}/content/<scene>.json.gz``
 per scene: ``episodes`` without goals and ``goals_by_category``, keyed ``<scene basename>_<category>`` (the
 basename of the episode's ``scene_id``, extension included). HM3D-OVON adds ``children_object_categories`` to
-episodes (their instances count as goals too) and ``radius`` to view points, and leaves the category maps empty.
+episodes (their instances count as goals too, kept under their own keys), ``radius`` to view points, goal ids as
+text ``"<category>_<n>"``, and leaves the category maps empty. What is written is what HM3D-OVON's generator
+writes (``naokiyokoyama/ovon``, ``ovon/dataset/objectnav_generator.py``, read for its shapes): every field of its
+episodes and goals, floats to habitat-lab's 5 decimals, so a released file read and written again is unchanged,
+and HM3D-OVON's own ``OVONDatasetV1`` reads an export. ``goals_by_category`` keys that no episode uses (as its own
+category or a child) are not kept.
 
 Episodes come back in habitat-lab's order (the split file's, then each content file in sorted order, each in file
 order), with their goals resolved, as drivenav :class:`~drivenav.episode.Episode`\\ s. habitat-lab numbers a
 file's episodes from 0 (overwriting ``episode_id``); drivenav keeps the file's own ``episode_id`` where there is
-one, and where the ids of a split repeat across scenes, names every episode ``<scene>:<id>``.
+one, and where the ids of a split repeat across scenes, names every episode ``<scene>:<id>``. macOS metadata files
+(``._<scene>.json.gz``, as HM3D-OVON's released ``train/content`` holds) are skipped with one warning.
+
+Goals are written under the key of the episode's own text with that text as their category (a synonym
+episode's goals too, as HM3D-OVON's released files have them); drivenav's own synonym episodes (``info.synonym``
+with ``info.canonical_category``) read their goals back under the canonical category.
 """
 
 from __future__ import annotations
 
 import gzip
 import json
+import logging
+import math
 import os
 from collections import Counter
 from collections.abc import Iterable, Sequence
 from dataclasses import replace
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
 from drivenav.envs.habitat.benchmarks import LAYOUTS, OVON
-from drivenav.episode import Episode, goal_to_dict, parse_episode, rounded
+from drivenav.episode import (
+    CHILDREN,
+    Episode,
+    ObjectGoal,
+    habitat_object_id,
+    parse_episode,
+    rounded,
+    view_point_to_dict,
+)
 from drivenav.errors import InputError
 from drivenav.jsonstream import JsonObject
 from drivenav.validation import Fields, read_json
 
+log = logging.getLogger(__name__)
+
 CONTENT = "content"
-CHILDREN = "children_object_categories"
 DEFAULT_SCENE_PATH_PREFIX = "data/scene_datasets/"
 CATEGORY_MAPS = ("category_to_task_category_id", "category_to_mp3d_category_id")
+OVON_CATEGORY_MAPS = ("category_to_task_category_id", "category_to_scene_annotation_category_id")  # left empty
+APPLE_DOUBLE = "._"  # macOS metadata files beside the real ones (``._<scene>.json.gz``): not episodes
+HABITAT_DIGITS = 5  # habitat-lab's DatasetFloatJSONEncoder writes floats with 5 decimals
 
 
 def goals_key(scene_id: str, category: str) -> str:
@@ -55,10 +80,20 @@ def scene_path(scene_id: str, scenes_dir: str | None) -> str:
 
 
 def split_files(split_file: Path) -> list[Path]:
-    """The files of a split in habitat-lab's reading order: the split file, then ``content/*.json.gz`` sorted."""
+    """The files of a split in habitat-lab's reading order: the split file, then ``content/*.json.gz`` sorted
+    (macOS metadata files ``._*`` skipped, with one warning)."""
     content = split_file.parent / CONTENT
-    scenes = sorted(p for p in content.glob("*.json.gz") if p.is_file()) if content.is_dir() else []
-    return [split_file, *scenes]
+    found = sorted(p for p in content.glob("*.json.gz") if p.is_file()) if content.is_dir() else []
+    skipped = tuple(p.name for p in found if p.name.startswith(APPLE_DOUBLE))
+    if skipped:
+        _warn_skipped(str(content), skipped)
+    return [split_file, *(p for p in found if not p.name.startswith(APPLE_DOUBLE))]
+
+
+@lru_cache(maxsize=16)
+def _warn_skipped(folder: str, names: tuple[str, ...]) -> None:
+    """One warning per folder and process (a split is read by the parent, each worker and the dataset class)."""
+    log.warning("%s: skipped %d macOS metadata files (._*, not episodes), e.g. %s", folder, len(names), names[0])
 
 
 def read_split(split_file: Path, layout: str) -> list[Episode]:
@@ -89,28 +124,36 @@ def _read_episode(fields: Fields, index: int, item: Any, goals_by_category: Json
     scene_id = fields.text(item["scene_id"], f"{name}.scene_id")
     category = fields.text(item["object_category"], f"{name}.object_category")
     item.setdefault("episode_id", str(index))
-    goals = list(item.get("goals") or [])
-    if not goals:
+    children = fields.texts(item.get(CHILDREN) or [], f"{name}.{CHILDREN}") if layout == OVON else []
+    item[CHILDREN] = children
+    if not item.get("goals"):
         key = goals_key(scene_id, category)
         if key not in goals_by_category:
             raise fields.error("goals_by_category", f"the key '{key}' (episode {index}'s scene and category)")
-        goals = list(goals_by_category[key])
-        children = fields.texts(item.get(CHILDREN, []), f"{name}.{CHILDREN}") if layout == OVON else []
+        canonical = _canonical_category(item.get("info"))
+        goals = [_in_category(goal, category, canonical) for goal in _goals_of(fields, goals_by_category, key)]
         for child in children:
-            goals.extend(goals_by_category.get(goals_key(scene_id, child), []))
-    item["goals"] = [_numeric_object_id(goal) for goal in goals]
-    info = dict(item.get("info") or {})
-    if item.get("scene_dataset_config"):
-        info.setdefault("scene_dataset_config", item["scene_dataset_config"])
-    item["info"] = info
+            child_key = goals_key(scene_id, child)
+            goals.extend(_goals_of(fields, goals_by_category, child_key) if child_key in goals_by_category else [])
+        item["goals"] = goals
     return parse_episode(fields, name, item)
 
 
-def _numeric_object_id(goal: Any) -> Any:
-    """Goal ids as integers (HM3D-OVON writes some as strings; a non-numeric id is kept out as -1)."""
-    if isinstance(goal, dict) and isinstance(goal.get("object_id"), str):
-        text = goal["object_id"]
-        return {**goal, "object_id": int(text) if text.lstrip("-").isdigit() else -1}
+def _goals_of(fields: Fields, goals_by_category: JsonObject, key: str) -> list[Any]:
+    return fields.sequence(goals_by_category[key], f"goals_by_category.{key}")
+
+
+def _canonical_category(info: Any) -> str | None:
+    """The canonical category of drivenav's own synonym episodes (``info.synonym``, ``info.canonical_category``)."""
+    if isinstance(info, dict) and info.get("synonym") is True and isinstance(info.get("canonical_category"), str):
+        return str(info["canonical_category"])
+    return None
+
+
+def _in_category(goal: Any, text: str, canonical: str | None) -> Any:
+    """A goal written under a synonym episode's text read back under the canonical category."""
+    if canonical is not None and isinstance(goal, dict) and goal.get("object_category") == text:
+        return {**goal, "object_category": canonical}
     return goal
 
 
@@ -128,44 +171,125 @@ def _unique_ids(episodes: list[Episode]) -> list[Episode]:
 # ----------------------------------------------------------------------------------------------- writing
 
 
-def write_split(episodes: Sequence[Episode], split_file: Path, layout: str) -> list[Path]:
+def write_split(
+    episodes: Sequence[Episode], split_file: Path, layout: str, source: str | Path = "episodes"
+) -> list[Path]:
     """Write ``episodes`` in a Habitat layout at ``split_file`` (``ROOT/{split}/{split}.json.gz``) and its
-    ``content/`` folder; returns the files written (same bytes for the same episodes)."""
+    ``content/`` folder; returns the files written (same bytes for the same episodes). Scenes whose episodes would
+    share a content file (one base name), or one scene and category with two sets of goals, are an
+    :class:`InputError` naming ``source``."""
     if layout not in LAYOUTS:
         raise ValueError(f"unknown layout {layout!r}; expected one of {LAYOUTS}")
-    categories = sorted({e.object_category for e in episodes})
-    maps = {} if layout == OVON else {c: i for i, c in enumerate(categories)}
-    written = [_write_json(split_file, {"episodes": [], **{key: maps for key in CATEGORY_MAPS}})]
     by_scene: dict[str, list[Episode]] = {}
     for episode in episodes:
         by_scene.setdefault(episode.scene_id, []).append(episode)
+    names = _content_names(by_scene, source)
+    written = [_write_json(split_file, _split_payload(episodes, layout))]
     for scene_id, scene_episodes in by_scene.items():
-        path = split_file.parent / CONTENT / f"{scene_name(scene_id)}.json.gz"
-        written.append(_write_json(path, _content(scene_episodes, layout)))
+        path = split_file.parent / CONTENT / f"{names[scene_id]}.json.gz"
+        written.append(_write_json(path, _content(scene_episodes, layout, source)))
     return written
 
 
-def _content(episodes: Iterable[Episode], layout: str) -> JsonObject:
+def _content_names(by_scene: dict[str, list[Episode]], source: str | Path) -> dict[str, str]:
+    """Each scene's content file name (its base name without extensions), one per scene."""
+    names: dict[str, str] = {}
+    for scene_id in by_scene:
+        name = scene_name(scene_id)
+        other = next((s for s, n in names.items() if n == name), None)
+        if other is not None:
+            expected = f"scenes with distinct base names (each scene's episodes go to content/{name}.json.gz)"
+            raise InputError(source, "scene_id", expected, f"{other} and {scene_id}")
+        names[scene_id] = name
+    return names
+
+
+def _split_payload(episodes: Sequence[Episode], layout: str) -> JsonObject:
+    """The split file: HM3D-OVON's holds nothing; ObjectNav v1's the category maps (one id per category)."""
+    if layout == OVON:
+        return {"goals_by_category": {}, "episodes": []}
+    maps = {c: i for i, c in enumerate(sorted({e.object_category for e in episodes}))}
+    return {"episodes": [], **{key: maps for key in CATEGORY_MAPS}}
+
+
+def _content(episodes: Iterable[Episode], layout: str, source: str | Path) -> JsonObject:
     goals_by_category: dict[str, list[JsonObject]] = {}
     items = []
     for episode in episodes:
-        key = goals_key(episode.scene_id, episode.object_category)
-        goals = [goal_to_dict(goal) for goal in episode.goals]
-        if goals_by_category.setdefault(key, goals) != goals:
-            raise ValueError(f"episode {episode.episode_id}: other goals than an earlier episode under key {key}")
-        item = {
-            "episode_id": episode.episode_id,
-            "scene_id": episode.scene_id,
-            "start_position": rounded(episode.start_position),
-            "start_rotation": rounded(episode.start_rotation),
-            "object_category": episode.object_category,
-            "goals": [],
-            "info": dict(episode.info),
-        }
-        if layout == OVON:
-            item[CHILDREN] = []
-        items.append(item)
+        for key, goals in _keyed_goals(episode, layout).items():
+            if goals_by_category.setdefault(key, goals) != goals:
+                expected = f"the same goals in every episode of one scene and category (key {key})"
+                raise InputError(source, "goals", expected, f"other goals in episode {episode.episode_id}")
+        items.append(_episode_item(episode, layout))
+    if layout == OVON:
+        return {"goals_by_category": goals_by_category, "episodes": items, **{k: {} for k in OVON_CATEGORY_MAPS}}
     return {"episodes": items, "goals_by_category": goals_by_category}
+
+
+def _keyed_goals(episode: Episode, layout: str) -> dict[str, list[JsonObject]]:
+    """An episode's goals by key: a child category's under its own key (HM3D-OVON), every other goal under the
+    episode's text, in that category."""
+    children = set(episode.children_object_categories if layout == OVON else ()) - {episode.object_category}
+    keyed: dict[str, list[JsonObject]] = {goals_key(episode.scene_id, episode.object_category): []}
+    for goal in episode.goals:
+        category = goal.object_category if goal.object_category in children else episode.object_category
+        keyed.setdefault(goals_key(episode.scene_id, category), []).append(_goal_item(goal, category, layout))
+    return keyed
+
+
+def _goal_item(goal: ObjectGoal, category: str, layout: str) -> JsonObject:
+    """A goal as the layout writes it: HM3D-OVON's text id and view point radii, ObjectNav v1's integer id."""
+    position = rounded(goal.position, HABITAT_DIGITS)
+    if layout == OVON:
+        points = [view_point_to_dict(vp, HABITAT_DIGITS) for vp in goal.view_points]
+        return {"object_category": category, "object_id": habitat_object_id(goal), "position": position,
+                "view_points": points}  # fmt: skip
+    points = [view_point_to_dict(replace(vp, radius=None), HABITAT_DIGITS) for vp in goal.view_points]
+    return {"object_id": goal.object_id, "object_category": category, "position": position, "view_points": points}
+
+
+def _episode_item(episode: Episode, layout: str) -> JsonObject:
+    """An episode without its goals: HM3D-OVON's every field (habitat-lab's ``Episode`` ones included), ObjectNav
+    v1's as before plus ``scene_dataset_config``."""
+    start = {
+        "start_position": rounded(episode.start_position, HABITAT_DIGITS),
+        "start_rotation": rounded(episode.start_rotation, HABITAT_DIGITS),
+    }
+    info = _with_euclidean_distance(episode)
+    head = {"episode_id": _file_episode_id(episode), "scene_id": episode.scene_id}
+    if layout != OVON:
+        return {**head, **start, "object_category": episode.object_category, "goals": [], "info": info,
+                "scene_dataset_config": episode.scene_dataset_config}  # fmt: skip
+    return {
+        **head,
+        "scene_dataset_config": episode.scene_dataset_config,
+        "additional_obj_config_paths": [],
+        **start,
+        "info": info,
+        "goals": [],
+        "start_room": None,
+        "shortest_paths": None,
+        "object_category": episode.object_category,
+        CHILDREN: list(episode.children_object_categories),
+    }
+
+
+def _file_episode_id(episode: Episode) -> str:
+    """The id a content file holds: an id :func:`read_split` named ``<scene>:<id>`` written back as ``<id>``."""
+    prefix = f"{scene_name(episode.scene_id)}:"
+    return episode.episode_id[len(prefix) :] if episode.episode_id.startswith(prefix) else episode.episode_id
+
+
+def _with_euclidean_distance(episode: Episode) -> JsonObject:
+    """``info`` with ``euclidean_distance`` (HM3D-OVON's statistics read it) where it has none: the straight-line
+    distance from the start to the nearest view point. HM3D-OVON's generator measures it to the view point its
+    shortest path ends at, which is never nearer; drivenav's episodes do not record that one."""
+    info = dict(episode.info)
+    points = [vp.position for goal in episode.goals for vp in goal.view_points]
+    if "euclidean_distance" not in info and points:
+        nearest = min(math.dist(episode.start_position, point) for point in points)
+        info["euclidean_distance"] = round(nearest, HABITAT_DIGITS)
+    return info
 
 
 def _write_json(path: Path, payload: JsonObject) -> Path:

@@ -1,4 +1,4 @@
-"""HM3D-OVON episodes as a habitat-lab dataset (``OVON-v1``), registered on import (imports habitat-lab).
+"""HM3D-OVON episodes as a habitat-lab dataset, registered on import as ``drivenav-OVON-v1`` (imports habitat-lab).
 
 habitat-lab's ``ObjectNav-v1`` reader rejects HM3D-OVON (view points carry ``radius``; the category maps are
 empty), so episodes are read with :func:`~drivenav.envs.habitat.layouts.read_split` and handed to habitat-lab as
@@ -6,6 +6,9 @@ its own ``ObjectGoalNavEpisode`` / ``ObjectGoal`` / ``ObjectViewLocation`` recor
 the instances of its ``children_object_categories``, so habitat-lab's ``DistanceToGoal`` and ``Success`` count
 them as HM3D-OVON's success does. Episode ids are the file's own (not re-numbered), scenes are resolved under
 ``scenes_dir`` as habitat-lab resolves them.
+
+The name is drivenav's own: HM3D-OVON's code registers its ``OVONDatasetV1`` as ``OVON-v1``, and a run whose
+``--habitat-plugin`` registers that name reads the split with it (:func:`dataset_type`).
 """
 
 from __future__ import annotations
@@ -18,7 +21,7 @@ from habitat.core.registry import registry
 from habitat.core.simulator import AgentState
 from habitat.tasks.nav.object_nav_task import ObjectGoal, ObjectGoalNavEpisode, ObjectViewLocation
 
-from drivenav.envs.habitat.benchmarks import OVON
+from drivenav.envs.habitat.benchmarks import DATASET_TYPES, OVON, OVON_DATASET_TYPE
 from drivenav.envs.habitat.layouts import read_split, scene_name, scene_path
 from drivenav.episode import Episode
 from drivenav.episode import ObjectGoal as DrivenavGoal
@@ -26,7 +29,7 @@ from drivenav.episode import ObjectGoal as DrivenavGoal
 if TYPE_CHECKING:
     from omegaconf import DictConfig
 
-DATASET_TYPE = "OVON-v1"
+DATASET_TYPE = DATASET_TYPES[OVON]
 
 
 def _goal(goal: DrivenavGoal) -> Any:
@@ -41,21 +44,20 @@ def _goal(goal: DrivenavGoal) -> Any:
 
 def habitat_episode(episode: Episode, scenes_dir: str | None) -> Any:
     """A drivenav episode as habitat-lab's ``ObjectGoalNavEpisode``."""
-    info = dict(episode.info)
     return ObjectGoalNavEpisode(
         episode_id=episode.episode_id,
         scene_id=scene_path(episode.scene_id, scenes_dir),
-        scene_dataset_config=str(info.get("scene_dataset_config", "default")),
+        scene_dataset_config=episode.scene_dataset_config,
         start_position=list(episode.start_position),
         start_rotation=list(episode.start_rotation),
         object_category=episode.object_category,
         goals=[_goal(goal) for goal in episode.goals],
-        info=info,
+        info=dict(episode.info),
     )
 
 
 @registry.register_dataset(name=DATASET_TYPE)
-class OVONDatasetV1(Dataset):  # type: ignore[misc]
+class OVONDataset(Dataset):  # type: ignore[misc]
     """HM3D-OVON's split layout (``{split}/{split}.json.gz`` and ``content/<scene>.json.gz``)."""
 
     def __init__(self, config: DictConfig | None = None) -> None:
@@ -67,3 +69,11 @@ class OVONDatasetV1(Dataset):  # type: ignore[misc]
         for episode in read_split(split_file, OVON):
             if ALL_SCENES_MASK in scenes or scene_name(episode.scene_id) in scenes:
                 self.episodes.append(habitat_episode(episode, config.scenes_dir))
+
+
+def dataset_type(layout: str) -> str:
+    """The dataset type a run of ``layout`` reads its split with: HM3D-OVON's own ``OVON-v1`` where a plugin has
+    registered it, else drivenav's."""
+    if layout == OVON and registry.get_dataset(OVON_DATASET_TYPE) is not None:
+        return OVON_DATASET_TYPE
+    return DATASET_TYPES[layout]

@@ -83,6 +83,17 @@ class WorldEntry:
             expected = f"a {self.name} world's fields ({', '.join(names)})"
             raise InputError(source, "config.env", expected, str(error)) from None
 
+    def scene(self, spec: EnvSpec, scene_id: str, source: str | Path) -> Scene | None:
+        """The scene ``scene_id`` of the world ``spec`` describes (None where drivenav cannot draw this world's
+        scenes); an :class:`InputError` naming ``source``'s ``scene_id`` when the world has no such scene (an
+        episodes copy naming another world's scene)."""
+        if self.scenes is None:
+            return None
+        try:
+            return self.scenes(spec)(scene_id)
+        except KeyError:
+            raise InputError(source, "scene_id", f"a scene of the run's {self.name} world", scene_id) from None
+
     def refuse_options(self, args: argparse.Namespace) -> None:
         """Refuse this world's own options and ``--set`` overrides in ``args`` (a run on another world)."""
         for flag in self.own_options:
