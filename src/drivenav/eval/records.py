@@ -10,10 +10,11 @@ beside the other keys; the exploration method's counters under ``explorer`` (``{
 ``retraced_m`` are the segmentation-free revisit count (:func:`drivenav.metrics.retraced`); ``trace`` names the
 episode's trace file in the run directory ("" when it could not be written). ``schema_version`` 1 is the untyped
 record written before it existed, 2 the record before the decision counters, 3 the record before ``trace``, 4 the
-record before ``explorer``, whose DRIVE-Nav counters were flat beside the others: all read the same (the flat
-counters of a record before 5 become its explorer's, the explorer named by the record's method). Every value is checked against its field's type and range when read, by every reader (a resume, ``compare``,
-``report``, ``viz``): ``success`` is 0, 1 or null, ``spl`` lies in [0, 1], and every other number (steps, distances,
-counts, latencies) is finite and >= 0 (``success: "yes"``, ``spl: 55.5`` or ``steps: -40`` names the line and field).
+record before ``explorer``, whose DRIVE-Nav counters were flat beside the others: all read the same (the flat counters
+of a record before 5 become its explorer's, the explorer named by the record's method). Every value is checked against
+its field's type and range when read, by every reader (a resume, ``compare``, ``report``, ``viz``): ``success`` is 0,
+1 or null, ``spl`` lies in [0, 1], and every other number (steps, distances, counts, latencies) is finite and >= 0
+(``success: "yes"``, ``spl: 55.5`` or ``steps: -40`` names the line and field).
 """
 
 from __future__ import annotations
