@@ -29,7 +29,7 @@ from drivenav.eval.runner import RunSpec, evaluate
 from drivenav.report.manifest import MANIFEST
 from drivenav.report.site import write_report
 from drivenav.settings import load_settings
-from drivenav.viz.episode import render_episode_pictures
+from drivenav.viz.episode import load_episode, render_episode_pictures
 
 SCENES = "procedural:2"
 SECRET = "drivenav-test-secret-4f1c"  # what must never reach a site
@@ -487,7 +487,7 @@ def test_an_episodes_copy_naming_another_worlds_scene_is_one_line_in_viz_and_a_n
     assert main(["viz", str(run), "0", "--out", str(tmp_path / "viz")]) == 2
     assert _one_line_error(capsys) == expected
     with pytest.raises(InputError, match="a scene of the run's embedded world"):
-        render_episode_pictures(run, "0", tmp_path / "viz")
+        render_episode_pictures(load_episode(run, "0"), tmp_path / "viz")
     assert main(["report", str(run), "--out", str(tmp_path / "site"), "--pictures", "all", "--workers", "1"]) == 0
     assert f"Its picture could not be drawn: {expected}".replace("'", "&#x27;") in _page(tmp_path / "site")
     capsys.readouterr()

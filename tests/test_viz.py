@@ -27,7 +27,7 @@ from drivenav.settings import load_settings
 from drivenav.types import SimConfig
 from drivenav.viz import episode as viz_episode
 from drivenav.viz.coverage import explored_cells
-from drivenav.viz.episode import render_episode_pictures
+from drivenav.viz.episode import load_episode, render_episode_pictures
 from drivenav.viz.saved_trace import SavedTrace
 from drivenav.viz.topdown import LEGEND_WIDTH, Canvas
 from drivenav.viz.video import VIDEO_HINT, frame_steps
@@ -54,7 +54,7 @@ def _trace(run_dir: Path) -> SavedTrace:
 
 
 def test_pictures_and_video(run_dir: Path, tmp_path: Path) -> None:
-    paths = render_episode_pictures(run_dir, "0", tmp_path)
+    paths = render_episode_pictures(load_episode(run_dir, "0"), tmp_path)
     names = [p.name for p in paths]
     assert names[:3] == ["0_topdown.png", "0_start_view.png", "0_end_view.png"]
     assert all(p.stat().st_size > 0 for p in paths)
@@ -85,25 +85,25 @@ def test_without_ffmpeg_writes_pictures_and_a_hint(
 ) -> None:
     monkeypatch.setattr(viz_episode, "video_available", lambda: False)
     with caplog.at_level(logging.WARNING):
-        paths = render_episode_pictures(run_dir, "0", tmp_path)
+        paths = render_episode_pictures(load_episode(run_dir, "0"), tmp_path)
     assert [p.suffix for p in paths] == [".png"] * 3
     assert VIDEO_HINT in caplog.text and 'pip install -e ".[video]"' in VIDEO_HINT
     assert not list(tmp_path.glob("*.mp4"))
 
 
 def test_no_video_when_not_asked(run_dir: Path, tmp_path: Path) -> None:
-    paths = render_episode_pictures(run_dir, "0", tmp_path, video=False)
+    paths = render_episode_pictures(load_episode(run_dir, "0"), tmp_path, video=False)
     assert len(paths) == 3 and not list(tmp_path.glob("*.mp4"))
 
 
 def test_missing_episode_names_it(run_dir: Path, tmp_path: Path) -> None:
     with pytest.raises(InputError, match="no-such-episode"):
-        render_episode_pictures(run_dir, "no-such-episode", tmp_path)
+        render_episode_pictures(load_episode(run_dir, "no-such-episode"), tmp_path)
 
 
 def test_rerun_recording_has_the_streams(run_dir: Path, tmp_path: Path) -> None:
     chunk = pytest.importorskip("rerun.chunk")
-    paths = render_episode_pictures(run_dir, "0", tmp_path, video=False, rerun=True)
+    paths = render_episode_pictures(load_episode(run_dir, "0"), tmp_path, video=False, rerun=True)
     assert [p.name for p in paths][-1] == "0.rrd"
     rows: dict[str, int] = {}
     for part in chunk.RrdReader(paths[-1]).stream().collect().stream():
@@ -119,7 +119,7 @@ def test_rerun_recording_has_the_streams(run_dir: Path, tmp_path: Path) -> None:
 def test_rerun_without_the_sdk_names_the_extra(run_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(sys.modules, "rerun", None)
     with pytest.raises(InputError, match=r"\.\[rerun\]"):
-        render_episode_pictures(run_dir, "0", tmp_path, rerun=True)
+        render_episode_pictures(load_episode(run_dir, "0"), tmp_path, rerun=True)
     assert not list(tmp_path.iterdir())  # nothing written before the error
 
 

@@ -37,7 +37,7 @@ from drivenav.eval.worlds.embedded import load_or_generate, scene_library
 from drivenav.eval.worlds.entry import WorldEntry
 from drivenav.settings import Settings
 from drivenav.types import Action, Observation, SimConfig
-from drivenav.viz.episode import render_episode_pictures
+from drivenav.viz.episode import load_episode, render_episode_pictures
 
 # --- the new world's module ------------------------------------------------------------------------------------
 
@@ -132,7 +132,9 @@ def test_the_world_sees_through_its_own_sensor(tmp_path: Path) -> None:
     noisy = NoisyDepthSpec(SCENES, 0, 0.1).build(SimConfig()).reset(episode)
     assert 0.05 < float(np.abs(noisy.depth - plain.depth).mean()) < 0.15
     first = read_records(out / EPISODES_FILE)[0].episode_id
-    pictures = render_episode_pictures(out, first, tmp_path / "viz", video=False)  # its scenes, from run.json
+    pictures = render_episode_pictures(
+        load_episode(out, first), tmp_path / "viz", video=False
+    )  # its scenes, from run.json
     assert any(p.name.endswith("_start_view.png") for p in pictures)
 
 

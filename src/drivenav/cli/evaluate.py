@@ -187,9 +187,10 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
 
 def _cmd_viz(args: argparse.Namespace) -> int:
-    from drivenav.viz.episode import render_episode_pictures
+    from drivenav.viz.episode import load_episode, render_episode_pictures
 
-    paths = render_episode_pictures(args.run_dir, args.episode_id, args.out, rerun=args.rerun)
+    material = load_episode(args.run_dir, args.episode_id)
+    paths = render_episode_pictures(material, args.out or args.run_dir / "viz", rerun=args.rerun)
     for written in paths:
         print(written)
     return 0

@@ -24,7 +24,7 @@ from drivenav.eval.records import EpisodeRecord
 from drivenav.eval.rundir import EPISODES_COPY, inside, trace_path
 from drivenav.eval.worlds import recorded_world
 from drivenav.jsonstream import JsonObject
-from drivenav.viz.episode import render_episode_pictures, trace_picture
+from drivenav.viz.episode import EpisodeMaterial, render_episode_pictures, trace_picture
 from drivenav.viz.run_pictures import PICTURES_DIR
 from drivenav.viz.saved_trace import SavedTrace
 from drivenav.viz.topdown import draw_episode
@@ -125,10 +125,10 @@ def draw(drawing: Drawing, folder: Path, views: bool) -> None:
     """Draw the episode's top-down picture into ``folder`` (with ``views``: every picture ``drivenav viz`` makes,
     but no video)."""
     episode = drawing.episode
-    if views:
-        render_episode_pictures(drawing.run_path, episode.episode_id, folder, video=False)
-        return
     scene = _scene(json.dumps(drawing.world, sort_keys=True), episode.scene_id, str(drawing.run_path))
+    if views:
+        render_episode_pictures(EpisodeMaterial(scene, episode, drawing.trace, drawing.record), folder, video=False)
+        return
     if scene is None:
         trace_picture(episode, drawing.trace, drawing.record, folder)
         return

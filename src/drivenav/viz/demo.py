@@ -8,13 +8,12 @@ from pathlib import Path
 from drivenav.envs.embedded.env import EmbeddedSpec
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.eval.episodes import generate_episodes
-from drivenav.eval.records import read_records
 from drivenav.eval.report import format_table, shown
-from drivenav.eval.rundir import EPISODES_FILE
+from drivenav.eval.rundir import read_run
 from drivenav.eval.runner import RunSpec, evaluate
 from drivenav.settings import load_settings
 from drivenav.types import SimConfig
-from drivenav.viz.episode import render_episode_pictures
+from drivenav.viz.episode import episode_material, render_episode_pictures
 
 DEMO_SCENES = "procedural:2"
 DEMO_AGENTS = (("drive-nav", 500), ("oracle", 500))
@@ -41,9 +40,11 @@ def run_demo(out: Path, num_episodes: int, seed: int) -> Path:
         table = format_table(summary, f"{agent} (max {max_steps} steps)")
         print(table)
         lines += [f"## {agent}", "", "```", table, "```", ""]
-        for number, record in enumerate(sorted(read_records(run_dir / EPISODES_FILE), key=lambda r: int(r.episode_id))):
+        run = read_run(run_dir)
+        for number, record in enumerate(sorted(run.records, key=lambda r: int(r.episode_id))):
             video = agent == VIDEO_AGENT and number == 0
-            pictures = render_episode_pictures(run_dir, record.episode_id, video=video)
+            material = episode_material(run_dir, run, record.episode_id)
+            pictures = render_episode_pictures(material, run_dir / "viz", video=video)
             lines.append(
                 f"- episode {record.episode_id} ({record.object_category}): success {record.success}, "
                 f"SPL {shown(record.spl, '{:.2f}')}, {record.steps} steps"

@@ -1,15 +1,19 @@
-"""Pictures and a video of one finished episode from a run directory (``drivenav viz RUN_DIR EPISODE_ID``).
+"""Pictures and a video of one finished episode (``drivenav viz RUN_DIR EPISODE_ID``).
 
-Writes ``<id>_topdown.png`` (the map with the trace, a legend and the last decisions' representative views),
+What is drawn is given typed (:class:`EpisodeMaterial`: the scene, the episode, its trace and record); a caller that
+has read its run already (the report, ``bench ablations``' pictures, the demo) builds it with
+:func:`episode_material`, and :func:`load_episode` reads one from a run directory for the command line. Writes
+``<id>_topdown.png`` (the map with the trace, a legend and the last decisions' representative views),
 ``<id>_start_view.png`` and ``<id>_end_view.png`` (RGB, depth, semantics) and ``<id>.mp4`` (needs imageio-ffmpeg).
-Everything is re-rendered from the saved trace with the default camera (:class:`SimConfig`). A Habitat run gets
-the top-down picture only, its trace, decisions and goals on a blank floor (:func:`trace_scene`).
+Everything is re-rendered from the saved trace with the default camera (:class:`SimConfig`). A Habitat run gets the
+top-down picture only, its trace, decisions and goals on a blank floor (:func:`trace_scene`).
 """
 
 from __future__ import annotations
 
 import json
 import logging
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -22,7 +26,7 @@ from drivenav.envs.embedded.scene import Material, Scene
 from drivenav.episode import Episode
 from drivenav.errors import InputError
 from drivenav.eval.records import EpisodeRecord
-from drivenav.eval.rundir import EPISODES_COPY, RUN_FILE, inside, read_run, trace_path
+from drivenav.eval.rundir import EPISODES_COPY, RUN_FILE, RunContents, inside, read_run, trace_path
 from drivenav.eval.trace import EpisodeTrace
 from drivenav.eval.worlds import recorded_world
 from drivenav.grid import GridSpec
@@ -87,20 +91,35 @@ def trace_picture(episode: Episode, trace: SavedTrace, record: EpisodeRecord | N
     return save_png(topdown, folder / f"{trace_path(folder, episode.episode_id).stem}_topdown.png")
 
 
-def _load_episode(run_dir: Path, episode_id: str) -> tuple[Scene | None, Episode, SavedTrace, EpisodeRecord | None]:
-    """The episode's scene, episode, trace and record, from the run read and checked as every reader reads it
-    (:func:`~drivenav.eval.rundir.read_run`; its trace must stay inside the run directory too)."""
-    run = read_run(run_dir)
+@dataclass(frozen=True)
+class EpisodeMaterial:
+    """What an episode's pictures are drawn from: its scene (None for worlds whose scenes drivenav cannot draw), the
+    episode, its trace and its record (None when the run holds none)."""
+
+    scene: Scene | None
+    episode: Episode
+    trace: SavedTrace
+    record: EpisodeRecord | None
+
+
+def load_episode(run_dir: Path, episode_id: str) -> EpisodeMaterial:
+    """The episode ``episode_id`` of the run in ``run_dir``, the run read and checked as every reader reads it
+    (:func:`~drivenav.eval.rundir.read_run`)."""
+    return episode_material(run_dir, read_run(run_dir), episode_id)
+
+
+def episode_material(run_dir: Path, run: RunContents, episode_id: str) -> EpisodeMaterial:
+    """The episode's scene, episode, trace and record, from a run already read (its trace must stay inside the run
+    directory too)."""
     if run.info is None:
         raise InputError(run_dir / RUN_FILE, "run", "a file written by 'drivenav eval'")
     copy = run_dir / EPISODES_COPY
     if run.episodes is None:
         expected = "the run's copy of its episodes (written as its first episodes run; a resume writes it again)"
         raise InputError(copy, "RUN_DIR", expected, "missing")
-    episodes = {e.episode_id: e for e in run.episodes}
-    if episode_id not in episodes:
+    episode = next((e for e in run.episodes if e.episode_id == episode_id), None)
+    if episode is None:
         raise InputError(copy, "EPISODE_ID", "an episode id of this run", episode_id)
-    episode = episodes[episode_id]
     path = trace_path(run_dir, episode_id)
     if inside(run_dir, path.relative_to(run_dir)) is None:
         raise InputError(path, "trace", "a file inside the run directory", "a link out of it")
@@ -110,20 +129,19 @@ def _load_episode(run_dir: Path, episode_id: str) -> tuple[Scene | None, Episode
         raise InputError(path, "trace", "positions, yaws and events as written by 'drivenav eval'") from None
     record = next((r for r in run.records if r.episode_id == episode_id), None)
     world, spec = recorded_world(run.info.world, run_dir / RUN_FILE)
-    return world.scene(spec, episode.scene_id, copy), episode, trace, record
+    return EpisodeMaterial(world.scene(spec, episode.scene_id, copy), episode, trace, record)
 
 
 def render_episode_pictures(
-    run_dir: Path, episode_id: str, out: Path | None = None, video: bool = True, rerun: bool = False
+    material: EpisodeMaterial, folder: Path, video: bool = True, rerun: bool = False
 ) -> list[Path]:
     """Top-down map (with the last decisions' views), first/last egocentric views and, when ``video`` is set and
-    imageio-ffmpeg is installed, an MP4 of the episode; with ``rerun``, also a Rerun recording (``.rrd``) of the
-    same streams. Returns the written paths."""
+    imageio-ffmpeg is installed, an MP4 of the episode, into ``folder``; with ``rerun``, also a Rerun recording
+    (``.rrd``) of the same streams. Returns the written paths."""
     if rerun:
         import_rerun()  # fail before any work without rerun-sdk
-    scene, episode, trace, record = _load_episode(run_dir, episode_id)
-    folder = out or run_dir / "viz"
-    stem = trace_path(folder, episode_id).stem
+    scene, episode, trace, record = material.scene, material.episode, material.trace, material.record
+    stem = trace_path(folder, episode.episode_id).stem
     if scene is None:  # a Habitat or robot run: scenes drivenav does not render
         log.warning("not an embedded run: the top-down picture shows the trace and goals only (no scene, views, video)")
         return [trace_picture(episode, trace, record, folder)]

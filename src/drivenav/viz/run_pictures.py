@@ -16,7 +16,8 @@ from pathlib import Path
 from drivenav.errors import InputError
 from drivenav.eval.ablation_data import Pictures
 from drivenav.eval.compare import TABLE_II_MIN_DISTANCE, RunRecords, common_successes
-from drivenav.viz.episode import render_episode_pictures
+from drivenav.eval.rundir import RunContents, read_run
+from drivenav.viz.episode import episode_material, render_episode_pictures
 
 log = logging.getLogger(__name__)
 
@@ -41,12 +42,15 @@ def render_pictures(dirs: dict[str, Path], runs: RunRecords, order: Sequence[str
     methods = list(dirs)[:MAX_METHODS]
     episodes: dict[str, dict[str, str]] = {}
     video: str | None = None
+    contents: dict[str, RunContents] = {}
     for episode_id in choose_episodes({m: runs[m] for m in methods}, order, count):
         for method in methods:
             want_video = video is None and method == methods[0]
             folder = out / PICTURES_DIR / method
             try:
-                paths = render_episode_pictures(dirs[method], episode_id, folder, video=want_video)
+                run = contents.get(method) or contents.setdefault(method, read_run(dirs[method]))
+                material = episode_material(dirs[method], run, episode_id)
+                paths = render_episode_pictures(material, folder, video=want_video)
             except InputError as error:
                 log.warning("no pictures for %s / %s: %s", method, episode_id, error)
                 continue
