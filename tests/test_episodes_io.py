@@ -38,6 +38,19 @@ def test_round_trip(tmp_path: Path) -> None:
     assert loaded[0].view_points_xy() == [pytest.approx((2.0, 1.0))]
 
 
+def test_a_temporary_file_left_as_a_link_is_never_written_through(tmp_path: Path) -> None:
+    """A run directory someone sent may hold ``episodes.json.gz.partial`` as a link to a file of yours: a resume
+    that writes the episodes copy removes the link and leaves its target alone."""
+    kept = tmp_path / "yours.txt"
+    kept.write_text("precious", encoding="utf-8")
+    target = tmp_path / "run" / "episodes.json.gz"
+    target.parent.mkdir()
+    target.with_name("episodes.json.gz.partial").symlink_to(kept)
+    save_episodes([_episode()], target)
+    assert kept.read_text(encoding="utf-8") == "precious"
+    assert [e.episode_id for e in load_episodes(target)] == ["0"]
+
+
 def test_same_episodes_same_bytes(tmp_path: Path) -> None:
     save_episodes([_episode()], tmp_path / "a.json.gz")
     save_episodes([_episode()], tmp_path / "b.json.gz")

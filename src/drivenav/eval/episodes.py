@@ -268,13 +268,15 @@ WRITE_CHUNK = 1 << 20  # characters of episode text gathered per write
 
 def save_episodes(episodes: Iterable[Episode], path: str | Path) -> None:
     """Write a json.gz episode file, byte-identical for identical episodes; written to a temporary file and moved
-    into place, so a reader sees the old file or the whole new one."""
+    into place, so a reader sees the old file or the whole new one. A temporary file left behind (a link, in a run
+    directory someone sent) is removed first, never written through."""
     target = Path(path)
     if target.is_dir():
         raise IsADirectoryError(errno.EISDIR, "is a directory (an episodes file is expected)", str(target))
     target.parent.mkdir(parents=True, exist_ok=True)
     partial = target.with_name(target.name + ".partial")
     try:
+        partial.unlink(missing_ok=True)
         _write_gzip(partial, episodes)
         os.replace(partial, target)
     except OSError as error:  # named by the path asked for, not the temporary one
