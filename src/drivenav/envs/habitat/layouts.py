@@ -16,6 +16,7 @@ from __future__ import annotations
 import gzip
 import json
 import os
+import re
 from collections import Counter
 from collections.abc import Iterable, Sequence
 from dataclasses import replace
@@ -107,10 +108,10 @@ def _read_episode(fields: Fields, index: int, item: Any, goals_by_category: Json
 
 
 def _numeric_object_id(goal: Any) -> Any:
-    """Goal ids as integers (HM3D-OVON writes some as strings; a non-numeric id is kept out as -1)."""
+    """Goal ids as integers (HM3D-OVON writes some as strings; a non-numeric id, '²' included, is kept out as -1)."""
     if isinstance(goal, dict) and isinstance(goal.get("object_id"), str):
         text = goal["object_id"]
-        return {**goal, "object_id": int(text) if text.lstrip("-").isdigit() else -1}
+        return {**goal, "object_id": int(text) if re.fullmatch("-?[0-9]{1,18}", text) else -1}
     return goal
 
 
