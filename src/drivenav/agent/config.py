@@ -8,6 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from drivenav.mapping.value_map import ValueMapConfig
+from drivenav.ranges import COUNT, LENGTH, POSITIVE_LENGTH, STEPS, check_ranges
 
 
 @dataclass(frozen=True)
@@ -19,6 +20,16 @@ class PlannerConfig:
     stuck_progress: float = 0.15  # metres of net progress below which those steps count as stuck
     escape_turns: int = 2  # turns per blocked forward step in a row before the escape step
     max_turns: int = 12  # turns in a row after which the planner reports spinning
+
+    def __post_init__(self) -> None:
+        ranges = {
+            "lookahead": POSITIVE_LENGTH,
+            "stuck_steps": COUNT,
+            "stuck_progress": LENGTH,
+            "escape_turns": COUNT,
+            "max_turns": COUNT,
+        }
+        check_ranges(self, ranges)
 
 
 @dataclass(frozen=True)
@@ -42,3 +53,15 @@ class AgentConfig:
     approach_detour_steps: int = 60  # steps an approach may go through frontiers before the target is set aside
     planner: PlannerConfig = field(default_factory=PlannerConfig)
     vlfm: ValueMapConfig = field(default_factory=ValueMapConfig)  # VLFM's constants (Yokoyama et al., ICRA 2024)
+
+    def __post_init__(self) -> None:
+        ranges = {
+            "stop_distance": LENGTH,
+            "give_up_distance": LENGTH,
+            "blacklist_steps": STEPS,
+            "min_goal_distance": LENGTH,
+            "replan_shift": LENGTH,
+            "reidentify_steps": STEPS,
+            "approach_detour_steps": STEPS,
+        }
+        check_ranges(self, ranges)
