@@ -100,6 +100,66 @@ def test_a_syntax_error_names_the_files_own_line_and_column(
     assert f"at line {expected.value.lineno}, column {expected.value.colno}" in str(error.value)
 
 
+def _largest_window(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """The longest text the reader's window held, after each read (a spy on :meth:`jsonstream._Window.more`)."""
+    sizes = [0]
+    more = jsonstream._Window.more
+
+    def spied(window: jsonstream._Window) -> bool:
+        found = more(window)
+        sizes[0] = max(sizes[0], len(window.text))
+        return found
+
+    monkeypatch.setattr(jsonstream._Window, "more", spied)
+    return sizes
+
+
+@pytest.mark.parametrize("where", ["between episodes", "before the array", "after the document"])
+def test_whitespace_is_read_through_a_window_of_a_chunk_or_two(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, where: str
+) -> None:
+    """Reading time grew with the square of the whitespace between episodes (256 MiB: 22 s) because the window
+    kept every space read; it now holds about one chunk, so time grows with the text (no clock in the test)."""
+    monkeypatch.setattr(jsonstream, "CHUNK_BYTES", 1024)
+    largest = _largest_window(monkeypatch)
+    spaces = " \n\t\r" * (1 << 18)  # 1 MiB: a thousand chunks
+    first, second = (json.dumps(e) for e in EPISODES[:2])
+    text = {
+        "between episodes": f'{{"episodes": [{first},{spaces}{second}]}}',
+        "before the array": f'{{"episodes":{spaces}[{first}, {second}]}}',
+        "after the document": f'{{"episodes": [{first}, {second}]}}{spaces}',
+    }[where]
+    path = _write(tmp_path / "eps.json.gz", text)
+    assert load_episodes(path) == _whole_document_reading(text, path)
+    assert largest[0] < 4 * (1024 + max(len(first), len(second))), largest[0]  # an episode read twice over
+
+
+def test_a_syntax_error_after_long_whitespace_names_its_line_and_column(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(jsonstream, "CHUNK_BYTES", 16)
+    text = '{"episodes": [' + json.dumps(EPISODES[0]) + ",  \n " * 500 + "  \n   x]}"
+    with pytest.raises(json.JSONDecodeError) as expected:
+        json.loads(text)
+    with pytest.raises(InputError, match="valid JSON") as error:
+        load_episodes(_write(tmp_path / "bad.json", text, compress=False))
+    assert f"at line {expected.value.lineno}, column {expected.value.colno}" in str(error.value)
+
+
+def test_a_whitespace_bomb_is_refused_at_the_limit_holding_a_chunk(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A 10 MB gzip of 10 GiB of spaces took 541 s to refuse; the refusal now comes at the limit having held about
+    one chunk of text."""
+    monkeypatch.setattr(jsonstream, "MAX_DOCUMENT_BYTES", 1 << 20)
+    monkeypatch.setattr(jsonstream, "CHUNK_BYTES", 1024)
+    largest = _largest_window(monkeypatch)
+    path = _write(tmp_path / "bomb.json.gz", '{"episodes": [' + json.dumps(EPISODES[0]) + "," + " " * (4 << 20) + "]}")
+    with pytest.raises(InputError, match="at most 1 MiB of JSON"):
+        load_episodes(path)
+    assert largest[0] < 4 * (1024 + len(json.dumps(EPISODES[0]))), largest[0]
+
+
 def test_a_habitat_content_file_is_named_whatever_its_key_order(tmp_path: Path) -> None:
     episode = {k: v for k, v in EPISODES[0].items() if k != "goals"}
     text = json.dumps({"episodes": [episode], "goals_by_category": {"scene.basis.glb_chair": []}})

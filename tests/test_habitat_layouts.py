@@ -90,6 +90,21 @@ def test_a_missing_goals_key_is_one_line_naming_the_file(episodes: list[Episode]
     assert str(content) in str(error.value) and "\n" not in str(error.value)
 
 
+@pytest.mark.parametrize(("given", "read"), [("7", 7), ("-3", -1), ("\u00b2", -1), ("--5", -1), ("9" * 5000, -1)])
+def test_a_goal_id_written_as_text_is_read_as_a_number_or_kept_out(
+    episodes: list[Episode], tmp_path: Path, given: str, read: int
+) -> None:
+    """'²' passed ``str.isdigit`` and then ``int`` raised a traceback."""
+    split = tmp_path / "val" / "val.json.gz"
+    content = write_split(episodes[:1], split, OVON)[1]
+    data = json.loads(gzip.decompress(content.read_bytes()))
+    for goals in data["goals_by_category"].values():
+        goals[0]["object_id"] = given
+    content.write_bytes(gzip.compress(json.dumps(data).encode()))
+    [episode] = read_split(split, OVON)
+    assert episode.goals[0].object_id == read
+
+
 def test_a_missing_split_file_names_it(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="split file"):
         read_split(tmp_path / "val" / "val.json.gz", OVON)

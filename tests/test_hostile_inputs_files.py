@@ -15,8 +15,10 @@ from drivenav.cli import main
 from drivenav.envs.embedded.geodesic import largest_component
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.episode import world_to_habitat
-from drivenav.eval.episodes import episode_to_dict, generate_episodes
+from drivenav.errors import InputError
+from drivenav.eval.episodes import episode_to_dict, generate_episodes, load_episodes
 from drivenav.types import SimConfig
+from drivenav.validation import read_json
 from test_rosmap import write_map
 
 SCENES = "procedural:1"
@@ -145,6 +147,116 @@ def test_a_geodesic_distance_within_tolerance_is_accepted(tmp_path: Path) -> Non
     assert 0.0 < record["spl"] <= 1.0  # the world's own start distance, as habitat-lab
 
 
+# ------------------------------------------------------------------------------------------------ episodes stats
+
+
+def _stats_refused(capsys: pytest.CaptureFixture[str], path: Path, *words: str) -> None:
+    assert main(["episodes", "stats", str(path), "--scenes", "procedural", "--json"]) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    assert not captured.out  # no figures of a file the world disagrees with
+    for word in (str(path), *words):
+        assert word in err, err
+
+
+def test_episodes_stats_refuses_a_geodesic_distance_the_world_disagrees_with(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    episode = _episodes(1)[0]
+    true = episode["info"]["geodesic_distance"]
+    episode["info"]["geodesic_distance"] = 100.0  # eval refuses it; stats reported it as the mean
+    path = _write(tmp_path / "eps.json.gz", {"episodes": [episode]})
+    _stats_refused(capsys, path, "'episodes[0].info.geodesic_distance'", f"{true:.2f} m within 10%", "100.0")
+
+
+def test_episodes_stats_refuses_a_start_inside_a_wall(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    first, second = _episodes(2)
+    second["start_position"] = [0.0, 0.0, 0.0]  # the house's corner: outside its walls
+    path = _write(tmp_path / "eps.json.gz", {"episodes": [first, second]})
+    _stats_refused(capsys, path, "'episodes[1].start_position'", "a navigable position the agent can reach")
+
+
+def test_episodes_stats_with_no_check_says_it_did_not_check(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    episode = _episodes(1)[0]
+    episode["info"]["geodesic_distance"] = 100.0
+    path = _write(tmp_path / "eps.json.gz", {"episodes": [episode]})
+    assert main(["episodes", "stats", str(path), "--scenes", "procedural", "--json", "--no-check"]) == 0
+    captured = capsys.readouterr()
+    assert f"{path} not checked against the scenes (--no-check)" in captured.err
+    [figures] = json.loads(captured.out)["episode_sets"]
+    assert figures["geodesic"]["mean"] == 100.0  # the file's own figure, as the note says
+
+
+# ------------------------------------------------------------------------------------------------ keys, encodings
+
+
+def _text_file(tmp_path: Path, text: str, name: str = "eps.json.gz") -> Path:
+    path = tmp_path / name
+    path.write_bytes(gzip.compress(text.encode()))
+    return path
+
+
+@pytest.mark.parametrize(
+    ("first", "second"),
+    [("[E]", "5"), ("5", "[E]"), ("[E]", "[E]"), ("[E]", "null")],
+)
+def test_a_second_episodes_key_is_refused_whatever_either_holds(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], first: str, second: str
+) -> None:
+    """The stream ran the first array where ``json`` keeps the second value: the two readings must not differ."""
+    episode = json.dumps(_episodes(1)[0])
+    text = f'{{"episodes": {first}, "episodes": {second}}}'.replace("E", episode)
+    path = _text_file(tmp_path, text)
+    _refused(capsys, tmp_path, str(path), SCENES, str(path), "'episodes'", "one 'episodes' key", "two")
+
+
+def test_a_top_level_key_given_twice_is_refused_naming_it(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    text = '{"version": 1, "episodes": ' + json.dumps(_episodes(1)) + ', "version": 2}'
+    path = _text_file(tmp_path, text)
+    _refused(capsys, tmp_path, str(path), SCENES, str(path), "'version'", "one 'version' key")
+
+
+@pytest.mark.parametrize("inside", ["episode", "info", "goal"])
+def test_a_key_given_twice_inside_an_episode_is_refused_naming_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], inside: str
+) -> None:
+    first, second = _episodes(2)
+    text = json.dumps(second)
+    if inside == "episode":  # the second copy is the one json.loads would keep
+        text = text.replace('"scene_id": ', '"scene_id": "elsewhere", "scene_id": ', 1)
+        key = "scene_id"
+    elif inside == "info":
+        text = text.replace('"synonym": ', '"geodesic_distance": 99.0, "synonym": ', 1)
+        key = "geodesic_distance"
+    else:
+        text = text.replace('"object_id": ', '"object_id": 7, "object_id": ', 1)
+        key = "object_id"
+    path = _text_file(tmp_path, '{"episodes": [' + json.dumps(first) + ", " + text + "]}")
+    words = ("'episodes[1]'", "each key once in a JSON object", f"'{key}' twice")
+    _refused(capsys, tmp_path, str(path), SCENES, str(path), *words)
+
+
+def test_a_key_given_twice_in_a_small_document_is_refused(tmp_path: Path) -> None:
+    """Whole documents (objects.json, run.json, the vocabulary) are read by the same reader's other half."""
+    path = tmp_path / "objects.json"
+    path.write_text('{"objects": [{"category": "chair", "category": "plant"}]}')
+    with pytest.raises(InputError, match="expected each key once in a JSON object, got \"'category' twice\""):
+        read_json(path)
+
+
+@pytest.mark.parametrize("compress", [True, False])
+def test_an_episodes_file_with_a_byte_order_mark_reads_as_without(tmp_path: Path, compress: bool) -> None:
+    """RFC 8259 lets a reader skip a UTF-8 byte order mark (Windows editors write one); it was reported as
+    "Expecting value at line 1, column 1"."""
+    data = json.dumps({"episodes": _episodes(2)}).encode()
+    plain, marked = tmp_path / "plain.json", tmp_path / "marked.json"
+    plain.write_bytes(data)
+    marked.write_bytes(gzip.compress(b"\xef\xbb\xbf" + data) if compress else b"\xef\xbb\xbf" + data)
+    assert load_episodes(marked) == load_episodes(plain)
+    assert read_json(marked) == read_json(plain)
+
+
 # ------------------------------------------------------------------------------------------------ scenes
 
 FREE, WALL, UNKNOWN = 254, 0, 205
@@ -191,3 +303,14 @@ def test_a_room_with_one_cell_to_stand_on(tmp_path: Path, capsys: pytest.Capture
 def test_a_map_whose_grid_would_need_more_than_2_gib(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     scene = write_map(tmp_path / "huge", np.full((20, 20), FREE), resolution=1e6, origin=[0.0, 0.0, 0.0])
     _refused(capsys, tmp_path, "2", str(scene), str(scene / "map.yaml"), "'resolution'", "fits in 2 GiB")
+
+
+def test_a_map_yaml_with_a_key_given_twice_is_refused_naming_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """PyYAML keeps the second value and ROS's yaml-cpp the first: the two would build different scenes."""
+    scene = write_map(tmp_path / "twice", np.full((80, 80), FREE), resolution=0.05, origin=[0.0, 0.0, 0.0])
+    yaml_file = scene / "map.yaml"
+    yaml_file.write_text(yaml_file.read_text() + "resolution: 0.5\n")
+    line = len(yaml_file.read_text().splitlines())
+    _refused(capsys, tmp_path, "2", str(scene), str(yaml_file), "'resolution'", f"the key again at line {line}")

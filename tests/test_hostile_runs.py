@@ -107,7 +107,10 @@ def test_out_that_is_a_file_or_below_one(
     _one_line_error(capsys, "--out", expected)
 
 
-@pytest.mark.parametrize(("option", "value"), [("--seed", "-5"), ("--episodes", "1000000000000"), ("--episodes", "0")])
+@pytest.mark.parametrize(
+    ("option", "value"),
+    [("--seed", "-5"), ("--episodes", "1000000000000"), ("--episodes", "0"), ("--episodes", "\u00b2")],
+)
 def test_bad_numbers_on_the_command_line(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], option: str, value: str
 ) -> None:

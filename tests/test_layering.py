@@ -4,8 +4,8 @@ and behind ``TYPE_CHECKING`` included).
 drivenav is built in floors. A module imports only from floors below its own, so there is no import loop between
 folders and a lower floor never sees a higher one:
 
-1. the neutral base: errors, grid, types, the JSON and YAML readers, the kernels' ``jit``, the entry-point
-   registries (``plugins``), the paper's constants, metrics, the episode format, the method names;
+1. the neutral base: errors, the settings' ranges, grid, types, the JSON and YAML readers, the kernels' ``jit``,
+   the entry-point registries (``plugins``), the paper's constants, metrics, the episode format, the method names;
 2. ``wire``, the message framing and sockets below every end that speaks it: the brain-robot protocol's two ends
    (``envs.robot``, ``robot``) and the served grounder's (``semantics.served``, ``semantics.grounder_server``);
 3. the algorithmic core, numpy in and dataclasses out: ``mapping``, ``semantics`` (protocols and the embedded
@@ -29,8 +29,8 @@ import pytest
 PACKAGE = Path(__file__).parents[1] / "src" / "drivenav"
 
 FLOORS: tuple[str, ...] = (
-    "errors", "grid", "types", "jsonstream", "validation", "jit", "instances", "metrics", "packing", "threads",
-    "plugins", "paper", "methods", "episode",
+    "errors", "ranges", "grid", "types", "jsonstream", "validation", "jit", "instances", "metrics", "packing",
+    "threads", "plugins", "paper", "methods", "episode",
     "wire",
     "mapping", "semantics", "directions", "inspection", "agent",
     "settings", "agents",

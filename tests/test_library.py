@@ -48,6 +48,27 @@ def test_an_unknown_part_names_scenes_and_the_part(part: str) -> None:
     assert part in str(caught.value)
 
 
+@pytest.mark.parametrize("part", ["homes:\u00b2", "procedural:\u0663", "homes:+3", "homes: 3"])
+def test_a_scene_count_in_other_digits_is_refused(part: str) -> None:
+    """``str.isdigit`` holds for '²' (and Arabic-Indic digits), which ``int`` then refused with a traceback."""
+    with pytest.raises(InputError) as caught:
+        SceneLibrary(part)
+    assert caught.value.field == "--scenes" and part in str(caught.value) and "K from 1 to 1000" in str(caught.value)
+
+
+@pytest.mark.parametrize(
+    "part", ["homes:1000000000", "procedural:10000000", "procedural:1001", "homes:0001001", "homes:" + "9" * 5000]
+)
+def test_a_scene_count_past_one_seeds_scenes_is_refused_at_once(part: str) -> None:
+    """``homes:1000000000`` ran out of memory after 42 s and ``procedural:10000000`` did not end; K scenes of seed S
+    are seeds 1000 S .. 1000 S + K - 1, so K > 1000 would reach the next seed's scenes."""
+    with pytest.raises(InputError, match="K from 1 to 1000") as caught:
+        SceneLibrary(part, seed=3)
+    assert part[:60] in str(caught.value)  # a long one is shortened
+    assert len(SceneLibrary("procedural:1000", seed=3).scene_ids) == 1000  # the largest K is still a scene set
+    assert len(SceneLibrary("homes:00008").scene_ids) == 8
+
+
 def test_two_scenes_with_one_name_are_refused(maps_dir: Path, tmp_path: Path) -> None:
     for folder in ("a", "b"):
         shutil.copytree(maps_dir / "mit_building_31", tmp_path / folder / "mit_building_31")

@@ -229,10 +229,32 @@ def test_a_malformed_score_is_an_input_error(tmp_path: Path) -> None:
     path = tmp_path / "bad.jsonl"
     record = {"key": "k", "kind": "score", "goal": GOAL, "summary": "", "answer": {"score": "high"}}
     path.write_text(json.dumps(record) + "\n")
-    with pytest.raises(InputError, match=r"field 'line 1: answer\.score': expected a number, got 'high'"):
+    with pytest.raises(
+        InputError, match=r"field 'line 1: answer\.score': expected a finite similarity in \[-1, 1\], got 'high'"
+    ):
         ReplayScorer(path)
     with pytest.raises(InputError, match=r"answer\.score"):  # the reasoner's replay reads the same file
         ReplayReasoner(path)
+
+
+@pytest.mark.parametrize("score", ["NaN", "Infinity", "-Infinity", "1e308", "-2.5"])
+def test_a_replayed_score_no_scorer_gives_is_refused(tmp_path: Path, score: str) -> None:
+    """Every scorer's similarity lies in [-1, 1] and a non-finite one is recorded as 0: a NaN or 1e308 in a
+    replay file was fused into the value map without a word."""
+    path = tmp_path / "edited.jsonl"
+    record = json.dumps({"key": "k", "kind": "score", "goal": GOAL, "summary": "", "answer": {"score": 0.0}})
+    path.write_text(record.replace('"score": 0.0', f'"score": {score}') + "\n")
+    expected = r"field 'line 1: answer\.score': expected a finite similarity in \[-1, 1\]"
+    with pytest.raises(InputError, match=expected):
+        ReplayScorer(path)
+
+
+def test_a_replayed_cosine_rounded_past_one_is_kept(tmp_path: Path) -> None:
+    path = tmp_path / "calls.jsonl"
+    path.write_text(
+        json.dumps({"key": "k", "kind": "score", "goal": GOAL, "summary": "", "answer": {"score": 1.0000001}})
+    )
+    ReplayScorer(path)  # a float32 cosine of two unit vectors
 
 
 def test_the_registry_records_and_replays_scores_through_one_file(tmp_path: Path) -> None:

@@ -1,6 +1,6 @@
-"""VLFM (``vlfm``, :mod:`drivenav.agent.vlfm`): the frontier choice on a scripted value map (value first, the last
-frontier kept, cycles avoided), and whole embedded episodes -- a cue seen in the start scan steers the first
-frontier, and the registry's ``vlfm`` finds the target with the embedded scorer."""
+"""VLFM (``vlfm``, :mod:`drivenav.agent.explorers.vlfm.explorer`): the frontier choice on a scripted value map
+(value first, the last frontier kept, cycles avoided), and whole embedded episodes -- a cue seen in the start scan
+steers the first frontier, and the registry's ``vlfm`` finds the target with the embedded scorer."""
 
 from __future__ import annotations
 

@@ -266,6 +266,10 @@ def parse_view_point(fields: Fields, name: str, point: Any) -> ViewPoint:
     )
 
 
+MAX_ID_DIGITS = 18
+"""The most digits an instance number may have (a longer one is no instance: -1)."""
+
+
 def parse_object_id(fields: Fields, name: str, value: Any, category: str) -> tuple[int, str | None]:
     """A goal's ``object_id``: an integer, or text ending in ``_<n>`` or all digits (HM3D-OVON's
     ``"<category>_<n>"``), whose ``n`` is the instance number; other text is kept with the number -1 (no
@@ -275,5 +279,5 @@ def parse_object_id(fields: Fields, name: str, value: Any, category: str) -> tup
     if not isinstance(value, str) or not value.strip():
         raise fields.error(name, "an integer, or a text id such as 'chair_3'", value)
     number = value.rsplit("_", 1)[-1]
-    instance = int(number) if number.isascii() and number.isdigit() else -1
+    instance = int(number) if number.isascii() and number.isdigit() and len(number) <= MAX_ID_DIGITS else -1
     return instance, None if value == f"{category}_{instance}" else value

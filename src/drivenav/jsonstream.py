@@ -8,8 +8,12 @@ chosen member of the items (an episode's ``goals``, which every episode of a sce
 verbatim) is decoded and converted once; a later verbatim copy is the same converted object.
 
 Both refuse a document past :data:`MAX_DOCUMENT_BYTES` before reading further (a gzip stream is unpacked only that
-far), nested too deep to parse, not UTF-8 or not JSON, each with one :class:`~drivenav.errors.InputError` naming
-the file (and a syntax error's line and column).
+far), nested too deep to parse, not UTF-8 or not JSON, and an object that holds a key twice (which JSON readers
+settle differently: Python's keeps the last value, a streaming reader may act on the first), each with one
+:class:`~drivenav.errors.InputError` naming the file (and a syntax error's line and column, or the repeated key).
+A UTF-8 byte order mark before the document is skipped (RFC 8259 lets a reader ignore it). Reading takes time in
+proportion to the text, whitespace included: a window that holds only whitespace read already is emptied before more
+is read, so a decompression bomb of whitespace reaches its refusal at the limit in seconds.
 """
 
 from __future__ import annotations
@@ -37,8 +41,36 @@ CHUNK_BYTES = 1 << 20  # bytes read at a time; a value longer than the window do
 SPLICE_REACH = 4096  # characters of an item before and after its repeated member that the fast path reads
 MAX_REPEATS = 4096  # distinct member texts remembered for reuse (scenes x categories of a large benchmark)
 _GZIP_MAGIC = b"\x1f\x8b"
+_ENCODING = "utf-8-sig"  # UTF-8, a leading byte order mark skipped
 Decode = Callable[[str, int], tuple[Any, int]]  # a JSON text and a position -> the value there and its end
-_SCAN: Decode = json.JSONDecoder().scan_once  # type: ignore[attr-defined]  # the C scanner json.loads uses
+
+
+class _RepeatedKeyError(Exception):
+    """An object of the text holds ``key`` twice (raised inside the scanner; not a ValueError, which the window
+    reads as text that may go on)."""
+
+    def __init__(self, key: str) -> None:
+        super().__init__(key)
+        self.key = key
+
+
+def _unique_keys(pairs: list[tuple[str, Any]]) -> JsonObject:
+    """A decoded object's members as a dict, or :class:`_RepeatedKeyError` for the first key it holds twice."""
+    members = dict(pairs)
+    if len(members) < len(pairs):
+        seen: set[str] = set()
+        for key, _ in pairs:
+            if key in seen:
+                raise _RepeatedKeyError(key)
+            seen.add(key)
+    return members
+
+
+def _repeated_key_error(path: Path, field: str, key: str) -> InputError:
+    return InputError(path, field, "each key once in a JSON object", f"'{key}' twice")
+
+
+_SCAN: Decode = json.JSONDecoder(object_pairs_hook=_unique_keys).scan_once  # type: ignore[attr-defined]  # C scanner
 _WHITESPACE = re.compile(r"[ \t\n\r]*")  # JSON's whitespace
 _scanstring: Callable[[str, int], tuple[str, int]] = json.decoder.scanstring  # type: ignore[attr-defined]
 
@@ -104,11 +136,13 @@ def read_document(path: Path) -> Any:
         raw = stream.read(MAX_DOCUMENT_BYTES + 1)
         if len(raw) > MAX_DOCUMENT_BYTES:
             raise _limit_error(path)
-        text = raw.decode("utf-8")
+        text = raw.decode(_ENCODING)
         try:
-            return json.loads(text)
+            return json.loads(text, object_pairs_hook=_unique_keys)
         except json.JSONDecodeError as exc:
             raise _syntax_error(path, exc.msg, text, exc.pos) from None
+        except _RepeatedKeyError as exc:
+            raise _repeated_key_error(path, DOCUMENT, exc.key) from None
 
 
 class _Window:
@@ -117,7 +151,7 @@ class _Window:
     def __init__(self, path: Path, stream: _Bytes) -> None:
         self.path = path
         self._stream = stream
-        self._decoder = codecs.getincrementaldecoder("utf-8")()
+        self._decoder = codecs.getincrementaldecoder(_ENCODING)()
         self._bytes = 0
         self.text = ""
         self.pos = 0
@@ -138,9 +172,11 @@ class _Window:
         return not self.eof
 
     def drop_read(self) -> None:
-        """Forget the text already read (so the window stays about one chunk)."""
-        if self.pos < CHUNK_BYTES:
-            return
+        """Forget the text already read once it is a chunk or more (so the window stays about one chunk)."""
+        if self.pos >= CHUNK_BYTES:
+            self._forget_read()
+
+    def _forget_read(self) -> None:
         newlines = self.text.count("\n", 0, self.pos)
         last_line = self.text.rfind("\n", 0, self.pos) + 1 if newlines else -self._column_base
         self._column_base = self.pos - last_line
@@ -148,11 +184,15 @@ class _Window:
         self.text, self.pos = self.text[self.pos :], 0
 
     def skip_space(self) -> str:
-        """Skip whitespace; the next character, or '' at the end of the document."""
+        """Skip whitespace; the next character, or '' at the end of the document. Whitespace read is forgotten
+        before more is read, so a long run of it costs time in proportion to its length."""
         while True:
             self.pos = _after_space(self.text, self.pos)
-            if self.pos < len(self.text) or not self.more():
-                return self.text[self.pos : self.pos + 1]
+            if self.pos < len(self.text):
+                return self.text[self.pos]
+            self._forget_read()
+            if not self.more():
+                return ""
 
     def take(self, char: str) -> bool:
         """Consume ``char`` if it comes next (after whitespace)."""
@@ -227,6 +267,8 @@ class _RepeatedMember:
             if not text.startswith('"', pos):
                 raise json.JSONDecodeError("Expecting property name enclosed in double quotes", text, pos)
             name, pos = _scanstring(text, pos + 1)
+            if name in item:
+                raise _RepeatedKeyError(name)
             pos = _after_space(text, pos)
             if not text.startswith(":", pos):
                 raise json.JSONDecodeError("Expecting ':' delimiter", text, pos)
@@ -280,7 +322,7 @@ class ArrayStream:
         with _document_errors(self.path), _open_bytes(self.path) as stream:
             window = _Window(self.path, stream)
             if window.skip_space() != "{":
-                self.document = window.value()
+                self.document = self._value(window, DOCUMENT)
             else:
                 window.pos += 1
                 yield from self._members(window)
@@ -296,14 +338,14 @@ class ArrayStream:
             name = window.value()
             if not window.take(":"):
                 raise window.error("Expecting ':' delimiter")
+            if name in self.members or (name == self.key and self.found):
+                raise InputError(self.path, name, f"one '{name}' key", "two")
             if name == self.key and window.skip_space() == "[":
-                if self.found:
-                    raise InputError(self.path, self.key, f"one '{self.key}' key", "two")
                 self.found = True
                 window.pos += 1
                 yield from self._array(window)
             else:
-                self.members[name] = window.value()
+                self.members[name] = self._value(window, name)
             if window.take("}"):
                 return
             if not window.take(","):
@@ -317,10 +359,17 @@ class ArrayStream:
         while True:
             if self._items is not None:
                 self._items.index = index
-            yield window.value(decode)
+            yield self._value(window, f"{self.key}[{index}]", decode)
             window.drop_read()
             index += 1
             if window.take("]"):
                 return
             if not window.take(","):
                 raise window.error("Expecting ',' delimiter")
+
+    def _value(self, window: _Window, field: str, decode: Decode = _SCAN) -> Any:
+        """The value that comes next; an object in it holding a key twice is an error on ``field``."""
+        try:
+            return window.value(decode)
+        except _RepeatedKeyError as exc:
+            raise _repeated_key_error(self.path, field, exc.key) from None

@@ -11,6 +11,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from drivenav.ranges import CELLS, COUNT, HALF_TURN, LENGTH, MAX_FACTOR, POSITIVE_LENGTH, STEPS, Range, check_ranges
+
 
 @dataclass(frozen=True)
 class SpeedFieldConfig:
@@ -23,6 +25,17 @@ class SpeedFieldConfig:
     weighted: bool = True  # False: uniform speed (ablation "w/o weighted FMM")
     skeleton_min_separation: float = 3.0  # ours: cells between the two nearest obstacles of a skeleton cell
     skeleton_min_angle_ratio: float = 1.3  # ours: |f(p) - f(q)| >= ratio * d (features subtend >= ~81 deg)
+
+    def __post_init__(self) -> None:
+        ranges = {
+            "lam": Range(0.0, 1.0, high_open=True, why="lambda < 1: the speed field stays positive, Eq. 1"),
+            "r_obs": POSITIVE_LENGTH,
+            "beta": Range(0.0, MAX_FACTOR),
+            "r_vor": POSITIVE_LENGTH,
+            "skeleton_min_separation": CELLS,
+            "skeleton_min_angle_ratio": Range(0.0, 2.0, why="2 sin(a / 2) of the angle a the features subtend"),
+        }
+        check_ranges(self, ranges)
 
 
 @dataclass(frozen=True)
@@ -37,6 +50,18 @@ class DirectionConfig:
     source_snap_radius: float = 0.5  # ours: metres the FMM source may move to reach traversable space
     goal_snap_radius: float = 1.0  # ours: metres a goal point may move to reach traversable space
     margin_cells: float = 3.0  # ours: extra marching (cells at the slowest speed) after the last target
+
+    def __post_init__(self) -> None:
+        ranges = {
+            "bearing_radius": POSITIVE_LENGTH,
+            "cluster_span_deg": Range(0.0, 360.0, high_open=True, why="a circular gap, Sec. IV-A b"),
+            "merge_tolerance": LENGTH,
+            "association_gate_deg": HALF_TURN,
+            "source_snap_radius": LENGTH,
+            "goal_snap_radius": LENGTH,
+            "margin_cells": CELLS,
+        }
+        check_ranges(self, ranges)
 
     @property
     def cluster_span(self) -> float:
@@ -57,6 +82,13 @@ class InspectionConfig:
     view_tolerance_deg: float = 15.0  # a view is recorded once |yaw - bearing| < 15 deg
     restrict_forward: bool = True  # False: ablation "w/o 240 inspection view"
 
+    def __post_init__(self) -> None:
+        ranges = {
+            "forward_range_deg": Range(0.0, 360.0, low_open=True, why="a sector of the circle"),
+            "view_tolerance_deg": HALF_TURN,
+        }
+        check_ranges(self, ranges)
+
     @property
     def forward_range(self) -> float:
         """The forward inspection range in radians."""
@@ -76,6 +108,15 @@ class SemanticsConfig:
     verify_frames: int = 3
     max_images_per_prompt: int = 30
     verify_spacing_steps: int = 3  # ours: steps between two verification frames of a candidate
+
+    def __post_init__(self) -> None:
+        ranges = {
+            "enrich_rounds": STEPS,
+            "verify_frames": COUNT,
+            "max_images_per_prompt": COUNT,
+            "verify_spacing_steps": STEPS,
+        }
+        check_ranges(self, ranges)
 
 
 @dataclass(frozen=True)

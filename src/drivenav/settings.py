@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-import math
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cache
@@ -43,8 +42,10 @@ from drivenav.jsonstream import JsonObject
 from drivenav.mapping.config import MapTuning
 from drivenav.methods import PRESETS, agent_names, method_named, preset_names
 from drivenav.paper import DriveNavConfig
+from drivenav.ranges import MAX_GRID_SIDE, Range, SettingError, check_ranges, check_rule
 from drivenav.semantics.registry import DETECTORS, DTYPES, REASONERS, SCORERS, ModelSpec
 from drivenav.types import SimConfig
+from drivenav.validation import check_unique_keys, yaml_problem
 
 log = logging.getLogger(__name__)
 
@@ -64,6 +65,9 @@ class RunSettings:
 
     agent: str = "drive-nav"
     seed: int = 0
+
+    def __post_init__(self) -> None:
+        check_ranges(self, {"seed": Range(0, integer=True)})
 
 
 @dataclass(frozen=True)
@@ -105,7 +109,10 @@ def _explorer_settings(name: str = DEFAULT_EXPLORER, sections: Mapping[str, obje
 
 @dataclass(frozen=True)
 class Settings:
-    """Everything an evaluation is set up with (the paper's values by default)."""
+    """Everything an evaluation is set up with (the paper's values by default).
+
+    Each section checks its own numbers where they are declared (:mod:`drivenav.ranges`); the tree checks the rules
+    that span sections and the names that pick a method or a model."""
 
     sim: SimConfig = field(default_factory=SimConfig)
     mapping: MapTuning = field(default_factory=MapTuning)
@@ -114,6 +121,54 @@ class Settings:
     explorer: ExplorerSettings = field(default_factory=_explorer_settings)
     models: ModelSpec = field(default_factory=ModelSpec)
     run: RunSettings = field(default_factory=RunSettings)
+
+    def __post_init__(self) -> None:
+        sim, mapping = self.sim, self.mapping
+        largest_map = MAX_GRID_SIDE * sim.grid_resolution
+        rules = (
+            (
+                "mapping.min_obstacle_height",
+                mapping.min_obstacle_height < sim.agent_height,
+                "less than sim.agent_height (the top of the obstacle band)",
+            ),
+            (
+                "mapping.max_size",
+                mapping.max_size <= largest_map,
+                f"at most {MAX_GRID_SIDE} cells of sim.grid_resolution a side ({largest_map:g} m): a grid that fits",
+            ),
+            (
+                "sim.max_depth",
+                sim.max_depth <= mapping.max_size / 2.0,
+                f"at most half of mapping.max_size ({mapping.max_size / 2.0:g} m): the sensor's reach fits the map",
+            ),
+            *self._explorer_rules(),
+        )
+        for key, holds, expected in rules:
+            check_rule(self, key, holds, expected)
+        choices = (  # key, allowed names, the option that sets it
+            ("run.agent", agent_names(), "--agent"),
+            ("models.reasoner", REASONERS, "--reasoner"),
+            ("models.detector", DETECTORS, "--detector"),
+            ("models.scorer", SCORERS, "--scorer"),
+            ("models.dtype", DTYPES, "--dtype"),
+            ("explorer.name", EXPLORERS.names, "--set explorer.name=NAME"),
+        )
+        for key, names, option in choices:
+            section, name = key.split(".")
+            chosen = getattr(getattr(self, section), name)
+            check_rule(self, key, chosen in names, f"one of {', '.join(names)} (the {option} option)")
+
+    def _explorer_rules(self) -> list[tuple[str, bool, str]]:
+        """The rules each explorer's entry states between its section and the rest of the tree (VLFM's frontier
+        radius within the sensor's reach), keyed ``explorer.<name>.<key>``."""
+        rules = []
+        for name in EXPLORERS.names:
+            section = getattr(self.explorer, name, None)
+            if section is None:
+                continue
+            entry = explorer_entry(name)
+            rules += [(f"explorer.{name}.{key}", holds, why) for key, holds, why in entry.rules(section, self.sim)]
+        return rules
 
 
 def explorer_section(settings: Settings, name: str) -> object:
@@ -141,9 +196,7 @@ def load_settings(
         tree = _merge(tree, _option_layer(key, value), "command line")
     for override in overrides:
         tree = _merge(tree, _override_layer(override), "--set")
-    settings = _resolve(tree)
-    check_values(settings)
-    return settings
+    return _resolve(tree)
 
 
 def _writable(tree: DictConfig) -> DictConfig:
@@ -158,15 +211,34 @@ def _writable(tree: DictConfig) -> DictConfig:
 
 
 def _resolve(tree: DictConfig) -> Settings:
-    """The typed tree, with ``${...}`` interpolations resolved (one that names no key is an :class:`InputError`)."""
+    """The typed tree, with ``${...}`` interpolations resolved (one that names no key is an :class:`InputError`),
+    each section's values checked as it is made (a value outside its range is an :class:`InputError` on its
+    dotted key)."""
     try:
         settings = OmegaConf.to_object(tree)
     except OmegaConfBaseException as error:
         key = str(getattr(error, "full_key", None) or "<settings>")
         expected = "an interpolation ${...} naming another key that holds a value of this field's type"
         raise InputError("settings", key, expected, str(error).splitlines()[0]) from None
+    except SettingError as error:
+        section = _SECTIONS.get(error.owner, "")
+        key = f"{section}.{error.name}" if section else error.name
+        raise InputError("settings", key, error.expected, error.value) from None
     assert isinstance(settings, Settings)
     return settings
+
+
+def _sections(config: object, prefix: str = "") -> Iterator[tuple[type, str]]:
+    """Each section's dataclass and its dotted key in the tree (``ValueMapConfig`` -> ``agent.vlfm``)."""
+    for item in dataclasses.fields(config):  # type: ignore[arg-type]
+        value = getattr(config, item.name)
+        if dataclasses.is_dataclass(value):
+            yield type(value), f"{prefix}{item.name}"
+            yield from _sections(value, f"{prefix}{item.name}.")
+
+
+_SECTIONS: dict[type, str] = dict(_sections(Settings()))
+"""Where each section's dataclass sits in the tree, to name a key its own check refuses."""
 
 
 def _method_layer(agent: str) -> DictConfig:
@@ -193,12 +265,36 @@ def _config_layer(config: str) -> DictConfig:
     else:
         raise InputError("command line", "--config", f"a preset ({', '.join(preset_names())}) or a YAML file", config)
     try:
+        check_unique_keys(text, config)
         layer = OmegaConf.create(text)
-    except (OmegaConfBaseException, yaml.YAMLError) as error:
+    except yaml.YAMLError as error:
+        raise InputError(config, "<file>", "a YAML mapping of settings", yaml_problem(error)) from None
+    except OmegaConfBaseException as error:
         raise InputError(config, "<file>", "a YAML mapping of settings", " ".join(str(error).split())) from None
     if not isinstance(layer, DictConfig):
         raise InputError(config, "<file>", "a YAML mapping of settings", type(layer).__name__)
+    dotted = _dotted_key(layer)
+    if dotted is not None:
+        where, key = dotted
+        section, _, rest = key.partition(".")
+        expected = f"nested keys in a file ('{section}:' and under it '  {rest}: ...'); dotted keys are for --set"
+        raise InputError(config, where, expected, "a dotted key")
     return layer
+
+
+def _dotted_key(layer: DictConfig, prefix: str = "") -> tuple[str, str] | None:
+    """The first key of a file's layer that holds a dot (``sim.width: 320`` at the top, which OmegaConf would
+    read as one key named ``sim.width``): its path from the top and the key itself."""
+    for key in layer:
+        name = f"{prefix}{key!s}"
+        if "." in str(key):
+            return name, str(key)
+        child = layer._get_node(key)
+        if isinstance(child, DictConfig):
+            found = _dotted_key(child, f"{name}.")
+            if found is not None:
+                return found
+    return None
 
 
 def _option_layer(key: str, value: object) -> DictConfig:
@@ -271,86 +367,6 @@ def _plain(value: object) -> object:
     return OmegaConf.to_container(value) if isinstance(value, (DictConfig, ListConfig)) else value
 
 
-# ----------------------------------------------------------------------------------------------- values
-
-_POSITIVE = (
-    "sim.width",
-    "sim.height",
-    "sim.hfov_deg",
-    "sim.max_depth",
-    "sim.forward_step",
-    "sim.turn_angle_deg",
-    "sim.max_steps",
-    "sim.grid_resolution",
-    "sim.agent_height",
-    "mapping.max_size",
-    "mapping.initial_size",
-    "mapping.pocket_window",
-    "mapping.pixel_stride",
-    "paper.speed.r_obs",
-    "paper.speed.r_vor",
-    "paper.directions.bearing_radius",
-    "paper.inspection.forward_range_deg",
-    "paper.semantics.verify_frames",
-    "paper.semantics.max_images_per_prompt",
-)
-
-
-def _leaves(value: Any, prefix: str = "") -> Iterator[tuple[str, Any]]:
-    if dataclasses.is_dataclass(value):
-        for item in dataclasses.fields(value):
-            yield from _leaves(getattr(value, item.name), f"{prefix}{item.name}.")
-    else:
-        yield prefix.rstrip("."), value
-
-
-def check_values(settings: Settings) -> None:
-    """Numbers are finite and not negative; sizes, ranges and budgets are positive; the rest as each rule says."""
-    leaves = dict(_leaves(settings))
-    for key, value in leaves.items():
-        is_number = isinstance(value, (int, float)) and not isinstance(value, bool)
-        if key in _POSITIVE and not (math.isfinite(value) and value > 0):
-            raise InputError("settings", key, "a finite number > 0", value)
-        if is_number and not (math.isfinite(value) and value >= 0):
-            raise InputError("settings", key, "a finite number >= 0", value)
-    rules = (
-        ("sim.hfov_deg", settings.sim.hfov_deg < 180.0, "a field of view < 180 degrees"),
-        (
-            "mapping.min_obstacle_height",
-            settings.mapping.min_obstacle_height < settings.sim.agent_height,
-            "less than sim.agent_height (the top of the obstacle band)",
-        ),
-        ("sim.min_depth", settings.sim.min_depth < settings.sim.max_depth, "less than sim.max_depth"),
-        ("paper.speed.lam", settings.paper.speed.lam < 1.0, "lambda < 1 (the speed field stays positive, Eq. 1)"),
-        ("paper.inspection.forward_range_deg", settings.paper.inspection.forward_range_deg <= 360.0, "<= 360"),
-        (
-            "mapping.max_size",
-            settings.mapping.max_size >= settings.mapping.initial_size,
-            "at least mapping.initial_size (the grid starts that large and only grows)",
-        ),
-        (
-            "paper.directions.cluster_span_deg",
-            settings.paper.directions.cluster_span_deg < 360.0,
-            "a circular gap < 360 degrees (Sec. IV-A b)",
-        ),
-        ("paper.directions.association_gate_deg", settings.paper.directions.association_gate_deg <= 180.0, "<= 180"),
-    )
-    for key, holds, expected in rules:
-        if not holds:
-            raise InputError("settings", key, expected, leaves[key])
-    choices = (  # key, allowed names, the option that sets it
-        ("run.agent", agent_names(), "--agent"),
-        ("models.reasoner", REASONERS, "--reasoner"),
-        ("models.detector", DETECTORS, "--detector"),
-        ("models.scorer", SCORERS, "--scorer"),
-        ("models.dtype", DTYPES, "--dtype"),
-        ("explorer.name", EXPLORERS.names, "--set explorer.name=NAME"),
-    )
-    for key, names, option in choices:
-        if leaves[key] not in names:
-            raise InputError("settings", key, f"one of {', '.join(names)} (the {option} option)", leaves[key])
-
-
 def settings_to_dict(settings: Settings) -> JsonObject:
     """The tree as plain JSON-able data (what ``run.json`` records)."""
     return dataclasses.asdict(settings)
@@ -358,16 +374,14 @@ def settings_to_dict(settings: Settings) -> JsonObject:
 
 def settings_from_dict(tree: JsonObject) -> Settings:
     """The settings a tree of :func:`settings_to_dict` holds (a run's ``run.json``), checked as :func:`load_settings`
-    checks its layers: the tree merged over the defaults, then :func:`check_values`. A wrong key, type or value is
-    one :class:`~drivenav.errors.InputError` on the source ``settings`` naming the dotted key."""
+    checks its layers: the tree merged over the defaults, each section checking its values. A wrong key, type or
+    value is one :class:`~drivenav.errors.InputError` on the source ``settings`` naming the dotted key."""
     try:
         layer = OmegaConf.create(_before_explorers(tree))
     except (OmegaConfBaseException, ValueError) as error:
         expected = "settings as 'drivenav config show' prints them"
         raise InputError("settings", "<settings>", expected, str(error)) from None
-    settings = _resolve(_merge(_writable(OmegaConf.structured(Settings)), layer, "settings"))
-    check_values(settings)
-    return settings
+    return _resolve(_merge(_writable(OmegaConf.structured(Settings)), layer, "settings"))
 
 
 _LEGACY_AGENT_KEYS = {  # the agent's keys before explorers had sections of their own -> where they went

@@ -21,6 +21,8 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from drivenav.ranges import COUNT, LENGTH, MAX_FRAME_SIDE, POSITIVE_LENGTH, Range, check_ranges, check_rule
+
 
 class Action(IntEnum):
     """Discrete actions, numbered as in Habitat's ObjectNav task."""
@@ -89,6 +91,26 @@ class SimConfig:
     max_steps: int = 500
     success_distance: float = 0.25
     grid_resolution: float = 0.05
+
+    def __post_init__(self) -> None:
+        frame_side = Range(1, MAX_FRAME_SIDE, integer=True)
+        ranges = {
+            "width": frame_side,
+            "height": frame_side,
+            "hfov_deg": Range(0.0, 180.0, low_open=True, high_open=True, why="a pinhole camera's field of view"),
+            "camera_height": LENGTH,
+            "min_depth": LENGTH,
+            "max_depth": POSITIVE_LENGTH,
+            "agent_radius": LENGTH,
+            "agent_height": POSITIVE_LENGTH,
+            "forward_step": POSITIVE_LENGTH,
+            "turn_angle_deg": Range(0.0, 180.0, low_open=True, why="a larger turn is the other way round"),
+            "max_steps": COUNT,
+            "success_distance": LENGTH,
+            "grid_resolution": POSITIVE_LENGTH,
+        }
+        check_ranges(self, ranges)
+        check_rule(self, "min_depth", self.min_depth < self.max_depth, f"less than max_depth ({self.max_depth:g} m)")
 
     @property
     def intrinsics(self) -> CameraIntrinsics:

@@ -45,16 +45,58 @@ _Yaml12Loader.add_implicit_resolver(
 
 
 def read_yaml(path: Path) -> Any:
-    """The YAML content of a file (safe loading, YAML 1.2 floats)."""
+    """The YAML content of a file (safe loading, YAML 1.2 floats); a mapping that holds a key twice is refused
+    (:func:`check_unique_keys`)."""
     try:
-        return yaml.load(path.read_text(encoding="utf-8"), Loader=_Yaml12Loader)  # a SafeLoader
+        text = path.read_text(encoding="utf-8")
+        check_unique_keys(text, path)
+        return yaml.load(text, Loader=_Yaml12Loader)  # a SafeLoader
     except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        problem = getattr(exc, "problem", None) or type(exc).__name__
-        raise InputError(path, DOCUMENT, "well-formed YAML", f"{problem}{where}") from None
+        raise InputError(path, DOCUMENT, "well-formed YAML", yaml_problem(exc)) from None
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(path, DOCUMENT, "a readable UTF-8 text file", str(exc)) from None
+
+
+def yaml_problem(error: yaml.YAMLError) -> str:
+    """What a YAML parser found and where (line and column, from 1)."""
+    mark = getattr(error, "problem_mark", None)
+    where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+    return f"{getattr(error, 'problem', None) or type(error).__name__}{where}"
+
+
+def check_unique_keys(text: str, source: str | Path) -> None:
+    """Refuse a YAML text with a mapping that holds a key twice (PyYAML keeps the last value, other readers the
+    first or refuse): one :class:`~drivenav.errors.InputError` on the dotted key, at the line of its second copy.
+    Malformed YAML raises the parser's :class:`yaml.YAMLError`."""
+    node = yaml.compose(text, Loader=_Yaml12Loader)
+    found = _repeated_key(node, "", set()) if node is not None else None
+    if found is not None:
+        key, mark = found
+        raise InputError(source, key, "each key once in its mapping", f"the key again at line {mark.line + 1}")
+
+
+def _repeated_key(node: yaml.Node, prefix: str, walked: set[int]) -> tuple[str, yaml.Mark] | None:
+    """The first key (dotted) that a mapping under ``node`` holds twice, and where; each node walked once (aliases
+    share theirs)."""
+    if id(node) in walked:
+        return None
+    walked.add(id(node))
+    children: list[tuple[str, yaml.Node]] = []
+    if isinstance(node, yaml.MappingNode):
+        seen: set[tuple[str, str]] = set()
+        for key, value in node.value:
+            name = f"{prefix}.{key.value}" if prefix else str(key.value)
+            if isinstance(key, yaml.ScalarNode) and (key.tag, key.value) in seen:
+                return name, key.start_mark
+            seen.add((key.tag, str(key.value)))
+            children.append((name, value))
+    elif isinstance(node, yaml.SequenceNode):
+        children = [(f"{prefix}[{k}]", item) for k, item in enumerate(node.value)]
+    for name, child in children:
+        found = _repeated_key(child, name, walked)
+        if found is not None:
+            return found
+    return None
 
 
 def _is_number(value: Any) -> bool:

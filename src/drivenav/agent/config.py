@@ -9,7 +9,12 @@ explore next is an *explorer*'s (:mod:`drivenav.agent.explorer`), registered by 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
+
+from drivenav.ranges import COUNT, LENGTH, POSITIVE_LENGTH, STEPS, check_ranges
+from drivenav.types import SimConfig
 
 
 @dataclass(frozen=True)
@@ -21,6 +26,16 @@ class PlannerConfig:
     stuck_progress: float = 0.15  # metres of net progress below which those steps count as stuck
     escape_turns: int = 2  # turns per blocked forward step in a row before the escape step
     max_turns: int = 12  # turns in a row after which the planner reports spinning
+
+    def __post_init__(self) -> None:
+        ranges = {
+            "lookahead": POSITIVE_LENGTH,
+            "stuck_steps": COUNT,
+            "stuck_progress": LENGTH,
+            "escape_turns": COUNT,
+            "max_turns": COUNT,
+        }
+        check_ranges(self, ranges)
 
 
 @dataclass(frozen=True)
@@ -39,6 +54,26 @@ class AgentConfig:
     approach_detour_steps: int = 60  # steps an approach may go through frontiers before the target is set aside
     planner: PlannerConfig = field(default_factory=PlannerConfig)
 
+    def __post_init__(self) -> None:
+        ranges = {
+            "stop_distance": LENGTH,
+            "give_up_distance": LENGTH,
+            "blacklist_steps": STEPS,
+            "replan_shift": LENGTH,
+            "approach_detour_steps": STEPS,
+        }
+        check_ranges(self, ranges)
+
+
+Rule = tuple[str, bool, str]
+"""A rule between an explorer's section and the rest of the settings: the section's key, whether it holds, what the
+key accepts."""
+
+
+def no_rules(config: Any, sim: SimConfig) -> tuple[Rule, ...]:
+    """An explorer whose section's ranges are all its own (checked where they are declared)."""
+    return ()
+
 
 @dataclass(frozen=True)
 class ExplorerEntry:
@@ -47,8 +82,10 @@ class ExplorerEntry:
     ``name`` is its settings section (``explorer.<name>``) and the value of ``explorer.name`` that picks it;
     ``config`` the frozen dataclass of that section, whose defaults are the method's source's constants;
     ``explorer`` the ``module:Class`` of its :class:`~drivenav.agent.explorer.Explorer`, imported when an agent is
-    built; ``body`` the dotted overrides of the body's switches its method preset sets (``agent.enrich=false``).
-    A plug-in explorer is also an ``--agent`` name: its own method, ``explorer.name=<name>`` plus ``body``.
+    built; ``body`` the dotted overrides of the body's switches its method preset sets (``agent.enrich=false``);
+    ``rules`` the rules its section must keep with the rest of the settings (given the section and ``sim``; the
+    section's own ranges are checked by its dataclass, :mod:`drivenav.ranges`). A plug-in explorer is also an
+    ``--agent`` name: its own method, ``explorer.name=<name>`` plus ``body``.
     """
 
     name: str
@@ -56,3 +93,4 @@ class ExplorerEntry:
     explorer: str
     description: str
     body: tuple[str, ...] = ()
+    rules: Callable[[Any, SimConfig], tuple[Rule, ...]] = no_rules

@@ -20,7 +20,7 @@ from drivenav.cli.common import (
     run_spec,
 )
 from drivenav.errors import InputError
-from drivenav.eval.options import episode_count, path, positive
+from drivenav.eval.options import episode_count, is_count, path, positive
 from drivenav.eval.worlds import chosen_world
 from drivenav.methods import ALL_METHODS
 
@@ -232,7 +232,7 @@ def _benchmark_episodes(args: argparse.Namespace, definition: BenchmarkDefinitio
     world generates them). A file: None (the world reads it)."""
     from drivenav.eval.benchmark import BenchmarkDefinition, generate_benchmark
 
-    if not str(args.episodes).isdigit():
+    if not is_count(args.episodes):
         return None
     count = positive(int(args.episodes), "--episodes")
     if (args.scenes, args.seed) == (definition.scenes, definition.seed):
@@ -252,3 +252,7 @@ def _cmd_benchmark_generate(args: argparse.Namespace) -> int:
     scenes = len({e.scene_id for e in written})
     print(f"benchmark {args.version}: {len(written)} episodes over {scenes} scenes written to {args.out}")
     return 0
+
+
+RESUMABLE = (_cmd_bench_ablations,)
+"""The handlers that write run directories episode by episode (rerun to resume)."""

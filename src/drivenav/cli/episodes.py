@@ -37,6 +37,12 @@ def add_episodes(commands: Commands) -> None:
         help=f"a --scenes SPEC with the episodes' scenes (default: the benchmark's, else {_STATS_SCENES})",
     )
     stats.add_argument("--json", action="store_true", help="print the figures as one JSON object")
+    stats.add_argument(
+        "--no-check",
+        action="store_true",
+        help="measure an episodes file as it is, without first checking it against the scenes as eval does "
+        "(starts on navigable floor, goals reachable, info.geodesic_distance within 10 %%); says so on stderr",
+    )
     stats.set_defaults(handler=_cmd_episodes_stats)
 
 
@@ -75,12 +81,13 @@ def _cmd_episodes_export(args: argparse.Namespace) -> int:
 
 def _cmd_episodes_stats(args: argparse.Namespace) -> int:
     import json
+    import sys
     from pathlib import Path
 
     from drivenav.envs.embedded.library import SceneLibrary
     from drivenav.eval.benchmark import BENCHMARKS, generate_benchmark
-    from drivenav.eval.episodes import load_episodes
-    from drivenav.eval.world_stats import measure
+    from drivenav.eval.episodes import load_episodes, validate_for_scenes
+    from drivenav.eval.world_stats import StatsConfig, measure
     from drivenav.eval.world_stats_table import format_world_stats
 
     name = str(args.episodes)
@@ -93,6 +100,13 @@ def _cmd_episodes_stats(args: argparse.Namespace) -> int:
             expected = f"an episodes file or a benchmark name ({', '.join(BENCHMARKS)})"
             raise InputError("command line", "EPISODES", expected, name)
         episodes, library = load_episodes(name), SceneLibrary(args.scenes or _STATS_SCENES)
+        if args.no_check:
+            print(
+                f"drivenav: {name} not checked against the scenes (--no-check): figures as the file gives them",
+                file=sys.stderr,
+            )
+        else:
+            validate_for_scenes(episodes, library, name, StatsConfig().sim)
     stats = measure(episodes, library, source=name)
     print(json.dumps(stats.to_json(), indent=1) if args.json else format_world_stats(stats))
     return 0

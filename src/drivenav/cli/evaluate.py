@@ -218,3 +218,7 @@ def _cmd_doctor(args: argparse.Namespace) -> int:
     checks = run_checks(DoctorRequest(models, benchmark, args.data_dir, args.split))
     print(format_checks(checks))
     return 0 if all(check.ok for check in checks) else 1
+
+
+RESUMABLE = (_cmd_eval, _cmd_demo)
+"""The handlers that write run directories episode by episode (rerun to resume)."""

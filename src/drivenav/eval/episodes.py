@@ -279,10 +279,12 @@ def save_episodes(episodes: Iterable[Episode], path: str | Path) -> None:
         partial.unlink(missing_ok=True)
         _write_gzip(partial, episodes)
         os.replace(partial, target)
-    except OSError as error:  # named by the path asked for, not the temporary one
+    except BaseException as error:  # an interrupt too: no partial file is left behind
         with suppress(OSError):
             partial.unlink(missing_ok=True)
-        raise OSError(error.errno, error.strerror, str(target)) from None
+        if isinstance(error, OSError):  # named by the path asked for, not the temporary one
+            raise OSError(error.errno, error.strerror, str(target)) from None
+        raise
 
 
 def _write_gzip(path: Path, episodes: Iterable[Episode]) -> None:

@@ -7,6 +7,7 @@ parser is built. A bad value is one :class:`~drivenav.errors.InputError` (one li
 from __future__ import annotations
 
 import argparse
+import re
 from pathlib import Path
 
 from drivenav.errors import InputError
@@ -19,6 +20,12 @@ def path(text: str) -> Path:
     if not text:
         raise argparse.ArgumentTypeError("expected a path, got an empty string")
     return Path(text)
+
+
+def is_count(text: object) -> bool:
+    """Whether an option's text is a whole number in decimal digits (``str.isdigit`` also holds for '²', which
+    ``int`` refuses)."""
+    return re.fullmatch("[0-9]+", str(text)) is not None
 
 
 def positive(value: int, option: str) -> int:

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass
 from typing import Any
 
+from drivenav.ranges import AREA, LENGTH, MAX_FRAME_SIDE, POSITIVE_LENGTH, Range, check_ranges, check_rule
 from drivenav.types import SimConfig
 
 
@@ -29,6 +29,21 @@ class MapTuning:
     max_size: float = 200.0
     pixel_stride: int = 2
     fuse_lidar: bool = False
+
+    def __post_init__(self) -> None:
+        ranges = {
+            "min_obstacle_height": LENGTH,
+            "clip_epsilon": LENGTH,
+            "min_frontier_area": AREA,
+            "pocket_window": POSITIVE_LENGTH,
+            "initial_size": POSITIVE_LENGTH,
+            "growth_margin": LENGTH,
+            "max_size": POSITIVE_LENGTH,
+            "pixel_stride": Range(1, MAX_FRAME_SIDE, integer=True, why="every k-th row and column of a frame"),
+        }
+        check_ranges(self, ranges)
+        expected = "at least initial_size (the grid starts that large and only grows)"
+        check_rule(self, "max_size", self.max_size >= self.initial_size, expected)
 
 
 @dataclass(frozen=True)
@@ -61,24 +76,20 @@ class MappingConfig(MapTuning):
     inflation_margin: float = 0.0
 
     def __post_init__(self) -> None:
-        positive = {
-            "resolution": self.resolution,
-            "max_depth": self.max_depth,
-            "initial_size": self.initial_size,
-            "pocket_window": self.pocket_window,
-            "max_size": self.max_size,
+        super().__post_init__()
+        ranges = {
+            "resolution": POSITIVE_LENGTH,
+            "max_obstacle_height": LENGTH,
+            "min_depth": LENGTH,
+            "max_depth": POSITIVE_LENGTH,
+            "camera_height": LENGTH,
+            "agent_radius": LENGTH,
+            "inflation_margin": LENGTH,
         }
-        for name, value in positive.items():
-            if not (math.isfinite(value) and value > 0.0):
-                raise ValueError(f"MappingConfig.{name} must be a positive finite number, got {value!r}")
-        if not 0.0 <= self.min_depth < self.max_depth:
-            raise ValueError(f"MappingConfig needs 0 <= min_depth < max_depth, got {self.min_depth}, {self.max_depth}")
-        if not self.min_obstacle_height < self.max_obstacle_height:
-            raise ValueError("MappingConfig needs min_obstacle_height < max_obstacle_height")
-        if min(self.agent_radius, self.inflation_margin, self.growth_margin, self.clip_epsilon) < 0.0:
-            raise ValueError("MappingConfig: radius, inflation margin, growth margin and clip epsilon must be >= 0")
-        if self.pixel_stride < 1:
-            raise ValueError(f"MappingConfig.pixel_stride must be >= 1, got {self.pixel_stride}")
+        check_ranges(self, ranges)
+        check_rule(self, "min_depth", self.min_depth < self.max_depth, "less than max_depth")
+        expected = "less than max_obstacle_height (the top of the obstacle band)"
+        check_rule(self, "min_obstacle_height", self.min_obstacle_height < self.max_obstacle_height, expected)
 
     @staticmethod
     def from_sim(sim: SimConfig, tuning: MapTuning | None = None, **overrides: Any) -> MappingConfig:

@@ -39,6 +39,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from drivenav.grid import GridSpec
+from drivenav.ranges import LENGTH, Range, check_ranges
 from drivenav.types import CameraIntrinsics, Pose
 
 FloatMap = NDArray[np.float64]
@@ -63,12 +64,14 @@ class ValueMapConfig:
     keep_margin: float = 0.01  # itm_policy.py BaseITMPolicy._get_best_frontier: keep it while value + 0.01 > last
 
     def __post_init__(self) -> None:
-        if not 0.0 <= self.min_confidence < 1.0:
-            raise ValueError(f"ValueMapConfig.min_confidence must lie in [0, 1), got {self.min_confidence!r}")
-        if not (math.isfinite(self.frontier_radius) and self.frontier_radius >= 0.0):
-            raise ValueError(f"ValueMapConfig.frontier_radius must be >= 0, got {self.frontier_radius!r}")
-        if not (math.isfinite(self.keep_radius) and self.keep_radius >= 0.0):
-            raise ValueError(f"ValueMapConfig.keep_radius must be >= 0, got {self.keep_radius!r}")
+        ranges = {
+            "min_confidence": Range(0.0, 1.0, high_open=True, why="a confidence, below the optical axis's 1"),
+            "decision_threshold": Range(0.0, 1.0, why="a confidence"),
+            "frontier_radius": LENGTH,
+            "keep_radius": LENGTH,
+            "keep_margin": Range(0.0, 2.0, why="a difference of two scores in [-1, 1]"),
+        }
+        check_ranges(self, ranges)
 
 
 @dataclass(frozen=True)

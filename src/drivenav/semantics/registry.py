@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Generic, TypeVar
 
 from drivenav.errors import InputError
+from drivenav.ranges import Range, check_ranges
 from drivenav.semantics.serve_config import DEFAULT_BIND
 
 if TYPE_CHECKING:  # the command line reads the names here without loading numpy
@@ -56,6 +57,9 @@ class ModelSpec:
     detector_keys: str = ""
     detector_timeout_s: float = 60.0
     detector_served: str = ""
+
+    def __post_init__(self) -> None:
+        check_ranges(self, {"detector_timeout_s": Range(0.0, 86400.0, low_open=True, why="seconds, up to a day")})
 
 
 DTYPES = ("auto", "float32", "bfloat16", "float16")

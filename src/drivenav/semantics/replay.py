@@ -174,10 +174,15 @@ def _descriptions(data: JsonObject) -> dict[int, str]:
     return {int(label): text for label, text in descriptions.items()}
 
 
+SCORE_BOUND = 1.0 + 1e-3
+"""The largest recorded score's size: every scorer's similarity lies in [-1, 1] (a cosine, a probability; a
+non-finite one is recorded as its fallback 0), with room for a float32 cosine's rounding past 1."""
+
+
 def _score(data: JsonObject) -> float:
     value = data.get(SCORE)
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise AnswerFieldError(SCORE, "a number", value)
+    if isinstance(value, bool) or not isinstance(value, int | float) or not abs(value) <= SCORE_BOUND:
+        raise AnswerFieldError(SCORE, "a finite similarity in [-1, 1]", value)
     return float(value)
 
 

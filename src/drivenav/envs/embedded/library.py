@@ -6,8 +6,8 @@ houses; ``procedural:K`` picks K houses for episode generation), ``homes`` (HM3D
 drivenav, :func:`drivenav.envs.embedded.rosmap.packaged_maps_dir`), a scene directory (a ROS map YAML plus optional
 objects.json), or a folder of scene directories (a folder of your own named ``maps`` is ``./maps``). Generated
 scene ids (``procedural/house_00042``, ``homes/home_00042``) carry their seed, so any of them can be rebuilt from
-the id alone; both parts use seeds ``1000 * S + k`` for ``--seed S`` and K scenes (8 when K is not given). A map
-scene's id is its directory name (the packaged plans' too: ``uos_avz``).
+the id alone; both parts use seeds ``1000 * S + k`` for ``--seed S`` and K scenes (8 when K is not given, at most
+1000). A map scene's id is its directory name (the packaged plans' too: ``uos_avz``).
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ PROCEDURAL_ID = re.compile(r"^procedural/house_(\d+)$")
 HOMES_ID = re.compile(r"^homes/home_(\d+)$")
 DEFAULT_PROCEDURAL_HOUSES = 8
 DEFAULT_HOMES = 8  # homes in the part ``homes`` without ``:K``
+SEEDS_PER_RUN_SEED = 1000  # a part's K scenes of --seed S have seeds 1000 S .. 1000 S + K - 1: K is at most this
 PACKAGED_MAPS_PART = "maps"  # the SPEC part naming the floor plans shipped with drivenav
 
 
@@ -72,10 +73,11 @@ class SceneLibrary:
             raise InputError("command line", "--scenes", "comma-separated parts, none empty", self.spec)
         if part == "procedural" or part.startswith("procedural:"):
             self._procedural = True
-            ids = [procedural_scene_id(seed * 1000 + k) for k in range(_parse_count(part, DEFAULT_PROCEDURAL_HOUSES))]
+            count = _parse_count(part, DEFAULT_PROCEDURAL_HOUSES)
+            ids = [procedural_scene_id(seed * SEEDS_PER_RUN_SEED + k) for k in range(count)]
         elif part == "homes" or part.startswith("homes:"):
             self._homes = True
-            ids = [home_scene_id(seed * 1000 + k) for k in range(_parse_count(part, DEFAULT_HOMES))]
+            ids = [home_scene_id(seed * SEEDS_PER_RUN_SEED + k) for k in range(_parse_count(part, DEFAULT_HOMES))]
         else:
             maps = _find_map_dirs(part)
             for scene_id, path in maps.items():
@@ -110,13 +112,16 @@ class SceneLibrary:
 
 
 def _parse_count(part: str, default: int) -> int:
-    """K of a generated part (``procedural:K``, ``homes:K``), ``default`` for the bare name."""
+    """K of a generated part (``procedural:K``, ``homes:K``), ``default`` for the bare name: decimal digits, 1 to
+    :data:`SEEDS_PER_RUN_SEED` (more would reach the scenes of the next ``--seed``)."""
     name, sep, text = part.partition(":")
     if not sep:
         return default
-    if not text.isdigit() or int(text) < 1:
-        raise InputError("command line", "--scenes", f"'{name}' or '{name}:K' with K >= 1", part)
-    return int(text)
+    digits = re.fullmatch("0*([0-9]{1,4})", text)  # ASCII digits ('²' passes str.isdigit), few enough for int
+    if digits is None or not 1 <= int(digits.group(1)) <= SEEDS_PER_RUN_SEED:
+        expected = f"'{name}' or '{name}:K' with K from 1 to {SEEDS_PER_RUN_SEED} (the scenes of one --seed)"
+        raise InputError("command line", "--scenes", expected, part)
+    return int(digits.group(1))
 
 
 def _find_map_dirs(part: str) -> dict[str, Path]:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
-from drivenav.eval.options import episode_count
+from drivenav.eval.options import episode_count, is_count
 from drivenav.eval.worlds.entry import SceneLoader, WorldEntry
 
 if TYPE_CHECKING:
@@ -36,7 +36,7 @@ def load_or_generate(args: argparse.Namespace, run: RunSpec) -> list[Episode]:
 
     seed = run.settings.run.seed
     library = SceneLibrary(args.scenes, seed)
-    if str(args.episodes).isdigit():
+    if is_count(args.episodes):
         count = episode_count(int(args.episodes), "--episodes")
         return generate_episodes(library, count, seed, run.settings.sim)
     episodes = load_episodes(args.episodes)

@@ -8,7 +8,7 @@ import argparse
 from typing import TYPE_CHECKING
 
 from drivenav.errors import InputError
-from drivenav.eval.options import path, positive
+from drivenav.eval.options import is_count, path, positive
 from drivenav.eval.worlds.entry import WorldEntry
 
 if TYPE_CHECKING:
@@ -84,7 +84,7 @@ def _episodes(args: argparse.Namespace, run: RunSpec) -> list[Episode]:
     episodes = run.env.episodes()
     if str(args.episodes) == "all":
         return episodes
-    if not str(args.episodes).isdigit():
+    if not is_count(args.episodes):
         raise InputError("command line", "--episodes", "N (the split's first N episodes) or all", args.episodes)
     return episodes[: positive(int(args.episodes), "--episodes")]
 

@@ -8,7 +8,7 @@ import importlib.util
 from typing import TYPE_CHECKING
 
 from drivenav.errors import InputError
-from drivenav.eval.options import path
+from drivenav.eval.options import is_count, path
 from drivenav.eval.worlds.entry import WorldEntry
 
 if TYPE_CHECKING:
@@ -55,7 +55,7 @@ def _episodes(args: argparse.Namespace, run: RunSpec) -> list[Episode]:
     """The robot's own episodes: a file (a robot generates none)."""
     from drivenav.eval.episodes import load_episodes
 
-    if str(args.episodes).isdigit():
+    if is_count(args.episodes):
         raise InputError("command line", "--episodes", "an episodes file with --env robot (the robot's)", args.episodes)
     return load_episodes(args.episodes)
 

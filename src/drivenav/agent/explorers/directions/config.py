@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from drivenav.agent.config import ExplorerEntry
+from drivenav.ranges import STEPS, check_ranges
 
 
 @dataclass(frozen=True)
@@ -14,6 +15,9 @@ class DirectionsConfig:
 
     decision_scan: bool = False  # True: a full 360 deg scan at every decision point (Table II: direction-360)
     reidentify_steps: int = 500  # ours: steps a removed direction is remembered, to recognise it under a fresh label
+
+    def __post_init__(self) -> None:
+        check_ranges(self, {"reidentify_steps": STEPS})
 
 
 EXPLORER = ExplorerEntry(

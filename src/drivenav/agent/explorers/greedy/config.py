@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from drivenav.agent.config import ExplorerEntry
+from drivenav.ranges import LENGTH, check_ranges
 
 
 @dataclass(frozen=True)
@@ -13,6 +14,9 @@ class GreedyConfig:
     """The greedy baseline's tuning (ours: the paper does not give it)."""
 
     min_goal_distance: float = 1.0  # metres: frontier points nearer than this are not goals (all are if none is)
+
+    def __post_init__(self) -> None:
+        check_ranges(self, {"min_goal_distance": LENGTH})
 
 
 EXPLORER = ExplorerEntry(

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
-from drivenav.agent.config import ExplorerEntry
+from drivenav.agent.config import ExplorerEntry, Rule
 from drivenav.mapping.value_map import ValueMapConfig
+from drivenav.ranges import LENGTH, check_ranges
+from drivenav.types import SimConfig
 
 
 @dataclass(frozen=True)
@@ -15,6 +18,17 @@ class VlfmConfig(ValueMapConfig):
 
     min_goal_distance: float = 1.0  # metres: a new choice considers frontier points at least this far (all if none)
 
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        check_ranges(self, {"min_goal_distance": LENGTH})
+
+
+def within_reach(config: Any, sim: SimConfig) -> tuple[Rule, ...]:
+    """The frontier radius within the sensor's reach: the value map holds only what frames saw (a larger disk costs
+    memory for nothing, and a vast one more than the machine has)."""
+    reach = f"at most sim.max_depth ({sim.max_depth:g} m): the value map holds what frames saw"
+    return (("frontier_radius", config.frontier_radius <= sim.max_depth, reach),)
+
 
 EXPLORER = ExplorerEntry(
     "vlfm",
@@ -22,4 +36,5 @@ EXPLORER = ExplorerEntry(
     "drivenav.agent.explorers.vlfm.explorer:VlfmExplorer",
     "VLFM: value map from image-text scores, highest-value frontier",
     ("agent.enrich=false", "agent.verify=false"),
+    within_reach,
 )
