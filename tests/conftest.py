@@ -9,11 +9,16 @@ limit_blas_threads()  # before numpy loads
 import importlib.metadata
 import subprocess
 import sys
+from functools import cache
 from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
 
 import pytest
 
+from drivenav import plugins
 from drivenav.envs.embedded.rosmap import packaged_maps_dir
+from drivenav.plugins import Registry
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -46,3 +51,30 @@ def run_cli(*args: str, timeout: float = 600.0) -> subprocess.CompletedProcess[s
         cwd=REPO,
         check=False,
     )
+
+
+def registries() -> dict[str, Registry[Any]]:
+    """Every entry-point registry of drivenav, by group."""
+    from drivenav.agent.explorers import EXPLORERS
+    from drivenav.eval.worlds import WORLDS
+    from drivenav.robot.registry import MOTIONS, SOURCES
+    from drivenav.semantics.registry import GROUNDER_BACKENDS, REASONER_BACKENDS, SCORER_BACKENDS
+
+    found: list[Registry[Any]] = [
+        EXPLORERS, WORLDS, REASONER_BACKENDS, GROUNDER_BACKENDS, SCORER_BACKENDS, SOURCES, MOTIONS
+    ]  # fmt: skip
+    return {registry.group: registry for registry in found}
+
+
+def plug_in(monkeypatch: pytest.MonkeyPatch, *points: tuple[str, str, str, str]) -> None:
+    """Other packages' entry points for one test, each ``(group, name, module:attribute, distribution)``: every
+    registry, and the settings' explorer sections, read them now (as a new process would) and forget them after the
+    test."""
+    from drivenav import settings
+
+    declared = [SimpleNamespace(group=g, name=n, value=v, dist=SimpleNamespace(name=d)) for g, n, v, d in points]
+    monkeypatch.setattr(plugins, "entry_points", lambda group: [p for p in declared if p.group == group])
+    for registry in registries().values():
+        monkeypatch.setattr(registry, "_loaded", {})
+        monkeypatch.setitem(vars(registry), "declared", Registry.declared.func(registry))
+    monkeypatch.setattr(settings, "explorer_settings_type", cache(settings.explorer_settings_type.__wrapped__))

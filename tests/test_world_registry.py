@@ -1,13 +1,17 @@
-"""A new world is one module and one registry line: the embedded world seen through a noisy depth camera, run end
-to end through ``drivenav eval``.
+"""A new world is a module or two and one entry point: the embedded world seen through a noisy depth camera (the
+example plug-in package's, ``tests/plugin_package``), run end to end through ``drivenav eval``.
 
-What a new world touches:
+What a new world touches (docs/extending.md):
 
-1. one module with its spec (a frozen dataclass: ``name``, ``provides``, ``build(sim) -> Env``), its env, and a
+1. its spec (a frozen dataclass: ``name``, ``provides``, ``build(sim) -> Env``) and its env
+   (``drivenav_example/noisy_depth.py``), and a light module with its
    :class:`~drivenav.eval.worlds.entry.WorldEntry` saying how the command line builds the spec, which options it
-   adds, where the episodes come from and how a run is titled (this file, from ``NoisyDepthSpec`` to ``NOISY``);
-2. one line, ``register(NOISY)`` (:func:`drivenav.eval.worlds.register`; the built-in worlds are listed in
-   ``drivenav/eval/worlds/__init__.py``). Here the fixture registers it for each test only.
+   adds, where the episodes come from and how a run is titled (``drivenav_example/world.py``);
+2. one entry point in its package's metadata: ``[project.entry-points."drivenav.worlds"]
+   embedded-noisy = "drivenav_example.world:NOISY"`` (drivenav's own worlds are declared the same way in its
+   pyproject.toml and listed in ``drivenav/eval/worlds/__init__.py``). Here the fixture declares it for each test
+   (the package's sources are on the tests' path, its metadata is not installed); ``tests/test_plugin_package.py``
+   installs the package beside drivenav in a fresh venv.
 
 Nothing else changes: ``--env`` offers it, its options are refused with other worlds, ``run.json`` records it, a
 resume and ``drivenav viz`` rebuild its spec from that record.
@@ -17,81 +21,24 @@ from __future__ import annotations
 
 import argparse
 import json
-import zlib
-from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import ClassVar
 
 import numpy as np
 import pytest
+from drivenav_example.noisy_depth import NoisyDepthSpec
+from drivenav_example.world import NOISY
 
+from conftest import plug_in
 from drivenav.cli import main
-from drivenav.envs.embedded.env import EmbeddedEnv, EmbeddedSpec
-from drivenav.envs.embedded.library import SceneLibrary
-from drivenav.episode import Episode
+from drivenav.envs.embedded.env import EmbeddedSpec
 from drivenav.eval import runner
 from drivenav.eval.records import read_records
 from drivenav.eval.rundir import EPISODES_FILE, RUN_FILE
-from drivenav.eval.worlds import WORLDS, recorded_world
-from drivenav.eval.worlds.embedded import load_or_generate, scene_library
-from drivenav.eval.worlds.entry import WorldEntry
+from drivenav.eval.worlds import recorded_world
+from drivenav.eval.worlds.embedded import load_or_generate
 from drivenav.settings import Settings
-from drivenav.types import Action, Observation, SimConfig
+from drivenav.types import SimConfig
 from drivenav.viz.episode import load_episode, render_episode_pictures
-
-# --- the new world's module ------------------------------------------------------------------------------------
-
-
-class NoisyDepthEnv(EmbeddedEnv):
-    """The embedded world whose depth camera adds Gaussian noise (seeded per episode)."""
-
-    def __init__(self, spec: NoisyDepthSpec, sim: SimConfig) -> None:
-        super().__init__(SceneLibrary(spec.scenes, spec.seed).load, sim)
-        self._sigma = spec.depth_noise
-        self._rng = np.random.default_rng(0)
-
-    def _noisy(self, observation: Observation) -> Observation:
-        noise = self._rng.normal(0.0, self._sigma, observation.depth.shape)
-        depth = np.clip(observation.depth + noise, self.config.min_depth, self.config.max_depth)
-        return replace(observation, depth=depth.astype(np.float32))
-
-    def reset(self, episode: Episode) -> Observation:
-        self._rng = np.random.default_rng(zlib.crc32(episode.episode_id.encode()))
-        return self._noisy(super().reset(episode))
-
-    def step(self, action: Action) -> Observation:
-        return self._noisy(super().step(action))
-
-
-@dataclass(frozen=True)
-class NoisyDepthSpec(EmbeddedSpec):
-    depth_noise: float = 0.05  # metres, the standard deviation
-    name: ClassVar[str] = "embedded-noisy"
-
-    def build(self, sim: SimConfig) -> NoisyDepthEnv:
-        return NoisyDepthEnv(self, sim)
-
-
-def _add_options(group: argparse._ArgumentGroup) -> None:
-    group.add_argument("--depth-noise", type=float, default=None, help="embedded-noisy: depth noise (m)")
-
-
-def _build(args: argparse.Namespace, settings: Settings) -> NoisyDepthSpec:
-    noise = 0.05 if args.depth_noise is None else args.depth_noise
-    return NoisyDepthSpec(args.scenes, settings.run.seed, noise)
-
-
-NOISY = WorldEntry(
-    name="embedded-noisy",
-    summary="the embedded simulator with a noisy depth camera",
-    spec_class=lambda: NoisyDepthSpec,
-    build=_build,
-    episodes=load_or_generate,
-    label=lambda args: f"{args.scenes} (noisy depth)",
-    add_options=_add_options,
-    own_options=("--depth-noise",),
-    scenes=scene_library,
-)
 
 # --- the tests -------------------------------------------------------------------------------------------------
 
@@ -100,8 +47,9 @@ SCENES = "procedural:1"
 
 @pytest.fixture(autouse=True)
 def noisy_world(monkeypatch: pytest.MonkeyPatch) -> None:
-    """``register(NOISY)`` for one test (``monkeypatch`` takes it out again), and no world kept from another."""
-    monkeypatch.setitem(WORLDS, NOISY.name, NOISY)
+    """The world declared by an entry point for one test (``monkeypatch`` takes it out again), and no world kept
+    from another."""
+    plug_in(monkeypatch, ("drivenav.worlds", NOISY.name, "drivenav_example.world:NOISY", "drivenav-example"))
     monkeypatch.setattr(runner, "_WORKER", None)
 
 

@@ -23,7 +23,6 @@ registered explorers (:func:`explorer_settings_type`).
 from __future__ import annotations
 
 import dataclasses
-import logging
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cache
@@ -43,11 +42,9 @@ from drivenav.mapping.config import MapTuning
 from drivenav.methods import PRESETS, agent_names, method_named, preset_names
 from drivenav.paper import DriveNavConfig
 from drivenav.ranges import MAX_GRID_SIDE, Range, SettingError, check_ranges, check_rule
-from drivenav.semantics.registry import DETECTORS, DTYPES, REASONERS, SCORERS, ModelSpec
+from drivenav.semantics.registry import DTYPES, GROUNDER_BACKENDS, REASONER_BACKENDS, SCORER_BACKENDS, ModelSpec
 from drivenav.types import SimConfig
 from drivenav.validation import check_unique_keys, yaml_problem
-
-log = logging.getLogger(__name__)
 
 YAML_HEADER = """\
 # drivenav configuration: load it back with --config FILE, change one value with --set KEY=VALUE.
@@ -86,16 +83,11 @@ class ExplorerSettings:
 @cache
 def explorer_settings_type() -> type[ExplorerSettings]:
     """:class:`ExplorerSettings` with a section per registered explorer (made once per process): each its entry's
-    config class with its defaults. A plug-in explorer whose entry cannot be loaded gets no section (one warning
-    line); choosing it is an error."""
-    sections: list[tuple[str, type, Any]] = []
-    for name in EXPLORERS.names:
-        try:
-            config = explorer_entry(name).config
-        except InputError as error:
-            log.warning("drivenav: %s", error)
-            continue
-        sections.append((name, config, field(default_factory=config)))
+    config class with its defaults. A plug-in explorer whose entry cannot be loaded gets no section (nothing is said
+    until it is chosen: then it is one :class:`~drivenav.errors.InputError` line)."""
+    sections: list[tuple[str, type, Any]] = [
+        (name, entry.config, field(default_factory=entry.config)) for name, entry in EXPLORERS.usable().items()
+    ]
     made = dataclasses.make_dataclass("ExplorerSettings", sections, bases=(ExplorerSettings,), frozen=True)
     made.__module__ = __name__
     return made
@@ -147,9 +139,9 @@ class Settings:
             check_rule(self, key, holds, expected)
         choices = (  # key, allowed names, the option that sets it
             ("run.agent", agent_names(), "--agent"),
-            ("models.reasoner", REASONERS, "--reasoner"),
-            ("models.detector", DETECTORS, "--detector"),
-            ("models.scorer", SCORERS, "--scorer"),
+            ("models.reasoner", REASONER_BACKENDS.names, "--reasoner"),
+            ("models.detector", GROUNDER_BACKENDS.names, "--detector"),
+            ("models.scorer", SCORER_BACKENDS.names, "--scorer"),
             ("models.dtype", DTYPES, "--dtype"),
             ("explorer.name", EXPLORERS.names, "--set explorer.name=NAME"),
         )

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, TypeAlias
 
 from drivenav.eval.options import seed
-from drivenav.eval.worlds import DEFAULT_WORLD, WORLDS, WorldEntry, chosen_world
+from drivenav.eval.worlds import DEFAULT_WORLD, WORLDS, WorldEntry, chosen_world, usable_worlds
 from drivenav.jsonstream import JsonObject
 
 if TYPE_CHECKING:
@@ -72,16 +72,17 @@ def add_config_options(parser: argparse.ArgumentParser) -> None:
 
 
 def add_model_options(parser: argparse.ArgumentParser) -> None:
-    from drivenav.semantics.registry import DETECTORS, DTYPES, REASONERS, SCORERS, ModelSpec
+    from drivenav.semantics.registry import DTYPES, GROUNDER_BACKENDS, REASONER_BACKENDS, SCORER_BACKENDS, ModelSpec
 
     default = ModelSpec()
     models = parser.add_argument_group(
         "models (reasoner = the VLM's role, detector = SAM3's role, scorer = VLFM's BLIP-2; sets models.*)"
     )
-    models.add_argument("--reasoner", help=f"one of {', '.join(REASONERS)} (default {default.reasoner})")
-    models.add_argument("--detector", help=f"one of {', '.join(DETECTORS)} (default {default.detector})")
+    models.add_argument("--reasoner", help=f"one of {', '.join(REASONER_BACKENDS.names)} (default {default.reasoner})")
+    models.add_argument("--detector", help=f"one of {', '.join(GROUNDER_BACKENDS.names)} (default {default.detector})")
+    scorers = ", ".join(SCORER_BACKENDS.names)
     models.add_argument(
-        "--scorer", help=f"the vlfm method's image-text scorer: one of {', '.join(SCORERS)} (default {default.scorer})"
+        "--scorer", help=f"the vlfm method's image-text scorer: one of {scorers} (default {default.scorer})"
     )
     models.add_argument("--vlm-base-url", help=f"OpenAI-compatible endpoint (default {default.vlm_base_url})")
     models.add_argument("--vlm-model", help=f"default {default.vlm_model}")
@@ -111,13 +112,14 @@ def add_execution_options(parser: argparse.ArgumentParser) -> None:
 
 
 def add_world_options(parser: argparse.ArgumentParser) -> None:
-    """``--env`` and every world's own options, in one group titled with the worlds' documentation."""
-    worlds = list(WORLDS.values())
+    """``--env`` and every world's own options, in one group titled with the worlds' documentation (a plug-in world
+    that cannot be loaded is still a choice, refused with its one line when chosen)."""
+    worlds = usable_worlds()
     docs = "; ".join(f"--env {world.name}: {world.docs}" for world in worlds if world.docs)
     names = [world.summary for world in worlds]
     group = parser.add_argument_group(f"world ({docs})")
     summary = f"{', '.join(names[:-1])} or {names[-1]}" if len(names) > 1 else names[0]
-    group.add_argument("--env", default=DEFAULT_WORLD, choices=tuple(WORLDS), help=summary)
+    group.add_argument("--env", default=DEFAULT_WORLD, choices=WORLDS.names, help=summary)
     for world in worlds:
         world.add_options(group)
 
@@ -146,14 +148,14 @@ def settings(args: argparse.Namespace, agent: str | None) -> Settings:
         seed(int(str(given["run.seed"])))
     presets = chosen_world(args).presets(args)
     configs = [*presets, *(c for c in args.config if c not in presets)]
-    prefixes = tuple(world.set_prefix for world in WORLDS.values() if world.set_prefix)
+    prefixes = tuple(world.set_prefix for world in usable_worlds() if world.set_prefix)
     overrides = [o for o in args.overrides if not (prefixes and o.startswith(prefixes))]
     return load_settings(agent, configs=configs, overrides=overrides, options=given)
 
 
 def check_world_options(args: argparse.Namespace, world: WorldEntry) -> None:
     """A world's own options only with that world (before any model loads)."""
-    for other in WORLDS.values():
+    for other in usable_worlds():
         if other is not world:
             other.refuse_options(args)
 

@@ -115,7 +115,7 @@ def add_doctor(commands: Commands) -> None:
     from drivenav.envs.habitat.benchmarks import BENCHMARKS
 
     parser = commands.add_parser("doctor", help="check a Habitat / VLM / segmenter set-up before a long run")
-    parser.add_argument("--env", default=DEFAULT_WORLD, choices=tuple(WORLDS))
+    parser.add_argument("--env", default=DEFAULT_WORLD, choices=WORLDS.names)
     parser.add_argument("--config", default=None, choices=sorted(BENCHMARKS), help="with --env habitat: benchmark")
     parser.add_argument("--split", default=None, help="one split (default: every split of the benchmark)")
     parser.add_argument("--data-dir", type=path, default=None, help="habitat's data/ folder")

@@ -7,6 +7,7 @@ import argparse
 
 from drivenav.cli.common import Commands, add_config_options, settings
 from drivenav.eval.options import path, seed
+from drivenav.robot.registry import add_part_options
 
 
 def add_robot(commands: Commands) -> None:
@@ -18,9 +19,7 @@ def add_robot(commands: Commands) -> None:
     serve = sub.add_parser("serve", help="serve this robot's sensors and motion (ROS 2 topics or a ROS 2 bag)")
     serve.add_argument("--bind", default="tcp://127.0.0.1:5555", help="endpoint (default tcp://127.0.0.1:5555)")
     serve.add_argument("--keys", type=path, default=None, help="CURVE keys (required off loopback)")
-    serve.add_argument("--source", default="ros2", choices=("ros2", "bag"), help="ROS 2 topics or a bag")
-    serve.add_argument("--bag", type=path, default=None, help="with --source bag: the ROS 2 bag folder")
-    serve.add_argument("--motion", default="cmd-vel", choices=("cmd-vel", "none"), help="cmd_vel on odometry, or none")
+    add_part_options(serve)
     serve.add_argument("--lidar", action="store_true", help="send LiDAR occupancy in the camera's field of view")
     serve.add_argument("--jpeg", action="store_true", help="RGB as JPEG (default raw)")
     add_config_options(serve)
@@ -45,12 +44,13 @@ def _cmd_robot_keys(args: argparse.Namespace) -> int:
 
 
 def _cmd_robot_serve(args: argparse.Namespace) -> int:
-    from drivenav.robot.serve import robot_parts, serve_robot
+    from drivenav.robot.registry import robot_parts
+    from drivenav.robot.serve import serve_robot
     from drivenav.wire.security import check_bind
 
     check_bind(args.bind, args.keys)  # before any topic or file is opened
     sim = settings(args, None).sim
-    source, motion = robot_parts(args.source, args.bag, args.motion)
+    source, motion = robot_parts(args, sim)
     serve_robot(args.bind, args.keys, source, motion, sim, args.lidar, args.jpeg)
     return 0
 

@@ -15,7 +15,7 @@ from drivenav.eval.options import path, positive
 
 
 def add_serve(commands: Commands) -> None:
-    from drivenav.semantics.registry import DETECTORS, DTYPES
+    from drivenav.semantics.registry import DTYPES, GROUNDER_BACKENDS
     from drivenav.semantics.serve_config import DEFAULT_BIND, ServeConfig
 
     default = ServeConfig()
@@ -24,7 +24,7 @@ def add_serve(commands: Commands) -> None:
     grounder = sub.add_parser(
         "grounder", help="one grounder copy for every worker (--detector remote), batching their frames"
     )
-    local = [name for name in DETECTORS if name != "remote"]
+    local = [name for name in GROUNDER_BACKENDS.names if name != "remote"]
     grounder.add_argument("--detector", required=True, choices=local, help="the grounder served")
     grounder.add_argument("--detector-model", default="", help="checkpoint dir or HF-cache model id (SAM3, OWLv2)")
     grounder.add_argument("--device", default="", help="cpu or cuda (default: cuda when visible)")

@@ -3,19 +3,14 @@
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable
 from pathlib import Path
-from typing import TypeVar
 
-from drivenav.errors import InputError, one_line
 from drivenav.robot.lidar import LidarConfig, LidarOccupancy
 from drivenav.robot.parts import MotionExecutor, SensorSource
 from drivenav.robot.server import EpisodeWorld, RobotServer, RobotSession, ServerConfig
 from drivenav.types import SimConfig
 from drivenav.wire.protocol import RobotInfo
 from drivenav.wire.security import check_bind
-
-T = TypeVar("T")
 
 
 def run_server(session: RobotSession, bind: str, keys: Path | None) -> None:
@@ -72,39 +67,3 @@ def serve_robot(
     config = ServerConfig(rgb_encoding=info.rgb_encoding)
     session = RobotSession(info, source, motion, episodes, lidar_for(sim, lidar), config)
     run_server(session, bind, keys)
-
-
-def robot_parts(source: str, bag: Path | None, motion: str) -> tuple[SensorSource, MotionExecutor]:
-    """The sensor source and motion executor named on the command line."""
-    from drivenav.robot import ros
-    from drivenav.robot.parts import HeldStill
-
-    if source == "bag":
-        if bag is None or not bag.is_dir():
-            raise InputError("command line", "--bag", "a ROS 2 bag folder with --source bag", bag)
-        sensors: SensorSource = _open_bag(bag)
-    else:
-        sensors = _with_ros(ros.RosSensorSource, "--source", "ros2")
-    if motion == "none":
-        return sensors, HeldStill()
-    return sensors, _with_ros(ros.RosMotionExecutor, "--motion", "cmd-vel")
-
-
-def _open_bag(bag: Path) -> SensorSource:
-    """The bag's sensor source; a folder rosbags cannot read (no or broken metadata, another storage) is one line."""
-    from drivenav.robot import ros
-
-    try:
-        return ros.BagSource(bag, ros.RosTopics())
-    except InputError:
-        raise
-    except Exception as error:  # rosbags' errors (AnyReaderError, FileNotFoundError, ...) share no base class
-        raise InputError(bag, "--bag", "a ROS 2 bag folder rosbags can read", one_line(error)) from None
-
-
-def _with_ros(part: Callable[[], T], option: str, value: str) -> T:
-    """A live ROS 2 part, or one line saying that ROS 2 is not sourced."""
-    try:
-        return part()
-    except RuntimeError as error:
-        raise InputError("command line", option, f"a sourced ROS 2 install (rclpy) for {value}", str(error)) from None

@@ -1,22 +1,25 @@
 """Reasoner, grounder and scorer backends by command-line name (``--reasoner``, ``--detector``, ``--scorer``).
 
 Each role (the VLM's reasoning of Sec. IV-B/IV-C, the segmenter's grounding, the VLFM baseline's image-text
-scoring) has one :class:`ModelRegistry`: a
-name maps to a :class:`Backend`, which builds the model from a picklable :class:`ModelSpec` (so that worker
-processes build their own) and says what the model needs. Backends import their heavy modules only when built,
-so the command line reads the names here without loading numpy. A new backend is one ``add`` line; a new role is
-one more registry.
+scoring) has one :class:`ModelRegistry`, an entry-point group of its own (``drivenav.reasoners``,
+``drivenav.grounders``, ``drivenav.scorers``; :mod:`drivenav.plugins`): a name maps to a :class:`Backend`, which
+builds the model from a picklable :class:`ModelSpec` (so that worker processes build their own) and says what the
+model needs. Backends import their heavy modules only when built, and the names are listed without loading any
+backend, so the command line reads them without loading numpy. A new backend is one ``Backend`` object and one
+entry point (drivenav's own: one line in a ``BUILT_IN_*`` table below and in pyproject.toml); a new role is one
+more registry and group.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Generic, TypeVar
 
 from drivenav.errors import InputError
+from drivenav.plugins import Registry
 from drivenav.ranges import Range, check_ranges
 from drivenav.semantics.serve_config import DEFAULT_BIND
 
@@ -88,34 +91,20 @@ class Backend(Generic[Model]):
     observes: tuple[str, ...] = ("rgb",)
 
 
-class ModelRegistry(Generic[Model]):
-    """The backends of one role by name, in the order they were added (the order ``--help`` lists them)."""
+class ModelRegistry(Registry[Backend[Model]]):
+    """The backends of one role by name: drivenav's own in the order of ``built_ins`` (the order ``--help`` lists
+    them), then other packages' (entry-point ``group``); ``option`` is the command-line option that names one."""
 
-    def __init__(self, option: str) -> None:
-        self.option = option  # the command-line option that names a backend of this role
-        self._backends: dict[str, Backend[Model]] = {}
-
-    def add(self, name: str, backend: Backend[Model]) -> None:
-        """Register ``backend`` as ``name`` (a name is taken once)."""
-        if name in self._backends:
-            raise ValueError(f"{self.option} {name} is registered twice")
-        self._backends[name] = backend
-
-    @property
-    def names(self) -> tuple[str, ...]:
-        return tuple(self._backends)
-
-    def get(self, name: str) -> Backend[Model]:
-        """The backend called ``name``; an unknown name is an :class:`InputError` on this role's option."""
-        backend = self._backends.get(name)
-        if backend is None:
-            raise InputError("command line", self.option, f"one of {', '.join(self._backends)}", name)
-        return backend
+    def __init__(self, group: str, built_ins: Mapping[str, str], option: str) -> None:
+        super().__init__(group, built_ins, _is_backend, "model backend (drivenav.semantics.registry.Backend)", option)
 
     def reads_labels(self, name: str) -> bool:
         """Whether ``name`` reads ground-truth labels (False for an unknown name: it is refused elsewhere)."""
-        backend = self._backends.get(name)
-        return backend is not None and backend.reads_labels
+        return name in self.declared and self.get(name).reads_labels
+
+
+def _is_backend(part: object) -> bool:
+    return isinstance(part, Backend)
 
 
 def _embedded_reasoner(spec: ModelSpec) -> Reasoner:
@@ -236,18 +225,37 @@ def _import_problem(error: ImportError) -> str:
     return str(error).splitlines()[0]
 
 
-REASONER_BACKENDS: ModelRegistry[Reasoner] = ModelRegistry("--reasoner")
-REASONER_BACKENDS.add("embedded", Backend(_embedded_reasoner, reads_labels=True))
-REASONER_BACKENDS.add("openai", Backend(_openai_reasoner, connect=_reach_vlm))
-REASONER_BACKENDS.add("replay", Backend(_replay_reasoner, check=_read_recording))
-REASONER_BACKENDS.add("geometric", Backend(_geometric_reasoner))
+EMBEDDED_REASONER: Backend[Reasoner] = Backend(_embedded_reasoner, reads_labels=True)
+OPENAI_REASONER: Backend[Reasoner] = Backend(_openai_reasoner, connect=_reach_vlm)
+REPLAY_REASONER: Backend[Reasoner] = Backend(_replay_reasoner, check=_read_recording)
+GEOMETRIC_REASONER: Backend[Reasoner] = Backend(_geometric_reasoner)
 
-GROUNDER_BACKENDS: ModelRegistry[Grounder] = ModelRegistry("--detector")
-GROUNDER_BACKENDS.add("embedded", Backend(_embedded_grounder, reads_labels=True, observes=("depth", "semantic")))
-GROUNDER_BACKENDS.add("ground-truth", Backend(_ground_truth_grounder, reads_labels=True, observes=("semantic",)))
-GROUNDER_BACKENDS.add("sam3", Backend(_sam3_grounder, connect=_load_weights))
-GROUNDER_BACKENDS.add("owlv2", Backend(_owlv2_grounder, connect=_load_weights))
-GROUNDER_BACKENDS.add("remote", Backend(_remote_grounder, check=_check_detector_url, connect=_reach_grounder))
+BUILT_IN_REASONERS = {
+    "embedded": "drivenav.semantics.registry:EMBEDDED_REASONER",
+    "openai": "drivenav.semantics.registry:OPENAI_REASONER",
+    "replay": "drivenav.semantics.registry:REPLAY_REASONER",
+    "geometric": "drivenav.semantics.registry:GEOMETRIC_REASONER",
+}
+"""drivenav's own reasoners (``--reasoner``; also declared in pyproject.toml, group ``drivenav.reasoners``)."""
+
+REASONER_BACKENDS: ModelRegistry[Reasoner] = ModelRegistry("drivenav.reasoners", BUILT_IN_REASONERS, "--reasoner")
+
+EMBEDDED_GROUNDER: Backend[Grounder] = Backend(_embedded_grounder, reads_labels=True, observes=("depth", "semantic"))
+GROUND_TRUTH_GROUNDER: Backend[Grounder] = Backend(_ground_truth_grounder, reads_labels=True, observes=("semantic",))
+SAM3_GROUNDER: Backend[Grounder] = Backend(_sam3_grounder, connect=_load_weights)
+OWLV2_GROUNDER: Backend[Grounder] = Backend(_owlv2_grounder, connect=_load_weights)
+REMOTE_GROUNDER: Backend[Grounder] = Backend(_remote_grounder, check=_check_detector_url, connect=_reach_grounder)
+
+BUILT_IN_GROUNDERS = {
+    "embedded": "drivenav.semantics.registry:EMBEDDED_GROUNDER",
+    "ground-truth": "drivenav.semantics.registry:GROUND_TRUTH_GROUNDER",
+    "sam3": "drivenav.semantics.registry:SAM3_GROUNDER",
+    "owlv2": "drivenav.semantics.registry:OWLV2_GROUNDER",
+    "remote": "drivenav.semantics.registry:REMOTE_GROUNDER",
+}
+"""drivenav's own grounders (``--detector``; also declared in pyproject.toml, group ``drivenav.grounders``)."""
+
+GROUNDER_BACKENDS: ModelRegistry[Grounder] = ModelRegistry("drivenav.grounders", BUILT_IN_GROUNDERS, "--detector")
 
 
 def _embedded_scorer(spec: ModelSpec) -> ImageTextScorer:
@@ -285,15 +293,20 @@ def _replay_scorer(spec: ModelSpec) -> ImageTextScorer:
     return ReplayScorer(Path(spec.vlm_replay))
 
 
-SCORER_BACKENDS: ModelRegistry[ImageTextScorer] = ModelRegistry("--scorer")
-SCORER_BACKENDS.add("embedded", Backend(_embedded_scorer, reads_labels=True))
-SCORER_BACKENDS.add("blip2-itm", Backend(_blip2_scorer, connect=_load_scorer_weights))
-SCORER_BACKENDS.add("siglip", Backend(_siglip_scorer, connect=_load_scorer_weights))
-SCORER_BACKENDS.add("replay", Backend(_replay_scorer, check=_read_recording))
+EMBEDDED_SCORER: Backend[ImageTextScorer] = Backend(_embedded_scorer, reads_labels=True)
+BLIP2_ITM_SCORER: Backend[ImageTextScorer] = Backend(_blip2_scorer, connect=_load_scorer_weights)
+SIGLIP_SCORER: Backend[ImageTextScorer] = Backend(_siglip_scorer, connect=_load_scorer_weights)
+REPLAY_SCORER: Backend[ImageTextScorer] = Backend(_replay_scorer, check=_read_recording)
 
-REASONERS = REASONER_BACKENDS.names
-DETECTORS = GROUNDER_BACKENDS.names
-SCORERS = SCORER_BACKENDS.names
+BUILT_IN_SCORERS = {
+    "embedded": "drivenav.semantics.registry:EMBEDDED_SCORER",
+    "blip2-itm": "drivenav.semantics.registry:BLIP2_ITM_SCORER",
+    "siglip": "drivenav.semantics.registry:SIGLIP_SCORER",
+    "replay": "drivenav.semantics.registry:REPLAY_SCORER",
+}
+"""drivenav's own scorers (``--scorer``; also declared in pyproject.toml, group ``drivenav.scorers``)."""
+
+SCORER_BACKENDS: ModelRegistry[ImageTextScorer] = ModelRegistry("drivenav.scorers", BUILT_IN_SCORERS, "--scorer")
 
 
 def model_requirements(spec: ModelSpec) -> frozenset[str]:

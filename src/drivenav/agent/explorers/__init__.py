@@ -30,6 +30,7 @@ EXPLORERS: Registry[ExplorerEntry] = Registry(
     lambda part: isinstance(part, ExplorerEntry),
     "explorer entry (drivenav.agent.config.ExplorerEntry)",
     "explorer.name",
+    named=lambda entry: entry.name,
 )
 """Every explorer by name: the built-ins, then plug-ins."""
 
@@ -37,7 +38,4 @@ EXPLORERS: Registry[ExplorerEntry] = Registry(
 def explorer_entry(name: str) -> ExplorerEntry:
     """The registered explorer ``name``; an unknown or broken one is one :class:`~drivenav.errors.InputError` line.
     An entry registered under another name than its own is broken too (its settings section would not be found)."""
-    entry = EXPLORERS.get(name)
-    if entry.name != name:
-        raise EXPLORERS.broken(name, f"an entry named {entry.name!r}")
-    return entry
+    return EXPLORERS.get(name)

@@ -40,6 +40,16 @@ class FrontierGoals:
             if not any(math.dist(p.target, g) < reach for g, _ in self.failed_goals)
         ]
 
+    def kept_goal(self, loop: Loop, paths: list[FrontierPath]) -> FrontierPath | None:
+        """The path to the frontier point nearest the current goal (``state.goal``), if one lies within the merge
+        tolerance: the goal is kept while its frontier is there."""
+        goal = loop.state.goal
+        if goal is None:
+            return None
+        tolerance = loop.tuning.paper.directions.merge_tolerance
+        current = [p for p in paths if math.dist(p.target, goal) <= tolerance]
+        return min(current, key=lambda p: math.dist(p.target, goal)) if current else None
+
     def far_enough(self, paths: list[FrontierPath]) -> list[FrontierPath]:
         """The paths at least ``min_goal_distance`` long (all of them if none is): the goals a new choice considers."""
         return [p for p in paths if p.travel_time >= self.min_goal_distance] or paths

@@ -1,9 +1,10 @@
-"""The worlds a run can use, by ``--env`` name: one :class:`~drivenav.eval.worlds.entry.WorldEntry` each.
+"""The worlds a run can use, by ``--env`` name: one :class:`~drivenav.eval.worlds.entry.WorldEntry` each,
+drivenav's own and other packages' (entry-point group ``drivenav.worlds``, :mod:`drivenav.plugins`).
 
 The command line (its options, the run's spec, episodes and title) and ``drivenav viz`` (a run's world rebuilt
-from ``run.json``) loop over :data:`WORLDS`; neither names a world. A new world is one module (its
-:class:`~drivenav.envs.base.EnvSpec` and env, and a ``WorldEntry``) and one :func:`register` call; see
-``tests/test_world_registry.py`` for a world of a few lines.
+from ``run.json``) go through :data:`WORLDS`; neither names a world. A new world is one module (its
+:class:`~drivenav.envs.base.EnvSpec` and env, and a ``WorldEntry``) and one entry point; see
+``tests/test_world_registry.py`` for a world of a few lines and docs/extending.md.
 """
 
 from __future__ import annotations
@@ -13,50 +14,66 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from drivenav.errors import InputError
-from drivenav.eval.worlds.embedded import EMBEDDED
 from drivenav.eval.worlds.entry import WorldEntry
-from drivenav.eval.worlds.habitat import HABITAT
-from drivenav.eval.worlds.robot import ROBOT
 from drivenav.jsonstream import JsonObject
+from drivenav.plugins import Registry
 
 if TYPE_CHECKING:
     from drivenav.envs.base import EnvSpec
 
-DEFAULT_WORLD = EMBEDDED.name
+DEFAULT_WORLD = "embedded"
 
-WORLDS: dict[str, WorldEntry] = {}
-"""Every world by ``--env`` name, in the order ``--help`` lists them."""
+BUILT_IN_WORLDS = {
+    "embedded": "drivenav.eval.worlds.embedded:EMBEDDED",
+    "habitat": "drivenav.eval.worlds.habitat:HABITAT",
+    "robot": "drivenav.eval.worlds.robot:ROBOT",
+}
+"""drivenav's own worlds: ``--env`` name -> the ``module:attribute`` of their entry (also declared in
+pyproject.toml), in the order ``--help`` lists them."""
+
+WORLDS: Registry[WorldEntry] = Registry(
+    "drivenav.worlds",
+    BUILT_IN_WORLDS,
+    lambda part: isinstance(part, WorldEntry),
+    "world entry (drivenav.eval.worlds.entry.WorldEntry)",
+    "--env",
+    named=lambda entry: entry.name,
+)
+"""Every world by ``--env`` name: the built-ins, then plug-ins."""
 
 
-def register(entry: WorldEntry) -> WorldEntry:
-    """Add ``entry`` to :data:`WORLDS` (a name is taken once)."""
-    if entry.name in WORLDS:
-        raise ValueError(f"world {entry.name} is registered twice")
-    WORLDS[entry.name] = entry
-    return entry
-
-
-for _built_in in (EMBEDDED, HABITAT, ROBOT):
-    register(_built_in)
+def usable_worlds() -> list[WorldEntry]:
+    """Every world that loads (a broken plug-in is refused when it is chosen): the command line's world options."""
+    return list(WORLDS.usable().values())
 
 
 def chosen_world(args: argparse.Namespace) -> WorldEntry:
-    """The world of a command's ``--env`` (commands without one run on the default world)."""
-    return WORLDS[getattr(args, "env", DEFAULT_WORLD)]
+    """The world of a command's ``--env`` (commands without one run on the default world); a broken plug-in is one
+    :class:`~drivenav.errors.InputError` line."""
+    return WORLDS.get(getattr(args, "env", DEFAULT_WORLD))
 
 
 def world_named(name: str) -> WorldEntry:
     """The registered world ``name`` (a command bound to one world, e.g. ``drivenav run`` and the robot)."""
-    return WORLDS[name]
+    return WORLDS.get(name)
 
 
 def recorded_world(record: JsonObject, source: str | Path) -> tuple[WorldEntry, EnvSpec]:
     """A run's world and its spec from the world record of its ``run.json`` (``config.env``)."""
     name = record.get("name")
-    entry = WORLDS.get(str(name)) if isinstance(name, str) else None
-    if entry is None:
-        raise InputError(source, "config.env.name", f"a run in {' or '.join(WORLDS)}", name)
+    if not isinstance(name, str) or name not in WORLDS.names:
+        raise InputError(source, "config.env.name", f"a run in {' or '.join(WORLDS.names)}", name)
+    entry = WORLDS.get(name)
     return entry, entry.rebuild(record, source)
 
 
-__all__ = ["DEFAULT_WORLD", "WORLDS", "WorldEntry", "chosen_world", "recorded_world", "register", "world_named"]
+__all__ = [
+    "BUILT_IN_WORLDS",
+    "DEFAULT_WORLD",
+    "WORLDS",
+    "WorldEntry",
+    "chosen_world",
+    "recorded_world",
+    "usable_worlds",
+    "world_named",
+]

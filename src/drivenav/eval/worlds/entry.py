@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 
 from drivenav.errors import InputError
 from drivenav.jsonstream import JsonObject
+from drivenav.plugins import OptionAdder, no_options, refuse_options
 
 if TYPE_CHECKING:
     from drivenav.envs.base import EnvSpec
@@ -25,14 +26,9 @@ if TYPE_CHECKING:
     from drivenav.eval.runner import RunSpec
     from drivenav.settings import Settings
 
-OptionAdder = Callable[[argparse._ArgumentGroup], None]
 SpecBuilder = Callable[[argparse.Namespace, "Settings"], "EnvSpec"]
 EpisodeSource = Callable[[argparse.Namespace, "RunSpec"], "list[Episode]"]
 SceneLoader = Callable[[str], "Scene"]
-
-
-def no_options(group: argparse._ArgumentGroup) -> None:
-    """A world with no options of its own."""
 
 
 def no_presets(args: argparse.Namespace) -> list[str]:
@@ -96,10 +92,7 @@ class WorldEntry:
 
     def refuse_options(self, args: argparse.Namespace) -> None:
         """Refuse this world's own options and ``--set`` overrides in ``args`` (a run on another world)."""
-        for flag in self.own_options:
-            value = getattr(args, flag.lstrip("-").replace("-", "_"), None)
-            if value is not None:
-                raise InputError("command line", flag, f"only with --env {self.name}", str(value))
+        refuse_options(args, self.own_options, f"only with --env {self.name}")
         found = [o for o in getattr(args, "overrides", []) if self.set_prefix and o.startswith(self.set_prefix)]
         if found:
             expected = f"{self.set_prefix}KEY=VALUE only with --env {self.name}"

@@ -14,7 +14,6 @@ body's.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 from drivenav.agent.context import StepContext
@@ -59,7 +58,7 @@ class GreedyExplorer(Explorer):
         paths = self.goals.open_paths(loop, ctx)
         if not paths:
             return loop.stop("no_frontier")
-        chosen = self._keep_goal(loop, paths)
+        chosen = self.goals.kept_goal(loop, paths)
         if chosen is None:
             chosen = self._new_goal(loop, ctx, paths)
         return self.goals.drive(loop, observation, ctx, chosen)
@@ -73,15 +72,6 @@ class GreedyExplorer(Explorer):
     def counters(self) -> GreedyCounters:
         decisions = dict(sorted(self.opening.counts.decisions.items()))
         return GreedyCounters(decisions, self.goals.skipped)
-
-    def _keep_goal(self, loop: Loop, paths: list[FrontierPath]) -> FrontierPath | None:
-        """The path to the frontier point nearest the current goal, if one lies within the merge tolerance."""
-        goal = loop.state.goal
-        if goal is None:
-            return None
-        tolerance = loop.tuning.paper.directions.merge_tolerance
-        current = [p for p in paths if math.dist(p.target, goal) <= tolerance]
-        return min(current, key=lambda p: math.dist(p.target, goal)) if current else None
 
     def _new_goal(self, loop: Loop, ctx: StepContext, paths: list[FrontierPath]) -> FrontierPath:
         """The nearest frontier point at least ``min_goal_distance`` away (the nearest of all if none is)."""

@@ -1,0 +1,71 @@
+"""The farthest-frontier explorer: after a turn in place (a full scan), it heads for the frontier point with the
+largest weighted-FMM travel time (no farther than ``max_travel_time``) and keeps it until it is explored or cannot be
+reached, driving there as drivenav's greedy baseline does
+(:class:`~drivenav.agent.explorers.frontier_goals.FrontierGoals`). The target search, the approach and STOP are the
+agent body's."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from drivenav.agent.context import StepContext
+from drivenav.agent.explorer import Explorer, ExplorerSetup
+from drivenav.agent.explorers.frontier_goals import FrontierGoals
+from drivenav.agent.loop import Loop
+from drivenav.agent.trace import ScanStarted
+from drivenav.directions.types import FrontierPath
+from drivenav.inspection import full_scan_turns
+from drivenav.types import Action, Observation
+from drivenav_example.config import FarthestConfig
+
+
+@dataclass(frozen=True)
+class FarthestCounters:
+    """One episode's goals: how many frontier points it chose and how many it skipped as unreachable."""
+
+    goals_chosen: int = 0
+    goals_skipped: int = 0
+
+
+class FarthestExplorer(Explorer):
+    """The farthest frontier point (module docstring); one instance per episode, its memory."""
+
+    def __init__(self, setup: ExplorerSetup) -> None:
+        if not isinstance(setup.config, FarthestConfig):
+            raise TypeError(f"the farthest explorer takes a FarthestConfig, not {type(setup.config).__name__}")
+        self.max_travel_time = setup.config.max_travel_time
+        self.goals = FrontierGoals(min_goal_distance=1.0)
+        self.scan_turns = full_scan_turns(setup.tuning.turn)
+        self.scanning = True
+        self.chosen = 0
+
+    def begin(self, loop: Loop) -> None:
+        loop.trace.add(ScanStarted(0, self.scan_turns))
+
+    def act(self, loop: Loop, observation: Observation, ctx: StepContext) -> Action:
+        self.scanning = self.scan_turns > 0
+        if self.scanning:
+            self.scan_turns -= 1
+            return Action.TURN_LEFT
+        paths = self.goals.open_paths(loop, ctx)
+        if not paths:
+            return loop.stop("no_frontier")
+        chosen = self.goals.kept_goal(loop, paths) or self._new_goal(loop, ctx, paths)
+        return self.goals.drive(loop, observation, ctx, chosen)
+
+    def activity(self, escaping: bool) -> str:
+        if self.scanning:
+            return "start_scan"
+        return "escape" if escaping else "follow"
+
+    def counters(self) -> FarthestCounters:
+        return FarthestCounters(self.chosen, self.goals.skipped)
+
+    def _new_goal(self, loop: Loop, ctx: StepContext, paths: list[FrontierPath]) -> FrontierPath:
+        """The farthest frontier point within ``max_travel_time`` (the nearest of all if none is)."""
+        within = [p for p in self.goals.far_enough(paths) if p.travel_time <= self.max_travel_time]
+        chosen = max(within, key=lambda p: p.travel_time) if within else min(paths, key=lambda p: p.travel_time)
+        self.goals.switch_frontier(loop, ctx, chosen.frontier_id)
+        loop.state.planner.reset()
+        self.chosen += 1
+        return chosen
