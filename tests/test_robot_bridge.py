@@ -33,7 +33,6 @@ from drivenav.robot.server import RobotSession, ServerConfig, served
 from drivenav.robot.sim import SimulatedLidar, SimulatedRobot
 from drivenav.settings import Settings, load_settings
 from drivenav.types import Action, Pose
-from drivenav.wire.client import RobotUnavailableError
 from drivenav.wire.protocol import REPLIES, Message, RobotInfo, decode, encode
 from drivenav.wire.security import check_bind, write_keys
 
@@ -481,13 +480,14 @@ def test_ctrl_c_during_a_live_episode_stops_the_robot_and_ends_the_episode() -> 
 
 def test_a_reset_for_another_episode_under_a_served_id_is_refused(settings: Settings, episodes: list[Episode]) -> None:
     """The brain read another episodes file than serve-sim: same ids, other scenes. The metrics would belong to
-    the served episode, recorded under the brain's scene and target; the RESET is refused naming the field."""
+    the served episode, recorded under the brain's scene and target; the RESET is refused naming the field, and the
+    brain says in one line that the two sides read other episodes files (``--episodes``)."""
     other = generate_episodes(SceneLibrary("procedural:2", 9), 2, 9, settings.sim)
     assert [e.episode_id for e in other] == [e.episode_id for e in episodes]
     with served(sim_session(settings, episodes)) as endpoint:
         env = RobotSpec(endpoint, "", ("semantic",)).build(settings.sim)
         try:
-            with pytest.raises(RobotUnavailableError, match=r"body\.episode\.scene_id.*procedural/house"):
+            with pytest.raises(InputError, match=r"--episodes.*same episodes file.*body\.episode\.scene_id"):
                 env.reset(other[0])
             assert env.reset(episodes[0]).step == 0  # the right episode still starts
         finally:

@@ -21,7 +21,7 @@ from drivenav.episode import Episode
 from drivenav.errors import InputError, RunStoppedError
 from drivenav.jsonstream import JsonObject
 from drivenav.types import SEMANTIC, Action, GroundTruth, Observation, Pose, SimConfig
-from drivenav.wire.client import ClientConfig, RobotClient, RobotUnavailableError
+from drivenav.wire.client import ClientConfig, RobotClient, RobotRefusedError, RobotUnavailableError
 from drivenav.wire.protocol import (
     Message,
     ProtocolError,
@@ -76,6 +76,20 @@ def _refused(address: str, error: RobotUnavailableError) -> InputError:
     return InputError(address, "--robot", "a robot that answers HELLO", str(error))
 
 
+def _names_the_episode(error: RobotRefusedError) -> bool:
+    """Whether a RESET was refused for its episode (an id the robot does not serve, or claims that differ)."""
+    return str(error.details.get("error", "")).startswith(("field 'body.episode_id'", "field 'body.episode."))
+
+
+def _not_served(address: str, episode: Episode, error: RobotRefusedError) -> InputError:
+    """The one line for a robot that does not serve an episode of the brain's episodes file as the brain reads it."""
+    expected = (
+        "episodes the robot serves: give the brain and the robot (serve-sim --episodes) the same episodes file; the "
+        f"robot refused episode {episode.episode_id!r}"
+    )
+    return InputError(address, "--episodes", expected, str(error.details.get("error", error)))
+
+
 class RobotEnv:
     """The robot at ``spec.address`` behind the :class:`~drivenav.envs.base.Env` protocol."""
 
@@ -85,9 +99,10 @@ class RobotEnv:
         self._client = spec.client()
         self._odom = Pose(0.0, 0.0, 0.0)
         self._labels: dict[int, str] = {}
-        self._silent = False  # the last request went unanswered through every retry
+        self._lost = ""  # why the last request was lost (no reply through every retry, a restarted robot), or ""
         self.last: Message | None = None
         self.info = self._hello()
+        self._greeted = self._client.server_id  # the robot (server id) greeted
 
     def _hello(self) -> RobotInfo:
         request = Message("HELLO", self._client.next_id(), body=RobotInfo.from_sim(self._config).to_json())
@@ -107,12 +122,19 @@ class RobotEnv:
     def reset(self, episode: Episode) -> Observation:
         """Start ``episode`` on the robot. A robot silent through the last episode's end and this RESET too is gone:
         a :class:`RunStoppedError` stops the run (finished episodes saved) instead of an error record per episode
-        left, each after the full wait."""
-        was_silent = self._silent
+        left, each after the full wait. A robot restarted since its HELLO is greeted again first. A robot that does
+        not serve an episode of the brain's episodes file is an :class:`InputError` naming ``--episodes``."""
+        was_lost = self._lost
         try:
+            if self._client.server_id != self._greeted:
+                self._greet_again()
             reply = self._request("RESET", reset_body(episode))
+        except RobotRefusedError as error:
+            if episode.goals and _names_the_episode(error):
+                raise _not_served(self._spec.address, episode, error) from None
+            raise
         except RobotUnavailableError as error:
-            if not was_silent:
+            if not was_lost:
                 raise
             raise RunStoppedError(
                 f"the robot at {self._spec.address} stopped answering ({error}); finished episodes are saved, "
@@ -122,6 +144,19 @@ class RobotEnv:
         self._labels = {int(k): str(v) for k, v in labels.items()}
         return self._observation(reply)
 
+    def _greet_again(self) -> None:
+        """HELLO to a robot restarted since the last one (it knows no brain yet); other settings than the first
+        robot's are an :class:`InputError`, as at the start."""
+        request = Message("HELLO", self._client.next_id(), body=RobotInfo.from_sim(self._config).to_json())
+        try:
+            info = RobotInfo.from_json(self._client.request(request).body)
+        except RobotRefusedError as error:
+            raise _refused(self._spec.address, error) from None
+        if info != self.info:
+            expected = f"the robot it started with ({self.info})"
+            raise InputError(self._spec.address, "--robot", expected, f"a restarted robot with {info}")
+        self._greeted = self._client.server_id
+
     def step(self, action: Action) -> Observation:
         return self._observation(self._request("STEP", {"action": int(action)}))
 
@@ -130,9 +165,10 @@ class RobotEnv:
 
     def measures(self) -> EpisodeMeasures:
         """The robot's metrics of the episode (a simulated robot's; ``None`` everywhere on a real one); none, at
-        once, from a robot that did not answer the episode's last request (not a second full wait)."""
-        if self._silent:
-            raise RobotUnavailableError(f"no measures: the robot at {self._spec.address} did not answer")
+        once, from a robot that lost the episode's last request (not a second full wait, nor a BYE to a restarted
+        robot that never had the episode)."""
+        if self._lost:
+            raise RobotUnavailableError(f"no measures from the robot at {self._spec.address}: {self._lost}")
         reply = self._request("BYE", {})
         measures = reply.body.get("measures")
         if not isinstance(measures, dict):
@@ -156,16 +192,19 @@ class RobotEnv:
     def _request(self, kind: str, body: JsonObject) -> Message:
         try:
             reply = self._client.request(Message(kind, self._client.next_id(), body=body))
-        except RobotUnavailableError:
-            self._silent = True
+        except RobotRefusedError:
+            self._lost = ""  # an answer: the robot is there
             raise
-        self._silent = False
+        except RobotUnavailableError as error:
+            self._lost = str(error)
+            raise
+        self._lost = ""
         self.last = reply
         return reply
 
     def _observation(self, reply: Message) -> Observation:
         if reply.type != "OBSERVATION" or reply.pose is None or reply.intrinsics is None:
-            raise RobotUnavailableError(f"the robot answered {reply.type} without an observation")
+            raise RobotRefusedError(f"the robot answered {reply.type} without an observation")
         self._odom = reply.odom or reply.pose
         intrinsics = reply.intrinsics
         shape = (intrinsics.height, intrinsics.width)
@@ -173,7 +212,7 @@ class RobotEnv:
         rgb = rgb_from_jpeg(jpeg, shape) if jpeg is not None else reply.arrays.get("rgb")
         depth = reply.arrays.get("depth")
         if rgb is None or depth is None or depth.dtype != np.uint16 or depth.shape != shape:
-            raise RobotUnavailableError(f"the robot's observation lacks rgb or a {shape} uint16 depth image")
+            raise RobotRefusedError(f"the robot's observation lacks rgb or a {shape} uint16 depth image")
         semantic = reply.arrays.get("semantic")
         return Observation(
             rgb=rgb,

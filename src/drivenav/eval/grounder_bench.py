@@ -206,7 +206,7 @@ class _Served:
 def _served(grounder: TransformersGrounder, options: GrounderBenchOptions, device: str) -> _Served:
     """The served path's throughput with ``options.clients`` clients and its batch-1 overhead (module docstring)."""
     from drivenav.semantics.grounder_server import GrounderServer, serving
-    from drivenav.semantics.serve_config import ServeConfig
+    from drivenav.semantics.serve_config import MAX_BATCH, ServeConfig
     from drivenav.semantics.served import ServedInfo
 
     def server(config: ServeConfig) -> GrounderServer:
@@ -218,7 +218,7 @@ def _served(grounder: TransformersGrounder, options: GrounderBenchOptions, devic
     with serving(server(ServeConfig(batch=1, batch_ms=0.0))) as endpoint:
         remote = [_served_seconds(endpoint, frames)[OVERHEAD_FRAMES:]]
     overhead = np.median(remote[0]) - np.median(local[OVERHEAD_FRAMES:])
-    with serving(server(ServeConfig(batch=options.clients))) as endpoint:
+    with serving(server(ServeConfig(batch=min(options.clients, MAX_BATCH)))) as endpoint:
         wall = _concurrent_seconds(endpoint, frames, options.clients)
     return _Served(_ms(wall / (options.clients * options.frames)), _ms(overhead))
 

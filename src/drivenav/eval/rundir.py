@@ -6,8 +6,11 @@ refused at once, and a lock left by a dead process is free again (the kernel dro
 and whether its tree was dirty; resuming with other settings or other episodes is refused, naming the first
 differing key (or ``episodes``), and so is resuming records without their ``run.json``. On resume the writer cuts a
 torn last line off ``episodes.jsonl`` (readers never write) and refuses a second record of an episode or a record of
-an episode outside the run, naming its line. ``DIR/traces/`` holds one trace per episode under a bounded name that
-no two ids share (:func:`trace_path`); the record names it, and a trace that cannot be written never costs the record.
+an episode outside the run, naming its line. An episode lost to a server the run depends on
+(:func:`lost_to_a_server`: the served grounder or the robot stopped answering, or restarted, while a request of it
+waited) is recorded as an error, but is no result of its agent's: a resume takes its record out and runs it again.
+``DIR/traces/`` holds one trace per episode under a bounded name that no two ids share (:func:`trace_path`); the
+record names it, and a trace that cannot be written never costs the record.
 
 Readers (``compare``, ``report``, ``viz``, ``bench ablations``' tables) read a run through :func:`read_run`, which
 checks it as a resume does, with the same checker and the same lines: every record's types and ranges
@@ -50,6 +53,10 @@ TRACES_DIR = "traces"
 LOCK_FILE = ".lock"
 EPISODES_COPY = "episodes.json.gz"  # the run's episodes, for pictures and reruns
 READABLE_ID = 64  # an episode id of at most this many file-name-safe characters is its own trace name
+LOST_TO_A_SERVER = ("GrounderUnavailableError", "RobotUnavailableError")
+"""The errors of a request a server lost (``drivenav.semantics.served`` and ``drivenav.wire.client``: no reply by
+its deadline, or a restarted server), by name as a record's ``error`` starts; an ERROR reply (``...RefusedError``)
+is an answer, and its record stays."""
 
 log = logging.getLogger(__name__)
 
@@ -73,6 +80,11 @@ def file_name(text: str) -> str:
         return text
     digest = hashlib.sha256(text.encode("utf-8", "surrogatepass")).hexdigest()[:16]
     return f"{plain[:READABLE_ID]}~{digest}"
+
+
+def lost_to_a_server(record: EpisodeRecord) -> bool:
+    """Whether ``record`` is of an episode a server lost (:data:`LOST_TO_A_SERVER`): a resume runs it again."""
+    return record.is_error and record.error.split(":", 1)[0] in LOST_TO_A_SERVER
 
 
 def trace_path(out: Path, episode_id: str) -> Path:
@@ -198,6 +210,7 @@ class RunDirectory:
                 copy = partial(save_episodes, episodes, out / EPISODES_COPY)
                 setup = _Setup(copy, run_file=partial(_write_run_file, out, world, settings, episodes))
             cut_torn_tail(results)
+            _take_out_lost(results)
             with setup.alongside():
                 yield RunDirectory(out, frozenset(e.episode_id for e in episodes), setup)
 
@@ -280,6 +293,26 @@ class _Setup:
         while not self._ready.wait(0.1):
             if self._failure:
                 raise RunStoppedError(f"the run's run.json could not be written ({self._failure}); no record was")
+
+
+def _take_out_lost(results: Path) -> None:
+    """Rewrite ``results`` without the records of episodes a server lost, so that the resume runs them again (a new
+    file replaces the old at once: a kill leaves one or the other)."""
+    if not results.exists():
+        return
+    lost = {r.episode_id for r in read_records(results) if lost_to_a_server(r)}
+    if not lost:
+        return
+    lines = results.read_text(encoding="utf-8").splitlines(keepends=True)
+    kept = [line for line in lines if not line.strip() or json.loads(line)["episode_id"] not in lost]
+    fresh = results.with_suffix(results.suffix + ".tmp")
+    fresh.unlink(missing_ok=True)  # a leftover, a link even: never written through
+    with fresh.open("w", encoding="utf-8") as handle:
+        handle.writelines(kept)
+        handle.flush()
+        os.fsync(handle.fileno())
+    os.replace(fresh, results)
+    log.warning("%d episodes a server lost (%s) are run again", len(lost), " or ".join(LOST_TO_A_SERVER))
 
 
 def _repair_episodes_copy(path: Path, episodes: Sequence[Episode], sha256: str) -> None:

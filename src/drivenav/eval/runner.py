@@ -31,7 +31,7 @@ from drivenav.errors import InputError, RunStoppedError, one_line
 from drivenav.eval.executor import Executor
 from drivenav.eval.records import ERROR, EpisodeRecord, checked_measures, failure_cause
 from drivenav.eval.report import Summary, summarize
-from drivenav.eval.rundir import RunDirectory
+from drivenav.eval.rundir import RunDirectory, lost_to_a_server
 from drivenav.eval.timings import to_columns
 from drivenav.eval.trace import EpisodeError, EpisodeTrace
 from drivenav.semantics.registry import ModelSpec
@@ -327,7 +327,8 @@ def evaluate(
                 run.save(record, trace)
                 _advance(bar)
                 _stop_if_failing_alike(first, record, max(executor.workers or 1, FAIL_FAST_EPISODES), out)
-        summary = summarize(run.records())
+        records = run.records()
+        summary = summarize(records)
         run.write_summary(summary)
     if summary.errors:
         log.warning(
@@ -335,6 +336,11 @@ def evaluate(
             summary.errors,
             summary.episodes,
             out / "traces",
+        )
+    lost = sum(lost_to_a_server(r) for r in records)
+    if lost:
+        log.warning(
+            "%d of them were lost to a server (no reply, or a restart): rerun the same command to run them", lost
         )
     return summary
 

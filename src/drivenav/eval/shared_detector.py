@@ -5,7 +5,11 @@ its endpoint first; its log goes to ``DIR/grounder-server.log``), and the worker
 ``--detector remote`` at that endpoint (:mod:`drivenav.semantics.served`): one model copy whatever the number of
 workers, their frames batched. The run directory records the detector itself (``models.detector``: the
 detections are the same), so a rerun resumes with or without sharing. The server is stopped when the run ends,
-fails or is interrupted.
+fails or is interrupted; an episode it lost (it died, or stalled past ``models.detector_timeout_s``) is recorded as
+an error and run again by a resume (:func:`drivenav.eval.rundir.lost_to_a_server`).
+
+The run chooses the endpoint and speaks to the server on loopback, so ``--detector-url`` and ``--detector-keys``
+are refused with ``--share-detector``, never ignored: a server of the user's is reached with ``--detector remote``.
 """
 
 from __future__ import annotations
@@ -24,6 +28,7 @@ from typing import IO, Final
 from drivenav.errors import InputError, RunStoppedError
 from drivenav.eval.executor import Executor
 from drivenav.semantics.registry import ModelSpec
+from drivenav.semantics.serve_config import DEFAULT_BIND
 from drivenav.semantics.served import reach_server
 
 LOG_FILE: Final[str] = "grounder-server.log"
@@ -35,9 +40,18 @@ _ENDPOINT = re.compile(r" on (tcp://\S+)")
 
 
 def check_shareable(models: ModelSpec, executor: Executor) -> None:
-    """A detector run in process, by local workers (the server listens on loopback only)."""
+    """A detector run in process, by local workers (the server listens on loopback only), and no endpoint or keys
+    of the user's (the run serves on a free loopback port of its own)."""
     if models.detector == "remote":
         raise InputError("command line", "--share-detector", "a detector run in process (not remote)", "remote")
+    given = [f"--detector-url {models.detector_url}"] if models.detector_url != DEFAULT_BIND else []
+    given += [f"--detector-keys {models.detector_keys}"] if models.detector_keys else []
+    if given:
+        expected = (
+            "no --detector-url or --detector-keys with it (the run serves its detector on a free loopback port of its "
+            "own; to use a server of yours: --detector remote --detector-url URL)"
+        )
+        raise InputError("command line", "--share-detector", expected, ", ".join(given))
     if executor.kind == "ray":
         raise InputError("command line", "--share-detector", "the local executor (the server is on loopback)", "ray")
 

@@ -35,7 +35,6 @@ from drivenav.wire.protocol import (
     RobotInfo,
     decode,
     depth_to_wire,
-    encode,
     mismatch,
     occupancy_body,
     rgb_to_jpeg,
@@ -293,13 +292,15 @@ class RobotServer:
             self._answer(identity, body)
         except Exception as error:
             log.exception("a request could not be answered")
-            self._send(identity, encode(error_reply(loose_id(body), f"the robot failed: {one_line(error)}")))
+            self._send(
+                identity, self._router.frames(error_reply(loose_id(body), f"the robot failed: {one_line(error)}"))
+            )
 
     def _answer(self, identity: bytes, body: list[Any]) -> None:
         try:
             request = decode([f.buffer for f in body], REQUESTS)
         except ProtocolError as error:
-            self._send(identity, encode(error_reply(loose_id(body), str(error))))
+            self._send(identity, self._router.frames(error_reply(loose_id(body), str(error))))
             return
         cached = self._replies.get(request.request_id)
         if cached is not None and request.type != "PING":
@@ -314,12 +315,15 @@ class RobotServer:
                 motion.identity = identity  # a retry of the step in progress: answer the new socket when done
                 return
             if motion is not None:
-                self._send(identity, encode(error_reply(request.request_id, "a STEP is in progress")))
+                self._send(identity, self._router.frames(error_reply(request.request_id, "a STEP is in progress")))
                 return
             self._start_step(identity, request)
             return
         if motion is not None and request.type not in ("PING", "STOP"):
-            self._send(identity, encode(error_reply(request.request_id, f"{request.type} while a STEP is in progress")))
+            self._send(
+                identity,
+                self._router.frames(error_reply(request.request_id, f"{request.type} while a STEP is in progress")),
+            )
             return
         self._reply(identity, request, self.session.answer(request))
 
@@ -352,7 +356,7 @@ class RobotServer:
             motion.deadman_fired = True
 
     def _reply(self, identity: bytes, request: Message, reply: Message) -> None:
-        frames = encode(reply)
+        frames = self._router.frames(reply)
         if request.type != "PING":
             self._replies[request.request_id] = frames
             while len(self._replies) > self.config.reply_cache:

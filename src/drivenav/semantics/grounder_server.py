@@ -9,7 +9,9 @@ A grounder that reads images (SAM3, OWLv2) is one shared copy: a batch's frames 
 size, and each group is one :meth:`~drivenav.semantics.hf_common.TransformersGrounder.segment_batch` forward (the
 text features of a phrase are encoded once for every worker; after ``phrases`` distinct phrases the cache is
 emptied). A stand-in that reads ground-truth labels (the embedded detector, the ground-truth one) is one instance
-per episode, begun by BEGIN with the episode's truth and seed as in process; the last ``episodes`` are kept.
+per episode, begun by BEGIN with the episode's truth and seed as in process; what the episodes hold is bounded per
+client and in all (:class:`~drivenav.semantics.serve_config.ServeConfig`: labels a BEGIN, episodes and bytes kept),
+the least recently used forgotten past a bound.
 
 Nothing a client sends stops the server: a malformed or unknown request, or a grounder failing on one, is an ERROR
 reply naming it, and the server goes on.
@@ -19,10 +21,11 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import math
 import threading
 import time
 from collections import Counter, OrderedDict
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol, runtime_checkable
@@ -34,7 +37,7 @@ from numpy.typing import NDArray
 from drivenav.errors import InputError, one_line
 from drivenav.semantics.protocols import Detection, Grounder
 from drivenav.semantics.registry import GROUNDER_BACKENDS, ModelSpec
-from drivenav.semantics.serve_config import DEFAULT_BIND, ServeConfig
+from drivenav.semantics.serve_config import DEFAULT_BIND, ENTRY_BYTES, LABEL_BYTES, ServeConfig
 from drivenav.semantics.served import (
     GROUNDER_PROTOCOL,
     REQUESTS,
@@ -45,7 +48,7 @@ from drivenav.semantics.served import (
     read_begin,
     read_segment,
 )
-from drivenav.wire.protocol import MAX_ARRAY_BYTES, Message, ProtocolError, decode, encode
+from drivenav.wire.protocol import MAX_ARRAY_BYTES, Message, ProtocolError, decode
 from drivenav.wire.router import RouterSocket, error_reply, in_background, loose_id
 
 log = logging.getLogger(__name__)
@@ -67,10 +70,88 @@ class _Pending:
 
 @dataclass
 class _Session:
-    """A stand-in's episode: its grounder and the vocabulary each SEGMENT's phrase extends."""
+    """A stand-in's episode: its grounder, the vocabulary each SEGMENT's phrase extends (``phrases`` added so far),
+    the client that began it and the bytes it is charged (:class:`~drivenav.semantics.serve_config.ServeConfig`)."""
 
     grounder: Grounder
     vocabulary: TableVocabulary | None
+    client: bytes
+    charged: int
+    phrases: int = 0
+
+
+class _Episodes:
+    """The stand-in's episodes kept, least recently used first, within ``config``'s bounds per client and in all."""
+
+    def __init__(self, config: ServeConfig) -> None:
+        self.config = config
+        self._kept: OrderedDict[str, _Session] = OrderedDict()
+        self._held = 0
+        self._client_held: Counter[bytes] = Counter()
+        self._client_kept: Counter[bytes] = Counter()
+
+    def __len__(self) -> int:
+        return len(self._kept)
+
+    @property
+    def held(self) -> int:
+        """The bytes charged to the episodes kept."""
+        return self._held
+
+    def begin(self, episode: str, session: _Session) -> None:
+        """Keep ``session`` as ``episode`` (one begun again replaces it), forgetting others past the bounds."""
+        if episode in self._kept:
+            self._forget(episode)
+        self._kept[episode] = session
+        self._held += session.charged
+        self._client_held[session.client] += session.charged
+        self._client_kept[session.client] += 1
+        self._bound(session)
+
+    def get(self, episode: str) -> _Session:
+        """The session of ``episode`` (now the most recently used); one never begun, or forgotten, is refused."""
+        session = self._kept.get(episode)
+        if session is None:
+            expected = (
+                "an episode begun on this server (BEGIN first; a restarted server forgets its episodes, and one past "
+                "its limits forgets the least recently used)"
+            )
+            raise ProtocolError("body.episode", expected, episode)
+        self._kept.move_to_end(episode)
+        return session
+
+    def charge(self, session: _Session, size: int) -> None:
+        """``size`` more bytes held by ``session`` (its vocabulary grew)."""
+        session.charged += size
+        self._held += size
+        self._client_held[session.client] += size
+        self._bound(session)
+
+    def _bound(self, keep: _Session) -> None:
+        """Forget the least recently used episodes but ``keep`` until its client's and the total bounds hold."""
+        config, client = self.config, keep.client
+        while self._client_kept[client] > config.client_episodes or self._client_held[client] > config.client_bytes:
+            if not self._forget_oldest(keep, client):
+                break
+        while len(self._kept) > config.episodes or self._held > config.held_bytes:
+            if not self._forget_oldest(keep, None):
+                break
+
+    def _forget_oldest(self, keep: _Session, client: bytes | None) -> bool:
+        for episode, session in self._kept.items():
+            if session is not keep and (client is None or session.client == client):
+                self._forget(episode)
+                log.debug("forgot episode %s (the server's limits)", episode)
+                return True
+        return False
+
+    def _forget(self, episode: str) -> None:
+        session = self._kept.pop(episode)
+        self._held -= session.charged
+        self._client_held[session.client] -= session.charged
+        self._client_kept[session.client] -= 1
+        if not self._client_kept[session.client]:
+            del self._client_held[session.client], self._client_kept[session.client]
 
 
 @dataclass
@@ -108,7 +189,7 @@ class GrounderServer:
         self.config = config or ServeConfig(info.batch, info.batch_ms)
         self._factory = factory
         self._shared = None if info.labels else factory()
-        self._sessions: OrderedDict[str, _Session] = OrderedDict()
+        self.episodes = _Episodes(self.config)
         self._phrases = _Phrases(self.config.phrases)
         self._pending: list[_Pending] = []
         self.batch_sizes: Counter[int] = Counter()
@@ -164,39 +245,33 @@ class GrounderServer:
         if request.type == "HELLO":
             return Message("WELCOME", request.request_id, body=self.info.to_json())
         if request.type == "BEGIN":
-            return self._begin(request)
+            return self._begin(identity, request)
         segment = read_segment(request)
         if self._shared is None:
-            self._session(segment.episode)  # an unknown episode is refused now, not after the batch
+            self.episodes.get(segment.episode)  # an unknown episode is refused now, not after the batch
         self._pending.append(_Pending(identity, segment, time.monotonic()))
         return None
 
-    def _begin(self, request: Message) -> Message:
+    def _begin(self, identity: bytes, request: Message) -> Message:
+        """A stand-in's episode begun for the client ``identity``, charged for its labels and names."""
         if self._shared is not None:
             raise ProtocolError("type", "no BEGIN: this server's grounder reads no ground truth", request.type)
-        begin = read_begin(request)
+        begin = read_begin(request, self.config.labels)
+        labels = len(begin.truth.labels or {}) if begin.truth is not None else 0
+        names = request.body.get("names") or []
+        charged = LABEL_BYTES * labels + sum(ENTRY_BYTES + len(str(name)) for name in names)
         grounder = self._factory()
         grounder.begin_episode(begin.truth, begin.seed)
-        self._sessions[begin.episode] = _Session(grounder, begin.vocabulary)
-        while len(self._sessions) > self.config.episodes:
-            self._sessions.popitem(last=False)
+        self.episodes.begin(begin.episode, _Session(grounder, begin.vocabulary, identity, charged))
         return Message("BEGUN", request.request_id)
-
-    def _session(self, episode: str) -> _Session:
-        session = self._sessions.get(episode)
-        if session is None:
-            expected = "an episode begun on this server (BEGIN first; a restarted server forgets its episodes)"
-            raise ProtocolError("body.episode", expected, episode)
-        self._sessions.move_to_end(episode)
-        return session
 
     # -- batches -------------------------------------------------------------------------------------------------
     def _wait_ms(self) -> int:
-        """How long to wait for a request: until the oldest queued one's batch is due, else ``poll_ms``."""
+        """How long to wait for a request: until the oldest queued one's batch is due, at most ``poll_ms``."""
         if not self._pending:
             return self.config.poll_ms
         left = self._pending[0].arrived + self.config.batch_ms / 1000.0 - time.monotonic()
-        return max(0, int(left * 1000.0 + 0.999))
+        return max(0, min(self.config.poll_ms, math.ceil(left * 1000.0)))
 
     def _due(self) -> bool:
         if not self._pending:
@@ -249,13 +324,25 @@ class GrounderServer:
     def _segment_alone(self, requests: list[SegmentRequest]) -> list[list[Detection]]:
         """A stand-in's episode grounds its one request, the phrase's category added to its vocabulary first."""
         (request,) = requests
-        session = self._session(request.episode)
+        session = self.episodes.get(request.episode)
         if session.vocabulary is not None:
-            session.vocabulary.table.update(request.canonical)
+            self._extend(session, session.vocabulary, request.canonical)
         return [session.grounder.segment(request.observation, request.phrase)]
 
+    def _extend(self, session: _Session, vocabulary: TableVocabulary, canonical: Mapping[str, str | None]) -> None:
+        """Add a SEGMENT's phrase and its category to an episode's vocabulary: at most ``phrases`` phrases an
+        episode, each charged to it."""
+        for phrase, category in canonical.items():
+            if phrase not in vocabulary.table:
+                if session.phrases >= self.config.phrases:
+                    expected = f"at most {self.config.phrases} distinct phrases an episode (the server's limit)"
+                    raise ProtocolError("body.phrase", expected, phrase)
+                session.phrases += 1
+                self.episodes.charge(session, ENTRY_BYTES + len(phrase) + len(category or ""))
+            vocabulary.table[phrase] = category
+
     def _send(self, identity: bytes, reply: Message) -> None:
-        self._router.send(identity, encode(reply, GROUNDER_PROTOCOL))
+        self._router.send(identity, self._router.frames(reply, GROUNDER_PROTOCOL))
 
 
 def _size(request: SegmentRequest) -> tuple[int, int]:

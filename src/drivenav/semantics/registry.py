@@ -39,10 +39,11 @@ class ModelSpec:
     that supports it, fp32 elsewhere); ``detector_device``: where a transformers grounder runs (empty: CUDA when
     visible, else the CPU). ``detector_url`` / ``detector_keys``: with ``detector`` ``remote``, the served
     grounder's endpoint (``drivenav serve grounder``) and the CURVE key folder when it is not on loopback;
-    ``detector_timeout_s``: how long a request may go unanswered before its episode ends as an error (long enough
-    for a batch of full-size forwards on a CPU); ``detector_served``: the detector the server runs, when the
-    workers must know it (set by ``eval --share-detector``; required for a served stand-in that reads ground-truth
-    labels, whose agents then ask the world for them; empty: a model that reads images).
+    ``detector_timeout_s``: how long after its sending a request may wait for its reply before its episode ends as
+    an error (long enough for a batch of full-size forwards on a CPU; more than 0, at most an hour);
+    ``detector_served``: the detector the server runs, when the workers must know it (set by ``eval
+    --share-detector``; required for a served stand-in that reads ground-truth labels, whose agents then ask the
+    world for them; empty: a model that reads images).
     """
 
     reasoner: str = "embedded"

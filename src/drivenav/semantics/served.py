@@ -28,11 +28,14 @@ scores travel exactly (depth as float32 metres, not the robot's millimetres), so
 are the same: exactly at batch one in fp32, and within a batched matrix product's rounding when the server batched
 frames of several workers.
 
-The client waits ``models.detector_timeout_s`` of silence (the server answers heartbeats between batches, so a busy
-server is not a silent one): then the request raises :class:`GrounderUnavailableError` and the episode waiting on
-it ends as an ``error`` whose one line names the server. The next episode's start asks the server once more; a
-server still gone stops the run (:class:`~drivenav.errors.RunStoppedError`, finished episodes saved), as a robot
-gone does: no run waits on a dead server.
+A request's reply must come ``models.detector_timeout_s`` after its sending, whatever else the server says
+meanwhile (its PONGs show that it is there, not that it will answer; a server restarted on the same endpoint, which
+never had the request, answers with another server id and fails it at once): else the request raises
+:class:`GrounderUnavailableError` and the episode waiting on it ends as an ``error`` whose one line names the server.
+Such an episode was lost to its server, not ended by its agent: a resume runs it again. An ERROR reply raises
+:class:`GrounderRefusedError`, an answer like any other. The next episode's start asks the server once more; a server
+still gone stops the run (:class:`~drivenav.errors.RunStoppedError`, finished episodes saved), as a robot gone does:
+no run waits on a dead server.
 """
 
 from __future__ import annotations
@@ -53,7 +56,7 @@ from drivenav.jsonstream import JsonObject
 from drivenav.semantics.protocols import Detection
 from drivenav.semantics.registry import GROUNDER_BACKENDS, ModelSpec
 from drivenav.types import CategoryVocabulary, GroundTruth, Observation
-from drivenav.wire.client import ClientConfig, Dialect, PeerUnavailableError, WireClient
+from drivenav.wire.client import ClientConfig, Dialect, PeerRefusedError, PeerUnavailableError, WireClient
 from drivenav.wire.protocol import JSON, Message, ProtocolError
 from drivenav.wire.security import check_endpoint, client_keys, is_loopback
 
@@ -70,11 +73,21 @@ HEARTBEAT_S: Final[float] = 1.0
 """A waiting client's PING interval: the PONGs a server sends between batches show it is busy, not gone."""
 
 
+MAX_TIMEOUT_S: Final[float] = 3600.0
+"""The longest ``models.detector_timeout_s``: a request waits at most an hour for its reply."""
+
+
 class GrounderUnavailableError(PeerUnavailableError):
-    """The grounder server did not answer a request in time (gone, or stalled) or refused it."""
+    """The grounder server did not answer a request in time (gone, or stalled), or restarted while it waited."""
 
 
-GROUNDER = Dialect(GROUNDER_PROTOCOL, REPLIES, "the grounder server", "--detector-keys", GrounderUnavailableError)
+class GrounderRefusedError(GrounderUnavailableError, PeerRefusedError):
+    """The grounder server answered a request with an ERROR (or with a reply of another type)."""
+
+
+GROUNDER = Dialect(
+    GROUNDER_PROTOCOL, REPLIES, "the grounder server", "--detector-keys", GrounderUnavailableError, GrounderRefusedError
+)
 
 
 class GrounderClient(WireClient):
@@ -172,7 +185,8 @@ class BeginRequest:
     vocabulary: TableVocabulary | None
 
 
-def read_begin(message: Message) -> BeginRequest:
+def read_begin(message: Message, max_labels: int) -> BeginRequest:
+    """The BEGIN in ``message``; more than ``max_labels`` labels is refused before any is read."""
     body = message.body
     episode, seed = _episode(body), body.get("seed")
     if isinstance(seed, bool) or not isinstance(seed, int):
@@ -181,6 +195,10 @@ def read_begin(message: Message) -> BeginRequest:
     if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
         raise ProtocolError("body.names", "a list of label names", names)
     ids, indices = (_int_vector(message, name) for name in ("label_ids", "label_names"))
+    if ids.size > max_labels:
+        raise ProtocolError(
+            "arrays.label_ids", f"at most {max_labels} labels an episode (the server's limit)", ids.size
+        )
     if ids.shape != indices.shape or bool(np.any((indices < 0) | (indices >= len(names)))):
         raise ProtocolError("arrays.label_names", f"one index in names (0-{len(names) - 1}) per label id", indices)
     vocabulary = None
@@ -263,8 +281,12 @@ def read_segment(message: Message) -> SegmentRequest:
     absent (``semantic``), NaN (``depth``) or, for ``rgb``, an error when read."""
     body = message.body
     phrase = body.get("phrase")
-    if not isinstance(phrase, str) or not phrase.strip() or len(phrase) > MAX_PHRASE_CHARS:
-        raise ProtocolError("body.phrase", f"a phrase of at most {MAX_PHRASE_CHARS} characters", phrase)
+    if not isinstance(phrase, str) or not phrase.strip():
+        raise ProtocolError("body.phrase", "a phrase that is not blank (the object to ground)", phrase)
+    if len(phrase) > MAX_PHRASE_CHARS:
+        raise ProtocolError(
+            "body.phrase", f"a phrase of at most {MAX_PHRASE_CHARS} characters", f"{len(phrase)} characters"
+        )
     height, width = body.get("height"), body.get("width")
     if not all(isinstance(n, int) and not isinstance(n, bool) and n > 0 for n in (height, width)):
         raise ProtocolError("body.height/width", "the frame's size in pixels", (height, width))
@@ -382,7 +404,7 @@ class RemoteGrounder:
         )
         reply = self.client.request(request)
         if reply.type != "DETECTIONS":
-            raise GrounderUnavailableError(f"the grounder server answered {reply.type} to SEGMENT")
+            raise GrounderRefusedError(f"the grounder server answered {reply.type} to SEGMENT")
         height, width = observation.depth.shape[:2]
         return read_detections(reply, phrase, (height, width))
 
@@ -430,7 +452,12 @@ def reach_server(spec: ModelSpec) -> None:
 
 def check_detector_url(spec: ModelSpec) -> None:
     """``detector_url`` is an endpoint; off loopback it needs ``detector_keys`` (CURVE), whose files are read now;
+    ``detector_timeout_s`` is a wait a request can have (more than 0 s, at most :data:`MAX_TIMEOUT_S`);
     ``detector_served`` names a detector run in process (or nothing)."""
+    timeout_s = spec.detector_timeout_s
+    if not (0.0 < timeout_s <= MAX_TIMEOUT_S):
+        expected = f"the seconds a request may wait for its reply, more than 0 and at most {MAX_TIMEOUT_S:g}"
+        raise InputError("settings", "models.detector_timeout_s", expected, timeout_s)
     check_endpoint(spec.detector_url, "--detector-url")
     if spec.detector_keys:
         client_keys(Path(spec.detector_keys), "--detector-keys")

@@ -21,10 +21,12 @@ BYE        --                                               GOODBYE with ``measu
 PING       --                                               PONG (a heartbeat: keeps the robot's deadman fed)
 ========== ================================================ =================================================
 
-Every reply repeats the request id. A malformed, oversized, unknown or out-of-order request gets an ERROR reply
-whose ``error`` names what was wrong. An OBSERVATION carries ``rgb`` (uint8 HxWx3, or ``rgb_jpeg`` bytes),
-``depth`` (uint16 millimetres, 0 = no return) and, where the robot has them, ``occupancy`` (int8 LiDAR occupancy
-window, :class:`~drivenav.types.LocalOccupancy`) and ``semantic`` (int32 instance ids, a simulated robot only).
+Every reply repeats the request id and names its server (``server``: a random id each server draws when it starts,
+so that a client tells a restarted server from the one it sent its request to). A malformed, oversized, unknown or
+out-of-order request gets an ERROR reply whose ``error`` names what was wrong. An OBSERVATION carries ``rgb`` (uint8
+HxWx3, or ``rgb_jpeg`` bytes), ``depth`` (uint16 millimetres, 0 = no return) and, where the robot has them,
+``occupancy`` (int8 LiDAR occupancy window, :class:`~drivenav.types.LocalOccupancy`) and ``semantic`` (int32
+instance ids, a simulated robot only).
 """
 
 from __future__ import annotations
@@ -50,6 +52,7 @@ REPLIES = ("WELCOME", "OBSERVATION", "STOPPED", "GOODBYE", "PONG", "ERROR")
 MAX_HEADER_BYTES = 65_536
 MAX_HEADER_DEPTH = 16  # JSON nesting: a header is a flat object whose body holds at most a few levels
 MAX_INTEGER_DIGITS = 16  # an integer in a header is a count, an id or a size: never more than 16 digits
+MAX_SERVER_ID_CHARS = 64  # a reply's ``server``: the replying server process's random id
 MAX_ARRAY_BYTES = 64 * 2**20  # one array frame (the server's per-frame limit, ServerConfig.max_message_bytes)
 DEPTH_SCALE = 1000.0  # depth on the wire: uint16 millimetres
 _DTYPES = frozenset({"|u1", "|i1", "<u2", "<i2", "<i4", "<u4", "<f4", "<f8"})
@@ -172,7 +175,8 @@ class Message:
     """One protocol message: the header's fields and the named arrays.
 
     ``pose`` is in the episode frame and ``odom`` in the robot's own odometry frame (both ``(x, y, yaw)``);
-    ``stamp`` is the sensor time of an observation, ``sent`` the sender's clock when it was encoded.
+    ``stamp`` is the sensor time of an observation, ``sent`` the sender's clock when it was encoded; ``server`` is the
+    replying server's id (a reply's; empty in a request, and in a reply of a server that names none).
     """
 
     type: str
@@ -188,6 +192,7 @@ class Message:
     status: str = "ok"
     body: Mapping[str, JSON] = field(default_factory=dict)
     arrays: Mapping[str, NDArray[Any]] = field(default_factory=dict)
+    server: str = ""
 
 
 def encode(message: Message, protocol: str = PROTOCOL) -> list[bytes | memoryview]:
@@ -216,6 +221,8 @@ def encode(message: Message, protocol: str = PROTOCOL) -> list[bytes | memoryvie
         "body": dict(message.body),
         "arrays": specs,
     }
+    if message.server:
+        header["server"] = message.server
     return [json.dumps(header, allow_nan=False).encode(), *buffers]
 
 
@@ -260,7 +267,14 @@ def decode(frames: Sequence[bytes | memoryview], kinds: Sequence[str], protocol:
         status=str(header.get("status", "ok")),
         body=_body(header.get("body", {})),
         arrays=arrays,
+        server=_server_id(header.get("server", "")),
     )
+
+
+def _server_id(value: JSON) -> str:
+    if not isinstance(value, str) or len(value) > MAX_SERVER_ID_CHARS:
+        raise ProtocolError("server", f"a server id of at most {MAX_SERVER_ID_CHARS} characters", value)
+    return value
 
 
 def _header(frame: bytes | memoryview, protocol: str) -> dict[str, JSON]:

@@ -4,8 +4,10 @@ the served grounder (:mod:`drivenav.semantics.grounder_server`).
 :class:`RouterSocket` refuses a non-loopback address without CURVE keys (:func:`~drivenav.wire.security.check_bind`),
 sets libzmq's per-frame size limit, admits only the allow-listed keys when given some, and watches its connections
 (a monitor socket). It receives one request with the client's identity, its envelope's empty delimiter removed
-(REQ and our DEALER clients send one), and answers an identity. A request that failed to decode is answered with
-:func:`error_reply`, under the id its header still says (:func:`loose_id`).
+(REQ and our DEALER clients send one), and answers an identity. Every reply it encodes (:meth:`RouterSocket.frames`)
+names :attr:`RouterSocket.server_id`, drawn at random when the socket is made: a client waiting on a request tells
+a restarted server (another id) from the one it sent the request to. A request that failed to decode is answered
+with :func:`error_reply`, under the id its header still says (:func:`loose_id`).
 """
 
 from __future__ import annotations
@@ -14,7 +16,9 @@ import contextlib
 import json
 import logging
 import threading
+import uuid
 from collections.abc import Iterator
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -22,7 +26,7 @@ import zmq
 from zmq.utils.monitor import recv_monitor_message
 
 from drivenav.errors import InputError
-from drivenav.wire.protocol import MAX_HEADER_BYTES, Message
+from drivenav.wire.protocol import MAX_HEADER_BYTES, PROTOCOL, Message, encode
 from drivenav.wire.security import check_bind, secure_server
 
 log = logging.getLogger(__name__)
@@ -52,6 +56,7 @@ class RouterSocket:
             self.close()
             raise InputError("command line", "--bind", "an address free to serve on", f"{bind}: {error}") from None
         self.endpoint = str(self.socket.getsockopt_string(zmq.LAST_ENDPOINT))
+        self.server_id = uuid.uuid4().hex[:16]
 
     def receive(self) -> tuple[bytes, list[Any]]:
         """The next message: the client's identity and its frames (``zmq.Frame``), the empty delimiter removed."""
@@ -60,6 +65,10 @@ class RouterSocket:
         if body and len(body[0]) == 0:
             body = body[1:]
         return frames[0].bytes, body
+
+    def frames(self, reply: Message, protocol: str = PROTOCOL) -> Frames:
+        """The frames of ``reply`` in ``protocol``, naming this server (:attr:`server_id`)."""
+        return encode(replace(reply, server=self.server_id), protocol)
 
     def send(self, identity: bytes, frames: Frames) -> None:
         """Send ``frames`` to the client ``identity`` (with an empty delimiter, as REQ-style envelopes want)."""
