@@ -6,9 +6,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from drivenav.envs.embedded.goals import scene_goals
 from drivenav.envs.embedded.scene import Material, ObjectInstance, Scene
 from drivenav.episode import Episode, world_to_habitat, yaw_to_quaternion
-from drivenav.eval.episodes import scene_goals
 from drivenav.grid import GridSpec
 from drivenav.types import SimConfig
 

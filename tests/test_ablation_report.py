@@ -14,9 +14,9 @@ from pathlib import Path
 
 import pytest
 
+from drivenav.analysis.ablation_data import AblationReport, SplitEntry
+from drivenav.analysis.ablation_report import format_markdown, write_csv
 from drivenav.errors import InputError
-from drivenav.eval.ablation_data import AblationReport, SplitEntry
-from drivenav.eval.ablation_report import format_markdown, write_csv
 
 DATA = Path(__file__).parent / "data" / "ablations"
 

@@ -9,15 +9,15 @@ from pathlib import Path
 
 import pytest
 
+from drivenav.analysis.ablation_report import ordering_differences
+from drivenav.analysis.ablations import method_entry, split_entries
+from drivenav.analysis.stats import bootstrap_mean_interval, wilson_interval
+from drivenav.benchmarks.benchmark import BENCHMARK_V1, BENCHMARK_V2, BenchmarkDefinition, generate_benchmark
 from drivenav.cli import main
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.embedded.rosmap import is_map_scene_dir
-from drivenav.eval.ablation_report import ordering_differences
-from drivenav.eval.ablations import method_entry, split_entries
-from drivenav.eval.benchmark import BENCHMARK_V1, BENCHMARK_V2, BenchmarkDefinition, generate_benchmark
 from drivenav.eval.episodes import save_episodes, validate_for_scenes
 from drivenav.eval.records import EpisodeRecord
-from drivenav.eval.stats import bootstrap_mean_interval, wilson_interval
 from drivenav.methods import ALL_METHODS
 from drivenav.types import SimConfig
 

@@ -10,10 +10,10 @@ from agent_scenes import carved_scene, episode_for, t_junction
 from drivenav.agent.body import ExplorerAgent
 from drivenav.agent.trace import DirectionSelected, EventT, InspectionStarted, ScanStarted, of_type
 from drivenav.agents import make_agent
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.envs.embedded.env import EmbeddedEnv
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.embedded.scene import ObjectInstance, Scene
-from drivenav.eval.episodes import generate_episodes
 from drivenav.eval.runner import run_episode
 from drivenav.eval.trace import EpisodeTrace
 from drivenav.inspection import sweep_turns

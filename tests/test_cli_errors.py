@@ -7,8 +7,9 @@ import json
 from pathlib import Path
 
 from conftest import run_cli
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.envs.embedded.library import SceneLibrary
-from drivenav.eval.episodes import episode_to_dict, generate_episodes
+from drivenav.eval.episodes import episode_to_dict
 
 
 def _assert_clean_error(result, *needles: str) -> None:  # type: ignore[no-untyped-def]

@@ -6,7 +6,7 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
-from drivenav.eval.compare import Comparison, compare, format_comparison
+from drivenav.analysis.compare import Comparison, compare, format_comparison
 from drivenav.eval.records import EpisodeRecord
 
 DATA = Path(__file__).parent / "data" / "ablations"

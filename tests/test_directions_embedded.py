@@ -7,10 +7,10 @@ from pathlib import Path
 
 import numpy as np
 
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.directions import DirectionPipeline
 from drivenav.envs.embedded.env import EmbeddedEnv
 from drivenav.envs.embedded.library import SceneLibrary
-from drivenav.eval.episodes import generate_episodes
 from drivenav.mapping.config import MappingConfig
 from drivenav.mapping.occupancy import OccupancyMapper
 from drivenav.paper import DriveNavConfig

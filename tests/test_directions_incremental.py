@@ -175,7 +175,7 @@ def test_every_step_of_an_embedded_episode_gets_the_from_scratch_field(
     agent: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The agent's pipeline, step by step through an embedded episode, against a recomputation from the map."""
-    from drivenav.eval.agent_bench import bench_agent
+    from drivenav.benchmarks.agent_bench import bench_agent
 
     builds: list[int] = []
     incremental = SpeedFieldBuilder.build

@@ -8,10 +8,11 @@ from pathlib import Path
 
 import pytest
 
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.cli import main
 from drivenav.doctor import DoctorRequest, run_checks, vlm_check
 from drivenav.envs.embedded.library import SceneLibrary
-from drivenav.eval.episodes import generate_episodes, save_episodes
+from drivenav.eval.episodes import save_episodes
 from drivenav.semantics.fake_vlm_server import fake_stats, start_fake_server
 from drivenav.semantics.registry import ModelSpec
 

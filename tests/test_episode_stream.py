@@ -14,11 +14,12 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from drivenav import jsonstream
+from drivenav.benchmarks.episodes_bench import traced_read, write_repeated
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.episode import parse_episode
 from drivenav.errors import InputError
-from drivenav.eval.episodes import episode_to_dict, generate_episodes, load_episodes, save_episodes
-from drivenav.eval.episodes_bench import traced_read, write_repeated
+from drivenav.eval.episodes import episode_to_dict, load_episodes, save_episodes
 from drivenav.eval.rundir import episodes_sha256
 from drivenav.validation import Fields
 

@@ -15,9 +15,10 @@ import pytest
 
 from conftest import REPO, run_cli
 from drivenav.agent.body import ExplorerAgent
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.envs.embedded.env import EmbeddedSpec
 from drivenav.envs.embedded.library import SceneLibrary
-from drivenav.eval.episodes import generate_episodes, load_episodes, save_episodes
+from drivenav.eval.episodes import load_episodes, save_episodes
 from drivenav.eval.executor import Executor
 from drivenav.eval.records import read_records
 from drivenav.eval.runner import RunSpec, _Worker, build_agent, evaluate, run_episode

@@ -17,11 +17,11 @@ from drivenav.agents import make_agent
 from drivenav.envs.embedded.env import EmbeddedEnv
 from drivenav.errors import InputError
 from drivenav.eval.runner import run_episode
-from drivenav.eval.worlds import BUILT_IN_WORLDS
 from drivenav.methods import ALL_METHODS, METHODS, REFERENCE_AGENTS
 from drivenav.robot.registry import BUILT_IN_MOTIONS, BUILT_IN_SOURCES
 from drivenav.settings import explorer_section, load_settings, settings_from_dict, settings_to_dict
 from drivenav.types import SimConfig
+from drivenav.worlds import BUILT_IN_WORLDS
 
 ROOT = Path(__file__).parents[1]
 SOURCE = ROOT / "src" / "drivenav"

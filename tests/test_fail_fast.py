@@ -13,12 +13,13 @@ from typing import ClassVar
 import pytest
 
 from drivenav.agent.base import Agent
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.cli import main
 from drivenav.envs.embedded.env import EmbeddedEnv, EmbeddedSpec
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.errors import RunStoppedError
 from drivenav.eval import runner
-from drivenav.eval.episodes import generate_episodes, save_episodes
+from drivenav.eval.episodes import save_episodes
 from drivenav.eval.executor import Executor
 from drivenav.eval.records import EpisodeRecord, read_records
 from drivenav.eval.runner import RunSpec, evaluate

@@ -295,9 +295,9 @@ def spec_options(endpoint: str, timeout_s: float, served: str = "") -> dict[str,
 def test_a_run_on_a_stalled_server_records_the_episode_as_an_error_and_stops(tmp_path: Path) -> None:
     """The first episode waits on the stalled server: an ``error`` record of one line; the second finds the server
     still silent at its start: the run stops (RunStoppedError), nothing hangs."""
+    from drivenav.benchmarks.generate import generate_episodes
     from drivenav.envs.embedded.env import EmbeddedSpec
     from drivenav.envs.embedded.library import SceneLibrary
-    from drivenav.eval.episodes import generate_episodes
     from drivenav.eval.records import read_records
     from drivenav.eval.rundir import make_directory
     from drivenav.eval.runner import RunSpec, evaluate

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.cli import main
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.habitat.benchmarks import BENCHMARKS, LAYOUTS, OBJECTNAV_V1, OVON
@@ -21,7 +22,7 @@ from drivenav.envs.habitat.observations import depth_in_metres, pose_from_gps_co
 from drivenav.envs.habitat.spec import HabitatSpec
 from drivenav.episode import Episode
 from drivenav.errors import InputError
-from drivenav.eval.episodes import episode_to_dict, generate_episodes, load_episodes, save_episodes
+from drivenav.eval.episodes import episode_to_dict, load_episodes, save_episodes
 from drivenav.types import GEODESIC, SEMANTIC, SimConfig
 
 

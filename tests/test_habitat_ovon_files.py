@@ -14,13 +14,14 @@ from typing import Any
 import numpy as np
 import pytest
 
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.cli import main
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.habitat.benchmarks import OBJECTNAV_V1, OVON
 from drivenav.envs.habitat.layouts import read_split, write_split
 from drivenav.episode import Episode, ObjectGoal, ViewPoint, habitat_object_id, parse_object_id, rounded
 from drivenav.errors import InputError
-from drivenav.eval.episodes import generate_episodes, load_episodes, save_episodes
+from drivenav.eval.episodes import load_episodes, save_episodes
 from drivenav.validation import Fields
 from ovon_fixture import fixture_files, read_documents, write_released
 

@@ -15,10 +15,10 @@ from pathlib import Path
 import pytest
 
 from drivenav import jsonstream
+from drivenav.benchmarks import world_stats
 from drivenav.cli import main
 from drivenav.errors import InputError
 from drivenav.eval import episodes as eval_episodes
-from drivenav.eval import world_stats
 from drivenav.eval.episodes import load_episodes
 
 

@@ -11,12 +11,13 @@ from typing import Any
 import numpy as np
 import pytest
 
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.cli import main
 from drivenav.envs.embedded.geodesic import largest_component
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.episode import world_to_habitat
 from drivenav.errors import InputError
-from drivenav.eval.episodes import episode_to_dict, generate_episodes, load_episodes
+from drivenav.eval.episodes import episode_to_dict, load_episodes
 from drivenav.types import SimConfig
 from drivenav.validation import read_json
 from test_rosmap import write_map

@@ -14,6 +14,8 @@ from pathlib import Path
 
 import pytest
 
+from drivenav.analysis.ablations import build_report
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.cli import main
 from drivenav.envs.base import EpisodeMeasures
 from drivenav.envs.embedded.env import EmbeddedEnv, EmbeddedSpec
@@ -21,8 +23,7 @@ from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.episode import Episode
 from drivenav.errors import InputError
 from drivenav.eval import runner
-from drivenav.eval.ablations import build_report
-from drivenav.eval.episodes import generate_episodes, load_episodes, save_episodes
+from drivenav.eval.episodes import load_episodes, save_episodes
 from drivenav.eval.records import EpisodeRecord
 from drivenav.eval.rundir import EPISODES_COPY, EPISODES_FILE, LOCK_FILE, RUN_FILE, episodes_sha256, read_run
 from drivenav.eval.runner import RunSpec, evaluate

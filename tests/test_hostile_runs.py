@@ -19,13 +19,13 @@ import pytest
 
 from conftest import run_cli
 from drivenav.agent.base import Agent
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.cli import main
 from drivenav.envs.base import EpisodeMeasures
 from drivenav.envs.embedded.env import EmbeddedEnv, EmbeddedSpec
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.errors import InputError
 from drivenav.eval import runner
-from drivenav.eval.episodes import generate_episodes
 from drivenav.eval.records import read_records
 from drivenav.eval.report import format_table, summarize
 from drivenav.eval.rundir import LOCK_FILE, RUN_FILE, RunDirectory

@@ -25,13 +25,14 @@ import zmq
 
 from conftest import REPO
 from drivenav.agent.base import Agent
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.cli import main
 from drivenav.envs.embedded.env import EmbeddedSpec
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.robot import RobotSpec
 from drivenav.episode import Episode
 from drivenav.eval import runner
-from drivenav.eval.episodes import generate_episodes, save_episodes
+from drivenav.eval.episodes import save_episodes
 from drivenav.eval.records import EpisodeRecord, read_records
 from drivenav.eval.rundir import EPISODES_FILE, LOST_TO_A_SERVER, lost_to_a_server
 from drivenav.eval.runner import RunSpec, evaluate

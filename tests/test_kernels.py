@@ -27,7 +27,7 @@ import json, sys
 from pathlib import Path
 from drivenav.envs.embedded.env import EmbeddedSpec
 from drivenav.envs.embedded.library import SceneLibrary
-from drivenav.eval.episodes import generate_episodes
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.eval.runner import RunSpec, evaluate
 from drivenav.settings import load_settings
 

@@ -13,7 +13,10 @@ folders and a lower floor never sees a higher one:
 4. ``settings`` (the typed configuration tree) and the agents built from it;
 5. ``envs``, the worlds: the shared protocol (``envs.base``, ``envs.vocabulary``) and one folder or module per world
    (``embedded``, ``habitat``, ``robot``), which never import one another;
-6. ``eval`` (runs any world), then ``robot`` (the robot side's servers), then ``viz`` (draws what it is given);
+6. ``eval`` (the run machinery: runs any world), then ``benchmarks`` (episode generation, the benchmarks, world
+   statistics), then ``analysis`` (the paper's tables, comparisons of runs), then ``worlds`` (the registry of
+   worlds by ``--env``), then ``robot`` (the robot side's servers), then ``viz`` (draws what it is given) and
+   ``report``;
 7. the applications: ``brain`` (a live episode), ``doctor``, ``cli``.
 """
 
@@ -35,7 +38,7 @@ FLOORS: tuple[str, ...] = (
     "mapping", "semantics", "directions", "inspection", "agent",
     "settings", "agents",
     "envs",
-    "eval", "robot", "viz", "report",
+    "eval", "benchmarks", "analysis", "worlds", "robot", "viz", "report",
     "brain", "doctor", "cli",
 )  # fmt: skip
 """Every part of the package, lowest first: a part imports only parts listed before it."""
@@ -113,6 +116,13 @@ def test_every_part_has_a_floor() -> None:
     assert parts <= set(FLOORS), sorted(parts - set(FLOORS))
 
 
+def test_the_run_machinery_imports_no_episode_generation() -> None:
+    """``eval`` runs episodes it is given; generating them is ``benchmarks``' (the embedded world's ``--episodes N``
+    is the world registry's, above both)."""
+    found = [(a, b) for a, b in every_import() if part_of(a) == "eval" and part_of(b) == "benchmarks"]
+    assert found == []
+
+
 def test_no_part_imports_a_higher_floor() -> None:
     assert floor_violations(every_import()) == []
 
@@ -156,4 +166,5 @@ def test_the_core_loads_no_world(floor: str) -> None:
         "print(sorted({m.split('.')[1] for m in sys.modules if m.startswith('drivenav.')}))"
     )
     loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
-    assert not set(eval(loaded)) & {"envs", "eval", "viz", "cli", "robot", "brain", "settings"}
+    higher = {"envs", "eval", "benchmarks", "analysis", "worlds", "viz", "report", "cli", "robot", "brain", "settings"}
+    assert not set(eval(loaded)) & higher

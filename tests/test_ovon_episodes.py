@@ -14,15 +14,8 @@ from numpy.typing import NDArray
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from drivenav.cli import main
-from drivenav.envs.embedded.geodesic import largest_component
-from drivenav.envs.embedded.library import SceneLibrary
-from drivenav.envs.vocabulary import VOCABULARY, vocabulary_split
-from drivenav.episode import Episode
-from drivenav.errors import InputError
-from drivenav.eval.benchmark import BENCHMARK_V2, BENCHMARKS
-from drivenav.eval.episodes import load_episodes, save_episodes, validate_for_scenes
-from drivenav.eval.ovon_episodes import (
+from drivenav.benchmarks.benchmark import BENCHMARK_V2, BENCHMARKS
+from drivenav.benchmarks.ovon_episodes import (
     SPLITS,
     OvonRules,
     generate_ovon_episodes,
@@ -30,6 +23,13 @@ from drivenav.eval.ovon_episodes import (
     keep_probability,
     split_categories,
 )
+from drivenav.cli import main
+from drivenav.envs.embedded.geodesic import largest_component
+from drivenav.envs.embedded.library import SceneLibrary
+from drivenav.envs.vocabulary import VOCABULARY, vocabulary_split
+from drivenav.episode import Episode
+from drivenav.errors import InputError
+from drivenav.eval.episodes import load_episodes, save_episodes, validate_for_scenes
 from drivenav.types import SimConfig
 
 SPEC, SEED, COUNT = "procedural:3", 7, 15

@@ -9,10 +9,11 @@ from pathlib import Path
 import pytest
 
 from conftest import run_cli
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.envs.embedded.env import EmbeddedSpec
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.errors import InputError
-from drivenav.eval.episodes import generate_episodes, save_episodes
+from drivenav.eval.episodes import save_episodes
 from drivenav.eval.executor import Executor
 from drivenav.eval.ray_executor import import_ray
 from drivenav.eval.records import EpisodeRecord, read_records

@@ -7,10 +7,10 @@ from typing import Any
 
 import pytest
 
+from drivenav.analysis.ablations import run_methods
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.envs.embedded.env import EmbeddedSpec
 from drivenav.envs.embedded.library import SceneLibrary
-from drivenav.eval.ablations import run_methods
-from drivenav.eval.episodes import generate_episodes
 from drivenav.eval.executor import Executor
 from drivenav.eval.records import read_records
 from drivenav.eval.rundir import EPISODES_FILE

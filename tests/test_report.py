@@ -11,9 +11,9 @@ from pathlib import Path
 import html5lib
 import pytest
 
+from drivenav.analysis.stats import wilson_interval
 from drivenav.cli import main
 from drivenav.eval.records import read_records
-from drivenav.eval.stats import wilson_interval
 from drivenav.report.config import PictureChoice, ReportConfig
 from drivenav.report.episodes_page import pivot_pairs
 from drivenav.report.markdown import to_html

@@ -20,12 +20,13 @@ import pytest
 import zmq
 
 from conftest import REPO, run_cli
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.envs.embedded.env import EmbeddedSpec
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.robot import RobotSpec
 from drivenav.episode import Episode
 from drivenav.errors import InputError, RunStoppedError
-from drivenav.eval.episodes import generate_episodes, save_episodes
+from drivenav.eval.episodes import save_episodes
 from drivenav.eval.records import EpisodeRecord
 from drivenav.eval.runner import RunSpec, build_agent, run_episode
 from drivenav.robot.parts import HeldStill, MotionResult

@@ -14,8 +14,9 @@ from pathlib import Path
 import pytest
 
 from conftest import REPO, run_cli
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.envs.embedded.library import SceneLibrary
-from drivenav.eval.episodes import generate_episodes, save_episodes
+from drivenav.eval.episodes import save_episodes
 from drivenav.settings import load_settings
 
 SCENES = "procedural:2"

@@ -11,13 +11,14 @@ from pathlib import Path
 import pytest
 
 from drivenav.agent.base import Agent
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.cli import main
 from drivenav.envs.embedded.env import EmbeddedSpec
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.episode import Episode
 from drivenav.errors import InputError, RunStoppedError
 from drivenav.eval import rundir, runner
-from drivenav.eval.episodes import episode_to_dict, generate_episodes, load_episodes
+from drivenav.eval.episodes import episode_to_dict, load_episodes
 from drivenav.eval.records import read_records
 from drivenav.eval.rundir import EPISODES_FILE, RUN_FILE, RunDirectory, trace_path
 from drivenav.eval.runner import RunSpec, evaluate

@@ -7,10 +7,10 @@ from pathlib import Path
 
 import numpy as np
 
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.envs.embedded.env import EmbeddedSpec
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.embedded.text_table import vocabulary_texts
-from drivenav.eval.episodes import generate_episodes
 from drivenav.eval.runner import RunSpec, evaluate
 from drivenav.semantics.embedding import TextEmbedder, default_embedder, packaged_model_dir, packaged_vectors
 from drivenav.settings import load_settings

@@ -15,10 +15,11 @@ import pytest
 from PIL import Image
 
 from drivenav.agent.trace import ViewCaptured
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.envs.embedded.env import EmbeddedSpec
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.errors import InputError
-from drivenav.eval.episodes import generate_episodes, load_episodes
+from drivenav.eval.episodes import load_episodes
 from drivenav.eval.rundir import trace_path
 from drivenav.eval.runner import RunSpec, evaluate
 from drivenav.eval.trace import EpisodeTrace

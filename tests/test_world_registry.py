@@ -5,11 +5,11 @@ What a new world touches (docs/extending.md):
 
 1. its spec (a frozen dataclass: ``name``, ``provides``, ``build(sim) -> Env``) and its env
    (``drivenav_example/noisy_depth.py``), and a light module with its
-   :class:`~drivenav.eval.worlds.entry.WorldEntry` saying how the command line builds the spec, which options it
+   :class:`~drivenav.worlds.entry.WorldEntry` saying how the command line builds the spec, which options it
    adds, where the episodes come from and how a run is titled (``drivenav_example/world.py``);
 2. one entry point in its package's metadata: ``[project.entry-points."drivenav.worlds"]
    embedded-noisy = "drivenav_example.world:NOISY"`` (drivenav's own worlds are declared the same way in its
-   pyproject.toml and listed in ``drivenav/eval/worlds/__init__.py``). Here the fixture declares it for each test
+   pyproject.toml and listed in ``drivenav/worlds/__init__.py``). Here the fixture declares it for each test
    (the package's sources are on the tests' path, its metadata is not installed); ``tests/test_plugin_package.py``
    installs the package beside drivenav in a fresh venv.
 
@@ -34,11 +34,11 @@ from drivenav.envs.embedded.env import EmbeddedSpec
 from drivenav.eval import runner
 from drivenav.eval.records import read_records
 from drivenav.eval.rundir import EPISODES_FILE, RUN_FILE
-from drivenav.eval.worlds import recorded_world
-from drivenav.eval.worlds.embedded import load_or_generate
 from drivenav.settings import Settings
 from drivenav.types import SimConfig
 from drivenav.viz.episode import load_episode, render_episode_pictures
+from drivenav.worlds import recorded_world
+from drivenav.worlds.embedded import load_or_generate
 
 # --- the tests -------------------------------------------------------------------------------------------------
 

@@ -15,13 +15,14 @@ from hypothesis import strategies as st
 
 from agent_scenes import RES, Rect, carved_scene
 from conftest import run_cli
+from drivenav.benchmarks.floor_topology import enclosed_islands, room_graph, wall_free_floor
+from drivenav.benchmarks.generate import generate_episodes
+from drivenav.benchmarks.world_stats import Histogram, StatsConfig, measure_scene, scene_set, start_distances
 from drivenav.envs.embedded.geodesic import largest_component
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.embedded.scene import Room, Scene
 from drivenav.episode import Episode, ObjectGoal, ViewPoint, world_to_habitat, yaw_to_quaternion
-from drivenav.eval.episodes import generate_episodes, save_episodes
-from drivenav.eval.floor_topology import enclosed_islands, room_graph, wall_free_floor
-from drivenav.eval.world_stats import Histogram, StatsConfig, measure_scene, scene_set, start_distances
+from drivenav.eval.episodes import save_episodes
 from drivenav.types import SimConfig
 
 SIM = SimConfig()

@@ -7,7 +7,7 @@ source checkout without installed metadata still finds, e.g. the Habitat venv's 
 own metadata, e.g. ``[project.entry-points."drivenav.explorers"] mine = "my_pkg.explorer:EXPLORER"``.
 
 The groups and the object each entry point names: ``drivenav.explorers`` an
-:class:`~drivenav.agent.config.ExplorerEntry`; ``drivenav.worlds`` a :class:`~drivenav.eval.worlds.entry.WorldEntry`;
+:class:`~drivenav.agent.config.ExplorerEntry`; ``drivenav.worlds`` a :class:`~drivenav.worlds.entry.WorldEntry`;
 ``drivenav.reasoners``, ``drivenav.grounders`` and ``drivenav.scorers`` a
 :class:`~drivenav.semantics.registry.Backend`; ``drivenav.robot_sources`` a
 :class:`~drivenav.robot.registry.SourceEntry` and ``drivenav.robot_motions`` a

@@ -10,11 +10,11 @@ import pytest
 from PIL import Image
 from worlds import SIM_OVERRIDE, export
 
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.cli import main
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.habitat.benchmarks import BENCHMARKS
 from drivenav.envs.habitat.layouts import scene_path
-from drivenav.eval.episodes import generate_episodes
 from drivenav.eval.records import read_records
 
 

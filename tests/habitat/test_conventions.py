@@ -13,12 +13,13 @@ from habitat.core.registry import registry
 from omegaconf import OmegaConf
 from worlds import export, settings_for
 
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.envs.embedded.env import EmbeddedEnv
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.habitat.env import HabitatEnv, check_gps_compass
 from drivenav.envs.habitat.observations import depth_in_metres, pose_from_gps_compass
 from drivenav.episode import Episode
-from drivenav.eval.episodes import generate_episodes, load_episodes, save_episodes
+from drivenav.eval.episodes import load_episodes, save_episodes
 from drivenav.types import Action, Pose, SimConfig
 
 TURN = math.radians(30.0)

@@ -12,13 +12,13 @@ from pathlib import Path
 import pytest
 from worlds import SIM_OVERRIDE, export, settings_for
 
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.habitat.benchmarks import BENCHMARKS
 from drivenav.envs.habitat.env import HabitatEnv
 from drivenav.envs.habitat.layouts import goals_key, scene_name
 from drivenav.envs.habitat.spec import HabitatSpec
 from drivenav.episode import Episode, ObjectGoal, ViewPoint, goal_to_dict, rounded
-from drivenav.eval.episodes import generate_episodes
 from drivenav.types import Action
 
 

@@ -16,9 +16,10 @@ from pathlib import Path
 import pytest
 from worlds import BothWorlds, export, settings_for
 
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.episode import Episode
-from drivenav.eval.episodes import generate_episodes, load_episodes, save_episodes
+from drivenav.eval.episodes import load_episodes, save_episodes
 from drivenav.eval.records import EpisodeRecord
 from drivenav.eval.trace import EpisodeTrace
 

@@ -21,12 +21,12 @@ from drivenav.cli.common import (
 )
 from drivenav.errors import InputError
 from drivenav.eval.options import episode_count, is_count, path, positive
-from drivenav.eval.worlds import chosen_world
 from drivenav.methods import ALL_METHODS
+from drivenav.worlds import chosen_world
 
 if TYPE_CHECKING:
+    from drivenav.benchmarks.benchmark import BenchmarkDefinition
     from drivenav.episode import Episode
-    from drivenav.eval.benchmark import BenchmarkDefinition
 
 
 def add_bench(commands: Commands) -> None:
@@ -63,7 +63,7 @@ def add_bench(commands: Commands) -> None:
 
 
 def _add_bench_ablations(sub: Commands) -> None:
-    from drivenav.eval.benchmark import BENCHMARKS
+    from drivenav.benchmarks.benchmark import BENCHMARKS
     from drivenav.methods import ALL_METHODS
 
     parser = sub.add_parser("ablations", help="the paper's Tables II, V, VI and VII on the embedded benchmark")
@@ -115,7 +115,7 @@ def _add_bench_grounder(sub: Commands) -> None:
 
 
 def add_benchmark(commands: Commands) -> None:
-    from drivenav.eval.benchmark import BENCHMARKS
+    from drivenav.benchmarks.benchmark import BENCHMARKS
 
     parser = commands.add_parser("benchmark", help="the fixed, versioned embedded benchmark")
     sub = parser.add_subparsers(dest="benchmark_command", required=True)
@@ -145,7 +145,7 @@ def _cmd_bench_mapping(args: argparse.Namespace) -> int:
 
 
 def _cmd_bench_agent(args: argparse.Namespace) -> int:
-    from drivenav.eval.agent_bench import bench_agent
+    from drivenav.benchmarks.agent_bench import bench_agent
 
     result = bench_agent(
         positive(args.episodes, "--episodes"), positive(args.max_steps, "--max-steps"), agent_name=args.agent
@@ -154,7 +154,7 @@ def _cmd_bench_agent(args: argparse.Namespace) -> int:
 
 
 def _cmd_bench_episodes(args: argparse.Namespace) -> int:
-    from drivenav.eval.episodes_bench import bench_episodes
+    from drivenav.benchmarks.episodes_bench import bench_episodes
 
     return print_bench(bench_episodes(episode_count(args.num, "--num")), args.json)
 
@@ -192,7 +192,7 @@ def _cmd_bench_grounder(args: argparse.Namespace) -> int:
 def _cmd_bench_ablations(args: argparse.Namespace) -> int:
     """``bench ablations``: every method on the same episodes (``--benchmark``'s frozen ones by default), then the
     report's tables; the pictures are drawn by the viz floor's picture-maker, passed in."""
-    from drivenav.eval.ablations import RUNS_DIR, parse_methods, run_ablations
+    from drivenav.analysis.ablations import RUNS_DIR, parse_methods, run_ablations
     from drivenav.eval.report import shown
     from drivenav.report.site import write_report
     from drivenav.viz.run_pictures import render_pictures
@@ -217,7 +217,7 @@ def _cmd_bench_ablations(args: argparse.Namespace) -> int:
 
 def _benchmark_options(args: argparse.Namespace) -> BenchmarkDefinition:
     """``--benchmark``'s definition; ``--episodes``, ``--seed`` and ``--scenes`` not given take its values."""
-    from drivenav.eval.benchmark import BENCHMARKS
+    from drivenav.benchmarks.benchmark import BENCHMARKS
 
     definition = BENCHMARKS[args.benchmark]
     args.episodes = str(definition.episodes) if args.episodes is None else args.episodes
@@ -230,7 +230,7 @@ def _benchmark_episodes(args: argparse.Namespace, definition: BenchmarkDefinitio
     """A number of episodes: the benchmark's first N (its frozen ones) with its own scenes and seed, else its
     generator's on the scenes and seed given; v1's generator on other scenes is the world's own (None: the
     world generates them). A file: None (the world reads it)."""
-    from drivenav.eval.benchmark import BenchmarkDefinition, generate_benchmark
+    from drivenav.benchmarks.benchmark import BenchmarkDefinition, generate_benchmark
 
     if not is_count(args.episodes):
         return None
@@ -243,7 +243,7 @@ def _benchmark_episodes(args: argparse.Namespace, definition: BenchmarkDefinitio
 
 
 def _cmd_benchmark_generate(args: argparse.Namespace) -> int:
-    from drivenav.eval.benchmark import BENCHMARKS, generate_benchmark
+    from drivenav.benchmarks.benchmark import BENCHMARKS, generate_benchmark
     from drivenav.eval.episodes import save_episodes
 
     count = None if args.episodes is None else positive(args.episodes, "--episodes")

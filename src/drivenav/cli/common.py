@@ -1,5 +1,5 @@
 """What several commands share: the configuration, model and execution options, the resolved settings, the run's
-world (``--env``: its options, spec, episodes and title, all through :data:`drivenav.eval.worlds.WORLDS`) and
+world (``--env``: its options, spec, episodes and title, all through :data:`drivenav.worlds.WORLDS`) and
 printing a benchmark's result."""
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, TypeAlias
 
 from drivenav.eval.options import seed
-from drivenav.eval.worlds import DEFAULT_WORLD, WORLDS, WorldEntry, chosen_world, usable_worlds
 from drivenav.jsonstream import JsonObject
+from drivenav.worlds import DEFAULT_WORLD, WORLDS, WorldEntry, chosen_world, usable_worlds
 
 if TYPE_CHECKING:
     from drivenav.episode import Episode

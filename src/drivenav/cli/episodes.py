@@ -12,8 +12,8 @@ from drivenav.eval.options import episode_count, path, seed
 
 
 def add_episodes(commands: Commands) -> None:
+    from drivenav.benchmarks.benchmark import BENCHMARKS
     from drivenav.envs.habitat.benchmarks import LAYOUTS
-    from drivenav.eval.benchmark import BENCHMARKS
 
     parser = commands.add_parser("episodes", help="episode files")
     sub = parser.add_subparsers(dest="episodes_command", required=True)
@@ -52,8 +52,9 @@ them, by id) and the packaged floor plans."""
 
 
 def _cmd_episodes_generate(args: argparse.Namespace) -> int:
+    from drivenav.benchmarks.generate import generate_episodes
     from drivenav.envs.embedded.library import SceneLibrary
-    from drivenav.eval.episodes import generate_episodes, save_episodes
+    from drivenav.eval.episodes import save_episodes
     from drivenav.types import SimConfig
 
     count = episode_count(args.num, "--num")
@@ -84,11 +85,11 @@ def _cmd_episodes_stats(args: argparse.Namespace) -> int:
     import sys
     from pathlib import Path
 
+    from drivenav.benchmarks.benchmark import BENCHMARKS, generate_benchmark
+    from drivenav.benchmarks.world_stats import StatsConfig, measure
+    from drivenav.benchmarks.world_stats_table import format_world_stats
     from drivenav.envs.embedded.library import SceneLibrary
-    from drivenav.eval.benchmark import BENCHMARKS, generate_benchmark
     from drivenav.eval.episodes import load_episodes, validate_for_scenes
-    from drivenav.eval.world_stats import StatsConfig, measure
-    from drivenav.eval.world_stats_table import format_world_stats
 
     name = str(args.episodes)
     benchmark = BENCHMARKS.get(name) if not Path(name).exists() else None

@@ -25,7 +25,7 @@ from drivenav.cli.common import (
 )
 from drivenav.errors import InputError
 from drivenav.eval.options import path, positive
-from drivenav.eval.worlds import DEFAULT_WORLD, WORLDS, chosen_world, world_named
+from drivenav.worlds import DEFAULT_WORLD, WORLDS, chosen_world, world_named
 
 
 def add_eval(commands: Commands) -> None:
@@ -170,7 +170,7 @@ def _cmd_config_show(args: argparse.Namespace) -> int:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from drivenav.eval.compare import compare, format_comparison
+    from drivenav.analysis.compare import compare, format_comparison
 
     if not (math.isfinite(args.min_distance) and args.min_distance >= 0.0):
         raise InputError("command line", "--min-distance", "a distance in metres >= 0", args.min_distance)

@@ -1,4 +1,5 @@
-"""HM3D-OVON-style episode files: generation over a scene set, and validated reading and writing.
+"""HM3D-OVON-style episode files: validated reading and writing, and the check of a file against the embedded world's
+scenes (generation: :mod:`drivenav.benchmarks.generate`).
 
 A file is gzip-compressed JSON ``{"episodes": [...]}``; each episode carries ``episode_id``, ``scene_id``,
 ``start_position`` and ``start_rotation`` (Habitat's y-up frame, see :mod:`drivenav.episode`),
@@ -14,23 +15,16 @@ import errno
 import gc
 import gzip
 import json
-import math
 import os
 import secrets
-from collections import Counter
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager, suppress
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-from numpy.typing import NDArray
-
 from drivenav.envs.embedded.geodesic import GeodesicField, largest_component
+from drivenav.envs.embedded.goals import SceneGoals
 from drivenav.envs.embedded.library import SceneLibrary
-from drivenav.envs.embedded.rosmap import OBJECTS_FILE
-from drivenav.envs.embedded.scene import Scene
 from drivenav.episode import (
     Episode,
     ObjectGoal,
@@ -39,184 +33,11 @@ from drivenav.episode import (
     parse_episode_with,
     parse_goals,
     rounded,
-    world_to_habitat,
-    yaw_to_quaternion,
 )
 from drivenav.errors import InputError
-from drivenav.eval.goals import object_goal
 from drivenav.jsonstream import DOCUMENT, ArrayStream, Convert, JsonObject
 from drivenav.types import SimConfig
 from drivenav.validation import Fields
-
-MIN_GEODESIC = 1.0  # metres, start to nearest view point
-MAX_GEODESIC = 30.0
-SYNONYM_SHARE = 0.25  # share of episodes naming the target by a synonym
-
-
-@dataclass
-class SceneGoals:
-    """Per scene: the reachable region, goals by category, and geodesic fields (built lazily)."""
-
-    scene: Scene
-    reachable: NDArray[np.bool_]
-    goals: dict[str, list[ObjectGoal]]
-    fields: dict[str, GeodesicField] = field(default_factory=dict)
-
-    def field_for(self, category: str) -> GeodesicField:
-        if category not in self.fields:
-            points = [vp.xy for goal in self.goals[category] for vp in goal.view_points]
-            self.fields[category] = GeodesicField(self.reachable, self.scene.grid, points)
-        return self.fields[category]
-
-
-def _scene_source(scene: Scene) -> str:
-    """What errors about a scene name: its map YAML, or the procedural house."""
-    return scene.source if scene.source != "procedural" else f"procedural house {scene.scene_id}"
-
-
-def objects_source(scene: Scene) -> str:
-    """What errors about a scene's objects name: the map's objects.json where it has one, else the scene."""
-    objects = Path(scene.source).with_name(OBJECTS_FILE)
-    return str(objects) if scene.source != "procedural" and objects.is_file() else _scene_source(scene)
-
-
-def scene_goals(scene: Scene, sim: SimConfig) -> SceneGoals:
-    """Goals of every object that has at least one reachable view point, grouped by category.
-
-    A scene without free space the agent fits in, or without an object it can reach, is an :class:`InputError`
-    naming the scene's file or its objects.json (never a scene silently left out of the episodes).
-    """
-    reachable = largest_component(scene.navigable_grid(sim.agent_radius, sim.agent_height))
-    if not reachable.any():
-        expected = f"free space an agent of radius {sim.agent_radius} m fits in"
-        raise InputError(_scene_source(scene), "image", expected, "only walls, unknown or too narrow space")
-    goals: dict[str, list[ObjectGoal]] = {}
-    for obj in scene.objects:
-        goal = object_goal(scene, obj, reachable, sim)
-        if goal.view_points:
-            goals.setdefault(obj.category, []).append(goal)
-    if not goals:
-        expected = "objects seen from where the agent can go (objects.json, or free space to place them in)"
-        got = f"{len(scene.objects)} objects, none reachable"
-        raise InputError(objects_source(scene), "objects", expected, got)
-    return SceneGoals(scene, reachable, goals)
-
-
-def _synonyms(category: str) -> tuple[str, ...]:
-    from drivenav.envs.vocabulary import synonyms
-
-    try:
-        return tuple(synonyms(category))
-    except KeyError:
-        return ()
-
-
-def start_cells(goals: SceneGoals, category: str, allowed: NDArray[np.bool_] | None = None) -> NDArray[np.int64]:
-    """The ``(row, col)`` cells, in row-major order, that are reachable (and ``allowed``, if given) and lie
-    1-30 m by geodesic distance from the category's nearest view point (HM3D-OVON's start distance limits)."""
-    distances = goals.field_for(category).distances
-    mask = goals.reachable & (distances >= MIN_GEODESIC) & (distances <= MAX_GEODESIC)
-    cells: NDArray[np.int64] = np.argwhere(mask if allowed is None else mask & allowed)
-    return cells
-
-
-def cell_start(goals: SceneGoals, category: str, cell: NDArray[np.int64]) -> tuple[tuple[float, float], float]:
-    """A start at ``cell``'s centre: its world point and its geodesic distance to the category's view points."""
-    x, y = goals.scene.grid.cell_to_world(cell)
-    return (float(x), float(y)), float(goals.field_for(category).distances[cell[0], cell[1]])
-
-
-def _sample_start(
-    goals: SceneGoals, category: str, rng: np.random.Generator
-) -> tuple[tuple[float, float], float] | None:
-    """A reachable start cell whose geodesic distance to the category lies in the allowed range."""
-    candidates = start_cells(goals, category)
-    if len(candidates) == 0:
-        return None
-    return cell_start(goals, category, candidates[rng.integers(len(candidates))])
-
-
-def generate_episodes(library: SceneLibrary, num: int, seed: int, sim: SimConfig | None = None) -> list[Episode]:
-    """``num`` episodes spread round-robin over the library's scenes and across categories.
-
-    Deterministic in ``seed``. A scene without any start 1-30 m from an object it holds is an :class:`InputError`.
-    """
-    sim = sim or SimConfig()
-    rng = np.random.default_rng(seed)
-    contexts: dict[str, SceneGoals] = {}
-    used: Counter[str] = Counter()
-    episodes: list[Episode] = []
-    scene_ids = library.scene_ids
-    turn = 0
-    while len(episodes) < num and scene_ids:
-        scene_id = scene_ids[turn % len(scene_ids)]
-        if scene_id not in contexts:
-            contexts[scene_id] = scene_goals(library.load(scene_id), sim)
-        episode = _make_episode(str(len(episodes)), scene_id, contexts[scene_id], used, rng)
-        if episode is None:
-            expected = f"a start {MIN_GEODESIC:g}-{MAX_GEODESIC:g} m by geodesic distance from one of its objects"
-            raise InputError(objects_source(contexts[scene_id].scene), "objects", expected, "none")
-        episodes.append(episode)
-        used[episode.info["canonical_category"]] += 1
-        turn += 1
-    return episodes
-
-
-def _make_episode(
-    episode_id: str, scene_id: str, goals: SceneGoals, used: Counter[str], rng: np.random.Generator
-) -> Episode | None:
-    for category in least_used_first(goals.goals, used, rng):
-        start = _sample_start(goals, category, rng)
-        if start is None:
-            continue
-        names = _synonyms(category)
-        synonym = bool(names) and rng.random() < SYNONYM_SHARE
-        text = str(names[rng.integers(len(names))]) if synonym else category
-        return build_episode(EpisodeDraft(episode_id, scene_id, category, start, text, synonym), goals, rng)
-    return None
-
-
-def least_used_first(categories: Iterable[str], used: Counter[str], rng: np.random.Generator) -> list[str]:
-    """``categories`` in name order, shuffled by one permutation draw, then stably sorted by how often ``used``
-    has them: the least-used first, in random order among ties (the spread over categories of every generator)."""
-    present = sorted(categories)
-    shuffled = [present[i] for i in rng.permutation(len(present))]
-    return sorted(shuffled, key=lambda c: used[c])
-
-
-@dataclass(frozen=True)
-class EpisodeDraft:
-    """What a generator chose for an episode: its id and scene, the canonical category, the start (world point,
-    geodesic distance to the nearest view point), the text the agent is given and whether it is a synonym, and
-    further ``info`` keys (after the three every episode has)."""
-
-    episode_id: str
-    scene_id: str
-    category: str
-    start: tuple[tuple[float, float], float]
-    text: str
-    synonym: bool
-    extra: tuple[tuple[str, str], ...] = ()
-
-
-def build_episode(draft: EpisodeDraft, goals: SceneGoals, rng: np.random.Generator) -> Episode:
-    """The episode of ``draft`` with every goal of its category, its start rounded to 0.1 mm and a heading drawn
-    uniformly in [0, 2 pi) from ``rng`` (HM3D-OVON's generator draws its start angle the same way)."""
-    (x, y), geodesic = draft.start
-    info: JsonObject = {
-        "geodesic_distance": round(geodesic, 4),
-        "canonical_category": draft.category,
-        "synonym": draft.synonym,
-    }
-    return Episode(
-        episode_id=draft.episode_id,
-        scene_id=draft.scene_id,
-        start_position=world_to_habitat(round(x, 4), round(y, 4)),
-        start_rotation=yaw_to_quaternion(float(rng.uniform(0.0, 2.0 * math.pi))),
-        object_category=draft.text,
-        goals=tuple(goals.goals[draft.category]),
-        info=info | dict(draft.extra),
-    )
 
 
 def episode_to_dict(episode: Episode) -> JsonObject:

@@ -1,6 +1,6 @@
 """Command-line values checked where a command reads them: paths, positive counts, episode counts, seeds.
 
-A light module (no numpy): the command line and the worlds' options (:mod:`drivenav.eval.worlds`) use it while the
+A light module (no numpy): the command line and the worlds' options (:mod:`drivenav.worlds`) use it while the
 parser is built. A bad value is one :class:`~drivenav.errors.InputError` (one line, exit status 2).
 """
 

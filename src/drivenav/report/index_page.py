@@ -7,9 +7,9 @@ from __future__ import annotations
 import json
 from collections.abc import Sequence
 
-from drivenav.eval.ablation_data import Interval
+from drivenav.analysis.ablation_data import Interval
+from drivenav.analysis.stats import BOOTSTRAP_RESAMPLES
 from drivenav.eval.report import shown
-from drivenav.eval.stats import BOOTSTRAP_RESAMPLES
 from drivenav.report.html import Cell, element, esc, link, page, table
 from drivenav.report.runs import Run, config_differences
 

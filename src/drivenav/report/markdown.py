@@ -1,6 +1,6 @@
 """The subset of Markdown that ``ablations.md`` is written in, as HTML: headings, paragraphs, lists, pipe tables
-and inline code. The report shows the paper's tables exactly as :func:`drivenav.eval.ablation_report.format_markdown`
-writes them, rather than deriving them a second time."""
+and inline code. The report shows the paper's tables exactly as
+:func:`drivenav.analysis.ablation_report.format_markdown` writes them, rather than deriving them a second time."""
 
 from __future__ import annotations
 

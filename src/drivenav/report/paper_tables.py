@@ -4,8 +4,8 @@ Tables II, V or VI on the same episodes).
 The tables are ``ablations.md`` itself: read from the ``ablations.json`` that ``bench ablations`` wrote beside the
 runs when it covers exactly these runs and its methods' numbers are theirs, else built from the runs as
 ``bench ablations`` builds it
-(:func:`drivenav.eval.ablations.build_report`), then written by
-:func:`~drivenav.eval.ablation_report.format_markdown` and shown as HTML. Its pictures section is left out: the
+(:func:`drivenav.analysis.ablations.build_report`), then written by
+:func:`~drivenav.analysis.ablation_report.format_markdown` and shown as HTML. Its pictures section is left out: the
 report's episode pages show every picture. An ``ablations.json`` that is not what ``bench ablations`` writes (no
 JSON, another shape, values that do not print) is one :class:`~drivenav.errors.InputError` naming it.
 """
@@ -16,17 +16,17 @@ import json
 from collections.abc import Sequence
 from dataclasses import replace
 
+from drivenav.analysis.ablation_data import AblationReport, Pictures
+from drivenav.analysis.ablation_report import format_markdown
+from drivenav.analysis.ablations import RUNS_DIR, build_report
+from drivenav.analysis.paper_tables import TABLE_II, TABLE_V, TABLE_VI
 from drivenav.errors import InputError
-from drivenav.eval.ablation_data import AblationReport, Pictures
-from drivenav.eval.ablation_report import format_markdown
-from drivenav.eval.ablations import RUNS_DIR, build_report
-from drivenav.eval.paper_tables import TABLE_II, TABLE_V, TABLE_VI
 from drivenav.eval.rundir import inside
 from drivenav.eval.runner import RunSpec
-from drivenav.eval.worlds import recorded_world
 from drivenav.jsonstream import DOCUMENT
 from drivenav.report.markdown import to_html
 from drivenav.report.runs import Run
+from drivenav.worlds import recorded_world
 
 ABLATIONS_JSON = "ablations.json"
 PAPER_METHODS = frozenset(row.method for table in (TABLE_II, TABLE_V, TABLE_VI) for row in table)

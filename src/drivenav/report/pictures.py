@@ -17,17 +17,17 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
+from drivenav.analysis.ablations import RUNS_DIR
 from drivenav.envs.embedded.scene import Scene
 from drivenav.episode import Episode
-from drivenav.eval.ablations import RUNS_DIR
 from drivenav.eval.records import EpisodeRecord
 from drivenav.eval.rundir import EPISODES_COPY, inside, trace_path
-from drivenav.eval.worlds import recorded_world
 from drivenav.jsonstream import JsonObject
 from drivenav.viz.episode import EpisodeMaterial, render_episode_pictures, trace_picture
 from drivenav.viz.run_pictures import PICTURES_DIR
 from drivenav.viz.saved_trace import SavedTrace
 from drivenav.viz.topdown import draw_episode
+from drivenav.worlds import recorded_world
 
 SUFFIXES = ("_topdown.png", "_start_view.png", "_end_view.png", ".mp4")
 """The files ``drivenav viz`` writes per episode, by the suffix after the episode's stem; the top-down one first."""

@@ -14,10 +14,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from drivenav.analysis.ablation_data import MethodEntry
+from drivenav.analysis.ablations import method_entry
+from drivenav.benchmarks.ovon_episodes import episode_splits
 from drivenav.episode import Episode
-from drivenav.eval.ablation_data import MethodEntry
-from drivenav.eval.ablations import method_entry
-from drivenav.eval.ovon_episodes import episode_splits
 from drivenav.eval.records import EpisodeRecord
 from drivenav.eval.run_info import RunInfo
 from drivenav.eval.rundir import file_name, read_run, trace_path

@@ -5,9 +5,9 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.envs.embedded.env import EmbeddedSpec
 from drivenav.envs.embedded.library import SceneLibrary
-from drivenav.eval.episodes import generate_episodes
 from drivenav.eval.report import format_table, shown
 from drivenav.eval.rundir import read_run
 from drivenav.eval.runner import RunSpec, evaluate

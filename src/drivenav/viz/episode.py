@@ -28,7 +28,6 @@ from drivenav.errors import InputError
 from drivenav.eval.records import EpisodeRecord
 from drivenav.eval.rundir import EPISODES_COPY, RUN_FILE, RunContents, inside, read_run, trace_path
 from drivenav.eval.trace import EpisodeTrace
-from drivenav.eval.worlds import recorded_world
 from drivenav.grid import GridSpec
 from drivenav.types import Pose, SimConfig
 from drivenav.viz.coverage import explored_cells
@@ -37,6 +36,7 @@ from drivenav.viz.saved_trace import SavedTrace
 from drivenav.viz.thumbnails import decision_views
 from drivenav.viz.topdown import draw_episode, save_png, stack
 from drivenav.viz.video import VIDEO_HINT, video_available, write_video
+from drivenav.worlds import recorded_world
 
 log = logging.getLogger(__name__)
 

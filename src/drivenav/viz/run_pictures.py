@@ -3,7 +3,7 @@
 Episodes are taken first from the Table II subset (solved by every compared method, start-goal distance above
 10 m: the episodes where steps and revisits are compared, paper Sec. V-C), then in benchmark order. Each method's
 top-down picture comes from ``drivenav viz`` on its run directory; the first episode of the first method also gets
-its MP4. :func:`render_pictures` is the :class:`~drivenav.eval.ablations.PictureMaker` the command line hands to
+its MP4. :func:`render_pictures` is the :class:`~drivenav.analysis.ablations.PictureMaker` the command line hands to
 ``bench ablations`` (eval itself draws nothing).
 """
 
@@ -13,9 +13,9 @@ import logging
 from collections.abc import Sequence
 from pathlib import Path
 
+from drivenav.analysis.ablation_data import Pictures
+from drivenav.analysis.compare import TABLE_II_MIN_DISTANCE, RunRecords, common_successes
 from drivenav.errors import InputError
-from drivenav.eval.ablation_data import Pictures
-from drivenav.eval.compare import TABLE_II_MIN_DISTANCE, RunRecords, common_successes
 from drivenav.eval.rundir import RunContents, read_run
 from drivenav.viz.episode import episode_material, render_episode_pictures
 

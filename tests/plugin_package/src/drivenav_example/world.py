@@ -1,5 +1,5 @@
 """The ``embedded-noisy`` world as drivenav's command line and runs see it: its
-:class:`~drivenav.eval.worlds.entry.WorldEntry` (its ``--depth-noise`` option, how the spec is built from the
+:class:`~drivenav.worlds.entry.WorldEntry` (its ``--depth-noise`` option, how the spec is built from the
 command line, where its episodes come from, how a run on it is titled, its scenes for ``drivenav viz``). The entry
 point ``embedded-noisy = "drivenav_example.world:NOISY"`` (group ``drivenav.worlds``) names it. This module is
 imported whenever drivenav's command line is built, so it stays light: the env (:mod:`.noisy_depth`) is imported
@@ -10,8 +10,8 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
-from drivenav.eval.worlds.embedded import load_or_generate, scene_library
-from drivenav.eval.worlds.entry import WorldEntry
+from drivenav.worlds.embedded import load_or_generate, scene_library
+from drivenav.worlds.entry import WorldEntry
 
 if TYPE_CHECKING:
     from drivenav.envs.base import EnvSpec

@@ -7,7 +7,7 @@ import argparse
 from typing import TYPE_CHECKING
 
 from drivenav.eval.options import episode_count, is_count
-from drivenav.eval.worlds.entry import SceneLoader, WorldEntry
+from drivenav.worlds.entry import SceneLoader, WorldEntry
 
 if TYPE_CHECKING:
     from drivenav.envs.base import EnvSpec
@@ -31,8 +31,9 @@ def _build(args: argparse.Namespace, settings: Settings) -> EnvSpec:
 def load_or_generate(args: argparse.Namespace, run: RunSpec) -> list[Episode]:
     """The run's episodes: ``--episodes N`` generated with the run seed, or an episodes file checked against the
     scenes of ``--scenes``."""
+    from drivenav.benchmarks.generate import generate_episodes
     from drivenav.envs.embedded.library import SceneLibrary
-    from drivenav.eval.episodes import generate_episodes, load_episodes, validate_for_scenes
+    from drivenav.eval.episodes import load_episodes, validate_for_scenes
 
     seed = run.settings.run.seed
     library = SceneLibrary(args.scenes, seed)

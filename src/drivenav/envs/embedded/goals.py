@@ -1,4 +1,7 @@
-"""Goal view points: navigable positions within 1.0 m of an object from which it is visible.
+"""The embedded world's goals: each object's view points, and per scene the reachable region, the goals by category
+and their geodesic fields (what episodes are generated and checked against).
+
+Goal view points: navigable positions within 1.0 m of an object from which it is visible.
 
 Visibility in the 2.5-D world: a straight line from the view point to the object's footprint that crosses no
 structure (walls, door frames, unknown), and some part of the object inside the camera's vertical field of view
@@ -9,12 +12,17 @@ horizontal field of view does not restrict view points).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
+from drivenav.envs.embedded.geodesic import GeodesicField, largest_component
+from drivenav.envs.embedded.rosmap import OBJECTS_FILE
 from drivenav.envs.embedded.scene import Material, ObjectInstance, Scene
 from drivenav.episode import ObjectGoal, ViewPoint, world_to_habitat, yaw_to_quaternion
+from drivenav.errors import InputError
 from drivenav.types import SimConfig
 
 VIEW_POINT_RADIUS = 1.0  # metres from the object footprint (Habitat ObjectNav view points)
@@ -95,3 +103,52 @@ def object_goal(scene: Scene, obj: ObjectInstance, reachable: NDArray[np.bool_],
         view_points.append(ViewPoint(world_to_habitat(x, y), yaw_to_quaternion(yaw)))
     centre = world_to_habitat(obj.center[0], obj.center[1], obj.elevation + obj.size[2] / 2.0)
     return ObjectGoal(obj.instance_id, obj.category, centre, tuple(view_points))
+
+
+@dataclass
+class SceneGoals:
+    """Per scene: the reachable region, goals by category, and geodesic fields (built lazily)."""
+
+    scene: Scene
+    reachable: NDArray[np.bool_]
+    goals: dict[str, list[ObjectGoal]]
+    fields: dict[str, GeodesicField] = field(default_factory=dict)
+
+    def field_for(self, category: str) -> GeodesicField:
+        if category not in self.fields:
+            points = [vp.xy for goal in self.goals[category] for vp in goal.view_points]
+            self.fields[category] = GeodesicField(self.reachable, self.scene.grid, points)
+        return self.fields[category]
+
+
+def _scene_source(scene: Scene) -> str:
+    """What errors about a scene name: its map YAML, or the procedural house."""
+    return scene.source if scene.source != "procedural" else f"procedural house {scene.scene_id}"
+
+
+def objects_source(scene: Scene) -> str:
+    """What errors about a scene's objects name: the map's objects.json where it has one, else the scene."""
+    objects = Path(scene.source).with_name(OBJECTS_FILE)
+    return str(objects) if scene.source != "procedural" and objects.is_file() else _scene_source(scene)
+
+
+def scene_goals(scene: Scene, sim: SimConfig) -> SceneGoals:
+    """Goals of every object that has at least one reachable view point, grouped by category.
+
+    A scene without free space the agent fits in, or without an object it can reach, is an :class:`InputError`
+    naming the scene's file or its objects.json (never a scene silently left out of the episodes).
+    """
+    reachable = largest_component(scene.navigable_grid(sim.agent_radius, sim.agent_height))
+    if not reachable.any():
+        expected = f"free space an agent of radius {sim.agent_radius} m fits in"
+        raise InputError(_scene_source(scene), "image", expected, "only walls, unknown or too narrow space")
+    goals: dict[str, list[ObjectGoal]] = {}
+    for obj in scene.objects:
+        goal = object_goal(scene, obj, reachable, sim)
+        if goal.view_points:
+            goals.setdefault(obj.category, []).append(goal)
+    if not goals:
+        expected = "objects seen from where the agent can go (objects.json, or free space to place them in)"
+        got = f"{len(scene.objects)} objects, none reachable"
+        raise InputError(objects_source(scene), "objects", expected, got)
+    return SceneGoals(scene, reachable, goals)

@@ -7,7 +7,7 @@ import math
 from collections.abc import Callable, Sequence
 from typing import TypeVar
 
-from drivenav.eval.world_stats import (
+from drivenav.benchmarks.world_stats import (
     DegreeSummary,
     EpisodeSetStats,
     Histogram,

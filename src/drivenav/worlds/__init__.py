@@ -1,4 +1,4 @@
-"""The worlds a run can use, by ``--env`` name: one :class:`~drivenav.eval.worlds.entry.WorldEntry` each,
+"""The worlds a run can use, by ``--env`` name: one :class:`~drivenav.worlds.entry.WorldEntry` each,
 drivenav's own and other packages' (entry-point group ``drivenav.worlds``, :mod:`drivenav.plugins`).
 
 The command line (its options, the run's spec, episodes and title) and ``drivenav viz`` (a run's world rebuilt
@@ -14,9 +14,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from drivenav.errors import InputError
-from drivenav.eval.worlds.entry import WorldEntry
 from drivenav.jsonstream import JsonObject
 from drivenav.plugins import Registry
+from drivenav.worlds.entry import WorldEntry
 
 if TYPE_CHECKING:
     from drivenav.envs.base import EnvSpec
@@ -24,9 +24,9 @@ if TYPE_CHECKING:
 DEFAULT_WORLD = "embedded"
 
 BUILT_IN_WORLDS = {
-    "embedded": "drivenav.eval.worlds.embedded:EMBEDDED",
-    "habitat": "drivenav.eval.worlds.habitat:HABITAT",
-    "robot": "drivenav.eval.worlds.robot:ROBOT",
+    "embedded": "drivenav.worlds.embedded:EMBEDDED",
+    "habitat": "drivenav.worlds.habitat:HABITAT",
+    "robot": "drivenav.worlds.robot:ROBOT",
 }
 """drivenav's own worlds: ``--env`` name -> the ``module:attribute`` of their entry (also declared in
 pyproject.toml), in the order ``--help`` lists them."""
@@ -35,7 +35,7 @@ WORLDS: Registry[WorldEntry] = Registry(
     "drivenav.worlds",
     BUILT_IN_WORLDS,
     lambda part: isinstance(part, WorldEntry),
-    "world entry (drivenav.eval.worlds.entry.WorldEntry)",
+    "world entry (drivenav.worlds.entry.WorldEntry)",
     "--env",
     named=lambda entry: entry.name,
 )

@@ -3,7 +3,7 @@
 Per scene set (procedural houses, homes, floor plans: the part of the scene id before ``/``): rooms per scene, doors
 per room and per room type, junction degree, loops, navigable area; per episode set: the start-to-goal geodesic
 distance and the geodesic / Euclidean ratio, with their histograms. The methods are docs/world-vs-hm3d.md's ("How
-the v1 figures were computed"); the topology is :mod:`drivenav.eval.floor_topology`. Navigable area is measured
+the v1 figures were computed"); the topology is :mod:`drivenav.benchmarks.floor_topology`. Navigable area is measured
 for HM3D's agent (radius 0.1 m, height 1.5 m: the HM3D paper's navigable-area figure, Ramakrishnan et al. 2021,
 ``scale_comparison/metrics.py``) and for drivenav's own (:class:`SimConfig`).
 """
@@ -17,18 +17,18 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.envs.embedded.geodesic import largest_component, nearest_by_geodesic
-from drivenav.envs.embedded.library import SceneLibrary
-from drivenav.envs.embedded.scene import Scene
-from drivenav.episode import Episode
-from drivenav.errors import InputError
-from drivenav.eval.floor_topology import (
+from drivenav.benchmarks.floor_topology import (
     SegmentationConfig,
     enclosed_islands,
     room_graph,
     segment_regions,
     wall_free_floor,
 )
+from drivenav.envs.embedded.geodesic import largest_component, nearest_by_geodesic
+from drivenav.envs.embedded.library import SceneLibrary
+from drivenav.envs.embedded.scene import Scene
+from drivenav.episode import Episode
+from drivenav.errors import InputError
 from drivenav.grid import GridSpec
 from drivenav.jsonstream import JsonObject
 from drivenav.types import SimConfig

@@ -1,5 +1,5 @@
 """The ablation report's files: ``ablations.csv`` and ``ablations.md`` (the paper's tables beside ours, and where
-the orderings differ), written from an :class:`~drivenav.eval.ablation_data.AblationReport`."""
+the orderings differ), written from an :class:`~drivenav.analysis.ablation_data.AblationReport`."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from collections.abc import Mapping, Sequence
 from itertools import pairwise
 from pathlib import Path
 
-from drivenav.eval.ablation_data import (
+from drivenav.analysis.ablation_data import (
     AblationReport,
     ComputeTable,
     Interval,
@@ -18,8 +18,8 @@ from drivenav.eval.ablation_data import (
     SplitEntry,
     Splits,
 )
-from drivenav.eval.compare import Comparison
-from drivenav.eval.paper_tables import (
+from drivenav.analysis.compare import Comparison
+from drivenav.analysis.paper_tables import (
     TABLE_II,
     TABLE_V,
     TABLE_VI,
@@ -27,7 +27,7 @@ from drivenav.eval.paper_tables import (
     TABLE_VII_PAPER,
     PaperRow,
 )
-from drivenav.eval.stats import BOOTSTRAP_RESAMPLES
+from drivenav.analysis.stats import BOOTSTRAP_RESAMPLES
 from drivenav.jsonstream import JsonObject
 
 Methods = dict[str, MethodEntry]

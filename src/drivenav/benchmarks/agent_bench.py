@@ -8,9 +8,9 @@ from __future__ import annotations
 
 from drivenav.agent.trace import DirectionSelected
 from drivenav.agents import make_agent
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.envs.embedded.env import EmbeddedEnv
 from drivenav.envs.embedded.library import SceneLibrary
-from drivenav.eval.episodes import generate_episodes
 from drivenav.eval.runner import run_episode
 from drivenav.eval.timings import runtime_table
 from drivenav.jsonstream import JsonObject

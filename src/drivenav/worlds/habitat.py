@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 from drivenav.errors import InputError
 from drivenav.eval.options import is_count, path, positive
-from drivenav.eval.worlds.entry import WorldEntry
+from drivenav.worlds.entry import WorldEntry
 
 if TYPE_CHECKING:
     from drivenav.envs.base import EnvSpec

@@ -16,14 +16,9 @@ import time
 import tracemalloc
 from pathlib import Path
 
+from drivenav.benchmarks.generate import generate_episodes
 from drivenav.envs.embedded.library import SceneLibrary
-from drivenav.eval.episodes import (
-    episode_to_dict,
-    generate_episodes,
-    load_episodes,
-    save_episodes,
-    validate_for_scenes,
-)
+from drivenav.eval.episodes import episode_to_dict, load_episodes, save_episodes, validate_for_scenes
 from drivenav.eval.rundir import episodes_sha256
 from drivenav.types import SimConfig
 

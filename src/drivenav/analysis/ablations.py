@@ -2,9 +2,9 @@
 
 ``drivenav bench ablations`` runs every method once through :func:`drivenav.eval.runner.evaluate` into
 ``DIR/runs/<method>/`` (resumable) and writes ``DIR/ablations.json``, ``DIR/ablations.md`` and ``DIR/ablations.csv``
-(:mod:`drivenav.eval.ablation_report`), from one :class:`~drivenav.eval.ablation_data.AblationReport`. The
-benchmark is :mod:`drivenav.eval.benchmark`; the paper's numbers, for comparison only, are
-:mod:`drivenav.eval.paper_tables`. Pictures come from a :class:`PictureMaker` the caller passes in (the application
+(:mod:`drivenav.analysis.ablation_report`), from one :class:`~drivenav.analysis.ablation_data.AblationReport`. The
+benchmark is :mod:`drivenav.benchmarks.benchmark`; the paper's numbers, for comparison only, are
+:mod:`drivenav.analysis.paper_tables`. Pictures come from a :class:`PictureMaker` the caller passes in (the application
 passes :func:`drivenav.viz.run_pictures.render_pictures`): eval draws nothing itself.
 """
 
@@ -17,9 +17,7 @@ from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Protocol
 
-from drivenav.episode import Episode
-from drivenav.errors import InputError
-from drivenav.eval.ablation_data import (
+from drivenav.analysis.ablation_data import (
     AblationReport,
     ComputeTable,
     Interval,
@@ -31,19 +29,21 @@ from drivenav.eval.ablation_data import (
     SplitEntry,
     Splits,
 )
-from drivenav.eval.ablation_report import format_markdown, write_csv
-from drivenav.eval.compare import RunRecords, compare_runs, load_runs
+from drivenav.analysis.ablation_report import format_markdown, write_csv
+from drivenav.analysis.compare import RunRecords, compare_runs, load_runs
+from drivenav.analysis.paper_tables import TABLE_II_METHODS
+from drivenav.analysis.stats import bootstrap_mean_interval, wilson_interval
+from drivenav.benchmarks.ovon_episodes import SPLITS, episode_splits
+from drivenav.episode import Episode
+from drivenav.errors import InputError
 from drivenav.eval.episodes import load_episodes, save_episodes
 from drivenav.eval.executor import Executor
-from drivenav.eval.ovon_episodes import SPLITS, episode_splits
-from drivenav.eval.paper_tables import TABLE_II_METHODS
 from drivenav.eval.provenance import git_commit
 from drivenav.eval.records import ERROR, MISSED_CAUSES, EpisodeRecord, missed_cause
 from drivenav.eval.report import summarize
 from drivenav.eval.run_info import world_json
 from drivenav.eval.rundir import EPISODES_COPY, trace_path
 from drivenav.eval.runner import RunSpec, evaluate
-from drivenav.eval.stats import bootstrap_mean_interval, wilson_interval
 from drivenav.eval.timings import runtime_table, traced_steps
 from drivenav.eval.trace import EpisodeTrace
 from drivenav.methods import agent_names

@@ -41,20 +41,13 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
+from drivenav.benchmarks.generate import EpisodeDraft, build_episode, cell_start, least_used_first, start_cells
 from drivenav.envs.embedded.geodesic import nearest_by_geodesic
+from drivenav.envs.embedded.goals import SceneGoals, scene_goals
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.vocabulary import VOCABULARY, Vocabulary, vocabulary_split
 from drivenav.episode import Episode
 from drivenav.errors import InputError
-from drivenav.eval.episodes import (
-    EpisodeDraft,
-    SceneGoals,
-    build_episode,
-    cell_start,
-    least_used_first,
-    scene_goals,
-    start_cells,
-)
 from drivenav.types import SimConfig
 
 SPLITS = ("val_seen", "val_seen_synonyms", "val_unseen")

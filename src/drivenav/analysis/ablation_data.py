@@ -1,5 +1,5 @@
 """The ablation report as typed records: what ``ablations.json`` holds, built once by
-:func:`drivenav.eval.ablations.build_report` and read by attribute by :mod:`drivenav.eval.ablation_report`.
+:func:`drivenav.analysis.ablations.build_report` and read by attribute by :mod:`drivenav.analysis.ablation_report`.
 
 Each record's ``to_json`` writes the keys ``ablations.json`` has always had, in the same order (other tools read
 the file); ``from_json`` reads them back. Intervals (``sr_ci95``, ``spl_ci95``) are ``[lo, hi]`` lists in JSON.
@@ -12,8 +12,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TypeVar
 
+from drivenav.analysis.compare import Comparison
 from drivenav.errors import InputError
-from drivenav.eval.compare import Comparison
 from drivenav.jsonstream import DOCUMENT, JsonObject
 
 Interval = tuple[float, float]

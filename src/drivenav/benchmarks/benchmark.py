@@ -14,7 +14,7 @@ if TYPE_CHECKING:  # the definitions load without numpy (the command line reads 
 class BenchmarkDefinition:
     """A fixed episode set: a ``--scenes`` SPEC, an episode count, a seed and the generator (``uniform``:
     :func:`drivenav.eval.episodes.generate_episodes`; ``ovon``: HM3D-OVON's filters and splits,
-    :func:`drivenav.eval.ovon_episodes.generate_ovon_episodes`); once published, its episodes are frozen as a file
+    :func:`drivenav.benchmarks.ovon_episodes.generate_ovon_episodes`); once published, its episodes are frozen as a file
     shipped with drivenav (``frozen``, under ``drivenav/data``), so that no later change to the generator changes
     them."""
 
@@ -45,9 +45,10 @@ BENCHMARKS: dict[str, BenchmarkDefinition] = {"v1": BENCHMARK_V1, "v2": BENCHMAR
 def generate_benchmark(definition: BenchmarkDefinition, episodes: int | None = None) -> list[Episode]:
     """The definition's episodes, the first ``episodes`` of them if given: its frozen file where it has one, else
     generated (generation is sequential, so a prefix is the same episodes)."""
+    from drivenav.benchmarks.generate import generate_episodes
+    from drivenav.benchmarks.ovon_episodes import generate_ovon_episodes
     from drivenav.envs.embedded.library import SceneLibrary
-    from drivenav.eval.episodes import generate_episodes, load_episodes
-    from drivenav.eval.ovon_episodes import generate_ovon_episodes
+    from drivenav.eval.episodes import load_episodes
     from drivenav.types import SimConfig
 
     count = episodes or definition.episodes
