@@ -34,7 +34,7 @@ from drivenav.jsonstream import JsonObject
 from drivenav.mapping.config import MapTuning
 from drivenav.methods import PRESETS, agent_names, method_named, preset_names
 from drivenav.paper import DriveNavConfig
-from drivenav.semantics.registry import DETECTORS, DTYPES, REASONERS, SCORERS, ModelSpec
+from drivenav.semantics.registry import DETECTORS, DTYPES, REASONERS, SCORERS, SEGMENTERS, ModelSpec
 from drivenav.types import SimConfig
 
 YAML_HEADER = """\
@@ -280,6 +280,7 @@ def check_values(settings: Settings) -> None:
         ("run.agent", agent_names(), "--agent"),
         ("models.reasoner", REASONERS, "--reasoner"),
         ("models.detector", DETECTORS, "--detector"),
+        ("models.segmenter", SEGMENTERS, "--segmenter"),
         ("models.scorer", SCORERS, "--scorer"),
         ("models.dtype", DTYPES, "--dtype"),
     )
