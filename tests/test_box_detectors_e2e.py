@@ -136,7 +136,7 @@ def test_a_served_box_detector_gives_the_in_process_records(
 
 def test_serve_grounder_tiny_serves_an_eval(tmp_path: Path) -> None:
     """The command: ``serve grounder --tiny`` (Grounding DINO with MobileSAM, random weights) prints its endpoint
-    first; an eval grounds through it; SIGTERM stops it."""
+    first; an eval grounds through it; SIGTERM stops it, and its last line says what it served."""
     command = [sys.executable, "-m", "drivenav.cli", "serve", "grounder", "--detector", "grounding-dino"]
     command += ["--segmenter", "mobilesam", "--tiny", "--device", "cpu", "--bind", LOOPBACK]
     with (tmp_path / "server.log").open("w") as log:
@@ -150,8 +150,11 @@ def test_serve_grounder_tiny_serves_an_eval(tmp_path: Path) -> None:
         finally:
             process.terminate()
             process.wait(30)
+        last = process.stdout.read().strip().splitlines()[-1]
     records = run_records(tmp_path / "run")
     assert len(records) == 2 and all(r["error"] == "" for r in records)
+    frames = int(last.split()[1])
+    assert last.startswith("served ") and frames > 0 and f"{frames} frames in {frames} batches" in last
 
 
 @pytest.mark.parametrize("option", ["--tiny", "--random-weights"])

@@ -321,7 +321,7 @@ def run_server(
     model: str = "",
 ) -> None:
     """Serve ``spec``'s grounder until Ctrl-C (or SIGTERM); the first line printed names the endpoint (``build``,
-    ``model``: as for :func:`build_server`)."""
+    ``model``: as for :func:`build_server`), the last one what was served (:func:`batches_line`)."""
     server = build_server(spec, bind, keys, config, build, model)
     info = server.info
     print(
@@ -333,6 +333,14 @@ def run_server(
         server.serve()
     finally:
         server.close()
+        print(batches_line(server.batch_sizes), flush=True)
+
+
+def batches_line(batch_sizes: Counter[int]) -> str:
+    """What a server served: its frames, its batches and their mean size."""
+    frames, batches = sum(n * c for n, c in batch_sizes.items()), sum(batch_sizes.values())
+    mean = f" (mean {frames / batches:.2f} frames)" if batches else ""
+    return f"served {frames} frames in {batches} batches{mean}"
 
 
 @contextlib.contextmanager
