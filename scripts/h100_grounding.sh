@@ -62,8 +62,12 @@ say() { printf '[%4ds] %s\n' $(($(date +%s) - START)) "$*"; }
 setup() {
     if ((!CPU)); then
         mkdir -p /tmp/site
-        python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site \
-            .whl/*.whl >"$OUT/setup.log" 2>&1 || say "setup: pip install failed (see setup.log)"
+        local wheel pip=(python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site)
+        if ! "${pip[@]}" .whl/*.whl >"$OUT/setup.log" 2>&1; then  # one at a time: a wheel that fails spares the others
+            for wheel in .whl/*.whl; do
+                "${pip[@]}" "$wheel" >>"$OUT/setup.log" 2>&1 || say "setup: $wheel did not install (setup.log)"
+            done
+        fi
     fi
     if ! "$PYTHON" -c "import skfmm" 2>/dev/null; then
         build_skfmm >>"$OUT/setup.log" 2>&1 && say "setup: scikit-fmm built from its source" ||
