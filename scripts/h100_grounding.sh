@@ -37,6 +37,7 @@ while (($#)); do
 done
 
 OUT=${OUT:-/tmp/h100-grounding}
+RUNS=$(mktemp -d /tmp/h100-grounding-runs.XXXX)  # run directories (traces): only their records are copied to $OUT
 mkdir -p "$OUT"
 START=$(date +%s)
 export DRIVENAV_KERNELS=jit HF_HUB_OFFLINE=1 TRANSFORMERS_OFFLINE=1 TOKENIZERS_PARALLELISM=false PYTHONUNBUFFERED=1
@@ -98,7 +99,7 @@ EOF
     say "setup: $(cat "$OUT/env.json")"
     # numba compiles drive-nav's kernels once into its cache (JIT mode) while the GPU stages run
     "$PYTHON" -m drivenav.cli eval --agent drive-nav --scenes procedural:1 --episodes 1 --max-steps 60 \
-        --out "$OUT/numba-warmup" >"$OUT/numba-warmup.log" 2>&1 &
+        --out "$RUNS/numba-warmup" >"$OUT/numba-warmup.log" 2>&1 &
     WARMUP_PID=$!
 }
 
@@ -197,23 +198,26 @@ throughput() {
     window=$((window < WINDOW ? window : WINDOW))
     say "throughput: drivenav eval --agent drive-nav on v1, $WORKERS workers, embedded detector + served SAM3, ${window}s"
     (while true; do
-        printf '%s\t%s\n' "$(date +%s.%N)" "$(cat "$dir/run/episodes.jsonl" 2>/dev/null | wc -l)"
+        printf '%s\t%s\n' "$(date +%s.%N)" "$(cat "$RUNS/throughput/episodes.jsonl" 2>/dev/null | wc -l)"
         sleep 2
     done) >"$dir/progress.tsv" &
     sampler=$!
     t1=$(date +%s.%N)
     timeout -s INT -k 30 "$window" "$PYTHON" -m drivenav.cli eval --agent drive-nav --scenes procedural:40,maps \
         --seed 2026 --episodes src/drivenav/data/benchmarks/v1.json.gz --workers "$WORKERS" --detector embedded \
-        --detector-shadow-url "tcp://127.0.0.1:$port" --out "$dir/run" >"$dir/eval.out" 2>"$dir/eval.log"
+        --detector-shadow-url "tcp://127.0.0.1:$port" --out "$RUNS/throughput" >"$dir/eval.out" 2>"$dir/eval.log"
     rc=$?
     ((rc == 124)) && rc=0  # stopped at the window's end: the finished episodes are kept
-    printf '%s\t%s\n' "$(date +%s.%N)" "$(cat "$dir/run/episodes.jsonl" 2>/dev/null | wc -l)" >>"$dir/progress.tsv"
+    printf '%s\t%s\n' "$(date +%s.%N)" "$(cat "$RUNS/throughput/episodes.jsonl" 2>/dev/null | wc -l)" \
+        >>"$dir/progress.tsv"
+    mkdir -p "$dir/run" && cp "$RUNS"/throughput/{episodes.jsonl,run.json,summary.json} "$dir/run/" 2>/dev/null
     kill "$sampler" 2>/dev/null
     echo "$t1" >"$dir/eval_start"
     kill "$server" 2>/dev/null
     timeout 15 tail --pid="$server" -f /dev/null || kill -9 "$server" 2>/dev/null
     record throughput "$rc" $(($(date +%s) - t0)) "$limit" "window ${window}s, $WORKERS workers"
     say "throughput: eval done (exit $rc; $(cat "$dir/run/episodes.jsonl" 2>/dev/null | wc -l) episodes finished)"
+    rm -rf "$RUNS"
 }
 
 setup
