@@ -12,7 +12,6 @@ frame runs through, never the text encoders (run once per phrase and episode).
 from __future__ import annotations
 
 import copy
-from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -34,12 +33,7 @@ from drivenav.types import CameraIntrinsics, Observation, Pose
 H, W = 48, 64
 
 
-@pytest.fixture(scope="module", autouse=True)
-def one_torch_thread() -> Iterator[None]:
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 def observation(seed: int, step: int) -> Observation:

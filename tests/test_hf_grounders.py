@@ -59,13 +59,7 @@ H, W = 48, 64  # the frame; both models see a square image (56 pixels for SAM3, 
 OWL_BOXES = (TINY_OWL_SIZE // TINY_OWL_PATCH) ** 2  # one box per patch
 
 
-@pytest.fixture(scope="module", autouse=True)
-def one_torch_thread() -> Iterator[None]:
-    """Tiny models gain nothing from threads; on shared cores extra threads only oversubscribe them."""
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 @pytest.fixture(scope="module")

@@ -45,12 +45,7 @@ from timm_stand_in import install as install_timm_stand_in
 H, W = 30, 40  # the frame: its long side is resized to the tiny encoder's 64 pixels (x 1.6), 48 x 64 then padded
 
 
-@pytest.fixture(scope="module", autouse=True)
-def one_torch_thread() -> Iterator[None]:
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 @pytest.fixture(scope="module")

@@ -62,7 +62,7 @@ def add_serve(commands: Commands) -> None:
 
 
 def _cmd_serve_grounder(args: argparse.Namespace) -> int:
-    from drivenav.semantics.grounder_server import run_server
+    from drivenav.semantics.grounder_server import build_server, run_server
     from drivenav.semantics.registry import ModelSpec, check_models
     from drivenav.semantics.serve_config import ServeConfig
     from drivenav.wire.security import check_bind
@@ -84,7 +84,7 @@ def _cmd_serve_grounder(args: argparse.Namespace) -> int:
     if build is None:  # random weights need no checkpoint
         check_models(spec, connect=False)
     try:
-        run_server(spec, args.bind, args.keys, config, build, described)
+        run_server(build_server(spec, args.bind, args.keys, config, build, described), args.keys is not None)
     except KeyboardInterrupt:
         print("drivenav: stopped serving the grounder", file=sys.stderr)
         return 130

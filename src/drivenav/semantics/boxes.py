@@ -81,7 +81,6 @@ class BoxGrounder(TransformersGrounder):
         processor: Any,
         device: str | None,
         dtype: str,
-        *,
         score_threshold: float,
         max_boxes: int,
         segmenter: BoxSegmenter | None,

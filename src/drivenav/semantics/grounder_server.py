@@ -312,21 +312,13 @@ def build_server(
     return GrounderServer((lambda: probe) if not info.labels else factory, info, bind, keys, config)
 
 
-def run_server(
-    spec: ModelSpec,
-    bind: str,
-    keys: Path | None,
-    config: ServeConfig,
-    build: Callable[[ModelSpec], Grounder] | None = None,
-    model: str = "",
-) -> None:
-    """Serve ``spec``'s grounder until Ctrl-C (or SIGTERM); the first line printed names the endpoint (``build``,
-    ``model``: as for :func:`build_server`), the last one what was served (:func:`batches_line`)."""
-    server = build_server(spec, bind, keys, config, build, model)
-    info = server.info
+def run_server(server: GrounderServer, curve: bool) -> None:
+    """Serve until Ctrl-C (or SIGTERM); the first line printed names the endpoint (``curve``: keys were given), the
+    last one what was served (:func:`batches_line`)."""
+    info, config = server.info, server.config
     print(
         f"serving the grounder {info.detector} ({info.model}, {info.device}, {info.dtype}; batch {config.batch} or "
-        f"{config.batch_ms:g} ms) on {server.endpoint}{' with CURVE' if keys else ''} (Ctrl-C stops)",
+        f"{config.batch_ms:g} ms) on {server.endpoint}{' with CURVE' if curve else ''} (Ctrl-C stops)",
         flush=True,
     )
     try:

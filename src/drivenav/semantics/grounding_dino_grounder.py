@@ -105,24 +105,12 @@ class GroundingDinoGrounder(BoxGrounder):
     ) -> None:
         from transformers import GroundingDinoForObjectDetection, GroundingDinoProcessor
 
-        loaded, processor = load_pair(
+        loaders = (
             GroundingDinoForObjectDetection.from_pretrained,
             load_fast_processor(GroundingDinoProcessor.from_pretrained),
-            model,
-            GROUNDING_DINO_EXPECTED,
-            model_obj,
-            processor_obj,
         )
-        super().__init__(
-            loaded,
-            processor,
-            device,
-            dtype,
-            score_threshold=score_threshold,
-            max_boxes=max_boxes,
-            segmenter=segmenter,
-            compile_backend=compile_backend,
-        )
+        pair = load_pair(*loaders, model, GROUNDING_DINO_EXPECTED, model_obj, processor_obj)
+        super().__init__(*pair, device, dtype, score_threshold, max_boxes, segmenter, compile_backend)
 
     def compiled_modules(self) -> list[Any]:
         inner = self.model.model

@@ -73,24 +73,9 @@ class Owlv2Grounder(BoxGrounder):
     ) -> None:
         from transformers import Owlv2ForObjectDetection, Owlv2Processor
 
-        loaded, processor = load_pair(
-            Owlv2ForObjectDetection.from_pretrained,
-            load_fast_processor(Owlv2Processor.from_pretrained),
-            model,
-            OWLV2_EXPECTED,
-            model_obj,
-            processor_obj,
-        )
-        super().__init__(
-            loaded,
-            processor,
-            device,
-            dtype,
-            score_threshold=score_threshold,
-            max_boxes=max_boxes,
-            segmenter=segmenter,
-            compile_backend=compile_backend,
-        )
+        loaders = Owlv2ForObjectDetection.from_pretrained, load_fast_processor(Owlv2Processor.from_pretrained)
+        pair = load_pair(*loaders, model, OWLV2_EXPECTED, model_obj, processor_obj)
+        super().__init__(*pair, device, dtype, score_threshold, max_boxes, segmenter, compile_backend)
 
     def compiled_modules(self) -> list[Any]:
         return [self.model.owlv2.vision_model, self.model.box_head, self.model.class_head]
