@@ -1,4 +1,4 @@
-"""Shared fixtures: the packaged floor plans and a command-line runner."""
+"""Shared fixtures: the packaged floor plans, a command-line runner, one torch thread for the tiny models."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ limit_blas_threads()  # before numpy loads
 import importlib.metadata
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -34,6 +35,18 @@ collect_ignore = [] if _has_habitat_lab() else ["habitat"]
 def maps_dir() -> Path:
     """The nine real floor plans shipped with drivenav (the ``--scenes`` part ``maps``)."""
     return packaged_maps_dir()
+
+
+@pytest.fixture(scope="module")
+def one_torch_thread() -> Iterator[None]:
+    """Tiny models gain nothing from threads; on shared cores extra threads only oversubscribe them (a module of
+    torch tests uses it with ``pytestmark = pytest.mark.usefixtures("one_torch_thread")``)."""
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
 
 
 def run_cli(*args: str, timeout: float = 600.0) -> subprocess.CompletedProcess[str]:

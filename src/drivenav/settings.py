@@ -34,7 +34,7 @@ from drivenav.mapping.config import MapTuning
 from drivenav.methods import PRESETS, agent_names, method_named, preset_names
 from drivenav.paper import DriveNavConfig
 from drivenav.ranges import MAX_GRID_SIDE, Range, SettingError, check_ranges, check_rule
-from drivenav.semantics.registry import DETECTORS, DTYPES, REASONERS, SCORERS, ModelSpec
+from drivenav.semantics.registry import DETECTORS, DTYPES, REASONERS, SCORERS, SEGMENTERS, ModelSpec
 from drivenav.types import SimConfig
 from drivenav.validation import check_unique_keys, yaml_problem
 
@@ -103,6 +103,7 @@ class Settings:
             ("run.agent", agent_names(), "--agent"),
             ("models.reasoner", REASONERS, "--reasoner"),
             ("models.detector", DETECTORS, "--detector"),
+            ("models.segmenter", SEGMENTERS, "--segmenter"),
             ("models.scorer", SCORERS, "--scorer"),
             ("models.dtype", DTYPES, "--dtype"),
         )
