@@ -1,4 +1,4 @@
-"""Shared fixtures: the packaged floor plans and a command-line runner."""
+"""Shared fixtures: the packaged floor plans, a command-line runner, one torch thread for the tiny models."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ limit_blas_threads()  # before numpy loads
 import importlib.metadata
 import subprocess
 import sys
+from collections.abc import Iterator
 from functools import cache
 from pathlib import Path
 from types import SimpleNamespace
@@ -41,6 +42,18 @@ def maps_dir() -> Path:
     return packaged_maps_dir()
 
 
+@pytest.fixture(scope="module")
+def one_torch_thread() -> Iterator[None]:
+    """Tiny models gain nothing from threads; on shared cores extra threads only oversubscribe them (a module of
+    torch tests uses it with ``pytestmark = pytest.mark.usefixtures("one_torch_thread")``)."""
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
+
+
 def run_cli(*args: str, timeout: float = 600.0) -> subprocess.CompletedProcess[str]:
     """Run ``drivenav ARGS`` in a fresh interpreter, capturing output."""
     return subprocess.run(
@@ -57,11 +70,16 @@ def registries() -> dict[str, Registry[Any]]:
     """Every entry-point registry of drivenav, by group."""
     from drivenav.agent.explorers import EXPLORERS
     from drivenav.robot.registry import MOTIONS, SOURCES
-    from drivenav.semantics.registry import GROUNDER_BACKENDS, REASONER_BACKENDS, SCORER_BACKENDS
+    from drivenav.semantics.registry import (
+        GROUNDER_BACKENDS,
+        REASONER_BACKENDS,
+        SCORER_BACKENDS,
+        SEGMENTER_BACKENDS,
+    )
     from drivenav.worlds import WORLDS
 
     found: list[Registry[Any]] = [
-        EXPLORERS, WORLDS, REASONER_BACKENDS, GROUNDER_BACKENDS, SCORER_BACKENDS, SOURCES, MOTIONS
+        EXPLORERS, WORLDS, REASONER_BACKENDS, GROUNDER_BACKENDS, SEGMENTER_BACKENDS, SCORER_BACKENDS, SOURCES, MOTIONS
     ]  # fmt: skip
     return {registry.group: registry for registry in found}
 

@@ -24,6 +24,7 @@ KEYS = (
     "preprocess_ms",
     "forward_ms",
     "postprocess_ms",
+    "segment_ms",
     "device",
     "dtype",
     "served_ms_per_frame",
@@ -40,7 +41,7 @@ def bench(capsys: pytest.CaptureFixture[str], *args: str) -> dict[str, Any]:
     return result
 
 
-@pytest.mark.parametrize("detector", ["sam3", "owlv2"])
+@pytest.mark.parametrize("detector", ["sam3", "owlv2", "grounding-dino"])
 def test_bench_grounder_tiny_prints_the_figures(detector: str, capsys: pytest.CaptureFixture[str]) -> None:
     result = bench(capsys, "--detector", detector, "--frames", "3")
     assert set(KEYS) <= set(result)
@@ -52,6 +53,18 @@ def test_bench_grounder_tiny_prints_the_figures(detector: str, capsys: pytest.Ca
     stages = [result[key] for key in ("preprocess_ms", "forward_ms", "postprocess_ms")]
     assert all(isinstance(ms, float) and ms > 0.0 for ms in [*stages, result["median_ms"]])
     assert result["p90_ms"] >= result["median_ms"]
+    if detector == "sam3":  # its own masks
+        assert result["segment_ms"] is None and "boxes to masks" not in result["notes"]
+    else:  # the filled box: a part of postprocessing
+        assert 0.0 <= result["segment_ms"] <= result["postprocess_ms"]
+        assert "boxes to masks: filled-box, a median of" in result["notes"]
+
+
+@pytest.mark.parametrize("detector", ["owlv2", "grounding-dino"])
+def test_bench_grounder_times_mobilesam_apart(detector: str, capsys: pytest.CaptureFixture[str]) -> None:
+    result = bench(capsys, "--detector", detector, "--segmenter", "mobilesam", "--frames", "2")
+    assert 0.0 < result["segment_ms"] <= result["postprocess_ms"]
+    assert "boxes to masks: mobilesam (tiny random weights), a median of " in result["notes"]
 
 
 def test_bench_grounder_batch_and_dtype(capsys: pytest.CaptureFixture[str]) -> None:
@@ -73,6 +86,8 @@ def test_bench_grounder_plain_output_is_one_line_per_figure(capsys: pytest.Captu
         (["--detector-model", "/some/dir", "--random-weights"], ["--detector-model", "--random-weights"]),
         (["--frames", "0"], ["--frames", "a positive integer"]),
         (["--batch", "0"], ["--batch"]),
+        (["--segmenter", "mobilesam", "--segmenter-model", "/m.pt", "--tiny"], ["--segmenter-model", "--tiny"]),
+        (["--detector", "sam3", "--segmenter", "mobilesam"], ["--segmenter", "filled-box with --detector sam3"]),
     ],
 )
 def test_bench_grounder_bad_options_are_one_line(
@@ -117,9 +132,17 @@ def test_the_dtype_option_sets_models_dtype(capsys: pytest.CaptureFixture[str]) 
     assert "dtype: bfloat16" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize(("detector", "module"), [("sam3", "sam3_grounder"), ("owlv2", "owlv2_grounder")])
-def test_the_registry_hands_the_dtype_to_the_grounder(
-    detector: str, module: str, monkeypatch: pytest.MonkeyPatch
+@pytest.mark.parametrize(
+    ("detector", "module", "class_name"),
+    [
+        ("sam3", "sam3_grounder", "Sam3Grounder"),
+        ("owlv2", "owlv2_grounder", "Owlv2Grounder"),
+        ("grounding-dino", "grounding_dino_grounder", "GroundingDinoGrounder"),
+    ],
+)
+@pytest.mark.parametrize("compile_models", [False, True])
+def test_the_registry_hands_the_dtype_and_compile_to_the_grounder(
+    detector: str, module: str, class_name: str, compile_models: bool, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     pytest.importorskip("transformers")
     seen: dict[str, Any] = {}
@@ -128,7 +151,25 @@ def test_the_registry_hands_the_dtype_to_the_grounder(
         def __init__(self, model: str, **kwargs: Any) -> None:
             seen.update(kwargs, model=model)
 
-    class_name = "Sam3Grounder" if detector == "sam3" else "Owlv2Grounder"
     monkeypatch.setattr(f"drivenav.semantics.{module}.{class_name}", Recorder)
-    make_grounder(ModelSpec(detector=detector, detector_model="/weights", dtype="float16"))
-    assert seen == {"model": "/weights", "dtype": "float16"}
+    make_grounder(ModelSpec(detector=detector, detector_model="/weights", dtype="float16", compile=compile_models))
+    segmenter = seen.pop("segmenter", None)
+    assert seen == {"model": "/weights", "dtype": "float16", "compile_backend": "inductor" if compile_models else ""}
+    assert (type(segmenter).__name__ if segmenter else None) == (None if detector == "sam3" else "FilledBoxSegmenter")
+
+
+def test_the_compile_option_sets_models_compile(capsys: pytest.CaptureFixture[str]) -> None:
+    parser = build_parser()
+    assert "models.compile" not in given_options(parser.parse_args([*EVAL, "--out", "run"]))
+    args = parser.parse_args([*EVAL, "--out", "run", "--compile", "--segmenter", "mobilesam", "--segmenter-model", "m"])
+    assert given_options(args) == {
+        "models.compile": True,
+        "models.segmenter": "mobilesam",
+        "models.segmenter_model": "m",
+    }
+    assert load_settings("drive-nav").models.compile is False
+    assert main(["config", "show", "--set", "models.compile=true"]) == 0
+    assert "compile: true" in capsys.readouterr().out
+
+
+EVAL = ["eval", "--agent", "oracle", "--episodes", "1"]

@@ -1,7 +1,7 @@
 """The served grounder (``drivenav serve grounder``, ``--detector remote``, ``eval --share-detector``) on the CPU:
-served and in-process detections identical in fp32 (tiny random SAM3 and OWLv2, the embedded and ground-truth
-stand-ins), dynamic batching, a stalled or gone server ending only the waiting episode (no run hangs), hostile
-requests, loopback-only binds, and runs through a server giving the in-process records.
+served and in-process detections identical in fp32 (tiny random SAM3, OWLv2 with MobileSAM, Grounding DINO, the
+embedded and ground-truth stand-ins), dynamic batching, a stalled or gone server ending only the waiting episode (no
+run hangs), hostile requests, loopback-only binds, and runs through a server giving the in-process records.
 
 Every server binds 127.0.0.1 (a free port) and is stopped by its test. No timing is asserted.
 """
@@ -104,14 +104,17 @@ def remote(endpoint: str, info: ServedInfo, timeout_s: float = 20.0) -> Iterator
 
 
 @pytest.fixture(scope="module")
-def transformers_grounders() -> dict[str, Callable[[], Grounder]]:
-    """Tiny random SAM3 and OWLv2 (threshold 0: every query or box is kept, so there is much to compare)."""
+def transformers_grounders() -> dict[str, tuple[str, Callable[[], Grounder]]]:
+    """Tiny random SAM3, OWLv2 with MobileSAM and Grounding DINO (threshold 0: every query or box is kept, so there
+    is much to compare), by case: the detector's name and a factory of grounders sharing one model."""
     pytest.importorskip("torch")
     pytest.importorskip("transformers")
     import torch
 
-    from drivenav.eval.random_grounders import random_owlv2, random_sam3
+    from drivenav.semantics.grounding_dino_grounder import GroundingDinoGrounder
+    from drivenav.semantics.mobilesam_segmenter import MobileSamSegmenter
     from drivenav.semantics.owlv2_grounder import Owlv2Grounder
+    from drivenav.semantics.random_grounders import random_grounding_dino, random_mobile_sam, random_owlv2, random_sam3
     from drivenav.semantics.sam3_grounder import Sam3Grounder
 
     torch.set_num_threads(1)
@@ -121,21 +124,32 @@ def transformers_grounders() -> dict[str, Callable[[], Grounder]]:
     with torch.no_grad():  # boxes at their patch priors (a random regressor saturates them)
         owl.box_head.dense2.weight.zero_()
         owl.box_head.dense2.bias.zero_()
+    mobile_sam = MobileSamSegmenter(random_mobile_sam(tiny=True), "cpu")
+    gdino, gdino_processor = random_grounding_dino(tiny=True)
 
     def make_sam3() -> Grounder:
         return Sam3Grounder(device="cpu", score_threshold=0.0, model_obj=sam3, processor_obj=sam3_processor)
 
     def make_owl() -> Grounder:
-        return Owlv2Grounder(device="cpu", score_threshold=0.0, model_obj=owl, processor_obj=owl_processor)
+        return Owlv2Grounder(
+            device="cpu", score_threshold=0.0, model_obj=owl, processor_obj=owl_processor, segmenter=mobile_sam
+        )
 
-    return {"sam3": make_sam3, "owlv2": make_owl}
+    def make_gdino() -> Grounder:
+        return GroundingDinoGrounder(device="cpu", score_threshold=0.0, model_obj=gdino, processor_obj=gdino_processor)
+
+    return {
+        "sam3": ("sam3", make_sam3),
+        "owlv2+mobilesam": ("owlv2", make_owl),
+        "grounding-dino": ("grounding-dino", make_gdino),
+    }
 
 
-@pytest.mark.parametrize("detector", ["sam3", "owlv2"])
+@pytest.mark.parametrize("case", ["sam3", "owlv2+mobilesam", "grounding-dino"])
 def test_served_and_in_process_detections_are_identical_in_fp32(
-    detector: str, transformers_grounders: dict[str, Callable[[], Grounder]]
+    case: str, transformers_grounders: dict[str, tuple[str, Callable[[], Grounder]]]
 ) -> None:
-    factory = transformers_grounders[detector]
+    detector, factory = transformers_grounders[case]
     local = factory()
     local.begin_episode(None, 0)
     with served(factory, detector) as (server, info), remote(server.endpoint, info) as grounder:
@@ -198,11 +212,11 @@ def test_a_deferred_rgb_image_is_not_rendered_for_a_stand_in() -> None:
 
 
 def test_the_server_batches_the_frames_of_concurrent_clients(
-    transformers_grounders: dict[str, Callable[[], Grounder]],
+    transformers_grounders: dict[str, tuple[str, Callable[[], Grounder]]],
 ) -> None:
     """Four clients, a batch of up to 4 frames or 300 ms: batches of several frames, each client's detections those
     of its own frame (a batched matrix product may round differently: scores within 1e-6)."""
-    factory = transformers_grounders["sam3"]
+    _, factory = transformers_grounders["sam3"]
     local = factory()
     frames = [observation(seed, seed) for seed in range(4)]
     expected = [local.segment(frame, "chair") for frame in frames]

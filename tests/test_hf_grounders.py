@@ -1,9 +1,11 @@
-"""The SAM3 and OWLv2 grounders end to end on tiny randomly initialised transformers models (no downloads).
+"""The SAM3, OWLv2 and Grounding DINO grounders end to end on tiny randomly initialised transformers models (no
+downloads).
 
-The models and processors are :mod:`drivenav.eval.random_grounders`' tiny configuration (``bench grounder --tiny``
-uses the same): CLIP BPE tokenizers over a 55-entry letter vocabulary; torchvision's fast image processors where
-torchvision is installed (those the grounders load), else OWLv2's PIL processor (injected: the grounder refuses to
-load it) and, for SAM3, a stand-in on ViT's PIL backend.
+The models and processors are :mod:`drivenav.semantics.random_grounders`' tiny configuration (``bench grounder --tiny``
+uses the same): CLIP BPE tokenizers over a 55-entry letter vocabulary (a WordPiece one for Grounding DINO's BERT);
+torchvision's fast image processors where torchvision is installed (those the grounders load), else OWLv2's and
+Grounding DINO's PIL processors (injected: the grounders refuse to load them) and, for SAM3, a stand-in on ViT's PIL
+backend.
 
 The grounders split the forward into cached stages (text features per phrase, vision features per frame); the
 equivalence tests compare them exactly with one plain forward of the model, in fp32 on the CPU.
@@ -24,21 +26,32 @@ pytest.importorskip("torch")
 pytest.importorskip("transformers")
 
 import torch
-from transformers import Owlv2ForObjectDetection, Owlv2Processor, Sam3Model, Sam3Processor
+from transformers import (
+    GroundingDinoForObjectDetection,
+    GroundingDinoProcessor,
+    Owlv2ForObjectDetection,
+    Owlv2Processor,
+    Sam3Model,
+    Sam3Processor,
+)
 
 from drivenav.errors import InputError
-from drivenav.eval.random_grounders import (
+from drivenav.semantics.boxes import MAX_BOXES, FilledBoxSegmenter
+from drivenav.semantics.grounding_dino_grounder import GroundingDinoGrounder
+from drivenav.semantics.hf_common import fit_phrase, load_local, pick_device, ranked_detections, resolve_dtype
+from drivenav.semantics.owlv2_grounder import Owlv2Grounder
+from drivenav.semantics.protocols import Detection, Grounder
+from drivenav.semantics.random_grounders import (
     HAS_TORCHVISION,
+    TINY_GROUNDING_DINO_QUERIES,
     TINY_OWL_PATCH,
     TINY_OWL_SIZE,
     TINY_SAM3_QUERIES,
     letter_tokenizer,
+    random_grounding_dino,
     random_owlv2,
     random_sam3,
 )
-from drivenav.semantics.hf_common import fit_phrase, load_local, pick_device, ranked_detections, resolve_dtype
-from drivenav.semantics.owlv2_grounder import OWLV2_MAX_BOXES, FilledBoxSegmenter, Owlv2Grounder
-from drivenav.semantics.protocols import Detection, Grounder
 from drivenav.semantics.sam3_grounder import Sam3Grounder
 from drivenav.types import CameraIntrinsics, GroundTruth, Observation, Pose
 
@@ -46,13 +59,7 @@ H, W = 48, 64  # the frame; both models see a square image (56 pixels for SAM3, 
 OWL_BOXES = (TINY_OWL_SIZE // TINY_OWL_PATCH) ** 2  # one box per patch
 
 
-@pytest.fixture(scope="module", autouse=True)
-def one_torch_thread() -> Iterator[None]:
-    """Tiny models gain nothing from threads; on shared cores extra threads only oversubscribe them."""
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 @pytest.fixture(scope="module")
@@ -71,6 +78,12 @@ def owl() -> tuple[Owlv2ForObjectDetection, Owlv2Processor]:
         model.box_head.dense2.weight.zero_()
         model.box_head.dense2.bias.zero_()
     return model, processor
+
+
+@pytest.fixture(scope="module")
+def gdino() -> tuple[GroundingDinoForObjectDetection, GroundingDinoProcessor]:
+    torch.manual_seed(0)
+    return random_grounding_dino(tiny=True)
 
 
 def observation(seed: int = 0, step: int = 0) -> Observation:
@@ -93,6 +106,15 @@ def sam3_grounder(sam3: tuple[Sam3Model, Sam3Processor], threshold: float) -> Sa
 def owl_grounder(owl: tuple[Owlv2ForObjectDetection, Owlv2Processor], threshold: float, **kwargs: Any) -> Owlv2Grounder:
     model, processor = owl
     return Owlv2Grounder(device="cpu", score_threshold=threshold, model_obj=model, processor_obj=processor, **kwargs)
+
+
+def gdino_grounder(
+    gdino: tuple[GroundingDinoForObjectDetection, GroundingDinoProcessor], threshold: float, **kwargs: Any
+) -> GroundingDinoGrounder:
+    model, processor = gdino
+    return GroundingDinoGrounder(
+        device="cpu", score_threshold=threshold, model_obj=model, processor_obj=processor, **kwargs
+    )
 
 
 def assert_well_formed(detections: list[Detection], phrase: str) -> None:
@@ -293,10 +315,79 @@ def test_owlv2_refuses_the_pil_image_processor(
         Owlv2Grounder(str(tmp_path), device="cpu")
 
 
+# --- Grounding DINO ---
+
+
+def test_grounding_dino_satisfies_the_grounder_protocol(gdino: Any) -> None:
+    grounder: Grounder = gdino_grounder(gdino, 0.35)
+    assert grounder.name == "grounding-dino"
+    grounder.begin_episode(None, seed=0)
+
+
+def test_grounding_dino_scores_every_query_and_the_threshold_is_strict(gdino: Any) -> None:
+    everything = gdino_grounder(gdino, 0.0).segment(observation(), "chair")
+    assert 0 < len(everything) <= TINY_GROUNDING_DINO_QUERIES
+    assert_well_formed(everything, "chair")
+    scores = sorted({d.score for d in everything})
+    cut = scores[len(scores) // 2]
+    assert {d.score for d in gdino_grounder(gdino, cut).segment(observation(), "chair")} == {
+        s for s in scores if s > cut
+    }
+    assert gdino_grounder(gdino, 1.0).segment(observation(), "chair") == []
+
+
+def test_grounding_dino_uses_the_given_box_segmenter_on_the_best_boxes(gdino: Any) -> None:
+    segmenter = TopRowSegmenter()
+    detections = gdino_grounder(gdino, 0.0, segmenter=segmenter, max_boxes=3).segment(observation(), "chair")
+    assert [call.shape for call in segmenter.calls] == [(3, 4)]
+    assert all(bounding_rectangle(d.mask)[1] - bounding_rectangle(d.mask)[0] == 1 for d in detections)
+    everything = gdino_grounder(gdino, 0.0).segment(observation(), "chair")
+    assert [d.score for d in detections] == [d.score for d in everything[: len(detections)]]
+
+
+def test_grounding_dino_prompt_is_the_lower_cased_phrase_with_a_period(gdino: Any) -> None:
+    text = gdino_grounder(gdino, 0.0).encode_text("Red Chair")
+    tokens = gdino[1].tokenizer.convert_ids_to_tokens(text.input_ids[0].tolist())
+    assert tokens[0] == "[CLS]" and tokens[-2:] == [".", "[SEP]"] and "r" in tokens
+    assert text.token_type_ids.shape == text.input_ids.shape and not text.encoded
+
+
+def test_grounding_dino_text_recorded_in_a_batch_serves_a_single_frame(gdino: Any) -> None:
+    """The text encoder's output recorded at a batch of three frames is given back to a later single frame: the
+    plain forward's detections, the encoder not run again."""
+    grounder = gdino_grounder(gdino, 0.0)
+    text_encoder, _ = encoders("grounding-dino", {"grounding-dino": gdino})
+    with counting(text_encoder) as text_runs:
+        grounder.segment_batch([observation(seed).rgb for seed in range(3)], "chair")
+        single = grounder.segment(observation(5), "chair")
+    assert len(text_runs) == 1
+    assert exactly_equal(single, plain_boxes(gdino, observation(5), "chair"))
+
+
+@pytest.mark.skipif(not HAS_TORCHVISION, reason="loading takes torchvision's image processor")
+def test_grounding_dino_loads_model_and_processor_from_a_saved_directory(gdino: Any, tmp_path: Path) -> None:
+    model, processor = gdino
+    model.save_pretrained(tmp_path)
+    processor.save_pretrained(tmp_path)
+    loaded = GroundingDinoGrounder(str(tmp_path), device="cpu", score_threshold=0.0)
+    assert loaded.model is not model and loaded.processor.image_processor.backend == "torchvision"
+    assert same_detections(
+        loaded.segment(observation(), "chair"), gdino_grounder(gdino, 0.0).segment(observation(), "chair")
+    )
+
+
+@pytest.mark.skipif(HAS_TORCHVISION, reason="checks the refusal without torchvision")
+def test_grounding_dino_refuses_the_pil_image_processor(gdino: Any, tmp_path: Path) -> None:
+    gdino[0].save_pretrained(tmp_path)
+    gdino[1].save_pretrained(tmp_path)
+    with pytest.raises(ImportError, match="torchvision"):
+        GroundingDinoGrounder(str(tmp_path), device="cpu")
+
+
 # --- missing weights, loading, device ---
 
 
-@pytest.mark.parametrize("grounder", [Sam3Grounder, Owlv2Grounder])
+@pytest.mark.parametrize("grounder", [Sam3Grounder, Owlv2Grounder, GroundingDinoGrounder])
 @pytest.mark.parametrize("where", ["missing", "empty", "no-such-org/no-such-model"])
 def test_missing_weights_are_a_one_line_input_error(grounder: Any, where: str, tmp_path: Path) -> None:
     model = {"missing": str(tmp_path / "nowhere"), "empty": str(tmp_path), "no-such-org/no-such-model": where}[where]
@@ -325,14 +416,28 @@ def test_device_defaults_to_cuda_only_when_visible() -> None:
     assert pick_device(None) == ("cuda" if torch.cuda.is_available() else "cpu")
 
 
+WHICH = ["sam3", "owlv2", "grounding-dino"]
+Models = dict[str, tuple[Any, Any]]
+
+
+@pytest.fixture(scope="module")
+def models(sam3: Any, owl: Any, gdino: Any) -> Models:
+    return {"sam3": sam3, "owlv2": owl, "grounding-dino": gdino}
+
+
+def fresh(which: str, models: Models) -> Sam3Grounder | Owlv2Grounder | GroundingDinoGrounder:
+    """The grounder at threshold 0 (every query or box kept)."""
+    if which == "sam3":
+        return sam3_grounder(models["sam3"], 0.0)
+    return owl_grounder(models["owlv2"], 0.0) if which == "owlv2" else gdino_grounder(models["grounding-dino"], 0.0)
+
+
 LONG_PHRASE = "tall wooden bookshelf near the window"  # 37 characters: one token per letter here
 
 
-@pytest.mark.parametrize("which", ["sam3", "owlv2"])
-def test_a_phrase_longer_than_the_text_encoder_still_grounds(
-    which: str, sam3: tuple[Sam3Model, Sam3Processor], owl: tuple[Owlv2ForObjectDetection, Owlv2Processor]
-) -> None:
-    grounder = sam3_grounder(sam3, 0.0) if which == "sam3" else owl_grounder(owl, 0.0)
+@pytest.mark.parametrize("which", WHICH)
+def test_a_phrase_longer_than_the_text_encoder_still_grounds(which: str, models: Models) -> None:
+    grounder = fresh(which, models)
     detections = grounder.segment(observation(), LONG_PHRASE)
     assert detections
     assert_well_formed(detections, LONG_PHRASE)
@@ -377,8 +482,9 @@ def plain_sam3(sam3: tuple[Sam3Model, Sam3Processor], obs: Observation, phrase: 
     return ranked_detections(result["scores"].numpy(), result["masks"].bool().numpy(), phrase)
 
 
-def plain_owl(owl: tuple[Owlv2ForObjectDetection, Owlv2Processor], obs: Observation, phrase: str) -> list[Detection]:
-    model, processor = owl
+def plain_boxes(boxes_model: tuple[Any, Any], obs: Observation, phrase: str) -> list[Detection]:
+    """OWLv2's or Grounding DINO's plain forward on the processor's image and phrase, the processor's boxes filled."""
+    model, processor = boxes_model
     with torch.inference_mode():
         outputs = model(**plain_batch(processor, obs.rgb, [phrase]))
     result = processor.post_process_grounded_object_detection(outputs, threshold=0.0, target_sizes=[(H, W)])[0]
@@ -393,48 +499,47 @@ def exactly_equal(a: list[Detection], b: list[Detection]) -> bool:
     )
 
 
-def encoders(which: str, sam3: Any, owl: Any) -> tuple[torch.nn.Module, torch.nn.Module]:
+def encoders(which: str, models: Models) -> tuple[torch.nn.Module, torch.nn.Module]:
     """The text and vision encoders of the model (what the caches spare)."""
+    model = models[which][0]
     if which == "sam3":
-        return sam3[0].text_encoder, sam3[0].vision_encoder
-    return owl[0].owlv2.text_model, owl[0].owlv2.vision_model
+        return model.text_encoder, model.vision_encoder
+    if which == "owlv2":
+        return model.owlv2.text_model, model.owlv2.vision_model
+    return model.model.text_backbone, model.model.backbone.conv_encoder
 
 
-def plain(which: str, sam3: Any, owl: Any, obs: Observation, phrase: str) -> list[Detection]:
-    return plain_sam3(sam3, obs, phrase) if which == "sam3" else plain_owl(owl, obs, phrase)
-
-
-def fresh(which: str, sam3: Any, owl: Any) -> Sam3Grounder | Owlv2Grounder:
-    return sam3_grounder(sam3, 0.0) if which == "sam3" else owl_grounder(owl, 0.0)
+def plain(which: str, models: Models, obs: Observation, phrase: str) -> list[Detection]:
+    return plain_sam3(models["sam3"], obs, phrase) if which == "sam3" else plain_boxes(models[which], obs, phrase)
 
 
 PHRASES = ("chair", "red chair", "sofa", "potted plant", "tv")
 
 
-@pytest.mark.parametrize("which", ["sam3", "owlv2"])
-def test_split_forward_equals_the_plain_forward(which: str, sam3: Any, owl: Any) -> None:
+@pytest.mark.parametrize("which", WHICH)
+def test_split_forward_equals_the_plain_forward(which: str, models: Models) -> None:
     for seed, phrase in enumerate(PHRASES):
         obs = observation(seed)
-        detections = fresh(which, sam3, owl).segment(obs, phrase)
-        assert detections and exactly_equal(detections, plain(which, sam3, owl, obs, phrase))
+        detections = fresh(which, models).segment(obs, phrase)
+        assert detections and exactly_equal(detections, plain(which, models, obs, phrase))
 
 
-@pytest.mark.parametrize("which", ["sam3", "owlv2"])
-def test_several_phrases_on_one_frame_encode_it_once(which: str, sam3: Any, owl: Any) -> None:
+@pytest.mark.parametrize("which", WHICH)
+def test_several_phrases_on_one_frame_encode_it_once(which: str, models: Models) -> None:
     """Prompt enrichment's case: up to five phrases on the same frame; each answer is the plain forward's."""
-    grounder, obs = fresh(which, sam3, owl), observation(3, step=7)
-    text_encoder, vision_encoder = encoders(which, sam3, owl)
+    grounder, obs = fresh(which, models), observation(3, step=7)
+    text_encoder, vision_encoder = encoders(which, models)
     with counting(vision_encoder) as vision_runs, counting(text_encoder) as text_runs:
         answers = [grounder.segment(obs, phrase) for phrase in PHRASES]
     assert (len(vision_runs), len(text_runs)) == (1, len(PHRASES))
     for phrase, detections in zip(PHRASES, answers, strict=True):
-        assert exactly_equal(detections, plain(which, sam3, owl, obs, phrase))
+        assert exactly_equal(detections, plain(which, models, obs, phrase))
 
 
-@pytest.mark.parametrize("which", ["sam3", "owlv2"])
-def test_a_phrase_is_encoded_once_per_episode(which: str, sam3: Any, owl: Any) -> None:
-    grounder = fresh(which, sam3, owl)
-    text_encoder, vision_encoder = encoders(which, sam3, owl)
+@pytest.mark.parametrize("which", WHICH)
+def test_a_phrase_is_encoded_once_per_episode(which: str, models: Models) -> None:
+    grounder = fresh(which, models)
+    text_encoder, vision_encoder = encoders(which, models)
     grounder.begin_episode(None, seed=0)
     with counting(vision_encoder) as vision_runs, counting(text_encoder) as text_runs:
         answers = [grounder.segment(observation(seed, step=seed), "chair") for seed in range(3)]
@@ -443,15 +548,15 @@ def test_a_phrase_is_encoded_once_per_episode(which: str, sam3: Any, owl: Any) -
         grounder.segment(observation(0, step=0), "chair")
         assert (len(vision_runs), len(text_runs)) == (4, 2)
     for seed, detections in enumerate(answers):
-        assert exactly_equal(detections, plain(which, sam3, owl, observation(seed), "chair"))
+        assert exactly_equal(detections, plain(which, models, observation(seed), "chair"))
 
 
-@pytest.mark.parametrize("which", ["sam3", "owlv2"])
-def test_a_new_frame_is_encoded_even_at_the_same_step(which: str, sam3: Any, owl: Any) -> None:
+@pytest.mark.parametrize("which", WHICH)
+def test_a_new_frame_is_encoded_even_at_the_same_step(which: str, models: Models) -> None:
     """The frame cache compares pixels, not only the step: a world that reuses its image buffer gets no stale
     features."""
-    grounder = fresh(which, sam3, owl)
-    _, vision_encoder = encoders(which, sam3, owl)
+    grounder = fresh(which, models)
+    _, vision_encoder = encoders(which, models)
     first, second = observation(0, step=4), observation(1, step=4)
     with counting(vision_encoder) as vision_runs:
         grounder.segment(first, "chair")
@@ -459,18 +564,18 @@ def test_a_new_frame_is_encoded_even_at_the_same_step(which: str, sam3: Any, owl
         in_place = grounder.segment(first, "chair")
         grounder.segment(observation(1, step=5), "chair")  # same pixels, next step
     assert len(vision_runs) == 3
-    assert exactly_equal(in_place, plain(which, sam3, owl, second, "chair"))
+    assert exactly_equal(in_place, plain(which, models, second, "chair"))
 
 
-@pytest.mark.parametrize("which", ["sam3", "owlv2"])
-def test_a_batch_of_frames_gives_each_frame_its_detections(which: str, sam3: Any, owl: Any) -> None:
+@pytest.mark.parametrize("which", WHICH)
+def test_a_batch_of_frames_gives_each_frame_its_detections(which: str, models: Models) -> None:
     """One forward over several frames (the bench's ``--batch``): per frame, the single-frame answer (a batched
     matrix product may round differently, so scores within 1e-6)."""
     frames = [observation(seed) for seed in range(3)]
-    batched = fresh(which, sam3, owl).segment_batch([f.rgb for f in frames], "chair")
+    batched = fresh(which, models).segment_batch([f.rgb for f in frames], "chair")
     assert len(batched) == 3
     for frame, detections in zip(frames, batched, strict=True):
-        assert same_detections(detections, plain(which, sam3, owl, frame, "chair"))
+        assert same_detections(detections, plain(which, models, frame, "chair"))
 
 
 def test_owlv2_masks_only_the_best_boxes(owl: tuple[Owlv2ForObjectDetection, Owlv2Processor]) -> None:
@@ -481,7 +586,7 @@ def test_owlv2_masks_only_the_best_boxes(owl: tuple[Owlv2ForObjectDetection, Owl
     best = owl_grounder(owl, 0.0, segmenter=segmenter, max_boxes=5).segment(observation(), "chair")
     assert [call.shape for call in segmenter.calls] == [(5, 4)]
     assert exactly_equal(best, everything[:5])
-    assert OWLV2_MAX_BOXES == 100
+    assert MAX_BOXES == 100
 
 
 # --- dtype ---
@@ -497,12 +602,12 @@ def test_dtype_auto_is_fp32_on_the_cpu_and_names_are_torch_dtypes() -> None:
         assert resolve_dtype("auto", "cuda:0") == expected
 
 
-@pytest.mark.parametrize("which", ["sam3", "owlv2"])
-def test_bfloat16_casts_the_model_and_still_grounds(which: str, sam3: Any, owl: Any) -> None:
+@pytest.mark.parametrize("which", WHICH)
+def test_bfloat16_casts_the_model_and_still_grounds(which: str, models: Models) -> None:
     """The model is cast (a copy here: the fixtures stay fp32) and the pixels follow; detections stay well formed
     and the text features are bf16 too."""
-    model, processor = copy.deepcopy(sam3 if which == "sam3" else owl)
-    kind = Sam3Grounder if which == "sam3" else Owlv2Grounder
+    model, processor = copy.deepcopy(models[which])
+    kind = {"sam3": Sam3Grounder, "owlv2": Owlv2Grounder, "grounding-dino": GroundingDinoGrounder}[which]
     grounder = kind(device="cpu", score_threshold=0.0, dtype="bfloat16", model_obj=model, processor_obj=processor)
     assert grounder.model.dtype == torch.bfloat16
     assert grounder.preprocess([observation().rgb]).dtype == torch.bfloat16

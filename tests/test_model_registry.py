@@ -1,5 +1,5 @@
-"""The model registries (``--reasoner``, ``--detector``, ``--scorer``) and the one list of reference agents: names
-and order as the command line shows them, what each backend needs, unknown names refused."""
+"""The model registries (``--reasoner``, ``--detector``, ``--segmenter``, ``--scorer``) and the one list of reference
+agents: names and order as the command line shows them, what each backend needs, unknown names refused."""
 
 from __future__ import annotations
 
@@ -14,6 +14,7 @@ from drivenav.semantics.registry import (
     GROUNDER_BACKENDS,
     REASONER_BACKENDS,
     SCORER_BACKENDS,
+    SEGMENTER_BACKENDS,
     Backend,
     ModelRegistry,
     ModelSpec,
@@ -29,7 +30,8 @@ from drivenav.types import SEMANTIC
 
 def test_the_names_and_their_order_are_the_command_lines() -> None:
     assert REASONER_BACKENDS.names == ("embedded", "openai", "replay", "geometric")
-    assert GROUNDER_BACKENDS.names == ("embedded", "ground-truth", "sam3", "owlv2", "remote")
+    assert GROUNDER_BACKENDS.names == ("embedded", "ground-truth", "sam3", "owlv2", "grounding-dino", "remote")
+    assert SEGMENTER_BACKENDS.names == ("filled-box", "mobilesam")
     assert SCORER_BACKENDS.names == ("embedded", "blip2-itm", "siglip", "replay")
 
 
@@ -63,6 +65,7 @@ def test_backends_are_built_by_name() -> None:
     [
         (ModelSpec(reasoner="gpt"), "--reasoner"),
         (ModelSpec(detector="x"), "--detector"),
+        (ModelSpec(detector="owlv2", segmenter="sam"), "--segmenter"),
         (ModelSpec(scorer="clip"), "--scorer"),
     ],
 )
@@ -95,3 +98,33 @@ def test_a_new_role_is_one_registry() -> None:
     assert CHECKED == ["x"] and scorers.reads_labels("clip") and not scorers.reads_labels("nope")
     with pytest.raises(InputError, match="field '--scorer': expected one of length, clip, got 'nope'"):
         scorers.get("nope")
+
+
+@pytest.mark.parametrize("detector", ["sam3", "embedded", "ground-truth"])
+def test_a_box_segmenter_goes_with_a_box_detector_only(detector: str, tmp_path: Path) -> None:
+    """SAM3 and the stand-ins make their own masks: --segmenter mobilesam with them is refused, not ignored; a
+    served detector's segmenter is its server's business."""
+    checkpoint = tmp_path / "mobile_sam.pt"
+    checkpoint.write_bytes(b"")
+    with pytest.raises(InputError) as caught:
+        check_models(ModelSpec(detector=detector, segmenter="mobilesam", segmenter_model=str(checkpoint)))
+    message = str(caught.value)
+    assert "field '--segmenter': expected filled-box with --detector " in message
+    assert "owlv2 and grounding-dino" in message and "\n" not in message
+    check_models(ModelSpec(detector="remote", segmenter="mobilesam"), connect=False)
+
+
+def test_mobilesam_needs_its_checkpoint_file_before_any_weights_load(tmp_path: Path) -> None:
+    for given in ("", str(tmp_path), str(tmp_path / "missing.pt")):
+        spec = ModelSpec(
+            detector="owlv2", detector_model=str(tmp_path / "no"), segmenter="mobilesam", segmenter_model=given
+        )
+        with pytest.raises(InputError, match="field '--segmenter-model': expected a MobileSAM checkpoint file"):
+            check_models(spec)
+
+
+def test_a_shadow_url_is_checked_as_an_endpoint_naming_its_option() -> None:
+    with pytest.raises(InputError, match="--detector-shadow-url"):
+        check_models(ModelSpec(detector_shadow_url="not an endpoint"), connect=False)
+    with pytest.raises(InputError, match="--detector-keys"):  # off loopback: CURVE keys
+        check_models(ModelSpec(detector_shadow_url="tcp://10.0.0.1:5557"), connect=False)

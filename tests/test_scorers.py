@@ -195,7 +195,7 @@ def siglip() -> tuple[Any, Any]:
     """A tiny SigLIP with a temperature of 10 and a bias of -2, so that both must be applied."""
     import torch
 
-    from drivenav.eval.random_grounders import letter_tokenizer as tiny_tokenizer
+    from drivenav.semantics.random_grounders import letter_tokenizer as tiny_tokenizer
 
     hf = transformers()
     torch.manual_seed(0)

@@ -3,9 +3,9 @@
 Habitat (``--env habitat``): habitat-sim and habitat-lab import, and for each split of the benchmark (or the one
 ``--split`` names) the episode file and its ``content/`` files exist, with their episode and scene counts, the
 scenes' files under ``DIR/scene_datasets`` and the scene dataset config. Models: the ``openai`` reasoner's server
-answers one request with one image in the expected schema (no repair, no fallback); a ``sam3`` / ``owlv2``
-detector loads and segments one frame; a ``blip2-itm`` / ``siglip`` scorer loads and scores one frame. The
-process exits 1 if any check failed.
+answers one request with one image in the expected schema (no repair, no fallback); a ``sam3`` / ``owlv2`` /
+``grounding-dino`` detector (with its box segmenter) loads and segments one frame; a ``blip2-itm`` / ``siglip``
+scorer loads and scores one frame. The process exits 1 if any check failed.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ import numpy as np
 from drivenav import __version__
 from drivenav.errors import InputError
 from drivenav.jit import compiled_build
-from drivenav.semantics.registry import ModelSpec
+from drivenav.semantics.registry import MODEL_DETECTORS, ModelSpec
 from drivenav.types import Observation, Pose, SimConfig
 
 if TYPE_CHECKING:
@@ -73,7 +73,7 @@ def run_checks(request: DoctorRequest) -> list[Check]:
         checks.extend(habitat_checks(request.benchmark, request.data_dir, request.split))
     if request.models.reasoner == "openai":
         checks.append(vlm_check(request.models))
-    if request.models.detector in ("sam3", "owlv2"):
+    if request.models.detector in MODEL_DETECTORS:
         checks.append(detector_check(request.models))
     if request.models.scorer in ("blip2-itm", "siglip"):
         checks.append(scorer_check(request.models))

@@ -43,6 +43,7 @@ GROUPS = (
     "drivenav.worlds",
     "drivenav.reasoners",
     "drivenav.grounders",
+    "drivenav.segmenters",
     "drivenav.scorers",
     "drivenav.robot_sources",
     "drivenav.robot_motions",

@@ -42,7 +42,14 @@ from drivenav.mapping.config import MapTuning
 from drivenav.methods import PRESETS, agent_names, method_named, preset_names
 from drivenav.paper import DriveNavConfig
 from drivenav.ranges import MAX_GRID_SIDE, Range, SettingError, check_ranges, check_rule
-from drivenav.semantics.registry import DTYPES, GROUNDER_BACKENDS, REASONER_BACKENDS, SCORER_BACKENDS, ModelSpec
+from drivenav.semantics.registry import (
+    DTYPES,
+    GROUNDER_BACKENDS,
+    REASONER_BACKENDS,
+    SCORER_BACKENDS,
+    SEGMENTER_BACKENDS,
+    ModelSpec,
+)
 from drivenav.types import SimConfig
 from drivenav.validation import check_unique_keys, yaml_problem
 
@@ -141,6 +148,7 @@ class Settings:
             ("run.agent", agent_names(), "--agent"),
             ("models.reasoner", REASONER_BACKENDS.names, "--reasoner"),
             ("models.detector", GROUNDER_BACKENDS.names, "--detector"),
+            ("models.segmenter", SEGMENTER_BACKENDS.names, "--segmenter"),
             ("models.scorer", SCORER_BACKENDS.names, "--scorer"),
             ("models.dtype", DTYPES, "--dtype"),
             ("explorer.name", EXPLORERS.names, "--set explorer.name=NAME"),

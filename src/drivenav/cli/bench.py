@@ -13,6 +13,7 @@ from drivenav.cli.common import (
     add_execution_options,
     add_max_steps,
     add_model_options,
+    add_segmenter_options,
     add_world_options,
     episodes,
     executor,
@@ -89,22 +90,27 @@ def _add_bench_ablations(sub: Commands) -> None:
 
 
 def _add_bench_grounder(sub: Commands) -> None:
-    from drivenav.semantics.registry import DTYPES
+    from drivenav.semantics.registry import DTYPES, MODEL_DETECTORS
 
     parser = sub.add_parser(
         "grounder",
-        help="SAM3 / OWLv2 per 640x480 frame in process: latency, stage split, GPU memory (no weights needed)",
+        help="SAM3 / OWLv2 / Grounding DINO (+ a box segmenter) per 640x480 frame in process and served: latency, "
+        "stage split, GPU memory (no weights needed)",
     )
-    parser.add_argument("--detector", choices=("sam3", "owlv2"), default="sam3")
+    parser.add_argument("--detector", choices=MODEL_DETECTORS, default="sam3")
     parser.add_argument(
         "--detector-model", default="", help="checkpoint dir or HF-cache model id (default: the detector's, if cached)"
     )
+    add_segmenter_options(parser, own_defaults=True)
     parser.add_argument(
-        "--random-weights", action="store_true", help="the full-size architecture with random weights, even if cached"
+        "--random-weights", action="store_true", help="the full-size architectures with random weights, even if cached"
     )
     parser.add_argument("--tiny", action="store_true", help="the tests' tiny random models (a smoke test of the bench)")
     parser.add_argument("--device", default=None, help="cpu or cuda (default: cuda when visible)")
     parser.add_argument("--dtype", choices=DTYPES, default="auto", help="default auto: bf16 on CUDA, else fp32")
+    parser.add_argument(
+        "--compile", action="store_true", help="torch.compile the per-frame modules (compiled in the untimed frames)"
+    )
     parser.add_argument("--frames", type=int, default=10, help="timed frames, one at a time (default 10)")
     parser.add_argument("--batch", type=int, default=1, help="B > 1: also time a batched forward of B frames")
     parser.add_argument(
@@ -168,15 +174,18 @@ def _cmd_bench_robot(args: argparse.Namespace) -> int:
 def _cmd_bench_grounder(args: argparse.Namespace) -> int:
     from dataclasses import asdict
 
-    from drivenav.eval.grounder_bench import GrounderBenchOptions, bench_grounder
+    from drivenav.semantics.grounder_bench import GrounderBenchOptions, bench_grounder
 
     options = GrounderBenchOptions(
         detector=args.detector,
         checkpoint=args.detector_model,
+        segmenter=args.segmenter,
+        segmenter_checkpoint=args.segmenter_model,
         random_weights=args.random_weights,
         tiny=args.tiny,
         device=args.device,
         dtype=args.dtype,
+        compile=args.compile,
         frames=positive(args.frames, "--frames"),
         batch=positive(args.batch, "--batch"),
         clients=positive(args.clients, "--clients") if args.clients else 0,

@@ -38,6 +38,10 @@ OPTION_KEYS = {
     "dtype": "models.dtype",
     "detector_url": "models.detector_url",
     "detector_keys": "models.detector_keys",
+    "segmenter": "models.segmenter",
+    "segmenter_model": "models.segmenter_model",
+    "compile": "models.compile",
+    "detector_shadow_url": "models.detector_shadow_url",
 }
 """The dedicated options that set a settings key (``--seed`` -> ``run.seed``, ...)."""
 
@@ -99,6 +103,37 @@ def add_model_options(parser: argparse.ArgumentParser) -> None:
         help=f"with --detector remote: a 'drivenav serve grounder' endpoint (default {default.detector_url})",
     )
     models.add_argument("--detector-keys", help="with --detector remote off loopback: the CURVE key folder")
+    add_segmenter_options(models)
+    models.add_argument(
+        "--compile",
+        action="store_true",
+        default=None,
+        help="torch.compile the transformers models' per-frame modules (sets models.compile; compiled at first use)",
+    )
+    models.add_argument(
+        "--detector-shadow-url",
+        help="a 'drivenav serve grounder' endpoint sent every frame the detector grounds, its answer discarded: a "
+        "served model's cost beside --detector's detections (throughput benchmarks with random weights)",
+    )
+
+
+def add_segmenter_options(group: argparse._ArgumentGroup | argparse.ArgumentParser, own_defaults: bool = False) -> None:
+    """``--segmenter`` and ``--segmenter-model``: unset unless given (a run's settings decide), or with
+    ``own_defaults`` the settings' defaults (a command that reads no settings)."""
+    from drivenav.semantics.registry import BOX_DETECTORS, DEFAULT_SEGMENTER, SEGMENTER_BACKENDS
+
+    group.add_argument(
+        "--segmenter",
+        choices=SEGMENTER_BACKENDS.names,
+        default=DEFAULT_SEGMENTER if own_defaults else None,
+        help=f"what turns the boxes of {' and '.join(BOX_DETECTORS)} into masks (default {DEFAULT_SEGMENTER}: the "
+        "box filled; mobilesam: MobileSAM's mask in the box)",
+    )
+    group.add_argument(
+        "--segmenter-model",
+        default="" if own_defaults else None,
+        help="with --segmenter mobilesam: its checkpoint file (mobile_sam.pt)",
+    )
 
 
 def add_execution_options(parser: argparse.ArgumentParser) -> None:
@@ -141,7 +176,7 @@ def settings(args: argparse.Namespace, agent: str | None) -> Settings:
     from drivenav.settings import load_settings
 
     given = given_options(args)
-    for key in ("models.vlm_record", "models.vlm_replay", "models.detector_keys"):
+    for key in ("models.vlm_record", "models.vlm_replay", "models.detector_keys", "models.segmenter_model"):
         if given.get(key):
             given[key] = str(Path(str(given[key])).resolve())
     if "run.seed" in given:

@@ -8,10 +8,17 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from collections.abc import Callable
+from functools import partial
+from typing import TYPE_CHECKING
 
-from drivenav.cli.common import Commands
+from drivenav.cli.common import Commands, add_segmenter_options
 from drivenav.errors import InputError
 from drivenav.eval.options import path
+
+if TYPE_CHECKING:
+    from drivenav.semantics.protocols import Grounder
+    from drivenav.semantics.registry import ModelSpec
 
 
 def add_serve(commands: Commands) -> None:
@@ -26,9 +33,20 @@ def add_serve(commands: Commands) -> None:
     )
     local = [name for name in GROUNDER_BACKENDS.names if name != "remote"]
     grounder.add_argument("--detector", required=True, choices=local, help="the grounder served")
-    grounder.add_argument("--detector-model", default="", help="checkpoint dir or HF-cache model id (SAM3, OWLv2)")
+    grounder.add_argument(
+        "--detector-model", default="", help="checkpoint dir or HF-cache model id (SAM3, OWLv2, Grounding DINO)"
+    )
+    add_segmenter_options(grounder, own_defaults=True)
     grounder.add_argument("--device", default="", help="cpu or cuda (default: cuda when visible)")
     grounder.add_argument("--dtype", choices=DTYPES, default="auto", help="default auto: bf16 on CUDA, else fp32")
+    grounder.add_argument("--compile", action="store_true", help="torch.compile the models' per-frame modules")
+    grounder.add_argument(
+        "--random-weights",
+        action="store_true",
+        help="the full-size architectures with random weights, no checkpoint (throughput benchmarks: the detections "
+        "are noise)",
+    )
+    grounder.add_argument("--tiny", action="store_true", help="the tests' tiny random models (a smoke test)")
     grounder.add_argument(
         "--bind", default=DEFAULT_BIND, help=f"endpoint (default {DEFAULT_BIND}; port * for a free one)"
     )
@@ -46,8 +64,8 @@ def add_serve(commands: Commands) -> None:
 
 
 def _cmd_serve_grounder(args: argparse.Namespace) -> int:
-    from drivenav.semantics.grounder_server import run_server
-    from drivenav.semantics.registry import ModelSpec
+    from drivenav.semantics.grounder_server import build_server, run_server
+    from drivenav.semantics.registry import ModelSpec, check_models
     from drivenav.semantics.serve_config import MAX_BATCH, MAX_BATCH_MS, ServeConfig
     from drivenav.wire.security import check_bind
 
@@ -59,11 +77,40 @@ def _cmd_serve_grounder(args: argparse.Namespace) -> int:
         raise InputError("command line", "--batch-ms", expected, args.batch_ms)
     config = ServeConfig(batch=args.batch, batch_ms=args.batch_ms)
     spec = ModelSpec(
-        detector=args.detector, detector_model=args.detector_model, dtype=args.dtype, detector_device=args.device
+        detector=args.detector,
+        detector_model=args.detector_model,
+        dtype=args.dtype,
+        detector_device=args.device,
+        segmenter=args.segmenter,
+        segmenter_model=args.segmenter_model,
+        compile=args.compile,
     )
+    build, described = _random_build(args)
+    if build is None:  # random weights need no checkpoint
+        check_models(spec, connect=False)
     try:
-        run_server(spec, args.bind, args.keys, config)
+        run_server(build_server(spec, args.bind, args.keys, config, build, described), args.keys is not None)
     except KeyboardInterrupt:
         print("drivenav: stopped serving the grounder", file=sys.stderr)
         return 130
     return 0
+
+
+def _random_build(args: argparse.Namespace) -> tuple[Callable[[ModelSpec], Grounder] | None, str]:
+    """With ``--random-weights`` or ``--tiny``: the grounder's builder with random weights and its description;
+    else none (the detector's backend loads its checkpoint)."""
+    if not (args.random_weights or args.tiny):
+        return None, ""
+    from drivenav.semantics.registry import MODEL_DETECTORS
+
+    given = "--tiny" if args.tiny else "--random-weights"
+    if args.detector not in MODEL_DETECTORS:
+        raise InputError("command line", given, f"a model detector ({', '.join(MODEL_DETECTORS)})", args.detector)
+    if args.detector_model or args.segmenter_model:
+        raise InputError("command line", given, "no --detector-model or --segmenter-model", "a checkpoint")
+    try:
+        from drivenav.semantics.random_grounders import random_grounder
+    except ImportError as error:
+        extra = f"the models extra for {args.detector} (pip install 'drivenav[models]')"
+        raise InputError("command line", "--detector", extra, str(error).splitlines()[0]) from None
+    return partial(random_grounder, tiny=args.tiny), "tiny random weights" if args.tiny else "random weights"

@@ -68,6 +68,9 @@ def server_command(models: ModelSpec) -> list[str]:
         f"--detector-model={models.detector_model}",
         f"--dtype={models.dtype}",
         f"--device={models.detector_device}",
+        f"--segmenter={models.segmenter}",
+        f"--segmenter-model={models.segmenter_model}",
+        *(["--compile"] if models.compile else []),
         "--bind=tcp://127.0.0.1:*",
     ]
 

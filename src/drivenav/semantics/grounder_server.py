@@ -5,13 +5,13 @@ loopback unless CURVE keys are given) and speaks :mod:`drivenav.semantics.served
 wait in a queue until ``batch`` of them are there or the oldest has waited ``batch_ms``, whichever comes first;
 HELLO, BEGIN and PING are answered at once, between batches.
 
-A grounder that reads images (SAM3, OWLv2) is one shared copy: a batch's frames are grouped by phrase and frame
-size, and each group is one :meth:`~drivenav.semantics.hf_common.TransformersGrounder.segment_batch` forward (the
-text features of a phrase are encoded once for every worker; after ``phrases`` distinct phrases the cache is
-emptied). A stand-in that reads ground-truth labels (the embedded detector, the ground-truth one) is one instance
-per episode, begun by BEGIN with the episode's truth and seed as in process; what the episodes hold is bounded per
-client and in all (:class:`~drivenav.semantics.serve_config.ServeConfig`: labels a BEGIN, episodes and bytes kept),
-the least recently used forgotten past a bound.
+A grounder that reads images (SAM3, OWLv2, Grounding DINO) is one shared copy: a batch's frames are grouped by
+phrase and frame size, and each group is one :meth:`~drivenav.semantics.hf_common.TransformersGrounder.segment_batch`
+forward (the text features of a phrase are encoded once for every worker; after ``phrases`` distinct phrases the
+cache is emptied). A stand-in that reads ground-truth labels (the embedded detector, the ground-truth one) is one
+instance per episode, begun by BEGIN with the episode's truth and seed as in process; what the episodes hold is
+bounded per client and in all (:class:`~drivenav.semantics.serve_config.ServeConfig`: labels a BEGIN, episodes and
+bytes kept), the least recently used forgotten past a bound.
 
 Nothing a client sends stops the server: a malformed or unknown request, or a grounder failing on one, is an ERROR
 reply naming it, and the server goes on.
@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 
 from drivenav.errors import InputError, one_line
 from drivenav.semantics.protocols import Detection, Grounder
-from drivenav.semantics.registry import GROUNDER_BACKENDS, ModelSpec
+from drivenav.semantics.registry import BOX_DETECTORS, GROUNDER_BACKENDS, ModelSpec
 from drivenav.semantics.serve_config import DEFAULT_BIND, ENTRY_BYTES, LABEL_BYTES, ServeConfig
 from drivenav.semantics.served import (
     GROUNDER_PROTOCOL,
@@ -358,47 +358,67 @@ def _log_socket_event(router: RouterSocket) -> None:
 # -- building and running a server ------------------------------------------------------------------------------------
 
 
-def served_info(spec: ModelSpec, grounder: Grounder, config: ServeConfig) -> ServedInfo:
+def served_info(spec: ModelSpec, grounder: Grounder, config: ServeConfig, model: str = "") -> ServedInfo:
     """What a server of ``spec.detector`` says of itself, from the built ``grounder`` (its model's device and
-    dtype where it has a model)."""
+    dtype where it has a model); ``model`` describes the weights (default: ``spec.detector_model``, or "default"),
+    followed by a box detector's segmenter."""
     backend = GROUNDER_BACKENDS.get(spec.detector)
-    model = getattr(grounder, "model", None)
-    device = str(getattr(model, "device", "cpu"))
-    dtype = str(getattr(model, "dtype", "none")).removeprefix("torch.")
-    name = spec.detector_model or "default"
+    built = getattr(grounder, "model", None)
+    device = str(getattr(built, "device", "cpu"))
+    dtype = str(getattr(built, "dtype", "none")).removeprefix("torch.")
+    name = model or spec.detector_model or "default"
+    if spec.detector in BOX_DETECTORS:
+        name += f" + {spec.segmenter}" + (f" ({spec.segmenter_model})" if spec.segmenter_model else "")
     return ServedInfo(
         spec.detector, name, device, dtype, backend.observes, backend.reads_labels, config.batch, config.batch_ms
     )
 
 
-def build_server(spec: ModelSpec, bind: str, keys: Path | None, config: ServeConfig) -> GrounderServer:
-    """A server of ``spec.detector`` (any but ``remote``), its model loaded (a missing one: one InputError line)."""
+def build_server(
+    spec: ModelSpec,
+    bind: str,
+    keys: Path | None,
+    config: ServeConfig,
+    build: Callable[[ModelSpec], Grounder] | None = None,
+    model: str = "",
+) -> GrounderServer:
+    """A server of ``spec.detector`` (any but ``remote``), its model loaded (a missing one: one InputError line).
+    ``build`` makes the grounder instead of its backend (``serve grounder --random-weights``), ``model`` then
+    describing its weights."""
     if spec.detector == "remote":
         local = ", ".join(name for name in GROUNDER_BACKENDS.names if name != "remote")
         raise InputError("command line", "--detector", f"a detector run in this process ({local})", "remote")
-    backend = GROUNDER_BACKENDS.get(spec.detector)
+    make = build or GROUNDER_BACKENDS.get(spec.detector).build
 
     def factory() -> Grounder:
-        return backend.build(spec)
+        return make(spec)
 
     probe = factory()
-    info = served_info(spec, probe, config)
+    info = served_info(spec, probe, config, model)
     return GrounderServer((lambda: probe) if not info.labels else factory, info, bind, keys, config)
 
 
-def run_server(spec: ModelSpec, bind: str, keys: Path | None, config: ServeConfig) -> None:
-    """Serve ``spec``'s grounder until Ctrl-C (or SIGTERM); the first line printed names the endpoint."""
-    server = build_server(spec, bind, keys, config)
-    info = server.info
+def run_server(server: GrounderServer, curve: bool) -> None:
+    """Serve until Ctrl-C (or SIGTERM); the first line printed names the endpoint (``curve``: keys were given), the
+    last one what was served (:func:`batches_line`)."""
+    info, config = server.info, server.config
     print(
         f"serving the grounder {info.detector} ({info.model}, {info.device}, {info.dtype}; batch {config.batch} or "
-        f"{config.batch_ms:g} ms) on {server.endpoint}{' with CURVE' if keys else ''} (Ctrl-C stops)",
+        f"{config.batch_ms:g} ms) on {server.endpoint}{' with CURVE' if curve else ''} (Ctrl-C stops)",
         flush=True,
     )
     try:
         server.serve()
     finally:
         server.close()
+        print(batches_line(server.batch_sizes), flush=True)
+
+
+def batches_line(batch_sizes: Counter[int]) -> str:
+    """What a server served: its frames, its batches and their mean size."""
+    frames, batches = sum(n * c for n, c in batch_sizes.items()), sum(batch_sizes.values())
+    mean = f" (mean {frames / batches:.2f} frames)" if batches else ""
+    return f"served {frames} frames in {batches} batches{mean}"
 
 
 @contextlib.contextmanager

@@ -1,5 +1,6 @@
-"""Plumbing shared by the transformers models: the grounders SAM3 (the paper's detector, Sec. V-A) and OWLv2 (+ a
-box segmenter, the grounding-backbone comparison of Sec. V-D), and the VLFM baseline's scorers BLIP-2 and SigLIP.
+"""Plumbing shared by the transformers models: the grounders SAM3 (the paper's detector, Sec. V-A), OWLv2 and
+Grounding DINO (+ a box segmenter, the grounding-backbone comparison of Sec. V-D), and the VLFM baseline's scorers
+BLIP-2 and SigLIP.
 
 torch and transformers are the optional ``models`` extra, so they are imported inside functions only. Weights are
 never downloaded: a checkpoint is a local directory written by ``save_pretrained`` or a model id already in the
@@ -11,7 +12,8 @@ The grounders share :class:`TransformersGrounder`: the model in the chosen dtype
 ``auto`` is bf16 on a CUDA device that supports it, fp32 elsewhere; TF32 matmuls on CUDA in fp32), the images
 preprocessed on that device by torchvision's fast image processor, the text features of each phrase computed once
 per episode and the vision features of the last frame reused while several phrases are tried on it (prompt
-enrichment, Sec. IV-B).
+enrichment, Sec. IV-B). ``models.compile`` (``--compile``) compiles the modules each frame runs through with
+``torch.compile`` (:func:`compile_modules`); the text encoders, run once per phrase and episode, stay eager.
 """
 
 from __future__ import annotations
@@ -142,6 +144,25 @@ def load_fast_processor(loader: Callable[..., Any]) -> Callable[..., Any]:
     return load
 
 
+COMPILE_BACKEND = "inductor"
+"""``torch.compile``'s backend for ``models.compile`` (its default: generated Triton kernels on CUDA, C++ on the
+CPU). An empty backend name leaves a model eager."""
+
+
+def compile_backend_for(compile_models: bool) -> str:
+    """The backend :func:`compile_modules` uses for ``models.compile``: :data:`COMPILE_BACKEND`, or none."""
+    return COMPILE_BACKEND if compile_models else ""
+
+
+def compile_modules(modules: Sequence[Any], backend: str) -> None:
+    """Each module's forward compiled in place with ``torch.compile`` on ``backend`` (``nn.Module.compile``: a call
+    of the module runs the compiled forward, compiled at its first call and again when its input shapes change);
+    nothing for an empty ``backend``."""
+    if backend:
+        for module in modules:
+            module.compile(backend=backend)
+
+
 class FrameFeatures:
     """The vision features of the last frame seen, reused while several phrases are tried on that frame.
 
@@ -175,17 +196,19 @@ class TransformersGrounder(ABC):
     :meth:`segment` caches: a phrase's text features for the episode (cleared by :meth:`begin_episode`), the last
     frame's vision features (:class:`FrameFeatures`). Every stage runs without gradients; results are the same as one
     plain forward of the model on the processor's image and text (the tests check it exactly in fp32).
+    ``compile_backend`` (:func:`compile_backend_for`) compiles :meth:`compiled_modules`.
     """
 
     name = ""
 
-    def __init__(self, model: Any, processor: Any, device: str | None, dtype: str) -> None:
+    def __init__(self, model: Any, processor: Any, device: str | None, dtype: str, compile_backend: str = "") -> None:
         self.model = place_model(model, device, dtype)
         self.processor = processor
         fast = getattr(processor.image_processor, "backend", None) == "torchvision"
         self._image_kwargs: dict[str, Any] = {"device": self.model.device} if fast else {}
         self._texts: dict[str, Any] = {}
         self._frame = FrameFeatures()
+        compile_modules(self.compiled_modules(), compile_backend)
 
     def begin_episode(self, truth: GroundTruth | None, seed: int) -> None:
         """Forgets the episode's text features and the last frame (a new episode brings new phrases)."""
@@ -216,9 +239,13 @@ class TransformersGrounder(ABC):
     def text_features(self, phrase: str) -> Any:
         """``phrase``'s text features, encoded on its first use in the episode."""
         if phrase not in self._texts:
-            max_tokens = self.model.config.text_config.max_position_embeddings
-            self._texts[phrase] = self.encode_text(fit_phrase(self.processor.tokenizer, phrase, max_tokens))
+            self._texts[phrase] = self.encode_text(fit_phrase(self.processor.tokenizer, phrase, self.max_text_tokens()))
         return self._texts[phrase]
+
+    def max_text_tokens(self) -> int:
+        """The most tokens (bos and eos included) a phrase may have: the text encoder's positions."""
+        limit: int = self.model.config.text_config.max_position_embeddings
+        return limit
 
     def preprocess(self, frames: Sequence[NDArray[np.uint8]]) -> Any:
         """The frames as the model's pixel batch, on its device in its dtype (resized there by a fast processor)."""
@@ -229,6 +256,10 @@ class TransformersGrounder(ABC):
         """``text``'s token ids and attention mask as the processor pads them, on the model's device."""
         batch = self.processor(text=[text], return_tensors="pt")
         return batch["input_ids"].to(self.model.device), batch["attention_mask"].to(self.model.device)
+
+    @abstractmethod
+    def compiled_modules(self) -> list[Any]:
+        """The modules every frame runs through (what ``models.compile`` compiles)."""
 
     @abstractmethod
     def encode_text(self, text: str) -> Any:

@@ -3,14 +3,13 @@
 The paper's comparison pairs OWLv2 (text-conditioned open-vocabulary boxes) with MobileSAM (box-prompted masks),
 as VLFM does. Through transformers: ``Owlv2Processor`` (image + one text query) -> ``Owlv2ForObjectDetection``
 -> ``post_process_grounded_object_detection`` gives scored boxes in frame pixels (the processor pads the frame to
-a square, so boxes may reach past its bottom or right edge); a :class:`BoxSegmenter` then turns each box into a
-mask. MobileSAM is not packaged here, so the default segmenter is :class:`FilledBoxSegmenter`: the box itself
-filled, which over-covers the object but keeps the object's position and extent.
+a square, so boxes may reach past its bottom or right edge); a box segmenter (:mod:`drivenav.semantics.boxes`:
+the filled box, or MobileSAM with ``--segmenter mobilesam``) then turns each box into a mask.
 
 The forward is split as the model's own parts allow: the text query embedding (``Owlv2Model.get_text_features``,
 projected and L2-normalised as the plain forward does) once per phrase and episode; the image embedding
 (``image_embedder``) and the text-independent boxes (``box_predictor``) once per frame; then the class head on both.
-Only the :data:`OWLV2_MAX_BOXES` best boxes above the threshold are turned into masks.
+Only the :data:`~drivenav.semantics.boxes.MAX_BOXES` best boxes above the threshold are turned into masks.
 """
 
 from __future__ import annotations
@@ -18,44 +17,15 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Final, Protocol
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.semantics.hf_common import TransformersGrounder, load_fast_processor, load_pair, ranked_detections
-from drivenav.semantics.protocols import Detection
+from drivenav.semantics.boxes import MAX_BOXES, BoxGrounder, BoxSegmenter
+from drivenav.semantics.hf_common import load_fast_processor, load_pair
 
 OWLV2_EXPECTED = "a local OWLv2 checkpoint directory or a model id in the Hugging Face cache"
-
-OWLV2_MAX_BOXES: Final[int] = 100
-"""Boxes kept per frame, best scores first, before masks are made (ours; the 100 detections per image of COCO's
-detection evaluation). OWLv2 base/16 scores 3,600 patch boxes; at a low threshold thousands pass, and filling one
-mask per box cost about 240 ms a frame (issue 37)."""
-
-
-class BoxSegmenter(Protocol):
-    """Box-prompted segmentation (MobileSAM's role in Sec. V-D).
-
-    ``boxes`` is ``(N, 4)`` pixel corners ``(x0, y0, x1, y1)``, possibly reaching past the frame; the answer is
-    ``(N, H, W)`` bool masks over the ``(H, W, 3)`` frame, one per box.
-    """
-
-    def segment_boxes(self, rgb: NDArray[np.uint8], boxes: NDArray[np.float32]) -> NDArray[np.bool_]: ...
-
-
-class FilledBoxSegmenter:
-    """The fallback :class:`BoxSegmenter`: a pixel belongs to a box's mask when its centre lies inside the box."""
-
-    def segment_boxes(self, rgb: NDArray[np.uint8], boxes: NDArray[np.float32]) -> NDArray[np.bool_]:
-        height, width = rgb.shape[:2]
-        rows = np.arange(height) + 0.5
-        cols = np.arange(width) + 0.5
-        x0, y0, x1, y1 = (boxes[:, k, None] for k in range(4))
-        inside_rows = (rows >= y0) & (rows < y1)
-        inside_cols = (cols >= x0) & (cols < x1)
-        masks: NDArray[np.bool_] = inside_rows[:, :, None] & inside_cols[:, None, :]
-        return masks
 
 
 @dataclass(frozen=True)
@@ -75,14 +45,15 @@ class Owlv2Vision:
     boxes: Any
 
 
-class Owlv2Grounder(TransformersGrounder):
+class Owlv2Grounder(BoxGrounder):
     """Implements :class:`~drivenav.semantics.protocols.Grounder` with an OWLv2 checkpoint and a box segmenter.
 
     ``model`` is a checkpoint directory or a cached model id (never downloaded); its processor is loaded with
     torchvision's image processor only (the PIL one costs about 300 ms a frame; without torchvision loading fails).
     Boxes scoring strictly above ``score_threshold`` are kept (0.1 is the transformers default for OWLv2), at most
-    ``max_boxes`` of them, best first. ``dtype`` is ``models.dtype``. ``model_obj`` / ``processor_obj`` inject
-    already-built objects instead of loading; ``segmenter`` defaults to :class:`FilledBoxSegmenter`.
+    ``max_boxes`` of them, best first. ``dtype`` is ``models.dtype``, ``compile_backend`` ``models.compile``'s
+    (:func:`~drivenav.semantics.hf_common.compile_backend_for`). ``model_obj`` / ``processor_obj`` inject
+    already-built objects instead of loading; ``segmenter`` defaults to the filled box.
     """
 
     name = "owlv2"
@@ -93,26 +64,21 @@ class Owlv2Grounder(TransformersGrounder):
         device: str | None = None,
         score_threshold: float = 0.1,
         *,
-        max_boxes: int = OWLV2_MAX_BOXES,
+        max_boxes: int = MAX_BOXES,
         dtype: str = "auto",
+        compile_backend: str = "",
         model_obj: Any = None,
         processor_obj: Any = None,
         segmenter: BoxSegmenter | None = None,
     ) -> None:
         from transformers import Owlv2ForObjectDetection, Owlv2Processor
 
-        loaded, processor = load_pair(
-            Owlv2ForObjectDetection.from_pretrained,
-            load_fast_processor(Owlv2Processor.from_pretrained),
-            model,
-            OWLV2_EXPECTED,
-            model_obj,
-            processor_obj,
-        )
-        super().__init__(loaded, processor, device, dtype)
-        self.score_threshold = score_threshold
-        self.max_boxes = max_boxes
-        self.segmenter: BoxSegmenter = segmenter if segmenter is not None else FilledBoxSegmenter()
+        loaders = Owlv2ForObjectDetection.from_pretrained, load_fast_processor(Owlv2Processor.from_pretrained)
+        pair = load_pair(*loaders, model, OWLV2_EXPECTED, model_obj, processor_obj)
+        super().__init__(*pair, device, dtype, score_threshold, max_boxes, segmenter, compile_backend)
+
+    def compiled_modules(self) -> list[Any]:
+        return [self.model.owlv2.vision_model, self.model.box_head, self.model.class_head]
 
     def encode_text(self, text: str) -> Owlv2Text:
         import torch
@@ -137,22 +103,8 @@ class Owlv2Grounder(TransformersGrounder):
         )[0]
         return Owlv2ObjectDetectionOutput(logits=logits, pred_boxes=vision.boxes)
 
-    def postprocess(self, outputs: Any, frames: Sequence[NDArray[np.uint8]], phrase: str) -> list[list[Detection]]:
+    def scored_boxes(self, outputs: Any, frames: Sequence[NDArray[np.uint8]]) -> list[tuple[Any, Any]]:
         results = self.processor.post_process_grounded_object_detection(
             outputs, threshold=self.score_threshold, target_sizes=[frame.shape[:2] for frame in frames]
         )
-        return [self._detections(result, frame, phrase) for result, frame in zip(results, frames, strict=True)]
-
-    def _detections(self, result: dict[str, Any], rgb: NDArray[np.uint8], phrase: str) -> list[Detection]:
-        """The ``max_boxes`` best boxes of one frame as masks, then as detections (the segmenter sees no others)."""
-        height, width = rgb.shape[:2]
-        scores = result["scores"].float().cpu().numpy()
-        best = np.argsort(-scores, kind="stable")[: self.max_boxes]
-        scores = scores[best]
-        boxes = result["boxes"].float().cpu().numpy()[best]
-        masks = self.segmenter.segment_boxes(rgb, boxes)
-        if masks.shape != (len(boxes), height, width):
-            raise ValueError(
-                f"box segmenter returned masks of shape {masks.shape}, expected {(len(boxes), height, width)}"
-            )
-        return ranked_detections(scores, masks, phrase)
+        return [(result["scores"], result["boxes"]) for result in results]

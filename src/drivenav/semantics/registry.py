@@ -1,13 +1,14 @@
-"""Reasoner, grounder and scorer backends by command-line name (``--reasoner``, ``--detector``, ``--scorer``).
+"""Reasoner, grounder, box segmenter and scorer backends by command-line name (``--reasoner``, ``--detector``,
+``--segmenter``, ``--scorer``).
 
-Each role (the VLM's reasoning of Sec. IV-B/IV-C, the segmenter's grounding, the VLFM baseline's image-text
-scoring) has one :class:`ModelRegistry`, an entry-point group of its own (``drivenav.reasoners``,
-``drivenav.grounders``, ``drivenav.scorers``; :mod:`drivenav.plugins`): a name maps to a :class:`Backend`, which
-builds the model from a picklable :class:`ModelSpec` (so that worker processes build their own) and says what the
-model needs. Backends import their heavy modules only when built, and the names are listed without loading any
-backend, so the command line reads them without loading numpy. A new backend is one ``Backend`` object and one
-entry point (drivenav's own: one line in a ``BUILT_IN_*`` table below and in pyproject.toml); a new role is one
-more registry and group.
+Each role (the VLM's reasoning of Sec. IV-B/IV-C, the segmenter's grounding, the masks of a box detector's boxes, the
+VLFM baseline's image-text scoring) has one :class:`ModelRegistry`, an entry-point group of its own
+(``drivenav.reasoners``, ``drivenav.grounders``, ``drivenav.segmenters``, ``drivenav.scorers``;
+:mod:`drivenav.plugins`): a name maps to a :class:`Backend`, which builds the model from a picklable
+:class:`ModelSpec` (so that worker processes build their own) and says what the model needs. Backends import their
+heavy modules only when built, and the names are listed without loading any backend, so the command line reads them
+without loading numpy. A new backend is one ``Backend`` object and one entry point (drivenav's own: one line in a
+``BUILT_IN_*`` table below and in pyproject.toml); a new role is one more registry and group.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from drivenav.ranges import Range, check_ranges
 from drivenav.semantics.serve_config import DEFAULT_BIND
 
 if TYPE_CHECKING:  # the command line reads the names here without loading numpy
+    from drivenav.semantics.boxes import BoxSegmenter
     from drivenav.semantics.protocols import Grounder, ImageTextScorer, Reasoner
 
 Model = TypeVar("Model")
@@ -43,7 +45,11 @@ class ModelSpec:
     an error (long enough for a batch of full-size forwards on a CPU; more than 0, at most an hour);
     ``detector_served``: the detector the server runs, when the workers must know it (set by ``eval
     --share-detector``; required for a served stand-in that reads ground-truth labels, whose agents then ask the
-    world for them; empty: a model that reads images).
+    world for them; empty: a model that reads images). ``segmenter`` / ``segmenter_model``: what turns a box
+    detector's boxes into masks (``--segmenter``, :data:`SEGMENTER_BACKENDS`; the filled box, or MobileSAM from its
+    checkpoint file). ``compile``: ``torch.compile`` of the models' per-frame modules.
+    ``detector_shadow_url``: a served grounder sent every frame the detector grounds, its answer discarded (a served
+    model's cost beside the detector's detections: throughput benchmarks with random weights).
     """
 
     reasoner: str = "embedded"
@@ -61,6 +67,10 @@ class ModelSpec:
     detector_keys: str = ""
     detector_timeout_s: float = 60.0
     detector_served: str = ""
+    segmenter: str = "filled-box"
+    segmenter_model: str = ""
+    compile: bool = False
+    detector_shadow_url: str = ""
 
     def __post_init__(self) -> None:
         check_ranges(self, {"detector_timeout_s": Range(0.0, 86400.0, low_open=True, why="seconds, up to a day")})
@@ -68,6 +78,11 @@ class ModelSpec:
 
 DTYPES = ("auto", "float32", "bfloat16", "float16")
 """The values of ``models.dtype`` (``--dtype``)."""
+BOX_DETECTORS = ("owlv2", "grounding-dino")
+"""The detectors that give boxes, turned into masks by ``--segmenter``; the others make their own masks."""
+MODEL_DETECTORS = ("sam3", *BOX_DETECTORS)
+"""The detectors run by transformers models (weights to load, ``--dtype`` and ``--compile`` apply)."""
+MOBILESAM_EXPECTED = "a MobileSAM checkpoint file (mobile_sam.pt)"
 
 
 def _no_check(spec: ModelSpec) -> None:
@@ -164,7 +179,7 @@ def _sam3_grounder(spec: ModelSpec) -> Grounder:
     try:
         from drivenav.semantics.sam3_grounder import Sam3Grounder
 
-        return _placed(Sam3Grounder, spec)(spec.detector_model or "facebook/sam3", dtype=spec.dtype)
+        return _placed(Sam3Grounder, spec)(spec.detector_model or "facebook/sam3", **_model_options(spec))
     except ImportError as error:
         raise _models_extra_missing("--detector", spec.detector, error) from None
 
@@ -174,9 +189,28 @@ def _owlv2_grounder(spec: ModelSpec) -> Grounder:
         from drivenav.semantics.owlv2_grounder import Owlv2Grounder
 
         owlv2 = _placed(Owlv2Grounder, spec)
-        return owlv2(spec.detector_model or "google/owlv2-base-patch16-ensemble", dtype=spec.dtype)
+        model = spec.detector_model or "google/owlv2-base-patch16-ensemble"
+        return owlv2(model, segmenter=make_segmenter(spec), **_model_options(spec))
     except ImportError as error:
         raise _models_extra_missing("--detector", spec.detector, error) from None
+
+
+def _grounding_dino_grounder(spec: ModelSpec) -> Grounder:
+    try:
+        from drivenav.semantics.grounding_dino_grounder import GROUNDING_DINO_CHECKPOINT, GroundingDinoGrounder
+
+        grounding_dino = _placed(GroundingDinoGrounder, spec)
+        model = spec.detector_model or GROUNDING_DINO_CHECKPOINT
+        return grounding_dino(model, segmenter=make_segmenter(spec), **_model_options(spec))
+    except ImportError as error:
+        raise _models_extra_missing("--detector", spec.detector, error) from None
+
+
+def _model_options(spec: ModelSpec) -> dict[str, str]:
+    """A transformers model's dtype and compile backend (``models.dtype``, ``models.compile``)."""
+    from drivenav.semantics.hf_common import compile_backend_for
+
+    return {"dtype": spec.dtype, "compile_backend": compile_backend_for(spec.compile)}
 
 
 def _placed(kind: Callable[..., Model], spec: ModelSpec) -> Callable[..., Model]:
@@ -210,7 +244,8 @@ def _load_weights(spec: ModelSpec) -> None:
 
 
 def _models_extra_missing(option: str, name: str, error: ImportError) -> InputError:
-    """A transformers backend (SAM3, OWLv2, BLIP-2, SigLIP) without the ``models`` extra: one line naming it."""
+    """A torch backend (SAM3, OWLv2, Grounding DINO, MobileSAM, BLIP-2, SigLIP) without the ``models`` extra: one
+    line naming it."""
     return InputError(
         "command line",
         option,
@@ -245,6 +280,7 @@ EMBEDDED_GROUNDER: Backend[Grounder] = Backend(_embedded_grounder, reads_labels=
 GROUND_TRUTH_GROUNDER: Backend[Grounder] = Backend(_ground_truth_grounder, reads_labels=True, observes=("semantic",))
 SAM3_GROUNDER: Backend[Grounder] = Backend(_sam3_grounder, connect=_load_weights)
 OWLV2_GROUNDER: Backend[Grounder] = Backend(_owlv2_grounder, connect=_load_weights)
+GROUNDING_DINO_GROUNDER: Backend[Grounder] = Backend(_grounding_dino_grounder, connect=_load_weights)
 REMOTE_GROUNDER: Backend[Grounder] = Backend(_remote_grounder, check=_check_detector_url, connect=_reach_grounder)
 
 BUILT_IN_GROUNDERS = {
@@ -252,11 +288,50 @@ BUILT_IN_GROUNDERS = {
     "ground-truth": "drivenav.semantics.registry:GROUND_TRUTH_GROUNDER",
     "sam3": "drivenav.semantics.registry:SAM3_GROUNDER",
     "owlv2": "drivenav.semantics.registry:OWLV2_GROUNDER",
+    "grounding-dino": "drivenav.semantics.registry:GROUNDING_DINO_GROUNDER",
     "remote": "drivenav.semantics.registry:REMOTE_GROUNDER",
 }
 """drivenav's own grounders (``--detector``; also declared in pyproject.toml, group ``drivenav.grounders``)."""
 
 GROUNDER_BACKENDS: ModelRegistry[Grounder] = ModelRegistry("drivenav.grounders", BUILT_IN_GROUNDERS, "--detector")
+
+
+def _filled_box_segmenter(spec: ModelSpec) -> BoxSegmenter:
+    from drivenav.semantics.boxes import FilledBoxSegmenter
+
+    return FilledBoxSegmenter()
+
+
+def _mobilesam_segmenter(spec: ModelSpec) -> BoxSegmenter:
+    try:
+        from drivenav.semantics.hf_common import compile_backend_for
+        from drivenav.semantics.mobilesam_segmenter import MobileSamSegmenter, load_checkpoint
+
+        model = load_checkpoint(Path(spec.segmenter_model))
+        device = spec.detector_device or None
+        return MobileSamSegmenter(model, device, spec.dtype, compile_backend_for(spec.compile))
+    except ImportError as error:
+        raise _models_extra_missing("--segmenter", spec.segmenter, error) from None
+
+
+def _check_segmenter_file(spec: ModelSpec) -> None:
+    """MobileSAM's checkpoint is a file (read when the detector loads)."""
+    if not Path(spec.segmenter_model).is_file():
+        raise InputError("command line", "--segmenter-model", MOBILESAM_EXPECTED, spec.segmenter_model or "(none)")
+
+
+FILLED_BOX_SEGMENTER: Backend[BoxSegmenter] = Backend(_filled_box_segmenter)
+MOBILESAM_SEGMENTER: Backend[BoxSegmenter] = Backend(_mobilesam_segmenter, check=_check_segmenter_file)
+
+BUILT_IN_SEGMENTERS = {
+    "filled-box": "drivenav.semantics.registry:FILLED_BOX_SEGMENTER",
+    "mobilesam": "drivenav.semantics.registry:MOBILESAM_SEGMENTER",
+}
+"""drivenav's own box segmenters (``--segmenter``; also declared in pyproject.toml, group ``drivenav.segmenters``)."""
+
+SEGMENTER_BACKENDS: ModelRegistry[BoxSegmenter] = ModelRegistry(
+    "drivenav.segmenters", BUILT_IN_SEGMENTERS, "--segmenter"
+)
 
 
 def _embedded_scorer(spec: ModelSpec) -> ImageTextScorer:
@@ -309,6 +384,9 @@ BUILT_IN_SCORERS = {
 
 SCORER_BACKENDS: ModelRegistry[ImageTextScorer] = ModelRegistry("drivenav.scorers", BUILT_IN_SCORERS, "--scorer")
 
+DEFAULT_SEGMENTER = "filled-box"
+"""The box segmenter a box detector uses unless ``--segmenter`` names another: its boxes, filled."""
+
 
 def model_requirements(spec: ModelSpec) -> frozenset[str]:
     """The privileged inputs the chosen models need: the embedded stand-ins read ground-truth labels."""
@@ -341,8 +419,18 @@ def make_reasoner(spec: ModelSpec) -> Reasoner:
 
 
 def make_grounder(spec: ModelSpec) -> Grounder:
-    """The grounder named by ``spec``."""
-    return GROUNDER_BACKENDS.get(spec.detector).build(spec)
+    """The grounder named by ``spec`` (shadowed by the served grounder at ``detector_shadow_url`` when set)."""
+    grounder = GROUNDER_BACKENDS.get(spec.detector).build(spec)
+    if spec.detector_shadow_url:
+        from drivenav.semantics.served import shadowed
+
+        return shadowed(grounder, spec)
+    return grounder
+
+
+def make_segmenter(spec: ModelSpec) -> BoxSegmenter:
+    """The box segmenter named by ``spec`` (for the box detectors)."""
+    return SEGMENTER_BACKENDS.get(spec.segmenter).build(spec)
 
 
 def make_scorer(spec: ModelSpec) -> ImageTextScorer:
@@ -367,10 +455,23 @@ def _check_record_path(path: Path) -> None:
         raise InputError(path, "--vlm-record", "a writable file path", error.strerror or str(error)) from None
 
 
+def _check_segmenter(spec: ModelSpec) -> None:
+    """A segmenter other than the default goes with a box detector (a served one: the server's business)."""
+    if spec.detector in BOX_DETECTORS:
+        SEGMENTER_BACKENDS.get(spec.segmenter).check(spec)
+    elif spec.segmenter != DEFAULT_SEGMENTER and spec.detector != "remote":
+        expected = (
+            f"{DEFAULT_SEGMENTER} with --detector {spec.detector}, which makes its own masks (a box segmenter serves "
+            f"{' and '.join(BOX_DETECTORS)})"
+        )
+        raise InputError("command line", "--segmenter", expected, spec.segmenter)
+
+
 def check_models(spec: ModelSpec, connect: bool = True) -> None:
-    """Fail fast, before any episode: unknown names, a missing replay file, an unwritable record file, an
-    unreachable VLM server, missing weights (cheap checks first, the reasoner's, grounder's and scorer's).
-    ``connect=False`` runs the cheap checks only (a shared detector is loaded by its own server process)."""
+    """Fail fast, before any episode: unknown names, a missing replay or checkpoint file, an unwritable record
+    file, an unreachable VLM or grounder server, missing weights (cheap checks first, the reasoner's, grounder's,
+    segmenter's and scorer's). ``connect=False`` runs the cheap checks only (a shared detector is loaded by its own
+    server process)."""
     backends = (
         REASONER_BACKENDS.get(spec.reasoner),
         GROUNDER_BACKENDS.get(spec.detector),
@@ -378,9 +479,24 @@ def check_models(spec: ModelSpec, connect: bool = True) -> None:
     )
     for backend in backends:
         backend.check(spec)
+    _check_segmenter(spec)
+    if spec.detector_shadow_url:
+        _check_shadow(spec, connect=False)
     if spec.vlm_record:
         _check_record_path(Path(spec.vlm_record))
     if not connect:
         return
     for backend in backends:
         backend.connect(spec)
+    if spec.detector_shadow_url:
+        _check_shadow(spec, connect=True)
+
+
+def _check_shadow(spec: ModelSpec, connect: bool) -> None:
+    """The shadow grounder's endpoint (and keys off loopback) or, with ``connect``, that it answers."""
+    from drivenav.semantics.served import SHADOW_OPTION, check_detector_url, reach_server, shadow_spec
+
+    if connect:
+        reach_server(shadow_spec(spec), SHADOW_OPTION)
+    else:
+        check_detector_url(shadow_spec(spec), SHADOW_OPTION)

@@ -9,7 +9,8 @@ per SAM3 call on its RTX 4090 deployment machine (Sec. V-E).
 
 The forward is split as ``Sam3Model`` allows: ``get_text_features`` once per phrase and episode,
 ``get_vision_features`` once per frame, then the forward on both (``text_embeds`` / ``vision_embeds``), which runs
-the same layers on the same tensors as the plain forward.
+the same layers on the same tensors as the plain forward. ``models.compile`` compiles the vision encoder and that
+forward (the DETR encoder and decoder and the mask decoder).
 """
 
 from __future__ import annotations
@@ -41,7 +42,8 @@ class Sam3Grounder(TransformersGrounder):
 
     ``model`` is a checkpoint directory or a cached model id (never downloaded). Instances scoring strictly above
     ``score_threshold`` are kept; mask probabilities above ``mask_threshold`` form the mask, resized to the frame.
-    ``dtype`` is ``models.dtype`` (``auto``, ``float32``, ``bfloat16``, ``float16``). ``model_obj`` /
+    ``dtype`` is ``models.dtype`` (``auto``, ``float32``, ``bfloat16``, ``float16``), ``compile_backend``
+    ``models.compile``'s (:func:`~drivenav.semantics.hf_common.compile_backend_for`). ``model_obj`` /
     ``processor_obj`` inject already-built objects (tests, shared GPU copies) instead of loading.
     """
 
@@ -55,6 +57,7 @@ class Sam3Grounder(TransformersGrounder):
         mask_threshold: float = 0.5,
         *,
         dtype: str = "auto",
+        compile_backend: str = "",
         model_obj: Any = None,
         processor_obj: Any = None,
     ) -> None:
@@ -64,9 +67,12 @@ class Sam3Grounder(TransformersGrounder):
         loaded, processor = load_pair(
             Sam3Model.from_pretrained, fast_processor, model, SAM3_EXPECTED, model_obj, processor_obj
         )
-        super().__init__(loaded, processor, device, dtype)
+        super().__init__(loaded, processor, device, dtype, compile_backend)
         self.score_threshold = score_threshold
         self.mask_threshold = mask_threshold
+
+    def compiled_modules(self) -> list[Any]:
+        return [self.model.vision_encoder, self.model]
 
     def encode_text(self, text: str) -> Sam3Text:
         input_ids, attention_mask = self.tokens(text)

@@ -44,7 +44,7 @@ import functools
 import math
 import uuid
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any, Final
 
@@ -53,7 +53,7 @@ from numpy.typing import NDArray
 
 from drivenav.errors import InputError, RunStoppedError
 from drivenav.jsonstream import JsonObject
-from drivenav.semantics.protocols import Detection
+from drivenav.semantics.protocols import Detection, Grounder
 from drivenav.semantics.registry import GROUNDER_BACKENDS, ModelSpec
 from drivenav.types import CategoryVocabulary, GroundTruth, Observation
 from drivenav.wire.client import ClientConfig, Dialect, PeerRefusedError, PeerUnavailableError, WireClient
@@ -441,24 +441,24 @@ def remote_grounder(spec: ModelSpec) -> RemoteGrounder:
     return RemoteGrounder(client, info)
 
 
-def reach_server(spec: ModelSpec) -> None:
-    """The server at ``detector_url`` answers HELLO: else one line naming ``--detector-url`` (before any episode)."""
+def reach_server(spec: ModelSpec, option: str = "--detector-url") -> None:
+    """The server at ``detector_url`` answers HELLO: else one line naming ``option`` (before any episode)."""
     try:
         connect(spec)
     except (PeerUnavailableError, ProtocolError) as error:
         expected = "a grounder server that answers (drivenav serve grounder)"
-        raise InputError("command line", "--detector-url", expected, f"{spec.detector_url}: {error}") from None
+        raise InputError("command line", option, expected, f"{spec.detector_url}: {error}") from None
 
 
-def check_detector_url(spec: ModelSpec) -> None:
-    """``detector_url`` is an endpoint; off loopback it needs ``detector_keys`` (CURVE), whose files are read now;
-    ``detector_timeout_s`` is a wait a request can have (more than 0 s, at most :data:`MAX_TIMEOUT_S`);
-    ``detector_served`` names a detector run in process (or nothing)."""
+def check_detector_url(spec: ModelSpec, option: str = "--detector-url") -> None:
+    """``detector_url`` (set by ``option``) is an endpoint; off loopback it needs ``detector_keys`` (CURVE), whose
+    files are read now; ``detector_timeout_s`` is a wait a request can have (more than 0 s, at most
+    :data:`MAX_TIMEOUT_S`); ``detector_served`` names a detector run in process (or nothing)."""
     timeout_s = spec.detector_timeout_s
     if not (0.0 < timeout_s <= MAX_TIMEOUT_S):
         expected = f"the seconds a request may wait for its reply, more than 0 and at most {MAX_TIMEOUT_S:g}"
         raise InputError("settings", "models.detector_timeout_s", expected, timeout_s)
-    check_endpoint(spec.detector_url, "--detector-url")
+    check_endpoint(spec.detector_url, option)
     if spec.detector_keys:
         client_keys(Path(spec.detector_keys), "--detector-keys")
     elif not is_loopback(spec.detector_url):
@@ -468,3 +468,40 @@ def check_detector_url(spec: ModelSpec) -> None:
     if spec.detector_served and spec.detector_served not in local:
         expected = f"empty or one of {', '.join(local)}"
         raise InputError("settings", "models.detector_served", expected, spec.detector_served)
+
+
+# -- a served model's cost beside another grounder's detections -------------------------------------------------------
+
+
+SHADOW_OPTION = "--detector-shadow-url"
+
+
+def shadow_spec(spec: ModelSpec) -> ModelSpec:
+    """The served grounder at ``detector_shadow_url`` as a ``remote`` detector's settings."""
+    return replace(spec, detector="remote", detector_url=spec.detector_shadow_url, detector_served="")
+
+
+class ShadowedGrounder:
+    """Implements :class:`~drivenav.semantics.protocols.Grounder` with ``grounder``'s detections, every request also
+    sent to a served grounder (``shadow``) whose answer is discarded: an episode pays what the served model costs
+    (the wire, the batch, the forward), and its agent acts on ``grounder``'s answers. A throughput benchmark of a
+    real model with random weights (``models.detector_shadow_url``), whose own detections would be noise."""
+
+    def __init__(self, grounder: Grounder, shadow: RemoteGrounder) -> None:
+        self.grounder = grounder
+        self.shadow = shadow
+        self.name = grounder.name
+
+    def begin_episode(self, truth: GroundTruth | None, seed: int) -> None:
+        self.grounder.begin_episode(truth, seed)
+        self.shadow.begin_episode(truth, seed)
+
+    def segment(self, observation: Observation, phrase: str) -> list[Detection]:
+        self.shadow.segment(observation, phrase)
+        return self.grounder.segment(observation, phrase)
+
+
+def shadowed(grounder: Grounder, spec: ModelSpec) -> ShadowedGrounder:
+    """``grounder`` shadowed by the served grounder at ``spec.detector_shadow_url`` (a model server: a stand-in that
+    reads labels is refused, as for ``remote``)."""
+    return ShadowedGrounder(grounder, remote_grounder(shadow_spec(spec)))

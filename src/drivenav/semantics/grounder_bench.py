@@ -1,15 +1,19 @@
-"""``drivenav bench grounder``: how long the SAM3 or OWLv2 grounder takes on a 640x480 frame, in process and
-served.
+"""``drivenav bench grounder``: how long the SAM3, OWLv2 or Grounding DINO grounder (with its box segmenter) takes
+on a 640x480 frame, in process and served.
 
 Weights are not needed: without a checkpoint (or with ``--random-weights``) the model is the full-size
-architecture of transformers' default configuration with random weights (:mod:`drivenav.eval.random_grounders`),
-which costs the same time as the released one. ``--tiny`` uses the tests' tiny configuration instead (a smoke test
-of the bench itself; its times measure nothing but the plumbing).
+architecture of transformers' default configuration with random weights (:mod:`drivenav.semantics.random_grounders`;
+MobileSAM's ``vit_t`` without ``--segmenter-model``), which costs the same time as the released one. ``--tiny``
+uses the tests' tiny configurations instead (a smoke test of the bench itself; its times measure nothing but the
+plumbing). ``--compile`` compiles the per-frame modules (``models.compile``); they compile during the untimed frames.
 
 Each timed frame is new (its vision features are computed), the phrase is the same (its text features are encoded
 once, as in an episode); frames are random pixels. One frame is split into the grounder's stages: preprocessing
 (:meth:`~drivenav.semantics.hf_common.TransformersGrounder.preprocess`), forward (vision features and decoding) and
-postprocessing (masks at the frame's size, detections). On CUDA every stage ends with a synchronisation.
+postprocessing (masks at the frame's size, detections); ``segment_ms`` is the part of postprocessing that a box
+detector's segmenter takes (MobileSAM's encoder and decoder; null for SAM3, which makes its own masks), on as many
+boxes as the detector passed (the notes give their median: random weights pass many). On CUDA every stage ends with
+a synchronisation.
 
 ``--clients K`` also times the served path (:mod:`drivenav.semantics.grounder_server`), with the grounder served
 from this process on loopback: ``served_ms_per_frame`` is the throughput of K client threads each grounding
@@ -32,7 +36,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivenav.errors import InputError
-from drivenav.semantics.hf_common import DETECTOR_OPTION, TransformersGrounder, pick_device, resolve_dtype
+from drivenav.semantics.boxes import BoxGrounder, BoxSegmenter
+from drivenav.semantics.hf_common import (
+    COMPILE_BACKEND,
+    DETECTOR_OPTION,
+    TransformersGrounder,
+    compile_backend_for,
+    pick_device,
+    resolve_dtype,
+)
+from drivenav.semantics.registry import BOX_DETECTORS, DEFAULT_SEGMENTER, ModelSpec, make_segmenter
 from drivenav.types import CameraIntrinsics, Observation, Pose
 from drivenav.wire.protocol import Message
 
@@ -52,20 +65,36 @@ OVERHEAD_FRAMES: Final[int] = 2
 @dataclass(frozen=True)
 class GrounderBenchOptions:
     """What ``bench grounder`` runs. ``checkpoint``: a checkpoint directory or cached model id; empty for the
-    detector's default one when it is in the Hugging Face cache, else random weights. ``random_weights`` / ``tiny``:
-    random weights whatever is cached, on the full-size / tiny configuration. ``device``: None for CUDA when
-    visible. ``batch`` > 1 adds a batched forward of that many frames; ``clients`` > 0 the served path with that many
-    concurrent clients."""
+    detector's default one when it is in the Hugging Face cache, else random weights. ``segmenter``: a box
+    detector's segmenter, MobileSAM from ``segmenter_checkpoint`` or with random weights. ``random_weights`` /
+    ``tiny``: random weights whatever is cached, on the full-size / tiny configurations. ``device``: None for CUDA
+    when visible. ``compile``: ``models.compile``. ``batch`` > 1 adds a batched forward of that many frames;
+    ``clients`` > 0 the served path with that many concurrent clients."""
 
     detector: str = "sam3"
     checkpoint: str = ""
+    segmenter: str = DEFAULT_SEGMENTER
+    segmenter_checkpoint: str = ""
     random_weights: bool = False
     tiny: bool = False
     device: str | None = None
     dtype: str = "auto"
+    compile: bool = False
     frames: int = 10
     batch: int = 1
     clients: int = 0
+
+    def spec(self, device: str) -> ModelSpec:
+        """The models' settings these options make, on ``device``."""
+        return ModelSpec(
+            detector=self.detector,
+            detector_model=self.checkpoint,
+            segmenter=self.segmenter,
+            segmenter_model=self.segmenter_checkpoint,
+            dtype=self.dtype,
+            detector_device=device,
+            compile=self.compile,
+        )
 
 
 @dataclass(frozen=True)
@@ -86,6 +115,7 @@ class GrounderBenchResult:
     preprocess_ms: float
     forward_ms: float
     postprocess_ms: float
+    segment_ms: float | None
     batch: int
     batch_ms_per_frame: float | None
     clients: int
@@ -100,6 +130,8 @@ class _FrameTiming:
     preprocess: float
     forward: float
     postprocess: float
+    segment: float
+    boxes: int
 
     @property
     def total(self) -> float:
@@ -118,13 +150,15 @@ def bench_grounder(options: GrounderBenchOptions) -> GrounderBenchResult:
     if on_cuda:
         torch.cuda.reset_peak_memory_stats()
     grounder, model = _grounder(options, device)
+    timed = None
+    if isinstance(grounder, BoxGrounder):
+        timed = grounder.segmenter = _TimedSegmenter(grounder.segmenter, device)
     frames = _frames(WARMUP_FRAMES + options.frames)
     for rgb in frames[:WARMUP_FRAMES]:
-        _time_frame(grounder, rgb, device)
-    timings = [_time_frame(grounder, rgb, device) for rgb in frames[WARMUP_FRAMES:]]
+        _time_frame(grounder, rgb, device, timed)
+    timings = [_time_frame(grounder, rgb, device, timed) for rgb in frames[WARMUP_FRAMES:]]
     totals = [t.total for t in timings]
     dtype = str(resolve_dtype(options.dtype, device)).removeprefix("torch.")
-    tf32 = " TF32 matmuls (fp32 on CUDA);" if on_cuda and dtype == "float32" else ""
     served = _served(grounder, options, device) if options.clients else None
     return GrounderBenchResult(
         detector=options.detector,
@@ -139,35 +173,69 @@ def bench_grounder(options: GrounderBenchOptions) -> GrounderBenchResult:
         preprocess_ms=_ms(np.median([t.preprocess for t in timings])),
         forward_ms=_ms(np.median([t.forward for t in timings])),
         postprocess_ms=_ms(np.median([t.postprocess for t in timings])),
+        segment_ms=_ms(np.median([t.segment for t in timings])) if timed is not None else None,
         batch=options.batch,
         batch_ms_per_frame=_batched(grounder, options, device) if options.batch > 1 else None,
         clients=options.clients,
         served_ms_per_frame=served.ms_per_frame if served else None,
         served_overhead_ms=served.overhead_ms if served else None,
         gpu_memory_mb=round(torch.cuda.max_memory_allocated() / 2**20, 1) if on_cuda else None,
-        notes=f"text features encoded once (cached per episode);{tf32} {SERVED_NOTE}",
+        notes=_notes(options, on_cuda and dtype == "float32", timings if timed is not None else None),
     )
 
 
-def _grounder(options: GrounderBenchOptions, device: str) -> tuple[TransformersGrounder, str]:
-    """The grounder and a description of its model: the checkpoint's, else random weights (tiny or full size)."""
-    from drivenav.eval.random_grounders import random_owlv2, random_sam3
-    from drivenav.semantics.owlv2_grounder import Owlv2Grounder
-    from drivenav.semantics.sam3_grounder import Sam3Grounder
+def _notes(options: GrounderBenchOptions, tf32: bool, segmented: list[_FrameTiming] | None) -> str:
+    """What the figures were measured with, beyond the result's fields."""
+    notes = ["text features encoded once (cached per episode)"]
+    if segmented is not None:
+        weights = options.segmenter_checkpoint or ("tiny random weights" if options.tiny else "random weights")
+        described = options.segmenter if options.segmenter == DEFAULT_SEGMENTER else f"{options.segmenter} ({weights})"
+        boxes = np.median([t.boxes for t in segmented])
+        notes.append(f"boxes to masks: {described}, a median of {boxes:g} boxes a frame")
+    if options.compile:
+        notes.append(f"torch.compile ({COMPILE_BACKEND}) of the per-frame modules, compiled in the untimed frames")
+    if tf32:
+        notes.append("TF32 matmuls (fp32 on CUDA)")
+    return "; ".join([*notes, SERVED_NOTE])
 
-    kind = {"sam3": Sam3Grounder, "owlv2": Owlv2Grounder}[options.detector]
+
+class _TimedSegmenter:
+    """A box segmenter timing each call of ``inner`` (``seconds``) and counting its boxes."""
+
+    def __init__(self, inner: BoxSegmenter, device: str) -> None:
+        self.inner = inner
+        self.device = device
+        self.seconds = 0.0
+        self.boxes = 0
+
+    def segment_boxes(self, rgb: NDArray[np.uint8], boxes: NDArray[np.float32]) -> NDArray[np.bool_]:
+        result = _timed(lambda: self.inner.segment_boxes(rgb, boxes), self.device)
+        masks: NDArray[np.bool_] = result[0]
+        self.seconds += result[1]
+        self.boxes += len(boxes)
+        return masks
+
+
+def _grounder(options: GrounderBenchOptions, device: str) -> tuple[TransformersGrounder, str]:
+    """The grounder and a description of its model: the checkpoint's, else random weights (tiny or full size); a box
+    detector's segmenter from its checkpoint, else with random weights."""
+    from drivenav.semantics.random_grounders import GROUNDERS, random_grounder, random_segmenter
+
+    spec = options.spec(device)
+    options_of: dict[str, Any] = {"dtype": spec.dtype, "compile_backend": compile_backend_for(spec.compile)}
+    if spec.detector in BOX_DETECTORS:
+        random = options.tiny or not options.segmenter_checkpoint
+        options_of["segmenter"] = random_segmenter(spec, options.tiny) if random else make_segmenter(spec)
+    kind = GROUNDERS[spec.detector]
     if options.checkpoint:
-        return kind(options.checkpoint, device, dtype=options.dtype), options.checkpoint
+        return kind(options.checkpoint, device, **options_of), options.checkpoint
     if not (options.random_weights or options.tiny):
         try:
-            default = kind(device=device, dtype=options.dtype)
-            return default, "the default checkpoint (from the Hugging Face cache)"
+            return kind(device=device, **options_of), "the default checkpoint (from the Hugging Face cache)"
         except InputError:  # not in the cache: random weights time the same
             pass
-    build = {"sam3": random_sam3, "owlv2": random_owlv2}[options.detector]
-    model, processor = build(options.tiny)
+    grounder = random_grounder(spec, options.tiny, options_of.get("segmenter"))
     described = "tiny test configuration" if options.tiny else "full-size default configuration"
-    grounder = kind(device=device, dtype=options.dtype, model_obj=model, processor_obj=processor)
     return grounder, f"{described}, random weights"
 
 
@@ -176,16 +244,22 @@ def _frames(count: int) -> list[NDArray[np.uint8]]:
     return [rng.integers(0, 256, (FRAME_HEIGHT, FRAME_WIDTH, 3), dtype=np.uint8) for _ in range(count)]
 
 
-def _time_frame(grounder: TransformersGrounder, rgb: NDArray[np.uint8], device: str) -> _FrameTiming:
-    """One frame through the grounder's stages, as :meth:`~TransformersGrounder.segment` runs them."""
+def _time_frame(
+    grounder: TransformersGrounder, rgb: NDArray[np.uint8], device: str, segmenter: _TimedSegmenter | None
+) -> _FrameTiming:
+    """One frame through the grounder's stages, as :meth:`~TransformersGrounder.segment` runs them (``segmenter``:
+    the grounder's timed box segmenter, if it has one)."""
     import torch
 
+    seconds, boxes = (segmenter.seconds, segmenter.boxes) if segmenter is not None else (0.0, 0)
     with torch.inference_mode():
         text = grounder.text_features(PHRASE)
         pixels, preprocess = _timed(lambda: grounder.preprocess([rgb]), device)
         outputs, forward = _timed(lambda: grounder.decode(grounder.encode_vision(pixels), text), device)
         _, postprocess = _timed(lambda: grounder.postprocess(outputs, [rgb], PHRASE), device)
-    return _FrameTiming(preprocess, forward, postprocess)
+    if segmenter is None:
+        return _FrameTiming(preprocess, forward, postprocess, 0.0, 0)
+    return _FrameTiming(preprocess, forward, postprocess, segmenter.seconds - seconds, segmenter.boxes - boxes)
 
 
 def _batched(grounder: TransformersGrounder, options: GrounderBenchOptions, device: str) -> float:
@@ -293,8 +367,13 @@ def _ms(seconds: float | np.floating[Any]) -> float:
 
 def _check(options: GrounderBenchOptions) -> None:
     """The choices that argparse cannot check, one InputError each: a checkpoint goes without ``--random-weights``
-    and ``--tiny``."""
-    if options.checkpoint and (options.random_weights or options.tiny):
-        raise InputError(
-            "command line", DETECTOR_OPTION, "no checkpoint with --random-weights or --tiny", options.checkpoint
-        )
+    and ``--tiny``; a segmenter other than the default with a box detector."""
+    for option, checkpoint in (
+        (DETECTOR_OPTION, options.checkpoint),
+        ("--segmenter-model", options.segmenter_checkpoint),
+    ):
+        if checkpoint and (options.random_weights or options.tiny):
+            raise InputError("command line", option, "no checkpoint with --random-weights or --tiny", checkpoint)
+    if options.segmenter != DEFAULT_SEGMENTER and options.detector not in BOX_DETECTORS:
+        expected = f"{DEFAULT_SEGMENTER} with --detector {options.detector} (it makes its own masks)"
+        raise InputError("command line", "--segmenter", expected, options.segmenter)
