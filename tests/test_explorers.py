@@ -53,7 +53,7 @@ def test_each_method_is_an_explorer_with_body_switches(method: str, explorer: st
 def test_a_setting_of_one_explorer_is_its_section_and_an_unknown_explorer_is_refused() -> None:
     settings = load_settings("vlfm", overrides=["explorer.vlfm.keep_margin=0.05"])
     assert explorer_section(settings, "vlfm").keep_margin == 0.05  # type: ignore[attr-defined]
-    with pytest.raises(InputError, match=r"explorer\.name.*directions, greedy, vlfm"):
+    with pytest.raises(InputError, match=r"explorer\.name.*directions, greedy, vlfm, apexnav"):
         load_settings("drive-nav", overrides=["explorer.name=no-such-explorer"])
     with pytest.raises(InputError, match=r"explorer\.vlfm.*keep_radius"):
         load_settings("vlfm", overrides=["explorer.vlfm.no_such_constant=1"])
@@ -111,7 +111,7 @@ def test_a_broken_plugin_is_one_line_and_never_breaks_the_built_ins(monkeypatch:
     registry = Registry[ExplorerEntry](
         "drivenav.explorers", BUILT_IN_EXPLORERS, lambda p: isinstance(p, ExplorerEntry), "explorer entry", "x"
     )
-    assert registry.names == ("directions", "greedy", "vlfm", "broken", "wrongtype")  # the clash keeps drivenav's
+    assert registry.names == ("directions", "greedy", "vlfm", "apexnav", "broken", "wrongtype")  # the clash: drivenav's
     assert registry.get("vlfm").explorer.startswith("drivenav.")
     with pytest.raises(InputError) as broken:
         registry.get("broken")
