@@ -401,3 +401,13 @@ def test_a_category_is_asked_once_per_agent() -> None:
     records = [run_episode(env, agent, episode, 0, 30)[0] for _ in range(2)]
     assert [[c.outcome for c in r.calls if c.kind == "category_hints"] for r in made] == [["ok"], ["cached"]]
     assert [r.stats.vlm_calls_by_kind["category_hints"] for r in records] == [1, 1]
+
+
+def test_fusion_is_a_body_switch_of_any_method() -> None:
+    scene = t_junction(target_on_left=True)
+    settings = load_settings("nearest-frontier", overrides=["agent.fusion.enabled=true"])
+    agent = make_agent(settings)
+    episode = episode_for(scene, (12.0, 2.5), math.pi / 2, "plant")
+    record, _ = run_episode(EmbeddedEnv(lambda _: scene, SIM), agent, episode, 0, 300)
+    assert record.success == 1 and record.stats.vlm_calls_by_kind.get("category_hints") == 1
+    assert record.explorer is not None and record.explorer.name == "greedy"

@@ -40,7 +40,8 @@ def test_the_built_in_explorers_are_declared_in_pyproject_as_plugins_declare_the
 
 
 @pytest.mark.parametrize(("method", "explorer"), [("drive-nav", "directions"), ("direction-360", "directions"),
-                                                  ("nearest-frontier", "greedy"), ("vlfm", "vlfm")])  # fmt: skip
+                                                  ("nearest-frontier", "greedy"), ("vlfm", "vlfm"),
+                                                  ("apexnav", "apexnav")])  # fmt: skip
 def test_each_method_is_an_explorer_with_body_switches(method: str, explorer: str) -> None:
     settings = load_settings(method)
     assert settings.explorer.name == explorer
@@ -70,7 +71,7 @@ def test_a_run_json_written_before_explorers_reads_in_todays_shape() -> None:
     assert old == load_settings("vlfm", overrides=["explorer.vlfm.keep_margin=0.05"])
 
 
-@pytest.mark.parametrize("method", ["drive-nav", "nearest-frontier", "vlfm"])
+@pytest.mark.parametrize("method", ["drive-nav", "nearest-frontier", "vlfm", "apexnav"])
 def test_each_explorer_writes_its_own_counters(method: str) -> None:
     scene = t_junction(target_on_left=True)
     agent = make_agent(load_settings(method))
@@ -83,6 +84,7 @@ def test_each_explorer_writes_its_own_counters(method: str) -> None:
         "drive-nav": {"labels_created", "inspection_events", "decisions", "dead_end_decisions", "selected_lost"},
         "nearest-frontier": {"decisions", "goals_skipped"},
         "vlfm": {"new_choices", "acyclic_fallbacks", "goals_skipped"},
+        "apexnav": {"decisions", "tsp_solves", "dormant_frontiers", "settled", "goals_skipped"},
     }[method]
     assert expected <= set(counters), counters
     if method == "vlfm":  # VLFM makes no reasoner decision; the greedy baseline one, after its start scan

@@ -151,7 +151,7 @@ class ApexnavExplorer(Explorer):
                     return loop.policy(observation, ctx)
             if not paths:
                 return loop.stop("no_frontier")
-        chosen = self._kept(cells, index, live) if live else None
+        chosen = self._kept(cells, index, live or paths)
         if chosen is None:
             chosen = self._decide(loop, ctx, live) if live else self._nearest(paths, "dormant")
             self.before = cells
@@ -190,8 +190,8 @@ class ApexnavExplorer(Explorer):
         self.scanning = False
         loop.explore()
 
-    def _kept(self, cells: FrontierCells, index: dict[int, int], live: list[FrontierPath]) -> FrontierPath | None:
-        """The frontier headed for, while the frontiers are those of the last decision and it is still a goal."""
+    def _kept(self, cells: FrontierCells, index: dict[int, int], goals: list[FrontierPath]) -> FrontierPath | None:
+        """The frontier headed for, while the frontiers are those of the last decision and it is among ``goals``."""
         before = self.before
         if before is None or len(cells) != len(before) or not len(self.heading):
             return None
@@ -199,7 +199,7 @@ class ApexnavExplorer(Explorer):
         if not (same.any(axis=1).all() and same.any(axis=0).all()):
             return None
         heading = cells.matches(self.heading, self.config.frontier_changed)[:, 0]
-        return next((p for p in live if heading[index[p.frontier_id]]), None)
+        return next((p for p in goals if heading[index[p.frontier_id]]), None)
 
     def _decide(self, loop: Loop, ctx: StepContext, live: list[FrontierPath]) -> FrontierPath:
         """Semantic or geometric mode by the scores' statistic (module docstring)."""
