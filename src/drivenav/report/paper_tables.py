@@ -1,5 +1,5 @@
 """The paper's tables on the index page, when the report's runs form an ablation set (runs of the methods of
-Tables II, V or VI on the same episodes).
+Tables I, II, V or VI on the same episodes).
 
 The tables are ``ablations.md`` itself: read from the ``ablations.json`` that ``bench ablations`` wrote beside the
 runs when it covers exactly these runs, else built from the runs as ``bench ablations`` builds it
@@ -17,14 +17,14 @@ from dataclasses import replace
 from drivenav.eval.ablation_data import AblationReport, Pictures
 from drivenav.eval.ablation_report import format_markdown
 from drivenav.eval.ablations import RUNS_DIR, build_report
-from drivenav.eval.paper_tables import TABLE_II, TABLE_V, TABLE_VI
+from drivenav.eval.paper_tables import TABLE_I, TABLE_II, TABLE_V, TABLE_VI
 from drivenav.eval.runner import RunSpec
 from drivenav.eval.worlds import recorded_world
 from drivenav.report.markdown import to_html
 from drivenav.report.runs import Run
 
 ABLATIONS_JSON = "ablations.json"
-PAPER_METHODS = frozenset(row.method for table in (TABLE_II, TABLE_V, TABLE_VI) for row in table)
+PAPER_METHODS = frozenset(row.method for table in (TABLE_I, TABLE_II, TABLE_V, TABLE_VI) for row in table)
 LEFT_OUT = frozenset({"Pictures"})
 
 
