@@ -39,7 +39,7 @@ dev: $(VENV)/.dev-installed
 demo: $(VENV)/.kernels
 	$(VENV)/bin/drivenav demo --out $(DEMO_OUT)
 
-# The paper's tables on benchmark v1, every method (the paper's nine and VLFM), with pictures
+# The paper's tables on benchmark v1, every method (the paper's nine, VLFM and ApexNav), with pictures
 # (about 85 min on 2 cores for the nine; rerun resumes).
 # A quick look: make ablations ABLATIONS_OUT=quick ABLATIONS_ARGS="--episodes 4 --max-steps 100"
 ablations: $(VENV)/.kernels
