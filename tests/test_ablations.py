@@ -76,7 +76,7 @@ def test_ordering_differences_name_reversed_and_tied_pairs() -> None:
 
 def test_default_methods_cover_tables_ii_v_vi_once() -> None:
     expected = {"frontier", "directional", "directional-enrich", "directional-verify", "drive-nav"}
-    expected |= {"no-weighted-fmm", "no-240", "direction-360", "nearest-frontier", "vlfm"}
+    expected |= {"no-weighted-fmm", "no-240", "direction-360", "nearest-frontier", "vlfm", "apexnav"}
     assert set(ALL_METHODS) == expected and len(ALL_METHODS) == len(expected)
 
 

@@ -4,12 +4,14 @@ errors for wrong keys, types and values, and the methods of the paper's tables a
 from __future__ import annotations
 
 import math
+from dataclasses import asdict
 from pathlib import Path
 
 import pytest
 import yaml
 
 from drivenav.agent.body import ExplorerAgent
+from drivenav.agent.config import FusionConfig
 from drivenav.agent.oracle import OracleAgent
 from drivenav.agents import make_agent
 from drivenav.cli import main
@@ -74,7 +76,7 @@ def test_layers_apply_in_order(tmp_path: Path) -> None:
         (["run.seed=1.5"], ["'run.seed'", "an int like 0", "1.5"]),
         (["paper.speed.lam=[1"], ["'paper.speed.lam'", "a YAML value", "'[1'"]),
         (["paper.speed.lam=${nowhere}"], ["'paper.speed.lam'", "an interpolation", "'nowhere' not found"]),
-        (["run.agent=no-such"], ["'run.agent'", "one of direction-360", "'no-such'"]),
+        (["run.agent=no-such"], ["'run.agent'", "one of apexnav, direction-360", "'no-such'"]),
         (["models.reasoner=gpt"], ["'models.reasoner'", "one of embedded, openai", "'gpt'"]),
         (["models.scorer=clip"], ["'models.scorer'", "one of embedded, blip2-itm, siglip", "--scorer", "'clip'"]),
         (["mapping.min_obstacle_height=1.0"], ["'mapping.min_obstacle_height'", "less than sim.agent_height"]),
@@ -125,6 +127,15 @@ EXPECTED = {
     "direction-360": {"decision_scan": True},
     "nearest-frontier": {"explorer": "greedy", "enrich": False, "verify": False},
     "vlfm": {"explorer": "vlfm", "enrich": False, "verify": False},
+    "apexnav": {
+        "explorer": "apexnav",
+        "enrich": False,
+        "verify": False,
+        "fusion": {**asdict(FusionConfig()), "enabled": True},
+        "stop_in_view": False,
+        "stop_distance": 0.7,
+        "weighted": False,
+    },
 }
 
 
@@ -207,6 +218,7 @@ def test_methods_name_the_papers_tables() -> None:
         "nearest-frontier",
         "vlfm",
     }
+    assert {name for name, t in tables.items() if "I" in t} == {"drive-nav", "vlfm", "apexnav"}
     assert {name for name, t in tables.items() if "V" in t} == {"directional", "no-weighted-fmm", "no-240"}
     assert all(m.description and m.tables for m in METHODS)
 

@@ -29,7 +29,8 @@ SIM = SimConfig()
 
 
 @pytest.mark.parametrize(("method", "explorer"), [("drive-nav", "directions"), ("direction-360", "directions"),
-                                                  ("nearest-frontier", "greedy"), ("vlfm", "vlfm")])  # fmt: skip
+                                                  ("nearest-frontier", "greedy"), ("vlfm", "vlfm"),
+                                                  ("apexnav", "apexnav")])  # fmt: skip
 def test_each_method_is_an_explorer_with_body_switches(method: str, explorer: str) -> None:
     settings = load_settings(method)
     assert settings.explorer.name == explorer
@@ -42,7 +43,7 @@ def test_each_method_is_an_explorer_with_body_switches(method: str, explorer: st
 def test_a_setting_of_one_explorer_is_its_section_and_an_unknown_explorer_is_refused() -> None:
     settings = load_settings("vlfm", overrides=["explorer.vlfm.keep_margin=0.05"])
     assert explorer_section(settings, "vlfm").keep_margin == 0.05  # type: ignore[attr-defined]
-    with pytest.raises(InputError, match=r"explorer\.name.*directions, greedy, vlfm"):
+    with pytest.raises(InputError, match=r"explorer\.name.*directions, greedy, vlfm, apexnav"):
         load_settings("drive-nav", overrides=["explorer.name=no-such-explorer"])
     with pytest.raises(InputError, match=r"explorer\.vlfm.*keep_radius"):
         load_settings("vlfm", overrides=["explorer.vlfm.no_such_constant=1"])
@@ -59,7 +60,7 @@ def test_a_run_json_written_before_explorers_reads_in_todays_shape() -> None:
     assert old == load_settings("vlfm", overrides=["explorer.vlfm.keep_margin=0.05"])
 
 
-@pytest.mark.parametrize("method", ["drive-nav", "nearest-frontier", "vlfm"])
+@pytest.mark.parametrize("method", ["drive-nav", "nearest-frontier", "vlfm", "apexnav"])
 def test_each_explorer_writes_its_own_counters(method: str) -> None:
     scene = t_junction(target_on_left=True)
     agent = make_agent(load_settings(method))
@@ -72,6 +73,7 @@ def test_each_explorer_writes_its_own_counters(method: str) -> None:
         "drive-nav": {"labels_created", "inspection_events", "decisions", "dead_end_decisions", "selected_lost"},
         "nearest-frontier": {"decisions", "goals_skipped"},
         "vlfm": {"new_choices", "acyclic_fallbacks", "goals_skipped"},
+        "apexnav": {"decisions", "tsp_solves", "dormant_frontiers", "settled", "goals_skipped"},
     }[method]
     assert expected <= set(counters), counters
     if method == "vlfm":  # VLFM makes no reasoner decision; the greedy baseline one, after its start scan

@@ -58,7 +58,7 @@ def test_a_broken_plugin_is_one_line_and_never_breaks_the_built_ins(monkeypatch:
         "x",
         named=lambda entry: entry.name,
     )
-    assert registry.names == ("directions", "greedy", "vlfm", "alias", "broken", "wrongtype")  # vlfm stays ours
+    assert registry.names == ("directions", "greedy", "vlfm", "apexnav", "alias", "broken", "wrongtype")  # vlfm: ours
     assert registry.get("vlfm").explorer.startswith("drivenav.")
     with pytest.raises(InputError) as broken:
         registry.get("broken")

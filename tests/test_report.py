@@ -84,6 +84,7 @@ def test_the_index_shows_each_runs_rates_with_intervals_and_the_settings_that_di
         assert f"{100 * successes / len(records):.1f} [{100 * low:.1f}, {100 * high:.1f}]" in index
     assert "<td>agent.enrich</td><td>true</td><td>false</td>" in index  # drive-nav enriches, frontier does not
     assert "Table VI: module ablation" in index and "Table II: common successful episodes" in index
+    assert "Table I: all methods" in index and "reference" in index  # every method beside drive-nav
     assert "Pictures" not in re.findall(r"<h\d>([^<]*)</h\d>", index)
 
 

@@ -115,6 +115,15 @@ def test_vlfm_gives_the_same_actions_and_metrics_through_the_robot_protocol(epis
         assert_same(reference, through_robot(vlfm, episodes, endpoint, None))
 
 
+def test_apexnav_gives_the_same_actions_and_metrics_through_the_robot_protocol(episodes: list[Episode]) -> None:
+    """ApexNav (value map, mode switch, TSP, target-centric fusion; Zhang et al. 2025) through the same bridge."""
+    apexnav = load_settings("apexnav", options={"sim.max_steps": 60})
+    reference = directly(apexnav, episodes)
+    assert all(record.vlm_calls > 0 for record, _ in reference)  # the category question and the scorer ran
+    with served(sim_session(apexnav, episodes), None) as endpoint:
+        assert_same(reference, through_robot(apexnav, episodes, endpoint, None))
+
+
 def test_an_unlisted_client_key_is_refused(tmp_path: Path, settings: Settings, episodes: list[Episode]) -> None:
     robot_keys, stranger = tmp_path / "robot", tmp_path / "stranger"
     write_keys(robot_keys)

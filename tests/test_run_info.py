@@ -1,7 +1,8 @@
 """``run.json`` as a typed :class:`RunInfo`: the file keeps its format, reading it rebuilds the settings, and a
 hand-edited value is one :class:`InputError` naming ``config.KEY``.
 
-``tests/data/run.json`` is the ``run.json`` of a ``bench ablations`` run (drive-nav, seed 3, geometric reasoner);
+``tests/data/run.json`` is the ``run.json`` of a ``bench ablations`` run (drive-nav, seed 3, geometric reasoner), in
+today's tree (rewritten when the body's ``agent.fusion`` and ``agent.stop_in_view`` and ApexNav's section came);
 ``tests/data/run-before-explorers.json`` is the same run's as written before explorers had settings sections of
 their own (and before ``RunInfo.config`` was typed).
 """

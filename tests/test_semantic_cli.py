@@ -67,6 +67,25 @@ def test_vlfm_replays_its_scores_exactly(tmp_path: Path) -> None:
         assert trace_a["actions"] == trace_b["actions"]
 
 
+def test_apexnav_replays_its_category_answers_and_scores_exactly(tmp_path: Path) -> None:
+    """ApexNav's category question (the reasoner's) and its image-text scores (the scorer's), recorded into one file
+    with ``--vlm-record`` and both answered from it: the same records and actions."""
+    recording = tmp_path / "calls.jsonl"
+    _recorded(recording, tmp_path / "recorded", "apexnav")
+    both = ["--reasoner", "replay", "--scorer", "replay", "--vlm-replay", str(recording)]
+    replay = run_cli("eval", "--agent", "apexnav", *EPISODE_ARGS, *both, "--out", str(tmp_path / "replayed"))
+    assert replay.returncode == 0, replay.stderr
+    recorded, replayed = _records(tmp_path / "recorded"), _records(tmp_path / "replayed")
+    assert [_without_timing(r) for r in recorded] == [_without_timing(r) for r in replayed]
+    assert all(r["vlm_calls_by_kind"] == {"category_hints": 1, "score": r["steps"]} for r in recorded)
+    kinds = {json.loads(line)["kind"] for line in recording.read_text().splitlines()}
+    assert kinds == {"category_hints", "score"}
+    for record in recorded:
+        trace_a = json.loads((tmp_path / "recorded" / "traces" / f"{record['episode_id']}.json").read_text())
+        trace_b = json.loads((tmp_path / "replayed" / "traces" / f"{record['episode_id']}.json").read_text())
+        assert trace_a["actions"] == trace_b["actions"]
+
+
 def _eval_against_fake_server(tmp_path: Path, mode: str) -> list[dict[str, object]]:
     """Run two short episodes with the ``openai`` reasoner against a loopback server in ``mode``."""
     url, stop = start_fake_server(mode, lifetime=120.0)

@@ -18,7 +18,9 @@ from typing import Literal
 
 from drivenav.plugins import plugins_of
 
-PaperTable = Literal["II", "V", "VI"]  # II: analytical comparison; V: directional components; VI: module ablation
+PaperTable = Literal["I", "II", "V", "VI"]
+"""I: comparison with the state of the art (SR / SPL per benchmark); II: analytical comparison; V: directional
+components; VI: module ablation."""
 
 _DIRECTIONAL = ("agent.enrich=false", "agent.verify=false")
 
@@ -53,7 +55,7 @@ METHODS: tuple[Method, ...] = (
     Method(
         "directional-verify", ("VI",), "directional + cross-frame verification (Sec. IV-C)", ("agent.enrich=false",)
     ),
-    Method("drive-nav", ("II", "VI"), "DRIVE-Nav: everything on, the paper's constants"),
+    Method("drive-nav", ("I", "II", "VI"), "DRIVE-Nav: everything on, the paper's constants"),
     Method(
         "no-weighted-fmm",
         ("V",),
@@ -75,12 +77,19 @@ METHODS: tuple[Method, ...] = (
     Method("nearest-frontier", ("II",), "greedy nearest frontier: no views, no reasoner", explorer="greedy"),
     Method(
         "vlfm",
-        ("II",),
+        ("I", "II"),
         "VLFM (Yokoyama et al. 2024): value map from image-text scores, highest-value frontier",
         explorer="vlfm",
     ),
+    Method(
+        "apexnav",
+        ("I",),
+        "ApexNav (Zhang et al. 2025): semantic (TSP) or geometric exploration, target-centric fusion",
+        ("paper.speed.weighted=false",),  # ApexNav's paths are A*'s shortest ones, not kept clear of obstacles
+        explorer="apexnav",
+    ),
 )
-"""DRIVE-Nav and its baselines / ablations (paper Tables II, V, VI), in the order of the ablation report."""
+"""DRIVE-Nav and its baselines / ablations (paper Tables I, II, V, VI), in the order of the ablation report."""
 
 REFERENCE_AGENTS: dict[str, str] = {
     "oracle": "drivenav.agent.oracle:OracleAgent",  # follows the ground-truth shortest path to the goal

@@ -15,9 +15,9 @@ height, agent radius and grid resolution follow from ``sim`` (:meth:`~drivenav.m
 so the mapper always matches the sensor.
 
 ``explorer`` holds ``explorer.name`` (the exploration method, :mod:`drivenav.agent.explorers`) and one section per
-registered explorer (``explorer.directions``, ``explorer.greedy``, ``explorer.vlfm``, and any plug-in's), each its
-entry's config class with the source's constants as defaults. The tree's type is made once per process from the
-registered explorers (:func:`explorer_settings_type`).
+registered explorer (``explorer.directions``, ``explorer.greedy``, ``explorer.vlfm``, ``explorer.apexnav`` and any
+plug-in's), each its entry's config class with the source's constants as defaults. The tree's type is made once per
+process from the registered explorers (:func:`explorer_settings_type`).
 """
 
 from __future__ import annotations

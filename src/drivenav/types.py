@@ -240,6 +240,15 @@ class CategoryVocabulary(Protocol):
         """Other names of a category returned by :meth:`canonical`."""
         ...
 
+    def categories(self) -> list[str]:
+        """Every category name (canonical), in the vocabulary's order."""
+        ...
+
+    @property
+    def room_types(self) -> tuple[str, ...]:
+        """The kinds of room the world's scenes have (empty where it does not say)."""
+        ...
+
 
 @dataclass(frozen=True)
 class GroundTruth:

@@ -4,9 +4,9 @@ and the same success, SPL and distance to goal, in both Habitat layouts (ObjectN
 reader, HM3D-OVON by drivenav's own dataset type). A frame, sign, unit or normalisation error anywhere in the
 adapter changes what the agent sees, and so its actions.
 
-The oracle runs at the paper's 640x480; DRIVE-Nav and VLFM (with the embedded stand-in models, which read the
-ground-truth semantic sensor) at 320x240 and 150 steps to keep the suite's time, on the 12 shortest of 40 generated
-episodes.
+The oracle runs at the paper's 640x480; DRIVE-Nav, VLFM and ApexNav (with the embedded stand-in models, which read
+the ground-truth semantic sensor) at 320x240 and 150 steps to keep the suite's time, on the 12 shortest of 40
+generated episodes.
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ CASES = {
     "oracle": (),
     "drive-nav": ("sim.width=320", "sim.height=240", "sim.max_steps=150"),
     "vlfm": ("sim.width=320", "sim.height=240", "sim.max_steps=150"),
+    "apexnav": ("sim.width=320", "sim.height=240", "sim.max_steps=150"),
 }
 
 

@@ -51,7 +51,8 @@ def track_target(loop: Loop) -> None:
 
 def _at_target(loop: Loop, observation: Observation, ctx: StepContext, candidate: ObjectCandidate) -> Action | None:
     """Within stop distance: a pending candidate gets its last verification frame (Sec. IV-C); STOP once the
-    target is in the current frame, turning toward it until then."""
+    target is in the current frame, turning toward it until then (at once with ``agent.stop_in_view`` off, as
+    ApexNav stops at its approach goal, seen or not)."""
     state = loop.state
     if candidate.status != "accepted":
         assert state.target is not None
@@ -59,7 +60,7 @@ def _at_target(loop: Loop, observation: Observation, ctx: StepContext, candidate
         track_target(loop)
         if state.target is None:
             return None
-    if state.target in state.search.seen_now:
+    if state.target in state.search.seen_now or not loop.tuning.config.stop_in_view:
         return loop.stop("target_reached")
     bearing = math.atan2(candidate.center[1] - ctx.pose.y, candidate.center[0] - ctx.pose.x)
     return turn_toward(ctx.pose.yaw, bearing, loop.tuning.turn) or loop.stop("target_reached")

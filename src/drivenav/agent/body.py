@@ -8,8 +8,12 @@ to a target candidate, verifying it on the way, and STOPs (:mod:`~drivenav.agent
 decides where to explore next (:meth:`~drivenav.agent.explorer.Explorer.act`). Collision recovery is the local
 planner's; segments (the revisit metric) are marked by both.
 
-What the body does is switched by :class:`~drivenav.agent.config.AgentConfig` (``enrich``, ``verify``, Table VI);
-the method's exploration by its explorer (``explorer.name``, :mod:`drivenav.agent.explorers`). An episode's state
+What the body does is switched by :class:`~drivenav.agent.config.AgentConfig` (``enrich``, ``verify``, Table VI;
+``fusion.enabled``: ApexNav's target-centric fusion decides which detections are the target,
+:mod:`~drivenav.agent.fused_search`; ``stop_in_view``); the method's exploration by its explorer (``explorer.name``,
+:mod:`drivenav.agent.explorers`). The reasoner's hints on the goal's category (ApexNav's category question) are
+asked where fusion or the explorer reads them, once per category and agent (one worker's run): later episodes of
+the category record a ``cached`` call instead. An episode's state
 is one :class:`~drivenav.agent.state.BodyState` and one explorer, made by :meth:`ExplorerAgent.reset` and dropped
 by :meth:`ExplorerAgent.end_episode`.
 """
@@ -25,6 +29,7 @@ from drivenav.agent.config import AgentConfig, ExplorerEntry
 from drivenav.agent.context import StepContext, perceive
 from drivenav.agent.explorer import Explorer, ExplorerSetup, counter_values
 from drivenav.agent.explorers import DEFAULT_EXPLORER, explorer_entry
+from drivenav.agent.fused_search import FusedTargetSearch
 from drivenav.agent.loop import Loop, Tuning
 from drivenav.agent.planner import LocalPlanner
 from drivenav.agent.state import BodyState
@@ -37,7 +42,14 @@ from drivenav.paper import DriveNavConfig
 from drivenav.plugins import load_object
 from drivenav.semantics.geometric import GeometricReasoner
 from drivenav.semantics.ground_truth import GroundTruthGrounder
-from drivenav.semantics.protocols import Grounder, ImageTextScorer, ModelCall, Reasoner
+from drivenav.semantics.protocols import (
+    HINTS_KIND,
+    CategoryHints,
+    Grounder,
+    ImageTextScorer,
+    ModelCall,
+    Reasoner,
+)
 from drivenav.types import SEMANTIC, Action, GroundTruth, Observation, SimConfig
 
 
@@ -47,6 +59,8 @@ def explorer_class(entry: ExplorerEntry) -> type[Explorer]:
     expected = f"the Explorer class {entry.explorer!r} of explorer {entry.name}"
     try:
         found = load_object(entry.explorer)
+    except InputError:
+        raise  # the explorer's own line (a missing extra)
     except Exception as error:
         raise InputError(f"explorer {entry.name}", "explorer", expected, f"{type(error).__name__}: {error}") from None
     if not (isinstance(found, type) and issubclass(found, Explorer)):
@@ -88,6 +102,7 @@ class ExplorerAgent(Agent):
         self._scorer_factory = scorer_factory
         self._grounder: Grounder | None = None  # built at the first episode and kept: weights load once
         self._scorer: ImageTextScorer | None = None  # likewise
+        self._hints: dict[str, CategoryHints] = {}  # the reasoner's hints by goal text, asked once per agent
         self.state: BodyState | None = None  # the running episode's state (none between episodes)
         self.explorer: Explorer | None = None  # the running episode's explorer
 
@@ -109,12 +124,25 @@ class ExplorerAgent(Agent):
         planner = LocalPlanner.from_config(self.sim, self.config.planner)
         reasoner = self._reasoner_factory()
         reasoner.begin_episode(goal_text, truth)
+        hints = self._category_hints(goal_text, reasoner)
         if self._grounder is None:
             self._grounder = self._grounder_factory()
         grounder = self._grounder
         grounder.begin_episode(truth, seed)
-        search = self._target_search(goal_text, grounder, reasoner)
-        return BodyState(mapper, pipeline, planner, reasoner, search)
+        search = self._target_search(goal_text, grounder, reasoner, hints)
+        return BodyState(mapper, pipeline, planner, reasoner, search, hints=hints)
+
+    def _category_hints(self, goal_text: str, reasoner: Reasoner) -> CategoryHints | None:
+        """The reasoner's hints on the goal's category where fusion or the explorer reads them (None otherwise):
+        asked at the first episode of the category, then answered from the agent's cache (a ``cached`` call)."""
+        if not (self.config.fusion.enabled or self.explorer_type.uses_hints):
+            return None
+        key = " ".join(goal_text.lower().split())
+        if key in self._hints:
+            reasoner.calls.append(ModelCall(HINTS_KIND, 0.0, "cached"))
+        else:
+            self._hints[key] = reasoner.category_hints(goal_text)
+        return self._hints[key]
 
     def _explorer_setup(self, goal_text: str, truth: GroundTruth | None, mapper: OccupancyMapper) -> ExplorerSetup:
         """What the explorer is made from; the image-text scorer (BLIP-2: gigabytes) is built at the first episode
@@ -122,11 +150,14 @@ class ExplorerAgent(Agent):
         if self.explorer_type.uses_scorer and self._scorer is None and self._scorer_factory is not None:
             self._scorer = self._scorer_factory()
         scorer = self._scorer if self.explorer_type.uses_scorer else None
-        return ExplorerSetup(self.explorer_config, self.tuning, goal_text, truth, mapper, scorer)
+        hints = self.state.hints if self.state is not None and self.explorer_type.uses_hints else None
+        return ExplorerSetup(self.explorer_config, self.tuning, goal_text, truth, mapper, scorer, hints)
 
-    def _target_search(self, goal_text: str, grounder: Grounder, reasoner: Reasoner) -> TargetSearch:
+    def _target_search(
+        self, goal_text: str, grounder: Grounder, reasoner: Reasoner, hints: CategoryHints | None
+    ) -> TargetSearch:
         """Grounding, prompt enrichment and cross-frame verification as switched on, with the paper's rounds,
-        frames and frame spacing (Sec. IV-B, IV-C)."""
+        frames and frame spacing (Sec. IV-B, IV-C); with fusion on, detections fused per object instead."""
         semantics = self.paper.semantics
         config = SearchConfig(
             self.config.enrich,
@@ -135,7 +166,13 @@ class ExplorerAgent(Agent):
             semantics.verify_frames,
             semantics.verify_spacing_steps,
         )
-        search = TargetSearch(self.sim, config, grounder, reasoner)
+        fusion = self.config.fusion
+        if fusion.enabled:
+            search: TargetSearch = FusedTargetSearch(
+                self.sim, config, grounder, reasoner, fusion, hints or CategoryHints.unknown()
+            )
+        else:
+            search = TargetSearch(self.sim, config, grounder, reasoner)
         search.begin(goal_text)
         return search
 
@@ -201,9 +238,9 @@ class ExplorerAgent(Agent):
         ctx = self._map(state, observation, timings)
         loop.explorer.observe(loop, observation, ctx, timings)
         mark = time.perf_counter()
-        state.search.observe(observation, self.trace)
+        state.search.observe(observation, self.trace, ctx.snapshot, loop.explorer.frame_score(), timings)
         approach.track_target(loop)
-        timings["grounding"] = _ms_since(mark)
+        timings["grounding"] = _ms_since(mark) - timings.get("fusion", 0.0)
         mark = time.perf_counter()
         action = loop.policy(observation, ctx)
         state.counts.count_step(action, state.activity(action) or loop.explorer.activity(state.planner.escaping))

@@ -13,7 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from drivenav.ranges import COUNT, LENGTH, POSITIVE_LENGTH, STEPS, check_ranges
+from drivenav.ranges import COUNT, LENGTH, POSITIVE_LENGTH, STEPS, UNIT, check_ranges, check_rule
 from drivenav.types import SimConfig
 
 
@@ -39,6 +39,44 @@ class PlannerConfig:
 
 
 @dataclass(frozen=True)
+class FusionConfig:
+    """Target-centric semantic fusion (ApexNav, Zhang et al., RA-L 2025; code Robotics-STAR-Lab/ApexNav,
+    ``object_map2d.cpp`` and ``map_ros.cpp``), the body's way of accepting detections when ``enabled``
+    (:mod:`drivenav.agent.fusion`): every frame the target and the reasoner's confusable objects are detected as
+    competing labels and fused per object, and an object becomes the target when the target's label leads, its
+    fused confidence reaches the category's threshold and it was detected ``min_detections`` times. The
+    constants are the code's (its launch file and sources); where our maps differ the docstrings of
+    :mod:`~drivenav.agent.fusion` say how they are read."""
+
+    enabled: bool = False
+    min_detections: int = 2  # isConfidenceObject: n_obs of the target's label >= 2
+    association_distance: float = 0.08  # searchSingleObjectCluster: a detection joins the first object with a ...
+    # ... cell within 0.08 m of one of its cells
+    count_voxel: float = 0.04  # detectedObjectCloudCallback: clouds voxelled at 0.04 m; a detection weighs ...
+    # ... as many points as its voxels (here the 0.04 m cells of its footprint)
+    max_range: float = 4.9  # detectedObjectCloudCallback: points farther than 4.9 m from the camera are dropped
+    evidence_voxel: float = 0.1  # getObservationObjectsCloud: object and depth clouds voxelled at 0.1 m
+    evidence_distance: float = 0.11  # inputObservationObjectsCloud: an object point with a depth point within ...
+    # ... 0.11 m is in view; an object in view and not detected gets that many points of negative evidence
+    goal_views: int = 4  # the goal cells of an object: seen as the target at least min(4, most seen) times
+    suspicious_confidence: float = 0.01  # planNextBestPoint: with nothing left to explore, the object of highest ...
+    # ... target confidence above 0.01 is approached even below the threshold
+
+    def __post_init__(self) -> None:
+        ranges = {
+            "min_detections": COUNT,
+            "association_distance": LENGTH,
+            "count_voxel": POSITIVE_LENGTH,
+            "max_range": LENGTH,
+            "evidence_voxel": POSITIVE_LENGTH,
+            "evidence_distance": LENGTH,
+            "goal_views": COUNT,
+            "suspicious_confidence": UNIT,
+        }
+        check_ranges(self, ranges)
+
+
+@dataclass(frozen=True)
 class AgentConfig:
     """The body's switches (paper Table VI: ``enrich``, ``verify``) and its own tuning (ours: the paper does not give
     these); the paper's constants are a :class:`~drivenav.paper.DriveNavConfig` beside them and the exploration
@@ -52,7 +90,9 @@ class AgentConfig:
     blacklist_steps: int = 40  # steps a direction, frontier goal or target that could not be reached is left out
     replan_shift: float = 0.3  # metres the approach goal may move before this step's path is re-planned
     approach_detour_steps: int = 60  # steps an approach may go through frontiers before the target is set aside
+    stop_in_view: bool = True  # STOP within stop_distance only with the target in the current frame (else at once)
     planner: PlannerConfig = field(default_factory=PlannerConfig)
+    fusion: FusionConfig = field(default_factory=FusionConfig)  # ApexNav's acceptance of detections (off: ours)
 
     def __post_init__(self) -> None:
         ranges = {
@@ -63,6 +103,8 @@ class AgentConfig:
             "approach_detour_steps": STEPS,
         }
         check_ranges(self, ranges)
+        expected = "false while agent.fusion.enabled is true (fused objects are accepted by fusion, not verified)"
+        check_rule(self, "verify", not (self.verify and self.fusion.enabled), expected)
 
 
 Rule = tuple[str, bool, str]

@@ -24,15 +24,16 @@ if TYPE_CHECKING:
     from drivenav.agent.context import StepContext
     from drivenav.agent.loop import Loop, Tuning
     from drivenav.mapping.occupancy import OccupancyMapper
-    from drivenav.semantics.protocols import ImageTextScorer, ModelCall
+    from drivenav.semantics.protocols import CategoryHints, ImageTextScorer, ModelCall
 
 
 @dataclass(frozen=True)
 class ExplorerSetup:
     """What an explorer is made from at an episode's start: its settings section (``config``, an instance of its
     entry's config class), the agent's tuning, the episode's goal text and ground truth (for stand-in models), the
-    mapper (its grid) and, for an explorer that scores frames (:attr:`Explorer.uses_scorer`), the worker's
-    image-text scorer, built once per worker."""
+    mapper (its grid), for an explorer that scores frames (:attr:`Explorer.uses_scorer`) the worker's image-text
+    scorer, built once per worker, and for one that reads them (:attr:`Explorer.uses_hints`) the reasoner's
+    hints on the goal's category."""
 
     config: object
     tuning: Tuning
@@ -40,6 +41,7 @@ class ExplorerSetup:
     truth: GroundTruth | None
     mapper: OccupancyMapper
     scorer: ImageTextScorer | None = None
+    hints: CategoryHints | None = None
 
 
 class Explorer(ABC):
@@ -47,6 +49,9 @@ class Explorer(ABC):
 
     uses_scorer: ClassVar[bool] = False
     """Whether the explorer scores frames with the image-text scorer (``models.scorer``)."""
+
+    uses_hints: ClassVar[bool] = False
+    """Whether the explorer reads the reasoner's hints on the goal's category (ApexNav's room for its prompt)."""
 
     @abstractmethod
     def __init__(self, setup: ExplorerSetup) -> None:
@@ -83,6 +88,11 @@ class Explorer(ABC):
     def model_calls(self) -> list[ModelCall]:
         """The model calls the explorer made this episode beyond the body's reasoner (e.g. the scorer's)."""
         return []
+
+    def frame_score(self) -> float | None:
+        """This step's image-text score of the frame, for an explorer that scores frames (None otherwise): target-
+        centric fusion's negative evidence for the target reads it."""
+        return None
 
 
 def counter_values(counters: object) -> dict[str, CounterValue]:

@@ -18,7 +18,7 @@ from drivenav.agent.planner import LocalPlanner
 from drivenav.agent.target import TargetSearch
 from drivenav.directions import DirectionPipeline
 from drivenav.mapping.occupancy import OccupancyMapper
-from drivenav.semantics.protocols import Reasoner
+from drivenav.semantics.protocols import CategoryHints, Reasoner
 from drivenav.types import Action
 
 
@@ -30,6 +30,7 @@ class BodyState:
     candidate approached (Sec. IV-C) and ``approaching`` whether the approach acts: a target appearing starts it,
     and the explorer entering one of its own modes ends it (the target is kept: it is approached again when it
     changes). ``detour_steps`` counts the approach's steps through frontiers toward a target beyond the map.
+    ``hints`` is the reasoner's answer on the goal's category, where the body or the explorer reads it.
     """
 
     mapper: OccupancyMapper
@@ -42,6 +43,7 @@ class BodyState:
     approaching: bool = False
     detour_steps: int = 0
     counts: BodyCounts = field(default_factory=BodyCounts)
+    hints: CategoryHints | None = None
 
     def activity(self, action: Action) -> str | None:
         """The body's name for this step's action (the steps-by-activity counter): ``stop``, or ``approach`` and

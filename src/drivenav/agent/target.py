@@ -28,6 +28,7 @@ from drivenav.agent.trace import (
     VerificationEvent,
 )
 from drivenav.mapping.objects import ObjectCandidate, ObjectMap, project_mask
+from drivenav.mapping.types import MapSnapshot
 from drivenav.semantics.protocols import Detection, Grounder, Reasoner, VerificationFrame, View
 from drivenav.types import Observation, SimConfig
 
@@ -75,8 +76,18 @@ class TargetSearch:
 
     # ----------------------------------------------------------------- every step
 
-    def observe(self, observation: Observation, trace: Trace) -> None:
-        """Ground the current phrase in this frame; detections become candidates and are verified."""
+    def observe(
+        self,
+        observation: Observation,
+        trace: Trace,
+        snapshot: MapSnapshot | None = None,
+        frame_score: float | None = None,
+        timings: dict[str, float] | None = None,
+    ) -> None:
+        """Ground the current phrase in this frame; detections become candidates and are verified. ``snapshot``
+        (this step's maps), ``frame_score`` (the explorer's image-text score of the frame, where it scores frames)
+        and ``timings`` (ms by part) serve searches that fuse detections over frames
+        (:class:`~drivenav.agent.fused_search.FusedTargetSearch`); this one reads the frame alone."""
         self.seen_now = set()
         self.step = observation.step
         if self.grounder is None:
@@ -192,6 +203,11 @@ class TargetSearch:
                 self.phrase = phrase
                 return True
             self.failed_phrases.append(phrase)
+        return False
+
+    def settle(self, trace: Trace) -> bool:
+        """Nothing is left to explore: take the most likely object for the target even below the acceptance bar,
+        where the search keeps such evidence; True when it did. This one keeps none."""
         return False
 
     # ----------------------------------------------------------------- queries

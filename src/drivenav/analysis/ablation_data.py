@@ -98,6 +98,24 @@ Splits = dict[str, dict[str, SplitEntry]]
 
 
 @dataclass(frozen=True)
+class Paired:
+    """One method against ``reference`` on the episodes both measured (no error in either): how many, and how many
+    this method solved and the reference did not (``wins``) or the other way round (``losses``)."""
+
+    reference: str
+    shared: int
+    wins: int
+    losses: int
+
+    def to_json(self) -> JsonObject:
+        return asdict(self)
+
+    @staticmethod
+    def from_json(data: JsonObject) -> Paired:
+        return Paired(data["reference"], data["shared"], data["wins"], data["losses"])
+
+
+@dataclass(frozen=True)
 class ModelCalls:
     """One kind of model call over the runs: how many, how many per episode of the runs that make it, mean
     latency."""
@@ -219,7 +237,8 @@ class ReportModels:
 class AblationReport:
     """``ablations.json``: every method's entry, the Table II comparison, Table VII, and what the runs were; with
     episodes of vocabulary splits (``info["split"]``, benchmark v2), each method per split under ``splits`` (a key
-    the file has only then)."""
+    the file has only then); with ``drive-nav`` among the methods, each method's paired wins and losses against it
+    under ``paired`` (likewise)."""
 
     methods: dict[str, MethodEntry]
     table_ii: Comparison
@@ -232,6 +251,7 @@ class AblationReport:
     commit: str | None
     pictures: Pictures = field(default_factory=Pictures)
     splits: Splits = field(default_factory=dict)
+    paired: dict[str, Paired] = field(default_factory=dict)
 
     def to_json(self) -> JsonObject:
         """The ``ablations.json`` object."""
@@ -249,6 +269,8 @@ class AblationReport:
         }
         if self.splits:
             data["splits"] = {name: {m: e.to_json() for m, e in by.items()} for name, by in self.splits.items()}
+        if self.paired:
+            data["paired"] = {name: paired.to_json() for name, paired in self.paired.items()}
         return data
 
     @staticmethod
@@ -267,6 +289,7 @@ class AblationReport:
                 data["commit"],
                 Pictures.from_json(data.get("pictures")),
                 {name: _each(by_method, SplitEntry.from_json) for name, by_method in data.get("splits", {}).items()},
+                _each(data.get("paired", {}), Paired.from_json),
             )
         except (KeyError, TypeError, AttributeError, IndexError) as error:
             expected = "an ablations.json written by 'drivenav bench ablations'"

@@ -13,6 +13,7 @@ from drivenav.analysis.ablation_data import (
     ComputeTable,
     Interval,
     MethodEntry,
+    Paired,
     Pictures,
     Runtime,
     SplitEntry,
@@ -20,6 +21,9 @@ from drivenav.analysis.ablation_data import (
 )
 from drivenav.analysis.compare import Comparison
 from drivenav.analysis.paper_tables import (
+    PAIRED_REFERENCE,
+    TABLE_I,
+    TABLE_I_BENCHMARKS,
     TABLE_II,
     TABLE_V,
     TABLE_VI,
@@ -68,6 +72,7 @@ def format_markdown(report: AblationReport) -> str:
     sections = [
         _header(report),
         *([_splits(report.splits)] if report.splits else []),
+        _table_i(report.methods, report.paired),
         _table_vi(report.methods),
         _table_v(report.methods),
         _table_ii(report.table_ii),
@@ -92,7 +97,8 @@ def _header(report: AblationReport) -> list[str]:
         f"{report.max_steps} steps, reasoner `{report.models.reasoner}`, detector "
         f"`{report.models.detector}`, commit {commit}. SR and SPL in %, with 95 % intervals in brackets "
         f"(Wilson score for SR, percentile bootstrap of the mean with {BOOTSTRAP_RESAMPLES} resamples for SPL). "
-        "Paper values: HM3D-OVON (DRIVE-Nav, Tables II, V, VI, VII).",
+        "Paper values: HM3D-OVON (DRIVE-Nav, Tables II, V, VI, VII); Table I's on HM3D-OVON, HM3Dv1, HM3Dv2 and "
+        "MP3D.",
     ]
 
 
@@ -165,6 +171,34 @@ def _rows_present(rows: Sequence[PaperRow], methods: Mapping[str, object]) -> li
 
 def _not_run(lines: list[str], rows: Sequence[PaperRow]) -> list[str]:
     return lines if rows else [lines[0], "", "No method of this table was run."]
+
+
+def _table_i(methods: Methods, paired: Mapping[str, Paired]) -> list[str]:
+    """Every method run: SR, SPL, steps, revisits, paired wins and losses, beside the paper's Table I."""
+    papers = {row.method: row.results for row in TABLE_I}
+    lines = [
+        "## Table I: all methods",
+        "",
+        "Every method on these episodes: SR and SPL with 95 % intervals, mean steps and revisits per episode, and, "
+        f"episode by episode against `{PAIRED_REFERENCE}`, wins (solved here, not by `{PAIRED_REFERENCE}`) and "
+        "losses over the episodes both measured. Beside them the paper's Table I, SR / SPL % per benchmark where it "
+        "reports the method (ApexNav's as it cites them from ApexNav's own paper); `-`: not reported.",
+        "",
+        "| method | SR % | SPL % | errors | steps | revisits | wins / losses (episodes) | "
+        + " | ".join(f"paper {name}" for name in TABLE_I_BENCHMARKS)
+        + " |",
+        "|---|---|---|---|---|---|---|" + "---|" * len(TABLE_I_BENCHMARKS),
+    ]
+    for name, entry in methods.items():
+        steps, revisits = _number(entry.avg_steps, "{:.1f}"), _number(entry.avg_revisits, "{:.3f}")
+        pair = paired.get(name)
+        versus = "reference" if name == PAIRED_REFERENCE else "-"
+        if pair is not None:
+            versus = f"{pair.wins} / {pair.losses} ({pair.shared})"
+        results = papers.get(name, (None,) * len(TABLE_I_BENCHMARKS))
+        cells = " | ".join("-" if r is None else f"{r[0]:.1f} / {r[1]:.1f}" for r in results)
+        lines.append(f"| `{name}` | {_sr_spl(entry)} | {steps} | {revisits} | {versus} | {cells} |")
+    return lines
 
 
 def _table_vi(methods: Methods) -> list[str]:
@@ -266,6 +300,10 @@ DECISION_COLUMNS = (
     ("labels_reidentified", "re-identified"),
     ("followed_through_relabel", "followed through relabel"),
     ("selected_lost", "followed lost"),
+    ("decisions.semantic", "semantic"),
+    ("decisions.geometric", "geometric"),
+    ("tsp_solves", "TSPs"),
+    ("dormant_frontiers", "dormant"),
 )
 STEP_COLUMNS = ("start_scan", "scan", "sweep", "follow", "escape", "approach", "enrich")
 
@@ -277,7 +315,8 @@ def _decisions(methods: Methods) -> list[str]:
         "Means per episode (reasoner calls: median and mean). Decisions by trigger: the start scan (and every "
         "decision of the 360 deg scanning methods), an inspection event, the followed direction gone, the "
         "planner stuck; a dead end offers the rear range because no direction is left in the forward 240 deg. "
-        "`-`: the method's explorer keeps no such counter.",
+        "ApexNav's decisions by mode (semantic: a TSP over the high-value frontiers when three or more, geometric: "
+        "the nearest) and the frontiers it made dormant. `-`: the method's explorer keeps no such counter.",
         "",
         "| method | reasoner calls (median / mean) | " + " | ".join(name for _, name in DECISION_COLUMNS) + " |",
         "|---|---|" + "---|" * len(DECISION_COLUMNS),
@@ -417,4 +456,15 @@ def _orderings(report: AblationReport) -> list[str]:
         "",
     ]
     lines.extend(_ordering_line(title, *_metric(rows, index, ours)) for title, rows, index, ours in checks)
+    for benchmark in ("HM3Dv1", "HM3Dv2"):
+        for index, (metric, ours) in enumerate((("SR", sr), ("SPL", spl))):
+            lines.append(_ordering_line(f"Table I ({benchmark}), {metric}", *_table_i_metric(benchmark, index, ours)))
     return lines
+
+
+def _table_i_metric(benchmark: str, index: int, ours: dict[str, float]) -> tuple[dict[str, float], dict[str, float]]:
+    """The paper's Table I values on ``benchmark`` and ours, for the methods with both."""
+    column = TABLE_I_BENCHMARKS.index(benchmark)
+    paper = {row.method: row.results[column] for row in TABLE_I}
+    present = {name: result[index] for name, result in paper.items() if result is not None and name in ours}
+    return present, {name: ours[name] for name in present}

@@ -23,6 +23,7 @@ from drivenav.analysis.ablation_data import (
     Interval,
     MethodEntry,
     ModelCalls,
+    Paired,
     Pictures,
     ReportModels,
     Runtime,
@@ -30,8 +31,8 @@ from drivenav.analysis.ablation_data import (
     Splits,
 )
 from drivenav.analysis.ablation_report import format_markdown, write_csv
-from drivenav.analysis.compare import RunRecords, compare_runs, load_runs
-from drivenav.analysis.paper_tables import TABLE_II_METHODS
+from drivenav.analysis.compare import RunRecords, compare_runs, load_runs, shared_ids
+from drivenav.analysis.paper_tables import PAIRED_REFERENCE, TABLE_II_METHODS
 from drivenav.analysis.stats import bootstrap_mean_interval, wilson_interval
 from drivenav.benchmarks.ovon_episodes import SPLITS, episode_splits
 from drivenav.episode import Episode
@@ -211,6 +212,25 @@ def _read_trace(path: Path) -> EpisodeTrace | None:
         return None  # a missing, torn or malformed trace only leaves its steps out of the timings
 
 
+def paired_outcomes(runs: RunRecords, reference: str = PAIRED_REFERENCE) -> dict[str, Paired]:
+    """Each other method against ``reference`` episode by episode (those both measured: the same episode, no error
+    in either): wins (solved here, not by the reference) and losses; empty without the reference."""
+    if reference not in runs:
+        return {}
+    paired = {}
+    for name, records in runs.items():
+        if name == reference:
+            continue
+        both = shared_ids({reference: runs[reference], name: records})
+        measured = [i for i in sorted(both) if not (records[i].is_error or runs[reference][i].is_error)]
+        won = [bool(records[i].success) for i in measured]
+        theirs = [bool(runs[reference][i].success) for i in measured]
+        wins = sum(a and not b for a, b in zip(won, theirs, strict=True))
+        losses = sum(b and not a for a, b in zip(won, theirs, strict=True))
+        paired[name] = Paired(reference, len(measured), wins, losses)
+    return paired
+
+
 def split_entries(runs: RunRecords, splits: Mapping[str, str]) -> Splits:
     """Per split (HM3D-OVON's first, then any other by name), each method over its records of the split's
     episodes (``splits``: episode id -> split); splits without a record are left out."""
@@ -244,6 +264,7 @@ def build_report(
         models=ReportModels(first.settings.models.reasoner, first.settings.models.detector),
         commit=git_commit(),
         splits=split_entries(runs, splits or {}),
+        paired=paired_outcomes(runs),
     )
 
 

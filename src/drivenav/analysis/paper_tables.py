@@ -1,4 +1,4 @@
-"""The paper's published numbers for Tables II, V, VI and VII, for comparison only (nothing is tuned to them)."""
+"""The paper's published numbers for Tables I, II, V, VI and VII, for comparison only (nothing is tuned to them)."""
 
 from __future__ import annotations
 
@@ -45,3 +45,30 @@ TABLE_VII_PAPER = (
 )
 
 TABLE_II_METHODS = tuple(row.method for row in TABLE_II)
+
+TABLE_I_BENCHMARKS = ("HM3D-OVON", "HM3Dv1", "HM3Dv2", "MP3D")
+"""The benchmarks of the paper's Table I (comparison with the state of the art), in its column order."""
+
+
+@dataclass(frozen=True)
+class PaperResults:
+    """One method of the paper's Table I: our agent name, the paper's label, and SR / SPL (%) per benchmark of
+    :data:`TABLE_I_BENCHMARKS` (None where the method was not evaluated on it)."""
+
+    method: str
+    label: str
+    results: tuple[tuple[float, float] | None, ...]
+
+
+# Table I of the DRIVE-Nav paper (seed paper 000_351b6498e965c216, "Comparison with state-of-the-art methods"), SR / SPL
+# %, for the methods we run: DRIVE-Nav's own; VLFM's as the paper cites it (HM3D-OVON from the HM3D-OVON paper);
+# ApexNav's as the paper cites it, which are ApexNav's own Table I (RA-L 2025: HM3Dv1 59.6 / 33.0, HM3Dv2 76.2 / 38.0,
+# MP3D 39.2 / 17.8; no HM3D-OVON run).
+TABLE_I = (
+    PaperResults("drive-nav", "DRIVE-Nav", ((50.2, 32.6), (55.5, 35.9), (72.4, 41.3), (41.8, 22.6))),
+    PaperResults("vlfm", "VLFM", ((35.2, 19.6), (52.5, 30.4), (63.6, 32.5), (36.4, 17.5))),
+    PaperResults("apexnav", "ApexNav", (None, (59.6, 33.0), (76.2, 38.0), (39.2, 17.8))),
+)
+
+PAIRED_REFERENCE = "drive-nav"
+"""The method every other is paired with in the comparison of all methods (wins and losses per episode)."""

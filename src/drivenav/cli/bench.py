@@ -31,6 +31,8 @@ if TYPE_CHECKING:
 
 
 def add_bench(commands: Commands) -> None:
+    from drivenav.benchmarks.benchmark import BENCHMARKS
+
     parser = commands.add_parser("bench", help="speed benchmarks")
     sub = parser.add_subparsers(dest="bench_command", required=True)
     sim = sub.add_parser("sim", help="embedded simulator frames per second (RGB + depth + semantic, one core)")
@@ -49,6 +51,9 @@ def add_bench(commands: Commands) -> None:
     agent.add_argument("--episodes", type=int, default=4)
     agent.add_argument("--max-steps", type=int, default=150)
     agent.add_argument("--agent", default="drive-nav", choices=ALL_METHODS, help="the method timed (default drive-nav)")
+    agent.add_argument(
+        "--benchmark", default=None, choices=sorted(BENCHMARKS), help="its first episodes (default: procedural houses)"
+    )
     agent.add_argument("--json", action="store_true", help="print one JSON object")
     agent.set_defaults(handler=_cmd_bench_agent)
     _add_bench_ablations(sub)
@@ -154,7 +159,10 @@ def _cmd_bench_agent(args: argparse.Namespace) -> int:
     from drivenav.benchmarks.agent_bench import bench_agent
 
     result = bench_agent(
-        positive(args.episodes, "--episodes"), positive(args.max_steps, "--max-steps"), agent_name=args.agent
+        positive(args.episodes, "--episodes"),
+        positive(args.max_steps, "--max-steps"),
+        agent_name=args.agent,
+        benchmark=args.benchmark,
     )
     return print_bench(result, args.json)
 

@@ -158,6 +158,26 @@ class DirectionPipeline:
         update = self._tracker.last_update
         return DirectionResult(directions, solve.paths, solve.unreachable, timings, solve.goal_paths, update)
 
+    def travel_times(self, sources: Sequence[Point], targets: Sequence[Point]) -> NDArray[np.float64]:
+        """Weighted-FMM arrival times (metres at unit speed) from each source point to each target point on the last
+        :meth:`update`'s speed field: one early-stopping solve per source, points snapped as goals are
+        (``goal_snap_radius``); ``inf`` where a point has no traversable cell near it or no path joins them (every
+        entry before any update). The times between frontiers that ApexNav's TSP orders them by."""
+        times = np.full((len(sources), len(targets)), np.inf)
+        if self._last_field is None:
+            return times
+        field, cfg = self._last_field[2], self._config.directions
+        cells = [nearest_traversable(field, target, cfg.goal_snap_radius) for target in targets]
+        reached = [(k, cell) for k, cell in enumerate(cells) if cell is not None]
+        for i, source in enumerate(sources):
+            start = nearest_traversable(field, source, cfg.goal_snap_radius)
+            if start is None or not reached:
+                continue
+            T = _solve(field, start, [], [cell for _, cell in reached], cfg.margin_cells)
+            for k, cell in reached:
+                times[i, k] = T[cell]
+        return times
+
     def _solve_and_cluster(
         self,
         field: SpeedField,

@@ -4,9 +4,10 @@ Every episode trace keeps the agent's per-step latencies in ``step_ms``, one col
 (``{"mapping": [..], "directions.fmm": [..], ...}``, milliseconds, one value per step). Table VII (paper
 Sec. V-E, runtime) is then computed from the very episodes of a benchmark run rather than a separate pass.
 
-Compute per step = mapping + directions + inspection + VLFM's value-map update + policy; model calls (grounding,
-reasoning, VLFM's image-text scorer) are reported separately, as latency per call and calls per episode. The
-value map's and the scorer's rows appear only for agents that time them (``vlfm``).
+Compute per step = mapping + directions + inspection + the value-map update (VLFM, ApexNav) + target-centric fusion
+(ApexNav) + policy; model calls (grounding, reasoning, the image-text scorer) are reported separately, as latency
+per call and calls per episode. The value map's, the scorer's and fusion's rows appear only for agents that time
+them.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from drivenav.agent.trace import DirectionSelected, of_type
 from drivenav.eval.trace import EpisodeTrace, StepColumns
 from drivenav.jsonstream import JsonObject
 
-COMPUTE_KEYS = ("mapping", "directions.total", "inspection", "value_map", "policy")
+COMPUTE_KEYS = ("mapping", "directions.total", "inspection", "value_map", "fusion", "policy")
 MODULES = {
     "mapping (depth -> maps, frontiers)": "mapping",
     "directions: distance transforms": "directions.distance_transforms",
@@ -34,8 +35,9 @@ MODULES = {
 VALUE_MODULES = {
     "value map (score -> FOV cone, fusion)": "value_map",
     "image-text scorer (model)": "scorer",
+    "target-centric fusion (objects, negative evidence)": "fusion",
 }
-"""VLFM's modules: rows of the table only where a step timed them."""
+"""VLFM's and ApexNav's modules: rows of the table only where a step timed them."""
 
 
 def to_columns(steps: Sequence[Mapping[str, float]]) -> StepColumns:

@@ -149,6 +149,17 @@ class ObjectMap:
         self._failed.append(rejected)
         return rejected
 
+    def place(self, candidate: ObjectCandidate) -> ObjectCandidate:
+        """Enter or replace a candidate made elsewhere (target-centric fusion's objects, by their own ids), its
+        points made read-only; the ids :meth:`add` gives are not used then."""
+        points = np.array(candidate.points, dtype=np.float64)
+        points.flags.writeable = False
+        return self._store(dataclasses.replace(candidate, points=points))
+
+    def discard(self, candidate_id: int) -> ObjectCandidate:
+        """Remove a candidate without remembering its place as failed (its evidence no longer holds)."""
+        return self._live.pop(candidate_id)
+
     def is_failed(self, xy: tuple[float, float]) -> bool:
         """Whether ``xy`` lies within ``failed_radius`` of a rejected candidate's centre or points."""
         return any(_cloud_distance(c.points, c.center, xy) <= self.failed_radius for c in self._failed)

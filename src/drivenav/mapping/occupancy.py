@@ -50,7 +50,7 @@ from drivenav.grid import GridSpec
 from drivenav.mapping.config import MappingConfig
 from drivenav.mapping.frontiers import component_at, extract_frontiers, nearest_in
 from drivenav.mapping.kernels import cast_rays, project_depth, stamp
-from drivenav.mapping.types import Frontier, MapSnapshot
+from drivenav.mapping.types import Frontier, MapSnapshot, Rays
 from drivenav.types import FREE_CELL, OCCUPIED_CELL, UNKNOWN_CELL, CameraIntrinsics, LocalOccupancy, Pose
 
 Mask = NDArray[np.bool_]
@@ -162,6 +162,7 @@ class OccupancyMapper:
         self._derived: _Derived | None = None
         self._frontiers: list[Frontier] | None = None
         self._last: UpdateInfo | None = None
+        self._rays: Rays | None = None
 
     @property
     def grid(self) -> GridSpec:
@@ -175,6 +176,11 @@ class OccupancyMapper:
     @property
     def last_update(self) -> UpdateInfo | None:
         return self._last
+
+    @property
+    def last_rays(self) -> Rays | None:
+        """The ray cast of the last depth frame fused (None before any): the cells it saw free."""
+        return self._rays
 
     def update(self, depth: NDArray[np.float32], intrinsics: CameraIntrinsics, pose: Pose) -> None:
         """Fuse one depth frame taken at ``pose``; bad input is ignored (see :attr:`last_update`)."""
@@ -206,6 +212,7 @@ class OccupancyMapper:
         position = np.array([pose.x, pose.y])
         alphas, ranges = ray_fan(np.arctan(kx), col_range, reach, cfg.resolution)
         cast_rays(position, pose.yaw + alphas, ranges, grid_params, self._explored)
+        self._rays = Rays(pose, alphas, ranges)
         agent_row, agent_col = (int(v) for v in self._grid.world_to_cell(position))
         stamp(self._explored, agent_row, agent_col, self._disk)
         self._pose = pose

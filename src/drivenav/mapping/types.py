@@ -8,6 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivenav.grid import GridSpec
+from drivenav.types import Pose
 
 
 @dataclass(frozen=True)
@@ -38,3 +39,14 @@ class MapSnapshot:
     obstacle: NDArray[np.bool_]
     explored: NDArray[np.bool_]
     navigable: NDArray[np.bool_]
+
+
+@dataclass(frozen=True)
+class Rays:
+    """The 2-D ray cast of one depth frame (:class:`~drivenav.mapping.occupancy.OccupancyMapper`): from ``pose``,
+    rays at ``angles`` off its heading (radians, counter-clockwise, ascending and evenly spaced) saw free space out
+    to ``ranges`` (horizontal metres; 0 where the column saw something too close to measure)."""
+
+    pose: Pose
+    angles: NDArray[np.float64]
+    ranges: NDArray[np.float64]

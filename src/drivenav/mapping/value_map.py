@@ -25,6 +25,12 @@ Every frame's image-text score is spread over the part of the floor the camera s
   keeps the non-zero cells, which for its positive BLIP-2 cosines are the cells seen; here "seen" is "confidence
   above 0", so a scorer's 0 or negative score still counts.
 
+ApexNav (Zhang et al., RA-L 2025; ``value_map2d.cpp``) keeps VLFM's rule with two changes, both settings here:
+its confidence is the bare ``cos^2`` (``min_confidence`` 0) and no new data is dropped (``decision_threshold`` 0);
+and it writes a frame's score onto the cells that frame's 2-D ray cast saw free, not onto a cone
+(:meth:`ValueMap.update_rays`, from the mapper's rays, :class:`~drivenav.mapping.types.Rays`). Its fusion has no
+guard for a cell and a new confidence both 0 (at the edge of the FOV); here such a cell is left unchanged.
+
 The grid follows the mapper's, which grows during an episode (:meth:`ValueMap.follow`). The cone's geometry per
 cell offset (distance and bearing from the camera's cell) is computed once per map, so an update is a few
 vectorised passes over the cells of one disk of ``max_depth`` radius.
@@ -39,6 +45,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from drivenav.grid import GridSpec
+from drivenav.mapping.types import Rays
 from drivenav.ranges import LENGTH, Range, check_ranges
 from drivenav.types import CameraIntrinsics, Pose
 
@@ -77,7 +84,7 @@ class ValueMapConfig:
 @dataclass(frozen=True)
 class _Cone:
     """The cells within ``reach`` of the camera's cell (itself excluded), sorted by bearing: row/col offsets,
-    world offsets ``dx, dy`` (metres) and bearing (radians, ``[-pi, pi]``) of each, for one resolution and
+    world offsets ``dx, dy`` (metres), bearing (radians, ``[-pi, pi]``) and distance of each, for one resolution and
     reach."""
 
     rows: NDArray[np.int64]
@@ -86,6 +93,7 @@ class _Cone:
     dx: FloatMap
     dy: FloatMap
     bearing: FloatMap
+    distance: FloatMap
 
     @staticmethod
     def build(resolution: float, reach: float) -> _Cone:
@@ -97,7 +105,7 @@ class _Cone:
         bearing = np.arctan2(rows, cols).astype(np.float64)
         order = np.argsort(bearing, kind="stable")
         rows, cols = rows[order], cols[order]
-        return _Cone(rows, cols, n, cols * resolution, rows * resolution, bearing[order])
+        return _Cone(rows, cols, n, cols * resolution, rows * resolution, bearing[order], distance[inside][order])
 
     def within(self, yaw: float, half_fov: float) -> tuple[slice | NDArray[np.int64], FloatMap]:
         """The cells whose bearing lies within ``half_fov`` of ``yaw`` (a slice of the cells, or their indices where
@@ -160,13 +168,39 @@ class ValueMap:
         cells, confidence = self.cone_cells(pose, _column_depths(depth), intrinsics)
         self._fuse(cells, confidence, score)
 
+    def update_rays(self, score: float, rays: Rays, intrinsics: CameraIntrinsics) -> None:
+        """Fuse ``score`` into the cells the frame's ray cast saw free (ApexNav's update, module docstring): the
+        cells within the FOV strictly nearer than the range of the ray nearest in angle. A non-finite score or
+        pose, or no rays, changes nothing."""
+        pose = rays.pose
+        if not (math.isfinite(score) and math.isfinite(pose.x) and math.isfinite(pose.y) and math.isfinite(pose.yaw)):
+            return
+        if rays.angles.size == 0:
+            return
+        cells, confidence = self.ray_cells(rays, intrinsics)
+        self._fuse(cells, confidence, score)
+
+    def ray_cells(self, rays: Rays, intrinsics: CameraIntrinsics) -> tuple[NDArray[np.int64], FloatMap]:
+        """The grid cells the ray cast saw free (flat indices into the ``[row, col]`` maps) and their confidence; the
+        rays are evenly spaced in angle (:func:`~drivenav.mapping.occupancy.ray_fan`)."""
+        half_fov = math.atan2(intrinsics.width / 2.0, intrinsics.fx)
+        pose = rays.pose
+        cone = self._cone(self.max_depth / math.cos(half_fov))
+        index, angle = cone.within(pose.yaw, half_fov)
+        angles, last = rays.angles, rays.angles.size - 1
+        span = float(angles[-1] - angles[0])
+        ray = np.zeros(angle.shape, dtype=np.int64)
+        if last > 0 and span > 0.0:  # evenly spaced rays: the nearest by rounding
+            ray = np.clip(np.rint((angle - angles[0]) * (last / span)), 0, last).astype(np.int64)
+        visible = cone.distance[index] < rays.ranges[ray]
+        return self._placed(cone, index, angle, visible, pose, half_fov)
+
     def cone_cells(
         self, pose: Pose, column_depth: FloatMap, intrinsics: CameraIntrinsics
     ) -> tuple[NDArray[np.int64], FloatMap]:
         """The grid cells of the visible FOV cone from ``pose`` (flat indices into the ``[row, col]`` maps) and their
         confidence, given each image column's largest depth ``column_depth`` (``(width,)``, NaN where the column
         read nothing)."""
-        cfg = self.config
         half_fov = math.atan2(intrinsics.width / 2.0, intrinsics.fx)  # vlfm geometry_utils.get_fov(fx, width) / 2
         cone = self._cone(self.max_depth / math.cos(half_fov))
         index, angle = cone.within(pose.yaw, half_fov)
@@ -176,6 +210,20 @@ class ValueMap:
         slope = (dy * cos - dx * sin) / forward  # ... and to the left, per metre ahead
         column = np.clip(np.rint(intrinsics.cx - intrinsics.fx * slope), 0, intrinsics.width - 1).astype(np.int64)
         visible = forward <= column_depth[column]  # NaN compares False
+        return self._placed(cone, index, angle, visible, pose, half_fov)
+
+    def _placed(
+        self,
+        cone: _Cone,
+        index: slice | NDArray[np.int64],
+        angle: FloatMap,
+        visible: NDArray[np.bool_],
+        pose: Pose,
+        half_fov: float,
+    ) -> tuple[NDArray[np.int64], FloatMap]:
+        """The ``visible`` cone cells placed at ``pose`` (flat indices; those off the grid left out) and their
+        confidence: ``cos^2`` of their angle off the axis over the FOV, remapped to ``[min_confidence, 1]``."""
+        cfg = self.config
         rows, cols = self._grid.shape
         row0, col0 = self._grid.cell_at(pose.x, pose.y)
         cell_rows, cell_cols = cone.rows[index] + row0, cone.cols[index] + col0
@@ -195,7 +243,7 @@ class ValueMap:
         module docstring)."""
         value, confidence = self.value.reshape(-1), self.confidence.reshape(-1)  # views of the maps
         old = confidence[cells]
-        kept = (new >= self.config.decision_threshold) | (new >= old)
+        kept = ((new >= self.config.decision_threshold) | (new >= old)) & (old + new > 0.0)
         cells, new, old = cells[kept], new[kept], old[kept]
         total = old + new
         value[cells] = (old * value[cells] + new * score) / total

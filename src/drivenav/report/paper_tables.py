@@ -1,5 +1,5 @@
 """The paper's tables on the index page, when the report's runs form an ablation set (runs of the methods of
-Tables II, V or VI on the same episodes).
+Tables I, II, V or VI on the same episodes).
 
 The tables are ``ablations.md`` itself: read from the ``ablations.json`` that ``bench ablations`` wrote beside the
 runs when it covers exactly these runs and its methods' numbers are theirs, else built from the runs as
@@ -19,7 +19,7 @@ from dataclasses import replace
 from drivenav.analysis.ablation_data import AblationReport, Pictures
 from drivenav.analysis.ablation_report import format_markdown
 from drivenav.analysis.ablations import RUNS_DIR, build_report
-from drivenav.analysis.paper_tables import TABLE_II, TABLE_V, TABLE_VI
+from drivenav.analysis.paper_tables import TABLE_I, TABLE_II, TABLE_V, TABLE_VI
 from drivenav.errors import InputError
 from drivenav.eval.rundir import inside
 from drivenav.eval.runner import RunSpec
@@ -29,7 +29,7 @@ from drivenav.report.runs import Run
 from drivenav.worlds import recorded_world
 
 ABLATIONS_JSON = "ablations.json"
-PAPER_METHODS = frozenset(row.method for table in (TABLE_II, TABLE_V, TABLE_VI) for row in table)
+PAPER_METHODS = frozenset(row.method for table in (TABLE_I, TABLE_II, TABLE_V, TABLE_VI) for row in table)
 LEFT_OUT = frozenset({"Pictures"})
 
 

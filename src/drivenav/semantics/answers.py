@@ -1,4 +1,5 @@
-"""Parsing and validation of the VLM's JSON answers to the three questions (Sec. IV-A c, IV-B, IV-C).
+"""Parsing and validation of the VLM's JSON answers to the three questions (Sec. IV-A c, IV-B, IV-C) and to
+ApexNav's category question.
 
 A model may wrap its answer in Markdown fences or surround it with prose, so the first JSON object in the text
 is taken (after any ``</think>``, which ends a reasoning model's thoughts). Each parser checks what the
@@ -13,8 +14,19 @@ from collections.abc import Collection, Mapping, Sequence
 from typing import Any
 
 from drivenav.jsonstream import JsonObject
-from drivenav.semantics.prompts import MAX_PHRASE_WORDS
-from drivenav.semantics.protocols import JUDGEMENTS, Proposal, Selection, Verdict
+from drivenav.semantics.prompts import MAX_PHRASE_WORDS, MAX_ROOM_WORDS
+from drivenav.semantics.protocols import (
+    HINT_THRESHOLDS,
+    JUDGEMENTS,
+    MAX_SIMILAR_OBJECTS,
+    CategoryHints,
+    Proposal,
+    Selection,
+    Verdict,
+)
+
+MAX_NAMED_OBJECTS = 5
+"""The most confusable objects an answer may name (the question asks for 3 to 5)."""
 
 
 class AnswerError(ValueError):
@@ -98,3 +110,27 @@ def parse_verdict(text: str) -> Verdict:
         if judgement == allowed:
             return Verdict(allowed)
     raise AnswerError(f'"judgement" must be one of {json.dumps(list(JUDGEMENTS))}, got {json.dumps(value)}')
+
+
+def parse_hints(text: str, goal: str) -> CategoryHints:
+    """The category question: at most five object names (the goal itself and repeats dropped, the first
+    :data:`~drivenav.semantics.protocols.MAX_SIMILAR_OBJECTS` kept), a threshold within
+    :data:`~drivenav.semantics.protocols.HINT_THRESHOLDS` and a room of at most four words; names lower-cased."""
+    obj = extract_json_object(text)
+    names = obj.get("similar_objects")
+    if not isinstance(names, list) or not all(isinstance(name, str) for name in names):
+        raise AnswerError(f'"similar_objects" must be a list of object names, got {json.dumps(names)}')
+    if len(names) > MAX_NAMED_OBJECTS:
+        raise AnswerError(f'"similar_objects" names {len(names)} objects; at most {MAX_NAMED_OBJECTS} are allowed')
+    own = " ".join(goal.lower().split())
+    cleaned = dict.fromkeys(" ".join(name.lower().split()) for name in names)
+    similar = tuple(name for name in cleaned if name and name != own)[:MAX_SIMILAR_OBJECTS]
+    threshold = obj.get("threshold")
+    low, high = HINT_THRESHOLDS
+    if isinstance(threshold, bool) or not isinstance(threshold, int | float) or not low <= threshold <= high:
+        raise AnswerError(f'"threshold" must be a number between {low} and {high}, got {json.dumps(threshold)}')
+    room = obj.get("room")
+    words = room.lower().split() if isinstance(room, str) else []
+    if not 1 <= len(words) <= MAX_ROOM_WORDS:
+        raise AnswerError(f'"room" must name a room in at most {MAX_ROOM_WORDS} words, got {json.dumps(room)}')
+    return CategoryHints(similar, float(threshold), " ".join(words))

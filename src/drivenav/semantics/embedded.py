@@ -33,7 +33,16 @@ similarity of their embeddings. With the :class:`EmbeddedReasonerConfig` paramet
 * verification (Sec. IV-C) reads the label under the mask (the majority instance inside it): relatedness
   ``>= sure_similarity`` is "sure", ``>= uncertain_similarity`` "uncertain" (0.75 puts "mini fridge" for
   "refrigerator" here and "chair" for "armchair" below it), else "not"; background under the mask is "not";
-  without a semantic image it cannot tell and answers "uncertain".
+  without a semantic image it cannot tell and answers "uncertain";
+* ApexNav's category question (:meth:`EmbeddedReasoner.category_hints`, asked with the goal alone) is answered
+  from the embeddings of the world's vocabulary (the episode's ground truth): the confusable objects are the
+  ``similar_objects`` categories nearest the goal's category (cosine of their names; the goal's own category
+  left out); the threshold rises over :data:`~drivenav.semantics.protocols.HINT_THRESHOLDS` with how close the
+  nearest one is, ``lo + (hi - lo) * ramp(s_nearest)``, as ApexNav's LLM gives easily confused objects the higher
+  thresholds (bed 0.65, apple 0.25); the room is the world's room type nearest the goal when its cosine is at least
+  ``room_similarity`` (0.5: "bathroom" for a toilet at 0.79, "kitchen" for a refrigerator at 0.50; a sofa's 0.48
+  is "everywhere"), else "everywhere". Without a vocabulary it knows nothing
+  (:meth:`~drivenav.semantics.protocols.CategoryHints.unknown`).
 """
 
 from __future__ import annotations
@@ -51,7 +60,12 @@ from drivenav.instances import instance_areas
 from drivenav.semantics.embedding import TextEmbedder, default_embedder
 from drivenav.semantics.geometric import direction_score
 from drivenav.semantics.protocols import (
+    EVERYWHERE,
+    HINT_THRESHOLDS,
+    HINTS_KIND,
+    MAX_SIMILAR_OBJECTS,
     Candidate,
+    CategoryHints,
     Judgement,
     ModelCall,
     Proposal,
@@ -94,6 +108,8 @@ class EmbeddedReasonerConfig:
     exploration_weight: float = 0.3
     exploration_half: float = 40.0
     distance_scale: float = 5.0
+    similar_objects: int = 4
+    room_similarity: float = 0.5
 
     def __post_init__(self) -> None:
         if self.min_pixels < 1:
@@ -108,6 +124,8 @@ class EmbeddedReasonerConfig:
                 raise ValueError(f"{name} must be a positive finite number, got {value!r}")
         if self.exploration_weight < 0.0:
             raise ValueError(f"exploration_weight must be >= 0, got {self.exploration_weight}")
+        if not 0 <= self.similar_objects <= MAX_SIMILAR_OBJECTS:
+            raise ValueError(f"similar_objects must be in [0, {MAX_SIMILAR_OBJECTS}], got {self.similar_objects}")
 
 
 def relatedness(label: str, goal: str, truth: GroundTruth | None, embedder: TextEmbedder) -> float:
@@ -190,6 +208,10 @@ class EmbeddedReasoner:
         """Judge the label under the mask (earlier frames add nothing: each frame's labels are exact)."""
         return self._timed("verify", lambda: Verdict(self._judge(goal, frame)))
 
+    def category_hints(self, goal: str) -> CategoryHints:
+        """The nearest categories, a threshold from how near they are, the nearest room (module docstring)."""
+        return self._timed(HINTS_KIND, lambda: self._hints(goal))
+
     def _timed(self, kind: str, answer: Callable[[], _T]) -> _T:
         start = time.perf_counter()
         result = answer()
@@ -245,6 +267,22 @@ class EmbeddedReasoner:
             return max(good, key=lambda item: item[0])[1]  # max keeps the first (largest) of equals
         return next((p for p in goal_phrases(goal, self._truth) if normalize_phrase(p) not in tried), goal)
 
+    def _hints(self, goal: str) -> CategoryHints:
+        vocabulary = self._truth.vocabulary if self._truth is not None else None
+        if vocabulary is None:
+            return CategoryHints.unknown()
+        own = category_key(goal, self._truth)
+        name = normalize_phrase(own)
+        others = [c for c in vocabulary.categories() if category_key(c, self._truth) != own]
+        nearest = _nearest(name, others, self.embedder)
+        closest = nearest[0][0] if nearest else self.config.unrelated_similarity
+        low, high = HINT_THRESHOLDS
+        threshold = round(low + (high - low) * _ramp(closest, self.config), 2)
+        rooms = _nearest(name, list(vocabulary.room_types), self.embedder)
+        room = rooms[0][1] if rooms and rooms[0][0] >= self.config.room_similarity else EVERYWHERE
+        similar = tuple(c for _, c in nearest[: self.config.similar_objects])
+        return CategoryHints(similar, threshold, room)
+
     def _judge(self, goal: str, frame: VerificationFrame) -> Judgement:
         if frame.semantic is None:
             return "uncertain"
@@ -259,6 +297,12 @@ class EmbeddedReasoner:
         if related >= self.config.sure_similarity:
             return "sure"
         return "uncertain" if related >= self.config.uncertain_similarity else "not"
+
+
+def _nearest(name: str, texts: Sequence[str], embedder: TextEmbedder) -> list[tuple[float, str]]:
+    """``texts`` with their embedding cosine to ``name``, nearest first (ties by text)."""
+    scored = [(embedder.similarity(name, normalize_phrase(text)), text) for text in texts]
+    return sorted(scored, key=lambda item: (-item[0], item[1]))
 
 
 def goal_phrases(goal: str, truth: GroundTruth | None) -> list[str]:

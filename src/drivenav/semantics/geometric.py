@@ -17,7 +17,9 @@ import math
 from collections.abc import Sequence
 
 from drivenav.semantics.protocols import (
+    HINTS_KIND,
     Candidate,
+    CategoryHints,
     ModelCall,
     Proposal,
     Selection,
@@ -75,3 +77,8 @@ class GeometricReasoner:
         """It cannot see: always uncertain, so a candidate is accepted after the last verification frame."""
         self.calls.append(ModelCall("verify", 0.0, "ok"))
         return Verdict("uncertain")
+
+    def category_hints(self, goal: str) -> CategoryHints:
+        """It knows no categories: no confusable objects, the middle threshold, any room."""
+        self.calls.append(ModelCall(HINTS_KIND, 0.0, "ok"))
+        return CategoryHints.unknown()

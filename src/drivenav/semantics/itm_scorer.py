@@ -32,7 +32,7 @@ from typing import Any, Final
 from PIL import Image
 
 from drivenav.semantics.hf_common import SCORER_OPTION, load_pair, pick_device
-from drivenav.semantics.protocols import ModelCall
+from drivenav.semantics.protocols import ModelCall, ScorePrompt
 from drivenav.types import GroundTruth, Observation
 
 VLFM_PROMPT: Final[str] = "Seems like there is a {target} ahead."
@@ -104,14 +104,14 @@ class _TransformersScorer(ABC):
         """Only the calls restart: a model scores every frame independently and deterministically."""
         self.calls = []
 
-    def text(self, goal: str) -> str:
-        """The text a frame is scored against for ``goal``."""
-        return self.prompt.format(target=goal)
+    def text(self, goal: str, prompt: ScorePrompt | None = None) -> str:
+        """The text a frame is scored against for ``goal``: the scorer's own (VLFM's), or ``prompt``'s."""
+        return self.prompt.format(target=goal) if prompt is None else prompt.text(goal)
 
-    def score(self, goal: str, observation: Observation) -> float:
+    def score(self, goal: str, observation: Observation, prompt: ScorePrompt | None = None) -> float:
         """The RGB frame's similarity with :meth:`text`."""
         start = time.perf_counter()
-        value = self.similarity(Image.fromarray(observation.rgb), self.text(goal))
+        value = self.similarity(Image.fromarray(observation.rgb), self.text(goal, prompt))
         outcome = "ok" if math.isfinite(value) else "fallback"
         self.calls.append(ModelCall("score", (time.perf_counter() - start) * 1000.0, outcome))
         return value if outcome == "ok" else 0.0

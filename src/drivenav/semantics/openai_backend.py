@@ -2,14 +2,16 @@
 
 The paper serves Qwen3-VL-8B with at most 30 images per prompt and asks it three questions (Sec. IV-A c,
 IV-B, IV-C; texts in :mod:`drivenav.semantics.prompts`). Each question is one ``POST {base_url}/chat/completions``
-with a system message and a user message of text and JPEG data-URI images, at temperature 0.
+with a system message and a user message of text and JPEG data-URI images, at temperature 0. ApexNav's category
+question (confusable objects, a threshold, a room) is text only, asked once per category.
 
 Failures never leave the reasoner methods. The transport retries HTTP 429, 5xx and connection failures with
 exponential backoff; other 4xx answers, read timeouts (the server may still be busy with the request) and reply
 bodies without a message are not retried. A reply that does not fit its schema
 (:mod:`drivenav.semantics.answers`) gets one repair request: the same conversation, the bad answer and what was
 wrong with it. When that fails too, or the transport gives up, a deterministic fallback answers: the geometric
-choice for directions, the goal text or an untried synonym for prompts, "uncertain" for verification. Every
+choice for directions, the goal text or an untried synonym for prompts, "uncertain" for verification, no
+knowledge for a category (:meth:`~drivenav.semantics.protocols.CategoryHints.unknown`). Every
 question appends a :class:`~drivenav.semantics.protocols.ModelCall` with outcome ``ok``, ``repaired`` or
 ``fallback``.
 """
@@ -37,13 +39,16 @@ from PIL import Image
 
 from drivenav.errors import InputError
 from drivenav.jsonstream import JsonObject
-from drivenav.semantics.answers import AnswerError, parse_proposal, parse_selection, parse_verdict
+from drivenav.semantics.answers import AnswerError, parse_hints, parse_proposal, parse_selection, parse_verdict
 from drivenav.semantics.geometric import GeometricReasoner
 from drivenav.semantics.prompts import (
+    HINTS_SCHEMA,
+    HINTS_SYSTEM_PROMPT,
     PROPOSE_SCHEMA,
     SELECT_SCHEMA,
     SYSTEM_PROMPT,
     VERIFY_SCHEMA,
+    hints_text,
     propose_text,
     repair_text,
     select_text,
@@ -51,7 +56,9 @@ from drivenav.semantics.prompts import (
     view_caption,
 )
 from drivenav.semantics.protocols import (
+    HINTS_KIND,
     Candidate,
+    CategoryHints,
     ModelCall,
     Proposal,
     Selection,
@@ -63,11 +70,11 @@ from drivenav.types import GroundTruth
 
 logger = logging.getLogger(__name__)
 
-T = TypeVar("T", Selection, Proposal, Verdict)
+T = TypeVar("T", Selection, Proposal, Verdict, CategoryHints)
 Message = JsonObject
 Captioned = tuple[str, NDArray[np.uint8]]
 
-MAX_TOKENS = {"select_direction": 1024, "propose_prompt": 128, "verify": 128}
+MAX_TOKENS = {"select_direction": 1024, "propose_prompt": 128, "verify": 128, HINTS_KIND: 256}
 """Answer budgets: a selection carries one short description per direction (up to 30)."""
 
 
@@ -257,13 +264,24 @@ class OpenAIReasoner:
             lambda reason: Verdict("uncertain", fallback=True),
         )
 
-    def _messages(self, text: str, images: Sequence[Captioned]) -> list[Message]:
+    def category_hints(self, goal: str) -> CategoryHints:
+        """ApexNav's category question, text only; fallback: no knowledge (no confusable objects, the middle
+        threshold, any room)."""
+        return self._ask(
+            HINTS_KIND,
+            self._messages(hints_text(goal), [], HINTS_SYSTEM_PROMPT),
+            lambda text: parse_hints(text, goal),
+            HINTS_SCHEMA,
+            lambda reason: CategoryHints.unknown(fallback=True),
+        )
+
+    def _messages(self, text: str, images: Sequence[Captioned], system: str = SYSTEM_PROMPT) -> list[Message]:
         """System prompt, then the question text followed by each caption and its JPEG image."""
         content: list[JsonObject] = [{"type": "text", "text": text}]
         for caption, rgb in images:
             content.append({"type": "text", "text": caption})
             content.append({"type": "image_url", "image_url": {"url": jpeg_data_uri(rgb, self.jpeg_quality)}})
-        return [{"role": "system", "content": SYSTEM_PROMPT}, {"role": "user", "content": content}]
+        return [{"role": "system", "content": system}, {"role": "user", "content": content}]
 
     def _ask(
         self,

@@ -1,10 +1,13 @@
-"""The texts of the VLM's three questions and the JSON answers they ask for (Sec. IV-A c, IV-B, IV-C).
+"""The texts of the VLM's three questions and the JSON answers they ask for (Sec. IV-A c, IV-B, IV-C), and of
+ApexNav's category question (text only, asked once per category).
 
 DRIVE-Nav asks Qwen3-VL (i) which persistent direction to explore next, from one representative view per
 direction, and whether the target is visible in any of them (Sec. IV-A c, IV-B); (ii) for a detector-oriented
 noun phrase naming the target in the target-facing view, given the direction's description and the prompts
 that already failed (Sec. IV-B); (iii) whether a segmented candidate is the target, from the current frame, its
-mask overlay and earlier approach frames: completely sure, uncertain or definitely not (Sec. IV-C).
+mask overlay and earlier approach frames: completely sure, uncertain or definitely not (Sec. IV-C). ApexNav
+(Zhang et al., RA-L 2025) asks a language model once per category for the objects a detector confuses with it, a
+detection threshold and the room it is most likely in (:func:`hints_text`, our own wording of those three asks).
 
 Each question text states the target as ``Target object: "<goal>".`` (the goal JSON-quoted) and ends with the
 answer's schema, verbatim; :mod:`drivenav.semantics.fake_vlm_server` relies on both to answer like a model.
@@ -16,7 +19,7 @@ import json
 import math
 from collections.abc import Sequence
 
-from drivenav.semantics.protocols import Candidate
+from drivenav.semantics.protocols import EVERYWHERE, HINT_THRESHOLDS, Candidate
 
 SYSTEM_PROMPT = (
     "You are the semantic reasoning module of an indoor robot searching for an object named in open "
@@ -31,6 +34,12 @@ SELECT_SCHEMA = (
 )
 PROPOSE_SCHEMA = '{"phrase": "<noun phrase of at most 6 words>"}'
 VERIFY_SCHEMA = '{"judgement": "sure" | "uncertain" | "not"}'
+HINTS_SCHEMA = '{"similar_objects": ["<object name>", ...], "threshold": <number>, "room": "<room or everywhere>"}'
+HINTS_SYSTEM_PROMPT = (
+    "You are the semantic reasoning module of an indoor robot searching for an object named in open "
+    "vocabulary. You answer with one JSON object only, without any other text."
+)
+MAX_ROOM_WORDS = 4
 
 GOAL_PREFIX = "Target object: "
 MAX_PHRASE_WORDS = 6
@@ -116,6 +125,27 @@ def verify_text(goal: str, earlier: int) -> str:
             'Is the highlighted object the target? Answer "sure" if you are completely sure it is, "not" if it '
             'is definitely not, and "uncertain" otherwise.',
             _answer_with(VERIFY_SCHEMA),
+        ]
+    )
+
+
+def hints_text(goal: str) -> str:
+    """ApexNav's category question: confusable objects, a detection threshold and the likely room (no image)."""
+    low, high = HINT_THRESHOLDS
+    return "\n".join(
+        [
+            goal_line(goal),
+            "Before searching, the robot needs three facts about this kind of object.",
+            '"similar_objects": 3 to 5 names of other common indoor objects that an object detector (such as YOLO '
+            "or Grounding DINO) may mistake for the target. The robot also detects these, so that an object that "
+            "looks more like one of them does not count as the target.",
+            f'"threshold": the detection confidence, between {low} and {high}, from which a repeatedly detected '
+            f"object counts as the target: higher for large objects that detectors often confuse with others (a "
+            f"bed: about {high}), lower for small objects that detectors find only with low confidence (an apple: "
+            f"about {low}).",
+            f'"room": the kind of room where the target is most likely found, or "{EVERYWHERE}" when it is common '
+            "in many kinds of room.",
+            _answer_with(HINTS_SCHEMA),
         ]
     )
 

@@ -1,5 +1,5 @@
 """The model interfaces: DRIVE-Nav's reasoner (the VLM's role) and grounder (the segmenter's role), and the
-image-text scorer of the VLFM baseline (BLIP-2 ITM's role).
+image-text scorer of the VLFM and ApexNav baselines (BLIP-2 ITM's role).
 
 Backends (a geometric stand-in, the embedded world's ground-truth detector, real VLMs, SAM3, OWLv2, BLIP-2,
 SigLIP) implement these protocols; the agent only sees them. Positions and bearings are in the episode frame.
@@ -143,14 +143,49 @@ class Verdict:
 class ModelCall:
     """Bookkeeping of one model call for the episode record: its kind, latency and outcome.
 
-    ``kind`` is ``select_direction``, ``propose_prompt``, ``verify`` or ``score``; ``outcome`` is ``ok``, ``repaired``
-    (a malformed answer fixed by one repair request), ``fallback`` (deterministic answer after a failure) or
-    ``replayed``.
+    ``kind`` is ``select_direction``, ``propose_prompt``, ``verify``, ``category_hints`` or ``score``; ``outcome``
+    is ``ok``, ``repaired`` (a malformed answer fixed by one repair request), ``fallback`` (deterministic answer
+    after a failure), ``replayed`` or ``cached`` (a category's hints asked earlier in the run, answered from the
+    agent's cache without a model).
     """
 
     kind: str
     latency_ms: float
     outcome: str
+
+
+HINTS_KIND = "category_hints"
+"""The :class:`ModelCall` kind of the category question (:meth:`Reasoner.category_hints`)."""
+
+HINT_THRESHOLDS = (0.25, 0.65)
+"""The range of a category's detection threshold (ApexNav ``llm/prompt/get_llm_answer.py``: "a confidence
+threshold between 0.25 and 0.65", apple 0.25 ... bed 0.65)."""
+
+MAX_SIMILAR_OBJECTS = 4
+"""ApexNav's object clusters hold five label slots, the target's and four others (``object_map2d.cpp``); its prompt
+asks for 3-5 confusable objects, so a fifth would overflow: at most four are kept."""
+
+EVERYWHERE = "everywhere"
+"""The room of a category found in any room (ApexNav's answer then, and its value-map prompt without a room)."""
+
+
+@dataclass(frozen=True)
+class CategoryHints:
+    """What a language model knows of a target category before the search (ApexNav, Zhang et al., RA-L 2025:
+    ``llm/prompt/get_llm_answer.py``): the objects a detector may confuse with it (detected as competing labels),
+    the detection confidence at which a fused object counts as the target (within :data:`HINT_THRESHOLDS`), and
+    the room it is most likely in (:data:`EVERYWHERE` when none). ``fallback`` marks the deterministic answer of a
+    reasoner that could not answer (:meth:`unknown`)."""
+
+    similar: tuple[str, ...]
+    threshold: float
+    room: str
+    fallback: bool = False
+
+    @staticmethod
+    def unknown(fallback: bool = False) -> CategoryHints:
+        """No knowledge: no confusable objects, the middle of the threshold range, any room."""
+        return CategoryHints((), round(sum(HINT_THRESHOLDS) / 2.0, 4), EVERYWHERE, fallback)
 
 
 def category_key(name: str, truth: GroundTruth | None) -> str:
@@ -161,7 +196,8 @@ def category_key(name: str, truth: GroundTruth | None) -> str:
 
 
 class Reasoner(Protocol):
-    """The VLM's three questions (paper Sec. IV-A c, IV-B, IV-C), behind one interface.
+    """The VLM's three questions (paper Sec. IV-A c, IV-B, IV-C) and ApexNav's category question, behind one
+    interface.
 
     ``calls`` grows by one :class:`ModelCall` per question asked. Nothing a model returns may raise out of these
     methods: malformed answers are repaired once, then replaced by a deterministic fallback.
@@ -179,6 +215,11 @@ class Reasoner(Protocol):
     def propose_prompt(self, goal: str, view: View, description: str, failed: Sequence[str]) -> Proposal: ...
 
     def verify(self, goal: str, frame: VerificationFrame, earlier: Sequence[VerificationFrame]) -> Verdict: ...
+
+    def category_hints(self, goal: str) -> CategoryHints:
+        """ApexNav's question about the target category (text only, once per category and run: the agent caches
+        the answer), :class:`CategoryHints`."""
+        ...
 
 
 @dataclass(frozen=True)
@@ -202,13 +243,26 @@ class Grounder(Protocol):
     def segment(self, observation: Observation, phrase: str) -> list[Detection]: ...
 
 
+@dataclass(frozen=True)
+class ScorePrompt:
+    """The text a frame is scored against, when a method brings its own: ``template`` with ``{target}`` (the goal)
+    and ``{room}`` (``room``), e.g. ApexNav's "Seems like there is a {room} or a {target} ahead?"."""
+
+    template: str
+    room: str = ""
+
+    def text(self, goal: str) -> str:
+        return self.template.format(target=goal, room=self.room)
+
+
 class ImageTextScorer(Protocol):
     """How well a frame matches a text about the target: the value VLFM spreads over its map (Yokoyama et al.,
-    ICRA 2024; BLIP-2 ITM's cosine with "Seems like there is a {target} ahead.").
+    ICRA 2024; BLIP-2 ITM's cosine with "Seems like there is a {target} ahead."), and ApexNav's with its own text.
 
     ``score`` returns one similarity for the whole frame, higher meaning more promising; its scale is the
     backend's own (BLIP-2's cosine in [-1, 1], SigLIP's probability, the embedded stand-in's value in [0, 1)), and
-    only comparisons within one backend matter. ``goal`` is the target's name: the backend puts it into its text.
+    only comparisons within one backend matter. ``goal`` is the target's name: the backend puts it into its text,
+    VLFM's by default or ``prompt``'s where one is given.
     ``observation`` is the current frame: real models read its RGB image, stand-ins its instance image where the
     world has one (without it they answer a neutral 0), so a world's deferred RGB image is rendered only for
     models that look at it. ``calls`` grows by one :class:`ModelCall` of kind ``score`` per frame scored. Nothing
@@ -222,4 +276,4 @@ class ImageTextScorer(Protocol):
         """Start an episode; ``truth`` is the world's ground truth, given only to stand-ins that need it."""
         ...
 
-    def score(self, goal: str, observation: Observation) -> float: ...
+    def score(self, goal: str, observation: Observation, prompt: ScorePrompt | None = None) -> float: ...

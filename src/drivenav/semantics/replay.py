@@ -1,5 +1,5 @@
 """Record a reasoner's and a scorer's answers and replay them without the model (reproducible runs of Sec. IV's
-VLM questions and of the VLFM baseline's image-text scores).
+VLM questions, of ApexNav's category question and of the VLFM and ApexNav baselines' image-text scores).
 
 :class:`RecordingReasoner` wraps any reasoner, and :class:`RecordingScorer` any image-text scorer, and each appends
 one JSON line per question to a file (both may share one file: one recording of a run holds every kind)::
@@ -8,8 +8,9 @@ one JSON line per question to a file (both may share one file: one recording of 
 
 The key is the SHA-256 of a canonical JSON of the question: its kind and inputs (goal; candidate labels,
 bearings, turns and travel times rounded to 1e-4, frontier cells; SHA-256, shape and dtype of every image
-array; the description and failed prompts; the verification frames; the scored frame). A score's answer is
-``{"score": <float>}``, the float exactly as the scorer returned it. :class:`ReplayReasoner` and
+array; the description and failed prompts; the verification frames; the scored frame and, where a method brings
+its own text, that text). A score's answer is ``{"score": <float>}``, the float exactly as the scorer returned it;
+a category question's key is its kind and goal alone. :class:`ReplayReasoner` and
 :class:`ReplayScorer` answer from such a file, each its own kinds, in recording order when one question was asked
 several times. A question missing from the file raises :class:`ReplayMissError`, naming the question: the replay
 does not match the run.
@@ -33,12 +34,15 @@ from numpy.typing import NDArray
 from drivenav.errors import InputError
 from drivenav.jsonstream import JsonObject
 from drivenav.semantics.protocols import (
+    HINTS_KIND,
     JUDGEMENTS,
     Candidate,
+    CategoryHints,
     ImageTextScorer,
     ModelCall,
     Proposal,
     Reasoner,
+    ScorePrompt,
     Selection,
     Verdict,
     VerificationFrame,
@@ -46,8 +50,8 @@ from drivenav.semantics.protocols import (
 )
 from drivenav.types import GroundTruth, Observation
 
-Answer = Selection | Proposal | Verdict | float
-A = TypeVar("A", Selection, Proposal, Verdict, float)
+Answer = Selection | Proposal | Verdict | CategoryHints | float
+A = TypeVar("A", Selection, Proposal, Verdict, CategoryHints, float)
 
 SCORE = "score"  # the kind of an image-text scorer's question
 
@@ -125,9 +129,17 @@ def verify_request(goal: str, frame: VerificationFrame, earlier: Sequence[Verifi
     return Request("verify", goal, inputs, f"frame of step {frame.step}, earlier steps {[f.step for f in earlier]}")
 
 
-def score_request(goal: str, rgb: NDArray[np.uint8]) -> Request:
+def score_request(goal: str, rgb: NDArray[np.uint8], prompt: ScorePrompt | None = None) -> Request:
+    """A frame's score; the text is part of the question only where a method brings its own (VLFM's keys stay)."""
     shape = "x".join(str(n) for n in rgb.shape)
-    return Request(SCORE, goal, {"rgb": array_digest(rgb)}, f"frame of shape {shape}")
+    inputs: JsonObject = {"rgb": array_digest(rgb)}
+    if prompt is not None:
+        inputs["text"] = prompt.text(goal)
+    return Request(SCORE, goal, inputs, f"frame of shape {shape}")
+
+
+def hints_request(goal: str) -> Request:
+    return Request(HINTS_KIND, goal, {}, "the category question")
 
 
 def answer_to_json(answer: Answer) -> JsonObject:
@@ -144,6 +156,13 @@ def answer_to_json(answer: Answer) -> JsonObject:
         }
     if isinstance(answer, Proposal):
         return {"phrase": answer.phrase, "fallback": answer.fallback}
+    if isinstance(answer, CategoryHints):
+        return {
+            "similar": list(answer.similar),
+            "threshold": answer.threshold,
+            "room": answer.room,
+            "fallback": answer.fallback,
+        }
     return {"judgement": answer.judgement, "fallback": answer.fallback}
 
 
@@ -204,12 +223,24 @@ def answer_from_json(kind: str, data: Any) -> Answer:
         )
     if kind == "propose_prompt":
         return Proposal(_field(data, "phrase", str, "a text"), fallback=fallback)
+    if kind == HINTS_KIND:
+        return _hints(data, fallback)
     if kind != "verify":
-        raise AnswerFieldError("kind", "select_direction, propose_prompt, verify or score", kind)
+        raise AnswerFieldError("kind", f"select_direction, propose_prompt, verify, {HINTS_KIND} or score", kind)
     judgement = next((j for j in JUDGEMENTS if j == data.get("judgement")), None)
     if judgement is None:
         raise AnswerFieldError("judgement", " or ".join(JUDGEMENTS), data.get("judgement"))
     return Verdict(judgement, fallback=fallback)
+
+
+def _hints(data: JsonObject, fallback: bool) -> CategoryHints:
+    similar = _field(data, "similar", list, "a list of object names")
+    if not all(isinstance(name, str) for name in similar):
+        raise AnswerFieldError("similar", "a list of object names", similar)
+    threshold = data.get("threshold")
+    if isinstance(threshold, bool) or not isinstance(threshold, int | float):
+        raise AnswerFieldError("threshold", "a number", threshold)
+    return CategoryHints(tuple(similar), float(threshold), _field(data, "room", str, "a text"), fallback)
 
 
 def _append(path: Path, request: Request, answer: Answer) -> None:
@@ -264,6 +295,9 @@ class RecordingReasoner(_Recorder[Reasoner]):
     def verify(self, goal: str, frame: VerificationFrame, earlier: Sequence[VerificationFrame]) -> Verdict:
         return self._record(verify_request(goal, frame, earlier), self.inner.verify(goal, frame, earlier))
 
+    def category_hints(self, goal: str) -> CategoryHints:
+        return self._record(hints_request(goal), self.inner.category_hints(goal))
+
     def _record(self, request: Request, answer: A) -> A:
         _append(self.path, request, answer)
         return answer
@@ -276,9 +310,9 @@ class RecordingScorer(_Recorder[ImageTextScorer]):
     def begin_episode(self, truth: GroundTruth | None) -> None:
         self.inner.begin_episode(truth)
 
-    def score(self, goal: str, observation: Observation) -> float:
-        value = float(self.inner.score(goal, observation))
-        _append(self.path, score_request(goal, observation.rgb), value)
+    def score(self, goal: str, observation: Observation, prompt: ScorePrompt | None = None) -> float:
+        value = float(self.inner.score(goal, observation, prompt))
+        _append(self.path, score_request(goal, observation.rgb, prompt), value)
         return value
 
 
@@ -366,6 +400,9 @@ class ReplayReasoner:
     def verify(self, goal: str, frame: VerificationFrame, earlier: Sequence[VerificationFrame]) -> Verdict:
         return self._recording.answer(verify_request(goal, frame, earlier), Verdict, self.calls)
 
+    def category_hints(self, goal: str) -> CategoryHints:
+        return self._recording.answer(hints_request(goal), CategoryHints, self.calls)
+
 
 class ReplayScorer:
     """Implements :class:`~drivenav.semantics.protocols.ImageTextScorer` from a file written by
@@ -385,5 +422,5 @@ class ReplayScorer:
     def begin_episode(self, truth: GroundTruth | None) -> None:
         self.calls = []
 
-    def score(self, goal: str, observation: Observation) -> float:
-        return self._recording.answer(score_request(goal, observation.rgb), float, self.calls)
+    def score(self, goal: str, observation: Observation, prompt: ScorePrompt | None = None) -> float:
+        return self._recording.answer(score_request(goal, observation.rgb, prompt), float, self.calls)

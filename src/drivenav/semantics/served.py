@@ -153,6 +153,13 @@ class TableVocabulary:
     def synonyms(self, category: str) -> tuple[str, ...]:
         return ()
 
+    def categories(self) -> list[str]:
+        return sorted({category for category in self.table.values() if category is not None})
+
+    @property
+    def room_types(self) -> tuple[str, ...]:
+        return ()
+
 
 def begin_request(request_id: str, episode: str, truth: GroundTruth | None, seed: int) -> Message:
     """BEGIN of ``episode``: the ground truth a stand-in reads (its instance labels and their categories)."""

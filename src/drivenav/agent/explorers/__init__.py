@@ -7,7 +7,9 @@ class and its entry), so the settings read every explorer's section without impo
 - ``directions``: DRIVE-Nav's persistent directions, inspection events and reasoner decisions (paper Sec. IV-A);
   with ``decision_scan`` the ``direction-360`` and ``frontier`` baselines;
 - ``greedy``: the nearest frontier (Table II's greedy baseline);
-- ``vlfm``: VLFM's value map and highest-value frontier (Yokoyama et al., ICRA 2024).
+- ``vlfm``: VLFM's value map and highest-value frontier (Yokoyama et al., ICRA 2024);
+- ``apexnav``: ApexNav's semantic (TSP) or geometric mode by the value map's spread, and dormant frontiers (Zhang et
+  al., RA-L 2025).
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ BUILT_IN_EXPLORERS = {
     "directions": "drivenav.agent.explorers.directions.config:EXPLORER",
     "greedy": "drivenav.agent.explorers.greedy.config:EXPLORER",
     "vlfm": "drivenav.agent.explorers.vlfm.config:EXPLORER",
+    "apexnav": "drivenav.agent.explorers.apexnav.config:EXPLORER",
 }
 """drivenav's own explorers: name -> the ``module:attribute`` of their entry (also declared in pyproject.toml)."""
 
