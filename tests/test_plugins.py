@@ -70,7 +70,7 @@ def test_a_broken_plugin_is_one_line_and_never_breaks_the_built_ins(monkeypatch:
     with pytest.raises(InputError, match=r"plug-in alias.*alias-pkg.*an entry named 'greedy'"):
         registry.get("alias")
     assert registry.get("directions").name == "directions"
-    assert list(registry.usable()) == ["directions", "greedy", "vlfm"]
+    assert list(registry.usable()) == ["directions", "greedy", "vlfm", "apexnav"]
 
 
 # -- broken plug-ins of every kind on the command line ----------------------------------------------------------
