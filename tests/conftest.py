@@ -70,12 +70,7 @@ def registries() -> dict[str, Registry[Any]]:
     """Every entry-point registry of drivenav, by group."""
     from drivenav.agent.explorers import EXPLORERS
     from drivenav.robot.registry import MOTIONS, SOURCES
-    from drivenav.semantics.registry import (
-        GROUNDER_BACKENDS,
-        REASONER_BACKENDS,
-        SCORER_BACKENDS,
-        SEGMENTER_BACKENDS,
-    )
+    from drivenav.semantics.registry import GROUNDER_BACKENDS, REASONER_BACKENDS, SCORER_BACKENDS, SEGMENTER_BACKENDS
     from drivenav.worlds import WORLDS
 
     found: list[Registry[Any]] = [

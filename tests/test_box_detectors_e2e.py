@@ -28,8 +28,8 @@ from drivenav.cli import main
 from drivenav.semantics import hf_common
 from drivenav.semantics.grounder_server import GrounderServer, build_server, served_info, serving
 from drivenav.semantics.mobilesam_segmenter import MobileSamSegmenter, save_checkpoint
+from drivenav.semantics.model_spec import ModelSpec
 from drivenav.semantics.random_grounders import HAS_TORCHVISION, random_grounding_dino, random_mobile_sam, random_owlv2
-from drivenav.semantics.registry import ModelSpec
 from drivenav.semantics.serve_config import ServeConfig
 
 RUN = ["eval", "--agent", "directional", "--scenes", "procedural:2", "--episodes", "2", "--seed", "2"]

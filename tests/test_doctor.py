@@ -14,7 +14,7 @@ from drivenav.doctor import DoctorRequest, run_checks, vlm_check
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.eval.episodes import save_episodes
 from drivenav.semantics.fake_vlm_server import fake_stats, start_fake_server
-from drivenav.semantics.registry import ModelSpec
+from drivenav.semantics.model_spec import ModelSpec
 
 
 @pytest.fixture

@@ -15,7 +15,8 @@ import pytest
 from drivenav.cli import build_parser, main
 from drivenav.cli.common import given_options
 from drivenav.errors import InputError
-from drivenav.semantics.registry import DTYPES, ModelSpec, make_grounder
+from drivenav.semantics.model_spec import DTYPES, ModelSpec
+from drivenav.semantics.registry import make_grounder
 from drivenav.settings import load_settings
 
 KEYS = (

@@ -26,15 +26,16 @@ from drivenav.semantics.embedded_detector import EmbeddedGrounder
 from drivenav.semantics.embedding import default_embedder
 from drivenav.semantics.ground_truth import GroundTruthGrounder
 from drivenav.semantics.grounder_server import GrounderServer, served_info, serving
+from drivenav.semantics.model_spec import ModelSpec
 from drivenav.semantics.protocols import Detection, Grounder
-from drivenav.semantics.registry import ModelSpec, check_models, model_requirements
+from drivenav.semantics.registry import check_models, model_requirements
+from drivenav.semantics.remote import RemoteGrounder
 from drivenav.semantics.serve_config import ServeConfig
 from drivenav.semantics.served import (
     GROUNDER_PROTOCOL,
     REPLIES,
     GrounderClient,
     GrounderUnavailableError,
-    RemoteGrounder,
     ServedInfo,
     segment_request,
 )

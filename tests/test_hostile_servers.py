@@ -38,14 +38,14 @@ from drivenav.eval.rundir import EPISODES_FILE, LOST_TO_A_SERVER, lost_to_a_serv
 from drivenav.eval.runner import RunSpec, evaluate
 from drivenav.semantics.ground_truth import GroundTruthGrounder
 from drivenav.semantics.grounder_server import GrounderServer, served_info, serving
-from drivenav.semantics.registry import ModelSpec
+from drivenav.semantics.model_spec import ModelSpec
+from drivenav.semantics.remote import RemoteGrounder
 from drivenav.semantics.serve_config import ENTRY_BYTES, LABEL_BYTES, ServeConfig
 from drivenav.semantics.served import (
     GROUNDER_PROTOCOL,
     GrounderClient,
     GrounderRefusedError,
     GrounderUnavailableError,
-    RemoteGrounder,
     ServedInfo,
     begin_request,
     segment_request,

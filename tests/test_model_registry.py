@@ -10,6 +10,7 @@ import pytest
 from drivenav.agents import reference_agent
 from drivenav.errors import InputError
 from drivenav.methods import REFERENCE_AGENTS
+from drivenav.semantics.model_spec import ModelSpec
 from drivenav.semantics.registry import (
     GROUNDER_BACKENDS,
     REASONER_BACKENDS,
@@ -17,7 +18,6 @@ from drivenav.semantics.registry import (
     SEGMENTER_BACKENDS,
     Backend,
     ModelRegistry,
-    ModelSpec,
     check_models,
     make_grounder,
     make_reasoner,

@@ -16,6 +16,7 @@ from drivenav.semantics.embedded_scorer import EmbeddedScorer
 from drivenav.semantics.embedding import default_embedder
 from drivenav.semantics.fake_vlm_server import fake_stats, start_fake_server
 from drivenav.semantics.geometric import GeometricReasoner
+from drivenav.semantics.model_spec import ModelSpec
 from drivenav.semantics.protocols import (
     Candidate,
     Judgement,
@@ -26,7 +27,7 @@ from drivenav.semantics.protocols import (
     VerificationFrame,
     View,
 )
-from drivenav.semantics.registry import ModelSpec, check_models, make_reasoner, make_scorer
+from drivenav.semantics.registry import check_models, make_reasoner, make_scorer
 from drivenav.semantics.replay import (
     RecordingReasoner,
     RecordingScorer,

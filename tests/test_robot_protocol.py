@@ -12,22 +12,15 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from drivenav.types import CameraIntrinsics, LocalOccupancy, Pose, SimConfig
-from drivenav.wire.protocol import (
-    REPLIES,
-    REQUESTS,
-    Message,
-    ProtocolError,
-    RobotInfo,
-    decode,
+from drivenav.wire.payloads import (
     depth_from_wire,
     depth_to_wire,
-    encode,
-    mismatch,
     occupancy_body,
     occupancy_from,
     rgb_from_jpeg,
     rgb_to_jpeg,
 )
+from drivenav.wire.protocol import REPLIES, REQUESTS, Message, ProtocolError, RobotInfo, decode, encode, mismatch
 
 
 def observation_message() -> Message:

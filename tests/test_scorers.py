@@ -21,8 +21,9 @@ from drivenav.errors import InputError
 from drivenav.semantics.embedded import EmbeddedReasonerConfig
 from drivenav.semantics.embedded_scorer import EmbeddedScorer
 from drivenav.semantics.embedding import default_embedder
+from drivenav.semantics.model_spec import ModelSpec
 from drivenav.semantics.protocols import ImageTextScorer
-from drivenav.semantics.registry import ModelSpec, check_models, make_scorer
+from drivenav.semantics.registry import check_models, make_scorer
 from drivenav.types import GroundTruth
 from frames import observation_of
 

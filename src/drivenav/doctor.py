@@ -25,7 +25,8 @@ import numpy as np
 from drivenav import __version__
 from drivenav.errors import InputError
 from drivenav.jit import compiled_build
-from drivenav.semantics.registry import MODEL_DETECTORS, ModelSpec
+from drivenav.semantics.model_spec import ModelSpec
+from drivenav.semantics.registry import MODEL_DETECTORS
 from drivenav.types import Observation, Pose, SimConfig
 
 if TYPE_CHECKING:

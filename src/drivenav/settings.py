@@ -42,14 +42,8 @@ from drivenav.mapping.config import MapTuning
 from drivenav.methods import PRESETS, agent_names, method_named, preset_names
 from drivenav.paper import DriveNavConfig
 from drivenav.ranges import MAX_GRID_SIDE, Range, SettingError, check_ranges, check_rule
-from drivenav.semantics.registry import (
-    DTYPES,
-    GROUNDER_BACKENDS,
-    REASONER_BACKENDS,
-    SCORER_BACKENDS,
-    SEGMENTER_BACKENDS,
-    ModelSpec,
-)
+from drivenav.semantics.model_spec import DTYPES, ModelSpec
+from drivenav.semantics.registry import GROUNDER_BACKENDS, REASONER_BACKENDS, SCORER_BACKENDS, SEGMENTER_BACKENDS
 from drivenav.types import SimConfig
 from drivenav.validation import check_unique_keys, yaml_problem
 

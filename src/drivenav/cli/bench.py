@@ -95,7 +95,8 @@ def _add_bench_ablations(sub: Commands) -> None:
 
 
 def _add_bench_grounder(sub: Commands) -> None:
-    from drivenav.semantics.registry import DTYPES, MODEL_DETECTORS
+    from drivenav.semantics.model_spec import DTYPES
+    from drivenav.semantics.registry import MODEL_DETECTORS
 
     parser = sub.add_parser(
         "grounder",

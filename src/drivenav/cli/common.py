@@ -76,7 +76,8 @@ def add_config_options(parser: argparse.ArgumentParser) -> None:
 
 
 def add_model_options(parser: argparse.ArgumentParser) -> None:
-    from drivenav.semantics.registry import DTYPES, GROUNDER_BACKENDS, REASONER_BACKENDS, SCORER_BACKENDS, ModelSpec
+    from drivenav.semantics.model_spec import DTYPES, ModelSpec
+    from drivenav.semantics.registry import GROUNDER_BACKENDS, REASONER_BACKENDS, SCORER_BACKENDS
 
     default = ModelSpec()
     models = parser.add_argument_group(

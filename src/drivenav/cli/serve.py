@@ -17,12 +17,13 @@ from drivenav.errors import InputError
 from drivenav.eval.options import path
 
 if TYPE_CHECKING:
+    from drivenav.semantics.model_spec import ModelSpec
     from drivenav.semantics.protocols import Grounder
-    from drivenav.semantics.registry import ModelSpec
 
 
 def add_serve(commands: Commands) -> None:
-    from drivenav.semantics.registry import DTYPES, GROUNDER_BACKENDS
+    from drivenav.semantics.model_spec import DTYPES
+    from drivenav.semantics.registry import GROUNDER_BACKENDS
     from drivenav.semantics.serve_config import DEFAULT_BIND, MAX_BATCH, MAX_BATCH_MS, ServeConfig
 
     default = ServeConfig()
@@ -65,7 +66,8 @@ def add_serve(commands: Commands) -> None:
 
 def _cmd_serve_grounder(args: argparse.Namespace) -> int:
     from drivenav.semantics.grounder_server import build_server, run_server
-    from drivenav.semantics.registry import ModelSpec, check_models
+    from drivenav.semantics.model_spec import ModelSpec
+    from drivenav.semantics.registry import check_models
     from drivenav.semantics.serve_config import MAX_BATCH, MAX_BATCH_MS, ServeConfig
     from drivenav.wire.security import check_bind
 

@@ -22,15 +22,8 @@ from drivenav.errors import InputError, RunStoppedError
 from drivenav.jsonstream import JsonObject
 from drivenav.types import SEMANTIC, Action, GroundTruth, Observation, Pose, SimConfig
 from drivenav.wire.client import ClientConfig, RobotClient, RobotRefusedError, RobotUnavailableError
-from drivenav.wire.protocol import (
-    Message,
-    ProtocolError,
-    RobotInfo,
-    depth_from_wire,
-    occupancy_from,
-    reset_body,
-    rgb_from_jpeg,
-)
+from drivenav.wire.payloads import depth_from_wire, occupancy_from, reset_body, rgb_from_jpeg
+from drivenav.wire.protocol import Message, ProtocolError, RobotInfo
 
 
 @dataclass(frozen=True)

@@ -34,7 +34,7 @@ from drivenav.eval.report import Summary, summarize
 from drivenav.eval.rundir import RunDirectory, lost_to_a_server
 from drivenav.eval.timings import to_columns
 from drivenav.eval.trace import EpisodeError, EpisodeTrace
-from drivenav.semantics.registry import ModelSpec
+from drivenav.semantics.model_spec import ModelSpec
 from drivenav.settings import Settings
 from drivenav.types import SEMANTIC, Action, Observation
 

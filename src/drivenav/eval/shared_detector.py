@@ -27,9 +27,9 @@ from typing import IO, Final
 
 from drivenav.errors import InputError, RunStoppedError
 from drivenav.eval.executor import Executor
-from drivenav.semantics.registry import ModelSpec
+from drivenav.semantics.model_spec import ModelSpec
+from drivenav.semantics.remote import reach_server
 from drivenav.semantics.serve_config import DEFAULT_BIND
-from drivenav.semantics.served import reach_server
 
 LOG_FILE: Final[str] = "grounder-server.log"
 START_S: Final[float] = 600.0

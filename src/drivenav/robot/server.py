@@ -27,18 +27,8 @@ from drivenav.errors import one_line
 from drivenav.jsonstream import JsonObject
 from drivenav.robot.parts import MotionExecutor, MotionResult, SensorFrame, SensorSource
 from drivenav.types import Action, Pose
-from drivenav.wire.protocol import (
-    MAX_ARRAY_BYTES,
-    REQUESTS,
-    Message,
-    ProtocolError,
-    RobotInfo,
-    decode,
-    depth_to_wire,
-    mismatch,
-    occupancy_body,
-    rgb_to_jpeg,
-)
+from drivenav.wire.payloads import depth_to_wire, occupancy_body, rgb_to_jpeg
+from drivenav.wire.protocol import MAX_ARRAY_BYTES, REQUESTS, Message, ProtocolError, RobotInfo, decode, mismatch
 from drivenav.wire.router import Frames, RouterSocket, error_reply, in_background, loose_id
 
 if TYPE_CHECKING:

@@ -21,7 +21,8 @@ from drivenav.episode import Episode
 from drivenav.grid import GridSpec
 from drivenav.robot.parts import MotionResult, SensorFrame
 from drivenav.types import SEMANTIC, Action, Observation, Pose
-from drivenav.wire.protocol import JSON, RobotInfo, check_claimed_episode
+from drivenav.wire.payloads import check_claimed_episode
+from drivenav.wire.protocol import JSON, RobotInfo
 
 
 @dataclass(frozen=True)

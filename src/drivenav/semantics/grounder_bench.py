@@ -45,7 +45,8 @@ from drivenav.semantics.hf_common import (
     pick_device,
     resolve_dtype,
 )
-from drivenav.semantics.registry import BOX_DETECTORS, DEFAULT_SEGMENTER, ModelSpec, make_segmenter
+from drivenav.semantics.model_spec import ModelSpec
+from drivenav.semantics.registry import BOX_DETECTORS, DEFAULT_SEGMENTER, make_segmenter
 from drivenav.types import CameraIntrinsics, Observation, Pose
 from drivenav.wire.protocol import Message
 
@@ -301,7 +302,8 @@ def _served_seconds(
     endpoint: str, frames: list[NDArray[np.uint8]], ready: threading.Barrier | None = None
 ) -> list[float]:
     """Each frame's seconds through a served grounder at ``endpoint``, one after another (after ``ready``)."""
-    from drivenav.semantics.served import GrounderClient, RemoteGrounder, ServedInfo
+    from drivenav.semantics.remote import RemoteGrounder
+    from drivenav.semantics.served import GrounderClient, ServedInfo
 
     client = GrounderClient(endpoint)
     try:

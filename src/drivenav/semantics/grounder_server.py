@@ -35,8 +35,9 @@ import zmq
 from numpy.typing import NDArray
 
 from drivenav.errors import InputError, one_line
+from drivenav.semantics.model_spec import ModelSpec
 from drivenav.semantics.protocols import Detection, Grounder
-from drivenav.semantics.registry import BOX_DETECTORS, GROUNDER_BACKENDS, ModelSpec
+from drivenav.semantics.registry import BOX_DETECTORS, GROUNDER_BACKENDS
 from drivenav.semantics.serve_config import DEFAULT_BIND, ENTRY_BYTES, LABEL_BYTES, ServeConfig
 from drivenav.semantics.served import (
     GROUNDER_PROTOCOL,

@@ -56,8 +56,9 @@ from drivenav.semantics.boxes import BoxSegmenter, FilledBoxSegmenter
 from drivenav.semantics.grounding_dino_grounder import GroundingDinoGrounder
 from drivenav.semantics.hf_common import TransformersGrounder, compile_backend_for, pick_device
 from drivenav.semantics.mobilesam_segmenter import MobileSamSegmenter
+from drivenav.semantics.model_spec import ModelSpec
 from drivenav.semantics.owlv2_grounder import Owlv2Grounder
-from drivenav.semantics.registry import BOX_DETECTORS, ModelSpec
+from drivenav.semantics.registry import BOX_DETECTORS
 from drivenav.semantics.sam3_grounder import Sam3Grounder
 
 HAS_TORCHVISION: Final[bool] = importlib.util.find_spec("torchvision") is not None

@@ -21,8 +21,7 @@ from typing import TYPE_CHECKING, Generic, TypeVar
 
 from drivenav.errors import InputError
 from drivenav.plugins import Registry
-from drivenav.ranges import Range, check_ranges
-from drivenav.semantics.serve_config import DEFAULT_BIND
+from drivenav.semantics.model_spec import ModelSpec
 
 if TYPE_CHECKING:  # the command line reads the names here without loading numpy
     from drivenav.semantics.boxes import BoxSegmenter
@@ -31,53 +30,6 @@ if TYPE_CHECKING:  # the command line reads the names here without loading numpy
 Model = TypeVar("Model")
 
 
-@dataclass(frozen=True)
-class ModelSpec:
-    """Which models an agent uses and how to reach them.
-
-    ``detector_model`` / ``scorer_model``: the grounder's / scorer's checkpoint (empty: the backend's default).
-    ``vlm_record`` / ``vlm_replay``: the one file that records / replays both the reasoner's and the scorer's
-    answers. ``dtype``: the grounder's weights and inputs, one of :data:`DTYPES` (``auto``: bf16 on a CUDA device
-    that supports it, fp32 elsewhere); ``detector_device``: where a transformers grounder runs (empty: CUDA when
-    visible, else the CPU). ``detector_url`` / ``detector_keys``: with ``detector`` ``remote``, the served
-    grounder's endpoint (``drivenav serve grounder``) and the CURVE key folder when it is not on loopback;
-    ``detector_timeout_s``: how long after its sending a request may wait for its reply before its episode ends as
-    an error (long enough for a batch of full-size forwards on a CPU; more than 0, at most an hour);
-    ``detector_served``: the detector the server runs, when the workers must know it (set by ``eval
-    --share-detector``; required for a served stand-in that reads ground-truth labels, whose agents then ask the
-    world for them; empty: a model that reads images). ``segmenter`` / ``segmenter_model``: what turns a box
-    detector's boxes into masks (``--segmenter``, :data:`SEGMENTER_BACKENDS`; the filled box, or MobileSAM from its
-    checkpoint file). ``compile``: ``torch.compile`` of the models' per-frame modules.
-    ``detector_shadow_url``: a served grounder sent every frame the detector grounds, its answer discarded (a served
-    model's cost beside the detector's detections: throughput benchmarks with random weights).
-    """
-
-    reasoner: str = "embedded"
-    detector: str = "embedded"
-    vlm_base_url: str = "http://127.0.0.1:8000/v1"
-    vlm_model: str = "Qwen/Qwen3-VL-8B-Instruct"
-    vlm_record: str = ""
-    vlm_replay: str = ""
-    detector_model: str = ""
-    scorer: str = "embedded"
-    scorer_model: str = ""
-    dtype: str = "auto"
-    detector_device: str = ""
-    detector_url: str = DEFAULT_BIND
-    detector_keys: str = ""
-    detector_timeout_s: float = 60.0
-    detector_served: str = ""
-    segmenter: str = "filled-box"
-    segmenter_model: str = ""
-    compile: bool = False
-    detector_shadow_url: str = ""
-
-    def __post_init__(self) -> None:
-        check_ranges(self, {"detector_timeout_s": Range(0.0, 86400.0, low_open=True, why="seconds, up to a day")})
-
-
-DTYPES = ("auto", "float32", "bfloat16", "float16")
-"""The values of ``models.dtype`` (``--dtype``)."""
 BOX_DETECTORS = ("owlv2", "grounding-dino")
 """The detectors that give boxes, turned into masks by ``--segmenter``; the others make their own masks."""
 MODEL_DETECTORS = ("sam3", *BOX_DETECTORS)
@@ -219,21 +171,21 @@ def _placed(kind: Callable[..., Model], spec: ModelSpec) -> Callable[..., Model]
 
 
 def _remote_grounder(spec: ModelSpec) -> Grounder:
-    from drivenav.semantics.served import remote_grounder
+    from drivenav.semantics.remote import remote_grounder
 
     return remote_grounder(spec)
 
 
 def _check_detector_url(spec: ModelSpec) -> None:
     """``detector_url`` is a ``tcp://HOST:PORT`` (or ``ipc://``) endpoint, with keys off loopback."""
-    from drivenav.semantics.served import check_detector_url
+    from drivenav.semantics.remote import check_detector_url
 
     check_detector_url(spec)
 
 
 def _reach_grounder(spec: ModelSpec) -> None:
     """The served grounder answers HELLO (before any episode)."""
-    from drivenav.semantics.served import reach_server
+    from drivenav.semantics.remote import reach_server
 
     reach_server(spec)
 
@@ -422,7 +374,7 @@ def make_grounder(spec: ModelSpec) -> Grounder:
     """The grounder named by ``spec`` (shadowed by the served grounder at ``detector_shadow_url`` when set)."""
     grounder = GROUNDER_BACKENDS.get(spec.detector).build(spec)
     if spec.detector_shadow_url:
-        from drivenav.semantics.served import shadowed
+        from drivenav.semantics.remote import shadowed
 
         return shadowed(grounder, spec)
     return grounder
@@ -494,7 +446,7 @@ def check_models(spec: ModelSpec, connect: bool = True) -> None:
 
 def _check_shadow(spec: ModelSpec, connect: bool) -> None:
     """The shadow grounder's endpoint (and keys off loopback) or, with ``connect``, that it answers."""
-    from drivenav.semantics.served import SHADOW_OPTION, check_detector_url, reach_server, shadow_spec
+    from drivenav.semantics.remote import SHADOW_OPTION, check_detector_url, reach_server, shadow_spec
 
     if connect:
         reach_server(shadow_spec(spec), SHADOW_OPTION)
