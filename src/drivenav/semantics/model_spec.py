@@ -23,8 +23,8 @@ class ModelSpec:
     an error (long enough for a batch of full-size forwards on a CPU; more than 0, at most an hour);
     ``detector_served``: the detector the server runs, when the workers must know it (set by ``eval
     --share-detector``; required for a served stand-in that reads ground-truth labels, whose agents then ask the
-    world for them; empty: a model that reads images). ``segmenter`` / ``segmenter_model``: what turns a box detector's boxes
-    into masks (``--segmenter``: the filled box, or MobileSAM from its checkpoint file). ``compile``:
+    world for them; empty: a model that reads images). ``segmenter`` / ``segmenter_model``: what turns a box
+    detector's boxes into masks (``--segmenter``: the filled box, or MobileSAM from its checkpoint file). ``compile``:
     ``torch.compile`` of the models' per-frame modules. ``detector_shadow_url``: a served grounder sent every frame
     the detector grounds, its answer discarded (a served model's cost beside the detector's detections: throughput
     benchmarks with random weights).
