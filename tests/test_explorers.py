@@ -21,7 +21,7 @@ from drivenav.agents import make_agent
 from drivenav.envs.embedded.env import EmbeddedEnv
 from drivenav.errors import InputError
 from drivenav.eval.runner import run_episode
-from drivenav.methods import ALL_METHODS, METHODS, REFERENCE_AGENTS
+from drivenav.methods import METHOD_NAMES, METHODS, REFERENCE_AGENTS
 from drivenav.plugins import Registry
 from drivenav.settings import explorer_section, load_settings, settings_from_dict, settings_to_dict
 from drivenav.types import SimConfig
@@ -125,7 +125,7 @@ def test_a_broken_plugin_is_one_line_and_never_breaks_the_built_ins(monkeypatch:
 
 # ----------------------------------------------------------------------------------------------- no name dispatch
 
-NAMES = sorted({*ALL_METHODS, *REFERENCE_AGENTS, *BUILT_IN_EXPLORERS})
+NAMES = sorted({*METHOD_NAMES, *REFERENCE_AGENTS, *BUILT_IN_EXPLORERS})
 _QUOTED = "|".join(re.escape(name) for name in NAMES)
 DISPATCH = re.compile(
     rf"""(==|!=|\bis\b|\bin\s*[\(\[\{{])\s*["']({_QUOTED})["']|["']({_QUOTED})["']\s*(==|!=|\bin\b)"""
@@ -147,4 +147,4 @@ def test_the_dispatch_check_finds_an_if_chain() -> None:
     assert DISPATCH.search('    if name == "vlfm":')
     assert DISPATCH.search("    elif agent in ('nearest-frontier', 'frontier'):")
     assert not DISPATCH.search('    Method("vlfm", ("II",), "VLFM")')
-    assert [m.name for m in METHODS] == list(ALL_METHODS)
+    assert [m.name for m in METHODS] == list(METHOD_NAMES)

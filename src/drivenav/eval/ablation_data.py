@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import TypeVar
 
 from drivenav.errors import InputError
+from drivenav.eval.beyond import PairedEntry
 from drivenav.eval.compare import Comparison
 from drivenav.jsonstream import DOCUMENT, JsonObject
 
@@ -219,7 +220,8 @@ class ReportModels:
 class AblationReport:
     """``ablations.json``: every method's entry, the Table II comparison, Table VII, and what the runs were; with
     episodes of vocabulary splits (``info["split"]``, benchmark v2), each method per split under ``splits`` (a key
-    the file has only then)."""
+    the file has only then); with methods beyond the paper, each against its base under ``beyond`` and Table II's
+    comparison with them under ``table_ii_beyond`` (:mod:`drivenav.eval.beyond`; keys the file has only then)."""
 
     methods: dict[str, MethodEntry]
     table_ii: Comparison
@@ -232,6 +234,8 @@ class AblationReport:
     commit: str | None
     pictures: Pictures = field(default_factory=Pictures)
     splits: Splits = field(default_factory=dict)
+    beyond: dict[str, PairedEntry] = field(default_factory=dict)
+    table_ii_beyond: Comparison | None = None
 
     def to_json(self) -> JsonObject:
         """The ``ablations.json`` object."""
@@ -249,6 +253,10 @@ class AblationReport:
         }
         if self.splits:
             data["splits"] = {name: {m: e.to_json() for m, e in by.items()} for name, by in self.splits.items()}
+        if self.beyond:
+            data["beyond"] = {name: entry.to_json() for name, entry in self.beyond.items()}
+        if self.table_ii_beyond is not None:
+            data["table_ii_beyond"] = self.table_ii_beyond.to_json()
         return data
 
     @staticmethod
@@ -267,6 +275,8 @@ class AblationReport:
                 data["commit"],
                 Pictures.from_json(data.get("pictures")),
                 {name: _each(by_method, SplitEntry.from_json) for name, by_method in data.get("splits", {}).items()},
+                _each(data.get("beyond", {}), PairedEntry.from_json),
+                Comparison.from_json(data["table_ii_beyond"]) if "table_ii_beyond" in data else None,
             )
         except (KeyError, TypeError, AttributeError, IndexError) as error:
             expected = "an ablations.json written by 'drivenav bench ablations'"

@@ -18,6 +18,7 @@ from drivenav.eval.ablation_data import (
     SplitEntry,
     Splits,
 )
+from drivenav.eval.beyond_report import beyond_section
 from drivenav.eval.compare import Comparison
 from drivenav.eval.paper_tables import (
     TABLE_II,
@@ -71,6 +72,7 @@ def format_markdown(report: AblationReport) -> str:
         _table_vi(report.methods),
         _table_v(report.methods),
         _table_ii(report.table_ii),
+        *([beyond_section(report)] if report.beyond else []),
         _table_vii(report.runtime),
         _decisions(report.methods),
         _steps(report.methods),

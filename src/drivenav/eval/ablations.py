@@ -32,6 +32,7 @@ from drivenav.eval.ablation_data import (
     Splits,
 )
 from drivenav.eval.ablation_report import format_markdown, write_csv
+from drivenav.eval.beyond import beyond_table_ii, paired_entries
 from drivenav.eval.compare import RunRecords, compare_runs, load_runs
 from drivenav.eval.episodes import load_episodes, save_episodes
 from drivenav.eval.executor import Executor
@@ -244,6 +245,8 @@ def build_report(
         models=ReportModels(first.settings.models.reasoner, first.settings.models.detector),
         commit=git_commit(),
         splits=split_entries(runs, splits or {}),
+        beyond=paired_entries(runs),
+        table_ii_beyond=beyond_table_ii(runs, TABLE_II_METHODS),
     )
 
 

@@ -94,6 +94,8 @@ class EmbeddedReasonerConfig:
     exploration_weight: float = 0.3
     exploration_half: float = 40.0
     distance_scale: float = 5.0
+    dead_end_weight: float = 0.5
+    visited_weight: float = 0.5
 
     def __post_init__(self) -> None:
         if self.min_pixels < 1:
@@ -102,6 +104,9 @@ class EmbeddedReasonerConfig:
             raise ValueError("need -1 <= unrelated_similarity < uncertain_similarity <= sure_similarity <= 1")
         if not 0.0 <= self.area_floor <= 1.0:
             raise ValueError(f"area_floor must be in [0, 1], got {self.area_floor}")
+        for name in ("dead_end_weight", "visited_weight"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)!r}")
         for name in ("area_half_share", "exploration_half", "distance_scale"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
@@ -221,15 +226,16 @@ class EmbeddedReasoner:
 
     def _assess(self, goal: str, candidate: Candidate, shown: list[tuple[str, int]]) -> _Assessment:
         exploration = self._exploration(candidate)
+        prospect = evidence_factor(candidate, self.config)
         view = candidate.view
         if view is None:
-            return _Assessment(candidate, exploration, 0, None)
+            return _Assessment(candidate, exploration * prospect, 0, None)
         pixels = view.semantic.size if view.semantic is not None else 1
         related = [(self.relatedness(label, goal), area / pixels, area) for label, area in shown]
         semantic = semantic_value([(r, share) for r, share, _ in related], self.config)
         target_area = max((area for r, _, area in related if r >= self.config.sure_similarity), default=0)
         names = ", ".join(label for label, _ in shown) or "nothing recognisable"
-        return _Assessment(candidate, semantic + exploration, target_area, f"shows: {names}")
+        return _Assessment(candidate, (semantic + exploration) * prospect, target_area, f"shows: {names}")
 
     def _exploration(self, candidate: Candidate) -> float:
         c = self.config
@@ -259,6 +265,27 @@ class EmbeddedReasoner:
         if related >= self.config.sure_similarity:
             return "sure"
         return "uncertain" if related >= self.config.uncertain_similarity else "not"
+
+
+def evidence_factor(candidate: Candidate, config: EmbeddedReasonerConfig) -> float:
+    """What the dead-end evidence and the way back leave of a candidate's value (module docstring); 1 for a
+    candidate without them."""
+    factor = 1.0
+    if candidate.open_area is not None and candidate.open_reach is not None:
+        factor *= 1.0 - config.dead_end_weight * (1.0 - openness(candidate.open_area, candidate.open_reach))
+    if candidate.visited is not None:
+        factor *= 1.0 - config.visited_weight * min(max(candidate.visited, 0.0), 1.0)
+    if candidate.return_time is not None:
+        way = candidate.return_time if math.isfinite(candidate.return_time) else math.inf
+        factor /= 1.0 + max(way, 0.0) / config.distance_scale
+    return factor
+
+
+def openness(area: float, reach: float) -> float:
+    """How open a direction is, in [0, 1): its open area ``a`` against a half disc of radius ``reach`` (``h``, the
+    unexplored side of a frontier that goes on for ``reach``), ``a / (a + h)`` -- one half when the two are equal."""
+    area = max(area, 0.0)
+    return area / (area + 0.5 * math.pi * reach * reach)
 
 
 def goal_phrases(goal: str, truth: GroundTruth | None) -> list[str]:

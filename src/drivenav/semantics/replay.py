@@ -108,11 +108,24 @@ def select_request(goal: str, candidates: Sequence[Candidate]) -> Request:
                 "travel_time": _number(c.travel_time),
                 "frontier_cells": c.frontier_cells,
                 "view": None if c.view is None else array_digest(c.view.rgb),
+                **_evidence(c),
             }
             for c in candidates
         ]
     }
     return Request("select_direction", goal, inputs, f"candidate labels {[c.label for c in candidates]}")
+
+
+def _evidence(candidate: Candidate) -> dict[str, float | str]:
+    """The dead-end evidence a candidate carries (beyond the paper), only where measured: recordings made without
+    it still match."""
+    values = {
+        "open_area": candidate.open_area,
+        "open_reach": candidate.open_reach,
+        "visited": candidate.visited,
+        "return_time": candidate.return_time,
+    }
+    return {key: _number(value) for key, value in values.items() if value is not None}
 
 
 def propose_request(goal: str, view: View, description: str, failed: Sequence[str]) -> Request:

@@ -29,11 +29,14 @@ class Phase(Enum):
 @dataclass(frozen=True)
 class DirectionCounters:
     """How an episode's exploration went (Sec. IV-A b-c): direction labels the tracker created, merged and removed;
-    inspection events; reasoner decisions by trigger (``scan``, ``inspection``, ``vanished``, ``stuck``); decisions
-    at a dead end (no still-relevant direction in the forward 240 deg, so the rear range was offered); how often the
-    followed direction was carried over a relabelling (``followed_through_relabel``) or lost its label with no
-    successor (``selected_lost``); fresh labels recognised as a retired direction (removed, or merged away) back at
-    its place (``labels_reidentified``)."""
+    inspection events; reasoner decisions by trigger (``scan``, ``inspection``, ``vanished``, ``stuck``, and
+    ``abandoned`` with ``abandon_dead_ends``); decisions at a dead end (no still-relevant direction in the forward
+    240 deg, so the rear range was offered); how often the followed direction was carried over a relabelling
+    (``followed_through_relabel``) or lost its label with no successor (``selected_lost``); fresh labels recognised
+    as a retired direction (removed, or merged away) back at its place (``labels_reidentified``); inspection events
+    that ended without a decision because every direction that started them was gone (``void_events``) and choices
+    left with one direction whose view the reasoner had judged, made without it (``forced_choices``; both with
+    ``skip_void_events``)."""
 
     labels_created: int = 0
     labels_merged: int = 0
@@ -44,6 +47,8 @@ class DirectionCounters:
     followed_through_relabel: int = 0
     selected_lost: int = 0
     labels_reidentified: int = 0
+    void_events: int = 0
+    forced_choices: int = 0
 
 
 @dataclass
@@ -59,6 +64,8 @@ class DirectionTally:
     followed_through_relabel: int = 0
     selected_lost: int = 0
     labels_reidentified: int = 0
+    void_events: int = 0
+    forced_choices: int = 0
 
     def freeze(self) -> DirectionCounters:
         values = {name: getattr(self, name) for name in DirectionCounters.__dataclass_fields__}
@@ -71,11 +78,16 @@ class Directions:
 
     ``scan_turns`` are the start scan's turns left; ``inspected`` holds the labels an inspection event or decision
     has already covered, ``blacklist`` the directions that could not be followed (label -> step until which they are
-    left out), ``selected`` the direction followed and ``followed`` that direction as of the previous step;
-    ``previous`` holds the previous step's directions and ``gone`` the retired ones with the step they went (Sec.
-    IV-A b). ``event_heading`` is the heading when the current inspection event began (Sec. IV-A c).
+    left out), ``abandoned`` the dead ends given up (left out while anything else is left), ``selected`` the
+    direction followed and ``followed`` that direction as of the previous step; ``previous`` holds the previous
+    step's directions and ``gone`` the retired ones with the step they went (Sec. IV-A b). ``event_heading`` is the
+    heading when the current inspection event began (Sec. IV-A c) and ``event_labels`` the directions that started
+    it; ``turning_back`` whether the last decision's options lay behind the robot only (a dead end) and
+    ``returning`` whether the followed direction was chosen so and is followed toward its nearest frontier;
+    ``driven`` the position at each step (dead-end evidence: which ways re-drive the path driven).
     ``descriptions`` and ``enriched`` are the reasoner's words on each direction and the directions enrichment has
-    run on (Sec. IV-B). ``counts`` are the episode's counters.
+    run on (Sec. IV-B); ``judged`` the steps of the views the reasoner has been shown. ``counts`` are the episode's
+    counters.
     """
 
     config: DirectionsConfig
@@ -85,14 +97,20 @@ class Directions:
     pending_yaws: list[float] = field(default_factory=list)
     inspected: set[int] = field(default_factory=set)
     blacklist: dict[int, int] = field(default_factory=dict)
+    abandoned: set[int] = field(default_factory=set)
     descriptions: dict[int, str] = field(default_factory=dict)
     enriched: set[int] = field(default_factory=set)
+    judged: set[int] = field(default_factory=set)
     enrich_label: int | None = None
     selected: int | None = None
     followed: Direction | None = None
     previous: dict[int, Direction] = field(default_factory=dict)
     gone: dict[int, tuple[Direction, int]] = field(default_factory=dict)
     event_heading: float = 0.0
+    turning_back: bool = False
+    returning: bool = False
+    event_labels: tuple[int, ...] = ()
+    driven: list[tuple[float, float]] = field(default_factory=list)
     counts: DirectionTally = field(default_factory=DirectionTally)
 
     def enter(self, loop: Loop, phase: Phase) -> None:

@@ -1,0 +1,293 @@
+"""drive-nav-plus, DRIVE-Nav beyond the paper (docs/agent.md "Beyond the paper"): each rule behind its switch, the
+map evidence it reads (hand-computed), what the reasoners are told, and the report pairing it with drive-nav."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from drivenav.agent.base import ExplorerStats
+from drivenav.agent.body import ExplorerAgent
+from drivenav.agent.context import StepContext
+from drivenav.agent.explorers.directions import abandon, decision, follow, sweep
+from drivenav.agent.explorers.directions.decision import candidates
+from drivenav.agent.explorers.directions.evidence import retraced_share, return_time
+from drivenav.agent.explorers.directions.explorer import DirectionsExplorer
+from drivenav.agent.explorers.directions.memory import Directions, Phase
+from drivenav.agent.trace import DirectionSelected, InspectionVoid, of_type
+from drivenav.agents import make_agent
+from drivenav.directions.types import Direction, DirectionResult, FrontierPath
+from drivenav.envs.vocabulary import VOCABULARY
+from drivenav.errors import InputError
+from drivenav.eval.beyond import PairedEntry, beyond_table_ii, lineage, paired_entries
+from drivenav.eval.paper_tables import TABLE_II_METHODS
+from drivenav.eval.records import EpisodeRecord
+from drivenav.mapping.config import MappingConfig
+from drivenav.mapping.occupancy import OccupancyMapper
+from drivenav.semantics.embedded import EmbeddedReasoner, EmbeddedReasonerConfig, evidence_factor, openness
+from drivenav.semantics.embedding import default_embedder
+from drivenav.semantics.prompts import select_text
+from drivenav.semantics.protocols import Candidate, View
+from drivenav.semantics.replay import select_request
+from drivenav.settings import load_settings
+from drivenav.types import Action, CameraIntrinsics, GroundTruth, Observation, Pose
+
+# ----------------------------------------------------------------------------------------------- map evidence
+
+
+def _closed_pocket_mapper() -> tuple[OccupancyMapper, list[np.ndarray]]:
+    """A corridor explored up to column 199 whose open end looks into an unexplored pocket 21 cells high and 60
+    wide (columns 200-259), walled (inflated) above, below and at column 260."""
+    mapper = OccupancyMapper(MappingConfig())
+    explored, inflated = mapper._explored, mapper._inflated
+    explored[95:126, 150:200] = True
+    inflated[95:100, 150:270] = inflated[121:126, 150:270] = True  # the corridor's walls, on into the unknown
+    inflated[95:126, 150:155] = inflated[95:126, 260:270] = True  # its back wall and the pocket's far wall
+    mapper._box, mapper._pose = (0, 400, 0, 400), Pose(*mapper.grid.cell_to_world(np.array([[110, 170]]))[0], 0.0)
+    [frontier] = mapper.frontiers()
+    return mapper, [frontier.cells]
+
+
+def test_a_frontiers_open_area_is_the_pocket_within_reach() -> None:
+    mapper, groups = _closed_pocket_mapper()
+    assert sorted({int(c) for c in groups[0][:, 1]}) == [199] and len(groups[0]) == 21
+    cell = 0.05 * 0.05
+    assert mapper.open_areas(groups, 0.5) == pytest.approx([21 * 10 * cell])  # 10 columns within 0.5 m
+    assert mapper.open_areas(groups, 2.0) == pytest.approx([21 * 40 * cell])  # 40 columns within 2 m
+    assert mapper.open_areas(groups, 5.0) == pytest.approx([21 * 60 * cell])  # the whole pocket: walls close it
+    assert mapper.open_areas([], 2.0) == []
+
+
+def test_the_share_of_a_way_over_the_path_driven() -> None:
+    way = np.column_stack([np.linspace(0.0, 4.0, 81), np.zeros(81)])
+    driven = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
+    assert retraced_share(way, driven, 0.5) == pytest.approx(2.5 / 4.0)  # within 0.5 m of the driven 2 m
+    assert retraced_share(way, driven + np.array([0.0, 0.6]), 0.5) == 0.0  # alongside, 0.6 m off
+    assert retraced_share(way, np.zeros((0, 2)), 0.5) == 0.0
+
+
+def _path(frontier: int, target: tuple[float, float], time: float) -> FrontierPath:
+    line = np.array([[0.0, 0.0], target])
+    return FrontierPath(frontier, target, time, line, target, 0.0, target)
+
+
+def test_the_way_back_from_a_direction_is_its_farthest_members_way_on_to_its_farthest_point() -> None:
+    far = (3.0, 4.0)
+    direction = Direction(0, 0.0, (0, 1, 2), (0.0, 0.0, 0.0), np.zeros((3, 2)), np.zeros((3, 2)), far)
+    paths = {0: _path(0, (1.0, 0.0), 1.0), 1: _path(1, (3.0, 0.0), 3.0)}  # frontier 2 is unreachable
+    ctx = StepContext(Pose(0.0, 0.0, 0.0), None, [], DirectionResult((direction,), paths, (2,)), None)  # type: ignore[arg-type]
+    assert return_time(ctx, direction) == pytest.approx(3.0 + 4.0)
+    lost = StepContext(Pose(0.0, 0.0, 0.0), None, [], DirectionResult((direction,), {}, ()), None)  # type: ignore[arg-type]
+    assert return_time(lost, direction) == math.inf
+
+
+# ----------------------------------------------------------------------------------------------- the rules
+
+
+def _direction(label: int, bearing_deg: float) -> Direction:
+    point = np.array([[math.cos(math.radians(bearing_deg)), math.sin(math.radians(bearing_deg))]]) * (2 + label)
+    far = (float(point[0, 0]), float(point[0, 1]))
+    return Direction(label, math.radians(bearing_deg), (label,), (math.radians(bearing_deg),), point, point, far)
+
+
+def _agent(name: str, bearings_deg: dict[int, float]) -> tuple[ExplorerAgent, Directions, StepContext]:
+    agent = make_agent(load_settings(name))
+    assert isinstance(agent, ExplorerAgent) and isinstance(agent.explorer_type, type)
+    agent.reset("chair", 0, GroundTruth({}, VOCABULARY))
+    assert isinstance(agent.explorer, DirectionsExplorer)
+    directions = tuple(_direction(label, b) for label, b in sorted(bearings_deg.items()))
+    ctx = StepContext(Pose(0.0, 0.0, 0.0), None, [], DirectionResult(directions, {}, ()), None)  # type: ignore[arg-type]
+    return agent, agent.explorer.memory, ctx
+
+
+def _observation() -> Observation:
+    intrinsics = CameraIntrinsics.from_hfov(8, 6, 79.0)
+    depth = np.full((6, 8), 2.0, np.float32)
+    return Observation(np.zeros((6, 8, 3), np.uint8), depth, None, Pose(0.0, 0.0, 0.0), intrinsics, 0, False)
+
+
+def _after_a_sweep(name: str, monkeypatch: pytest.MonkeyPatch) -> tuple[ExplorerAgent, Directions, list[str], Action]:
+    """The step a sweep ends at: the followed direction 0 is still tracked, the event's direction 9 is gone."""
+    agent, memory, ctx = _agent(name, {0: 10.0, 1: 90.0})
+    memory.phase, memory.pending_yaws, memory.selected, memory.event_labels = Phase.SWEEP, [], 0, (9,)
+    decided: list[str] = []
+    monkeypatch.setattr(sweep, "decide", lambda d, loop, obs, ctx, reason: decided.append(reason) or Action.STOP)
+    loop = agent.loop()
+    monkeypatch.setattr(loop, "policy", lambda obs, ctx: Action.MOVE_FORWARD)
+    return agent, memory, decided, sweep.act(memory, loop, _observation(), ctx)
+
+
+def test_a_void_inspection_event_goes_back_to_following_without_a_decision(monkeypatch: pytest.MonkeyPatch) -> None:
+    agent, memory, decided, action = _after_a_sweep("drive-nav-plus", monkeypatch)
+    assert (action, decided, memory.phase, memory.counts.void_events) == (Action.MOVE_FORWARD, [], Phase.FOLLOW, 1)
+    assert [e.labels for e in of_type(agent.trace.events, InspectionVoid)] == [(9,)]
+    assert not of_type(agent.trace.events, DirectionSelected)
+
+
+def test_the_paper_asks_the_reasoner_after_every_sweep(monkeypatch: pytest.MonkeyPatch) -> None:
+    agent, memory, decided, action = _after_a_sweep("drive-nav", monkeypatch)
+    assert (action, decided, memory.counts.void_events) == (Action.STOP, ["inspection"], 0)
+    assert not of_type(agent.trace.events, InspectionVoid)
+
+
+def test_an_event_is_void_only_when_its_directions_are_gone_and_the_followed_one_is_not() -> None:
+    _, memory, ctx = _agent("drive-nav-plus", {0: 10.0, 1: 90.0})
+    memory.selected = 0
+    for labels, selected, void in (((9,), 0, True), ((1, 9), 0, False), ((9,), 7, False)):
+        memory.event_labels, memory.selected = labels, selected
+        assert sweep.void(memory, ctx) is void
+
+
+def _view(label: int, step: int) -> View:
+    return View(label, np.zeros((2, 2, 3), np.uint8), None, Pose(0.0, 0.0, 0.0), 0.0, 0.0, step)
+
+
+def test_a_single_direction_whose_view_the_reasoner_judged_is_followed_without_asking() -> None:
+    _, memory, _ = _agent("drive-nav-plus", {0: 10.0})
+    seen, unseen, blind = (Candidate(0, 0.0, 0.0, 1.0, 9, view) for view in (_view(0, 3), _view(0, 7), None))
+    memory.judged = {3}
+    assert decision.forced(memory, [seen]) and decision.forced(memory, [blind])
+    assert not decision.forced(memory, [unseen]) and not decision.forced(memory, [seen, blind])
+    _, paper, _ = _agent("drive-nav", {0: 10.0})
+    paper.judged = {3}
+    assert not decision.forced(paper, [seen])
+
+
+@pytest.mark.parametrize(
+    ("followed", "others", "dead"),
+    [(2.0, [10.0], True), (2.0, [3.0], False), (5.0, [10.0], False), (2.0, [], False)],
+)
+def test_a_followed_direction_is_a_dead_end_once_it_opens_onto_little_while_another_opens_onto_more(
+    followed: float, others: list[float], dead: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    bearings = {0: 10.0, **{k + 1: 60.0 * (k + 1) for k in range(len(others))}}
+    agent, memory, ctx = _agent("drive-nav-plus", bearings)
+    areas = {0: followed, **{k + 1: area for k, area in enumerate(others)}}
+    monkeypatch.setattr(abandon, "open_areas", lambda m, c, directions, reach: [areas[d.label] for d in directions])
+    assert memory.config.abandon_area == 4.0
+    assert abandon.dead_end(memory, agent.loop(), ctx, ctx.directions[0]) is dead
+
+
+def test_a_dead_end_is_given_up_and_left_out_while_anything_else_is_left(monkeypatch: pytest.MonkeyPatch) -> None:
+    agent, memory, ctx = _agent("drive-nav-plus", {0: 10.0, 1: 60.0})
+    memory.phase, memory.selected, memory.inspected = Phase.FOLLOW, 0, {0, 1}
+    memory.views._views = {}
+    monkeypatch.setattr(follow, "dead_end", lambda d, loop, ctx, direction: direction.label == 0)
+    decided: list[str] = []
+    monkeypatch.setattr(follow, "decide", lambda d, loop, obs, ctx, reason: decided.append(reason) or Action.STOP)
+    assert follow.act(memory, agent.loop(), _observation(), ctx) == Action.STOP
+    assert decided == ["abandoned"] and memory.abandoned == {0}
+    memory.config = replace(memory.config, dead_end_evidence=False, return_aware=False)  # the labels alone
+    assert [c.label for c in candidates(memory, agent.loop(), ctx, "abandoned")] == [1]
+    memory.abandoned = {0, 1}
+    assert [c.label for c in candidates(memory, agent.loop(), ctx, "abandoned")] == [0, 1]  # nothing else left
+
+
+def test_the_paper_follows_a_dead_end_to_its_end(monkeypatch: pytest.MonkeyPatch) -> None:
+    agent, memory, ctx = _agent("drive-nav", {0: 10.0, 1: 60.0})
+    memory.phase, memory.selected, memory.inspected = Phase.FOLLOW, 0, {0, 1}
+    monkeypatch.setattr(follow, "dead_end", lambda d, loop, ctx, direction: pytest.fail("no abandonment in drive-nav"))
+    monkeypatch.setattr(follow, "decide", lambda d, loop, obs, ctx, reason: Action.STOP)
+    follow.act(memory, agent.loop(), _observation(), ctx)
+    assert memory.abandoned == set()
+
+
+def test_the_new_constants_are_checked_in_one_line() -> None:
+    with pytest.raises(InputError, match="abandon_area"):
+        load_settings("drive-nav-plus", overrides=["explorer.directions.abandon_area=0"])
+
+
+# ----------------------------------------------------------------------------------------------- reasoners
+
+
+def _candidate(label: int, **evidence: float) -> Candidate:
+    return Candidate(label, 0.0, 0.0, 2.0, 60, None, False, **evidence)  # type: ignore[arg-type]
+
+
+def test_the_evidence_factor_by_hand() -> None:
+    config = EmbeddedReasonerConfig()
+    half_disc = 0.5 * math.pi * 2.0**2
+    assert openness(half_disc, 2.0) == pytest.approx(0.5) and openness(3 * half_disc, 2.0) == pytest.approx(0.75)
+    assert openness(0.0, 2.0) == 0.0
+    assert evidence_factor(_candidate(0), config) == 1.0  # the paper's candidate: nothing measured
+    closed = _candidate(0, open_area=half_disc / 4, open_reach=2.0, visited=0.5)
+    assert evidence_factor(closed, config) == pytest.approx((1 - 0.5 * (1 - 0.2)) * (1 - 0.5 * 0.5))
+    far = _candidate(0, return_time=10.0)
+    assert evidence_factor(far, config) == pytest.approx(1 / (1 + 10.0 / config.distance_scale))
+
+
+def test_the_embedded_reasoner_turns_away_from_a_dead_end_only_when_told() -> None:
+    reasoner = EmbeddedReasoner(default_embedder())
+    reasoner.begin_episode("sofa", GroundTruth({}, VOCABULARY))
+    bigger = Candidate(0, 0.0, 0.0, 2.0, 80, None)
+    smaller = Candidate(1, 0.5, 0.5, 2.0, 60, None)
+    assert reasoner.select_direction("sofa", [bigger, smaller]).label == 0
+    told = [
+        Candidate(0, 0.0, 0.0, 2.0, 80, None, open_area=1.0, open_reach=2.0, visited=0.0),
+        Candidate(1, 0.5, 0.5, 2.0, 60, None, open_area=20.0, open_reach=2.0, visited=0.0),
+    ]
+    assert reasoner.select_direction("sofa", told).label == 1
+
+
+def test_a_vlm_is_told_the_evidence_and_nothing_new_without_it() -> None:
+    plain = select_text("sofa", [_candidate(3)], 0)
+    assert "unexplored floor" not in plain and "already driven" not in plain and "dead end" not in plain
+    told = select_text("sofa", [_candidate(3, open_area=2.25, open_reach=2.0, visited=0.4, return_time=6.5)], 0)
+    line = next(text for text in told.splitlines() if text.startswith("- direction 3"))
+    assert "opens onto 2.2 m^2 of unexplored floor within 2 m" in line
+    assert "40 % of the way there over paths already driven" in line and "far end 6.5 m away" in line
+    assert "dead end" in told and "short side branch" in told
+
+
+def test_replayed_requests_carry_the_evidence_only_where_measured() -> None:
+    plain = select_request("sofa", [_candidate(3)]).inputs["candidates"]
+    assert isinstance(plain, list) and set(plain[0]) == {
+        "label",
+        "bearing",
+        "turn",
+        "travel_time",
+        "frontier_cells",
+        "view",
+    }
+    told = select_request("sofa", [_candidate(3, open_area=2.25, open_reach=2.0)]).inputs["candidates"]
+    assert isinstance(told, list) and (told[0]["open_area"], told[0]["open_reach"]) == (2.25, 2.0)
+
+
+# ----------------------------------------------------------------------------------------------- the report
+
+
+def _record(method: str, episode: int, success: int, spl: float, decisions: int) -> EpisodeRecord:
+    explorer = ExplorerStats("directions", {"decisions": {"inspection": decisions}})
+    return EpisodeRecord(
+        str(episode), "s", "chair", method, 100, 0, "stop", "", success=success, spl=spl, geodesic_distance=12.0,
+        explorer=explorer,
+    )  # fmt: skip
+
+
+def test_a_method_beyond_the_paper_is_paired_with_its_base() -> None:
+    plus = [(1, 0.5, 4), (1, 0.4, 6), (0, 0.0, 8), (1, 0.9, 2)]
+    base = [(1, 0.3, 9), (0, 0.0, 11), (1, 0.6, 13), (1, 0.9, 2)]
+    runs = {
+        "drive-nav-plus": {str(k): _record("drive-nav-plus", k, *v) for k, v in enumerate(plus)},
+        "drive-nav": {str(k): _record("drive-nav", k, *v) for k, v in enumerate(base)},
+    }
+    [(name, entry)] = paired_entries(runs).items()
+    assert (name, entry.base, entry.episodes, entry.sr_wins, entry.sr_losses) == (
+        "drive-nav-plus",
+        "drive-nav",
+        4,
+        1,
+        1,
+    )
+    assert entry.spl_delta == pytest.approx((0.2 + 0.4 - 0.6 + 0.0) / 4)
+    low, high = entry.spl_delta_ci95
+    assert low <= entry.spl_delta <= high
+    assert (entry.median_decisions, entry.base_median_decisions) == (5.0, 10.0)
+    assert PairedEntry.from_json(entry.to_json()) == entry
+    table = beyond_table_ii(runs, TABLE_II_METHODS)
+    assert table is not None and set(table.methods) == {"drive-nav", "drive-nav-plus"} and table.common_episodes == 2
+    assert beyond_table_ii({"drive-nav": runs["drive-nav"]}, TABLE_II_METHODS) is None
+    assert lineage("drive-nav-plus-no-void") == ["drive-nav-plus-no-void", "drive-nav-plus", "drive-nav"]
