@@ -4,15 +4,15 @@ map evidence it reads (hand-computed), what the reasoners are told, and the repo
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 
 import numpy as np
 import pytest
 
+from agent_scenes import episode_for, t_junction
 from drivenav.agent.base import ExplorerStats
 from drivenav.agent.body import ExplorerAgent
 from drivenav.agent.context import StepContext
-from drivenav.agent.explorers.directions import abandon, decision, follow, sweep
+from drivenav.agent.explorers.directions import decision, sweep
 from drivenav.agent.explorers.directions.decision import candidates
 from drivenav.agent.explorers.directions.evidence import retraced_share, return_time
 from drivenav.agent.explorers.directions.explorer import DirectionsExplorer
@@ -20,11 +20,13 @@ from drivenav.agent.explorers.directions.memory import Directions, Phase
 from drivenav.agent.trace import DirectionSelected, InspectionVoid, of_type
 from drivenav.agents import make_agent
 from drivenav.directions.types import Direction, DirectionResult, FrontierPath
+from drivenav.envs.embedded.env import EmbeddedEnv
 from drivenav.envs.vocabulary import VOCABULARY
 from drivenav.errors import InputError
 from drivenav.eval.beyond import PairedEntry, beyond_table_ii, lineage, paired_entries
 from drivenav.eval.paper_tables import TABLE_II_METHODS
 from drivenav.eval.records import EpisodeRecord
+from drivenav.eval.runner import run_episode
 from drivenav.mapping.config import MappingConfig
 from drivenav.mapping.occupancy import OccupancyMapper
 from drivenav.semantics.embedded import EmbeddedReasoner, EmbeddedReasonerConfig, evidence_factor, openness
@@ -33,7 +35,9 @@ from drivenav.semantics.prompts import select_text
 from drivenav.semantics.protocols import Candidate, View
 from drivenav.semantics.replay import select_request
 from drivenav.settings import load_settings
-from drivenav.types import Action, CameraIntrinsics, GroundTruth, Observation, Pose
+from drivenav.types import Action, CameraIntrinsics, GroundTruth, Observation, Pose, SimConfig
+
+METHODS = ("drive-nav", "drive-nav-plus")
 
 # ----------------------------------------------------------------------------------------------- map evidence
 
@@ -59,6 +63,7 @@ def test_a_frontiers_open_area_is_the_pocket_within_reach() -> None:
     assert mapper.open_areas(groups, 2.0) == pytest.approx([21 * 40 * cell])  # 40 columns within 2 m
     assert mapper.open_areas(groups, 5.0) == pytest.approx([21 * 60 * cell])  # the whole pocket: walls close it
     assert mapper.open_areas([], 2.0) == []
+    assert mapper.open_areas([np.zeros((0, 2), np.int64), *groups], 0.5) == pytest.approx([0.0, 21 * 10 * cell])
 
 
 def test_the_share_of_a_way_over_the_path_driven() -> None:
@@ -156,48 +161,47 @@ def test_a_single_direction_whose_view_the_reasoner_judged_is_followed_without_a
     assert not decision.forced(paper, [seen])
 
 
-@pytest.mark.parametrize(
-    ("followed", "others", "dead"),
-    [(2.0, [10.0], True), (2.0, [3.0], False), (5.0, [10.0], False), (2.0, [], False)],
-)
-def test_a_followed_direction_is_a_dead_end_once_it_opens_onto_little_while_another_opens_onto_more(
-    followed: float, others: list[float], dead: bool, monkeypatch: pytest.MonkeyPatch
+def _two_piece_direction() -> tuple[Direction, StepContext]:
+    """Direction 0 behind the robot: a frontier 1 m away and one 6 m away, its farthest point 7 m away."""
+    direction = Direction(0, math.pi, (0, 1), (math.pi, math.pi), np.zeros((2, 2)), np.zeros((2, 2)), (-7.0, 0.0))
+    paths = {0: _path(0, (-1.0, 0.0), 1.0), 1: _path(1, (-6.0, 0.0), 6.0)}
+    ctx = StepContext(Pose(0.0, 0.0, 0.0), None, [], DirectionResult((direction,), paths, ()), None)  # type: ignore[arg-type]
+    return direction, ctx
+
+
+@pytest.mark.parametrize(("name", "turning_back", "goal"), [
+    ("drive-nav-plus", True, (-1.0, 0.0)),  # nothing left ahead: the near remainder first
+    ("drive-nav-plus", False, (-7.0, 0.0)),  # going on: the farthest frontier point, as the paper
+    ("drive-nav", True, (-7.0, 0.0)),
+])  # fmt: skip
+def test_turning_back_follows_the_nearest_frontier_only_when_return_aware(
+    name: str, turning_back: bool, goal: tuple[float, float]
 ) -> None:
-    bearings = {0: 10.0, **{k + 1: 60.0 * (k + 1) for k in range(len(others))}}
-    agent, memory, ctx = _agent("drive-nav-plus", bearings)
-    areas = {0: followed, **{k + 1: area for k, area in enumerate(others)}}
-    monkeypatch.setattr(abandon, "open_areas", lambda m, c, directions, reach: [areas[d.label] for d in directions])
-    assert memory.config.abandon_area == 4.0
-    assert abandon.dead_end(memory, agent.loop(), ctx, ctx.directions[0]) is dead
+    agent, memory, _ = _agent(name, {})
+    direction, ctx = _two_piece_direction()
+    memory.turning_back = turning_back
+    decision.select(memory, agent.loop(), ctx, direction, "vanished", [0], False)
+    assert memory.returning is (name == "drive-nav-plus" and turning_back)
+    assert agent.state is not None and agent.state.goal == goal == decision.goal_point(memory, ctx, direction)
+    [event] = of_type(agent.trace.events, DirectionSelected)
+    assert event.goal == goal
 
 
-def test_a_dead_end_is_given_up_and_left_out_while_anything_else_is_left(monkeypatch: pytest.MonkeyPatch) -> None:
-    agent, memory, ctx = _agent("drive-nav-plus", {0: 10.0, 1: 60.0})
-    memory.phase, memory.selected, memory.inspected = Phase.FOLLOW, 0, {0, 1}
+def test_a_decision_with_nothing_ahead_is_turning_back() -> None:
+    agent, memory, ctx = _agent("drive-nav-plus", {0: 170.0, 1: 30.0})
     memory.views._views = {}
-    monkeypatch.setattr(follow, "dead_end", lambda d, loop, ctx, direction: direction.label == 0)
-    decided: list[str] = []
-    monkeypatch.setattr(follow, "decide", lambda d, loop, obs, ctx, reason: decided.append(reason) or Action.STOP)
-    assert follow.act(memory, agent.loop(), _observation(), ctx) == Action.STOP
-    assert decided == ["abandoned"] and memory.abandoned == {0}
-    memory.config = replace(memory.config, dead_end_evidence=False, return_aware=False)  # the labels alone
-    assert [c.label for c in candidates(memory, agent.loop(), ctx, "abandoned")] == [1]
-    memory.abandoned = {0, 1}
-    assert [c.label for c in candidates(memory, agent.loop(), ctx, "abandoned")] == [0, 1]  # nothing else left
-
-
-def test_the_paper_follows_a_dead_end_to_its_end(monkeypatch: pytest.MonkeyPatch) -> None:
-    agent, memory, ctx = _agent("drive-nav", {0: 10.0, 1: 60.0})
-    memory.phase, memory.selected, memory.inspected = Phase.FOLLOW, 0, {0, 1}
-    monkeypatch.setattr(follow, "dead_end", lambda d, loop, ctx, direction: pytest.fail("no abandonment in drive-nav"))
-    monkeypatch.setattr(follow, "decide", lambda d, loop, obs, ctx, reason: Action.STOP)
-    follow.act(memory, agent.loop(), _observation(), ctx)
-    assert memory.abandoned == set()
+    for bearings, behind in (({0: 170.0, 1: 30.0}, False), ({0: 170.0}, True)):
+        directions = tuple(_direction(label, b) for label, b in sorted(bearings.items()))
+        ctx = StepContext(ctx.pose, None, [], DirectionResult(directions, {}, ()), None)  # type: ignore[arg-type]
+        candidates(memory, agent.loop(), ctx, "vanished")
+        assert memory.turning_back is behind
+    candidates(memory, agent.loop(), ctx, "scan")  # the start scan offers all around: no turning back
+    assert memory.turning_back is False
 
 
 def test_the_new_constants_are_checked_in_one_line() -> None:
-    with pytest.raises(InputError, match="abandon_area"):
-        load_settings("drive-nav-plus", overrides=["explorer.directions.abandon_area=0"])
+    with pytest.raises(InputError, match="evidence_reach"):
+        load_settings("drive-nav-plus", overrides=["explorer.directions.evidence_reach=0"])
 
 
 # ----------------------------------------------------------------------------------------------- reasoners
@@ -291,3 +295,19 @@ def test_a_method_beyond_the_paper_is_paired_with_its_base() -> None:
     assert table is not None and set(table.methods) == {"drive-nav", "drive-nav-plus"} and table.common_episodes == 2
     assert beyond_table_ii({"drive-nav": runs["drive-nav"]}, TABLE_II_METHODS) is None
     assert lineage("drive-nav-plus-no-void") == ["drive-nav-plus-no-void", "drive-nav-plus", "drive-nav"]
+
+
+# ----------------------------------------------------------------------------------------------- end to end
+
+
+@pytest.mark.parametrize("target_on_left", [True, False])
+def test_at_a_t_junction_drive_nav_plus_finds_the_target_asking_fewer_questions(target_on_left: bool) -> None:
+    scene = t_junction(target_on_left)
+    env = EmbeddedEnv(lambda _: scene, SimConfig())
+    episode = episode_for(scene, (12.0, 2.5), math.pi / 2, "plant")
+    records = [run_episode(env, make_agent(load_settings(name)), episode, 0, 300)[0] for name in METHODS]
+    paper, plus = (record.explorer.counters for record in records if record.explorer is not None)
+    assert [record.success for record in records] == [1, 1]
+    asked = [sum(counters["decisions"].values()) for counters in (paper, plus)]  # type: ignore[union-attr]
+    assert plus["void_events"] >= 1 and paper["void_events"] == 0 and asked[1] < asked[0]
+    assert [record.vlm_calls for record in records][1] < records[0].vlm_calls

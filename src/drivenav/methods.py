@@ -25,7 +25,6 @@ _DIRECTIONAL = ("agent.enrich=false", "agent.verify=false")
 _PLUS = (
     "explorer.directions.skip_void_events=true",
     "explorer.directions.dead_end_evidence=true",
-    "explorer.directions.abandon_dead_ends=true",
     "explorer.directions.return_aware=true",
 )
 """drive-nav-plus's rules beyond the paper (docs/agent.md "Beyond the paper"), each an ``explorer.directions``
@@ -98,7 +97,7 @@ METHODS: tuple[Method, ...] = (
     Method(
         "drive-nav-plus",
         (),
-        "DRIVE-Nav beyond the paper: void events skipped, dead-end evidence, early abandonment, return-aware choice",
+        "DRIVE-Nav beyond the paper: void events and forced choices skipped, dead-end evidence, return-aware choice",
         _PLUS,
         base="drive-nav",
     ),
@@ -114,13 +113,6 @@ METHODS: tuple[Method, ...] = (
         (),
         "drive-nav-plus without dead-end evidence for the reasoner",
         _plus_without("dead_end_evidence"),
-        base="drive-nav-plus",
-    ),
-    Method(
-        "drive-nav-plus-no-abandon",
-        (),
-        "drive-nav-plus following every direction to its end",
-        _plus_without("abandon_dead_ends"),
         base="drive-nav-plus",
     ),
     Method(

@@ -295,7 +295,6 @@ _POSITIVE = (
     "paper.semantics.max_images_per_prompt",
     "explorer.directions.evidence_reach",
     "explorer.directions.visited_radius",
-    "explorer.directions.abandon_area",
 )
 
 

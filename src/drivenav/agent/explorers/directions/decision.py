@@ -1,8 +1,7 @@
 """A reasoner decision: which direction to follow next (paper Sec. IV-A c, IV-B).
 
 A decision comes after the start scan (``scan``), after an inspection sweep (``inspection``), when the followed
-direction is gone (``vanished``), when it cannot be followed (``stuck``) and, beyond the paper, when it turned out a
-dead end (``abandoned``, :mod:`~drivenav.agent.explorers.directions.abandon`). It offers the reasoner the
+direction is gone (``vanished``) and when it cannot be followed (``stuck``). It offers the reasoner the
 still-relevant directions (docs/agent.md): after the start scan every direction; afterwards only those (not
 blacklisted, with a view) within the forward 240 deg of the heading at the decision -- at an inspection event,
 the heading when it began -- unless none is left there (a dead end), when the rear range is offered too. The
@@ -72,7 +71,6 @@ def candidates(d: Directions, loop: Loop, ctx: StepContext, reason: str) -> list
     if not usable:
         d.blacklist.clear()
         usable = list(ctx.result.directions)
-    usable = [x for x in usable if x.label not in d.abandoned] or usable
     d.turning_back = False
     if _forward_only(d, loop, reason):
         heading = d.event_heading if reason == "inspection" else ctx.pose.yaw

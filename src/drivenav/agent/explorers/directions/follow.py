@@ -4,15 +4,14 @@ Between reasoning events the low-level planner drives toward the farthest fronti
 direction, re-planned every step, until an inspection event interrupts it, the direction is gone (a ``vanished``
 decision) or the planner cannot follow it (the direction is blacklisted for a while and a ``stuck`` decision
 follows). A followed direction that only got a fresh label is still followed
-(:mod:`~drivenav.agent.explorers.directions.relabel`). With ``abandon_dead_ends`` (beyond the paper) a followed
-direction that turns out a dead end is given up before its end (an ``abandoned`` decision,
-:mod:`~drivenav.agent.explorers.directions.abandon`).
+(:mod:`~drivenav.agent.explorers.directions.relabel`). With ``return_aware`` (beyond the paper) a direction chosen
+when nothing was left ahead is followed toward its nearest frontier instead
+(:func:`~drivenav.agent.explorers.directions.decision.goal_point`).
 """
 
 from __future__ import annotations
 
 from drivenav.agent.context import StepContext
-from drivenav.agent.explorers.directions.abandon import dead_end
 from drivenav.agent.explorers.directions.decision import decide, goal_point
 from drivenav.agent.explorers.directions.memory import Directions
 from drivenav.agent.explorers.directions.sweep import inspection_event
@@ -27,9 +26,6 @@ def act(d: Directions, loop: Loop, observation: Observation, ctx: StepContext) -
     if d.selected not in ctx.directions:
         return decide(d, loop, observation, ctx, "vanished")
     direction = ctx.directions[d.selected]
-    if d.config.abandon_dead_ends and dead_end(d, loop, ctx, direction):
-        d.abandoned.add(direction.label)
-        return decide(d, loop, observation, ctx, "abandoned")
     state = loop.state
     state.goal = goal_point(d, ctx, direction)
     action = state.planner.act(ctx.path_along(direction), ctx.pose, observation.collided, ctx.free)

@@ -29,8 +29,7 @@ class Phase(Enum):
 @dataclass(frozen=True)
 class DirectionCounters:
     """How an episode's exploration went (Sec. IV-A b-c): direction labels the tracker created, merged and removed;
-    inspection events; reasoner decisions by trigger (``scan``, ``inspection``, ``vanished``, ``stuck``, and
-    ``abandoned`` with ``abandon_dead_ends``); decisions at a dead end (no still-relevant direction in the forward
+    inspection events; reasoner decisions by trigger (``scan``, ``inspection``, ``vanished``, ``stuck``); decisions at a dead end (no still-relevant direction in the forward
     240 deg, so the rear range was offered); how often the followed direction was carried over a relabelling
     (``followed_through_relabel``) or lost its label with no successor (``selected_lost``); fresh labels recognised
     as a retired direction (removed, or merged away) back at its place (``labels_reidentified``); inspection events
@@ -78,8 +77,7 @@ class Directions:
 
     ``scan_turns`` are the start scan's turns left; ``inspected`` holds the labels an inspection event or decision
     has already covered, ``blacklist`` the directions that could not be followed (label -> step until which they are
-    left out), ``abandoned`` the dead ends given up (left out while anything else is left), ``selected`` the
-    direction followed and ``followed`` that direction as of the previous step; ``previous`` holds the previous
+    left out), ``selected`` the direction followed and ``followed`` that direction as of the previous step; ``previous`` holds the previous
     step's directions and ``gone`` the retired ones with the step they went (Sec. IV-A b). ``event_heading`` is the
     heading when the current inspection event began (Sec. IV-A c) and ``event_labels`` the directions that started
     it; ``turning_back`` whether the last decision's options lay behind the robot only (a dead end) and
@@ -97,7 +95,6 @@ class Directions:
     pending_yaws: list[float] = field(default_factory=list)
     inspected: set[int] = field(default_factory=set)
     blacklist: dict[int, int] = field(default_factory=dict)
-    abandoned: set[int] = field(default_factory=set)
     descriptions: dict[int, str] = field(default_factory=dict)
     enriched: set[int] = field(default_factory=set)
     judged: set[int] = field(default_factory=set)
