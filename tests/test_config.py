@@ -126,12 +126,11 @@ EXPECTED = {
     "nearest-frontier": {"explorer": "greedy", "enrich": False, "verify": False},
     "vlfm": {"explorer": "vlfm", "enrich": False, "verify": False},
 }
-PLUS_RULES = ("skip_void_events", "dead_end_evidence", "return_aware")
+PLUS_RULES = ("skip_void_events", "return_aware")
 # beyond the paper: drive-nav with every rule of drive-nav-plus, and its ablation rows each without one
 BEYOND = {
     "drive-nav-plus": dict.fromkeys(PLUS_RULES, True),
     "drive-nav-plus-no-void": {rule: True for rule in PLUS_RULES if rule != "skip_void_events"},
-    "drive-nav-plus-no-evidence": {rule: True for rule in PLUS_RULES if rule != "dead_end_evidence"},
     "drive-nav-plus-no-return": {rule: True for rule in PLUS_RULES if rule != "return_aware"},
 }
 

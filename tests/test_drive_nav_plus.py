@@ -14,22 +14,19 @@ from drivenav.agent.body import ExplorerAgent
 from drivenav.agent.context import StepContext
 from drivenav.agent.explorers.directions import decision, sweep
 from drivenav.agent.explorers.directions.decision import candidates
-from drivenav.agent.explorers.directions.evidence import retraced_share, return_time
 from drivenav.agent.explorers.directions.explorer import DirectionsExplorer
 from drivenav.agent.explorers.directions.memory import Directions, Phase
+from drivenav.agent.explorers.directions.returns import return_time
 from drivenav.agent.trace import DirectionSelected, InspectionVoid, of_type
 from drivenav.agents import make_agent
 from drivenav.directions.types import Direction, DirectionResult, FrontierPath
 from drivenav.envs.embedded.env import EmbeddedEnv
 from drivenav.envs.vocabulary import VOCABULARY
-from drivenav.errors import InputError
 from drivenav.eval.beyond import PairedEntry, beyond_table_ii, lineage, paired_entries
 from drivenav.eval.paper_tables import TABLE_II_METHODS
 from drivenav.eval.records import EpisodeRecord
 from drivenav.eval.runner import run_episode
-from drivenav.mapping.config import MappingConfig
-from drivenav.mapping.occupancy import OccupancyMapper
-from drivenav.semantics.embedded import EmbeddedReasoner, EmbeddedReasonerConfig, evidence_factor, openness
+from drivenav.semantics.embedded import EmbeddedReasoner, EmbeddedReasonerConfig, return_factor
 from drivenav.semantics.embedding import default_embedder
 from drivenav.semantics.prompts import select_text
 from drivenav.semantics.protocols import Candidate, View
@@ -39,39 +36,7 @@ from drivenav.types import Action, CameraIntrinsics, GroundTruth, Observation, P
 
 METHODS = ("drive-nav", "drive-nav-plus")
 
-# ----------------------------------------------------------------------------------------------- map evidence
-
-
-def _closed_pocket_mapper() -> tuple[OccupancyMapper, list[np.ndarray]]:
-    """A corridor explored up to column 199 whose open end looks into an unexplored pocket 21 cells high and 60
-    wide (columns 200-259), walled (inflated) above, below and at column 260."""
-    mapper = OccupancyMapper(MappingConfig())
-    explored, inflated = mapper._explored, mapper._inflated
-    explored[95:126, 150:200] = True
-    inflated[95:100, 150:270] = inflated[121:126, 150:270] = True  # the corridor's walls, on into the unknown
-    inflated[95:126, 150:155] = inflated[95:126, 260:270] = True  # its back wall and the pocket's far wall
-    mapper._box, mapper._pose = (0, 400, 0, 400), Pose(*mapper.grid.cell_to_world(np.array([[110, 170]]))[0], 0.0)
-    [frontier] = mapper.frontiers()
-    return mapper, [frontier.cells]
-
-
-def test_a_frontiers_open_area_is_the_pocket_within_reach() -> None:
-    mapper, groups = _closed_pocket_mapper()
-    assert sorted({int(c) for c in groups[0][:, 1]}) == [199] and len(groups[0]) == 21
-    cell = 0.05 * 0.05
-    assert mapper.open_areas(groups, 0.5) == pytest.approx([21 * 10 * cell])  # 10 columns within 0.5 m
-    assert mapper.open_areas(groups, 2.0) == pytest.approx([21 * 40 * cell])  # 40 columns within 2 m
-    assert mapper.open_areas(groups, 5.0) == pytest.approx([21 * 60 * cell])  # the whole pocket: walls close it
-    assert mapper.open_areas([], 2.0) == []
-    assert mapper.open_areas([np.zeros((0, 2), np.int64), *groups], 0.5) == pytest.approx([0.0, 21 * 10 * cell])
-
-
-def test_the_share_of_a_way_over_the_path_driven() -> None:
-    way = np.column_stack([np.linspace(0.0, 4.0, 81), np.zeros(81)])
-    driven = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
-    assert retraced_share(way, driven, 0.5) == pytest.approx(2.5 / 4.0)  # within 0.5 m of the driven 2 m
-    assert retraced_share(way, driven + np.array([0.0, 0.6]), 0.5) == 0.0  # alongside, 0.6 m off
-    assert retraced_share(way, np.zeros((0, 2)), 0.5) == 0.0
+# ----------------------------------------------------------------------------------------------- the way back
 
 
 def _path(frontier: int, target: tuple[float, float], time: float) -> FrontierPath:
@@ -199,54 +164,40 @@ def test_a_decision_with_nothing_ahead_is_turning_back() -> None:
     assert memory.turning_back is False
 
 
-def test_the_new_constants_are_checked_in_one_line() -> None:
-    with pytest.raises(InputError, match="evidence_reach"):
-        load_settings("drive-nav-plus", overrides=["explorer.directions.evidence_reach=0"])
-
-
 # ----------------------------------------------------------------------------------------------- reasoners
 
 
-def _candidate(label: int, **evidence: float) -> Candidate:
-    return Candidate(label, 0.0, 0.0, 2.0, 60, None, False, **evidence)  # type: ignore[arg-type]
+def _candidate(label: int, cells: int = 60, return_time: float | None = None) -> Candidate:
+    return Candidate(label, 0.0, 0.0, 2.0, cells, None, return_time=return_time)
 
 
-def test_the_evidence_factor_by_hand() -> None:
+def test_the_way_back_discounts_a_candidate_by_hand() -> None:
     config = EmbeddedReasonerConfig()
-    half_disc = 0.5 * math.pi * 2.0**2
-    assert openness(half_disc, 2.0) == pytest.approx(0.5) and openness(3 * half_disc, 2.0) == pytest.approx(0.75)
-    assert openness(0.0, 2.0) == 0.0
-    assert evidence_factor(_candidate(0), config) == 1.0  # the paper's candidate: nothing measured
-    closed = _candidate(0, open_area=half_disc / 4, open_reach=2.0, visited=0.5)
-    assert evidence_factor(closed, config) == pytest.approx((1 - 0.5 * (1 - 0.2)) * (1 - 0.5 * 0.5))
-    far = _candidate(0, return_time=10.0)
-    assert evidence_factor(far, config) == pytest.approx(1 / (1 + 10.0 / config.distance_scale))
+    assert return_factor(_candidate(0), config) == 1.0  # the paper's candidate: nothing measured
+    assert return_factor(_candidate(0, return_time=10.0), config) == pytest.approx(1 / (1 + 10.0 / 5.0))
+    assert return_factor(_candidate(0, return_time=math.inf), config) == 0.0
 
 
-def test_the_embedded_reasoner_turns_away_from_a_dead_end_only_when_told() -> None:
+def test_the_embedded_reasoner_finishes_the_nearer_branch_first_only_when_told() -> None:
     reasoner = EmbeddedReasoner(default_embedder())
     reasoner.begin_episode("sofa", GroundTruth({}, VOCABULARY))
-    bigger = Candidate(0, 0.0, 0.0, 2.0, 80, None)
-    smaller = Candidate(1, 0.5, 0.5, 2.0, 60, None)
-    assert reasoner.select_direction("sofa", [bigger, smaller]).label == 0
-    told = [
-        Candidate(0, 0.0, 0.0, 2.0, 80, None, open_area=1.0, open_reach=2.0, visited=0.0),
-        Candidate(1, 0.5, 0.5, 2.0, 60, None, open_area=20.0, open_reach=2.0, visited=0.0),
-    ]
+    assert reasoner.select_direction("sofa", [_candidate(0, 80), _candidate(1, 60)]).label == 0
+    told = [_candidate(0, 80, return_time=9.0), _candidate(1, 60, return_time=2.0)]
     assert reasoner.select_direction("sofa", told).label == 1
 
 
-def test_a_vlm_is_told_the_evidence_and_nothing_new_without_it() -> None:
+def test_a_vlm_is_told_the_way_back_and_nothing_new_without_it() -> None:
     plain = select_text("sofa", [_candidate(3)], 0)
-    assert "unexplored floor" not in plain and "already driven" not in plain and "dead end" not in plain
-    told = select_text("sofa", [_candidate(3, open_area=2.25, open_reach=2.0, visited=0.4, return_time=6.5)], 0)
+    assert "far end" not in plain and "coming back" not in plain
+    told = select_text("sofa", [_candidate(3, return_time=6.54)], 0)
     line = next(text for text in told.splitlines() if text.startswith("- direction 3"))
-    assert "opens onto 2.2 m^2 of unexplored floor within 2 m" in line
-    assert "40 % of the way there over paths already driven" in line and "far end 6.5 m away" in line
-    assert "dead end" in told and "short side branch" in told
+    assert line.endswith(
+        "60 unexplored frontier cells, its far end 6.5 m away (the way back if it is a dead end) (no view)"
+    )
+    assert "coming back later costs the whole way again" in told
 
 
-def test_replayed_requests_carry_the_evidence_only_where_measured() -> None:
+def test_replayed_requests_carry_the_way_back_only_where_measured() -> None:
     plain = select_request("sofa", [_candidate(3)]).inputs["candidates"]
     assert isinstance(plain, list) and set(plain[0]) == {
         "label",
@@ -256,8 +207,8 @@ def test_replayed_requests_carry_the_evidence_only_where_measured() -> None:
         "frontier_cells",
         "view",
     }
-    told = select_request("sofa", [_candidate(3, open_area=2.25, open_reach=2.0)]).inputs["candidates"]
-    assert isinstance(told, list) and (told[0]["open_area"], told[0]["open_reach"]) == (2.25, 2.0)
+    told = select_request("sofa", [_candidate(3, return_time=2.25)]).inputs["candidates"]
+    assert isinstance(told, list) and told[0]["return_time"] == 2.25
 
 
 # ----------------------------------------------------------------------------------------------- the report

@@ -24,7 +24,6 @@ _DIRECTIONAL = ("agent.enrich=false", "agent.verify=false")
 
 _PLUS = (
     "explorer.directions.skip_void_events=true",
-    "explorer.directions.dead_end_evidence=true",
     "explorer.directions.return_aware=true",
 )
 """drive-nav-plus's rules beyond the paper (docs/agent.md "Beyond the paper"), each an ``explorer.directions``
@@ -97,7 +96,7 @@ METHODS: tuple[Method, ...] = (
     Method(
         "drive-nav-plus",
         (),
-        "DRIVE-Nav beyond the paper: void events and forced choices skipped, dead-end evidence, return-aware choice",
+        "DRIVE-Nav beyond the paper: void events and forced choices skipped, return-aware choice",
         _PLUS,
         base="drive-nav",
     ),
@@ -106,13 +105,6 @@ METHODS: tuple[Method, ...] = (
         (),
         "drive-nav-plus asking the reasoner after every inspection event",
         _plus_without("skip_void_events"),
-        base="drive-nav-plus",
-    ),
-    Method(
-        "drive-nav-plus-no-evidence",
-        (),
-        "drive-nav-plus without dead-end evidence for the reasoner",
-        _plus_without("dead_end_evidence"),
         base="drive-nav-plus",
     ),
     Method(

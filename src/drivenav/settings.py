@@ -293,8 +293,6 @@ _POSITIVE = (
     "paper.inspection.forward_range_deg",
     "paper.semantics.verify_frames",
     "paper.semantics.max_images_per_prompt",
-    "explorer.directions.evidence_reach",
-    "explorer.directions.visited_radius",
 )
 
 

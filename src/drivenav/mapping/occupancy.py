@@ -40,7 +40,6 @@ from __future__ import annotations
 import functools
 import math
 import time
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,7 +49,7 @@ from scipy import ndimage
 from drivenav.grid import GridSpec
 from drivenav.mapping.config import MappingConfig
 from drivenav.mapping.frontiers import component_at, extract_frontiers, nearest_in
-from drivenav.mapping.kernels import cast_rays, pocket_sizes, project_depth, stamp
+from drivenav.mapping.kernels import cast_rays, project_depth, stamp
 from drivenav.mapping.types import Frontier, MapSnapshot
 from drivenav.types import FREE_CELL, OCCUPIED_CELL, UNKNOWN_CELL, CameraIntrinsics, LocalOccupancy, Pose
 
@@ -317,26 +316,6 @@ class OccupancyMapper:
         if self._frontiers is None:
             self._frontiers = self._extract_frontiers()
         return list(self._frontiers)
-
-    def open_areas(self, groups: Sequence[NDArray[np.int64]], reach: float) -> list[float]:
-        """The unexplored space (m^2) each group of frontier cells (``(N, 2)`` rows and columns of this grid) opens
-        onto: its pocket (:mod:`drivenav.mapping.frontiers`: unexplored cells where a robot could stand, 4-connected
-        to the group's unexplored neighbours), counted within ``reach`` metres beyond the group's bounding box; 0 for a
-        group without cells."""
-        filled = [group for group in groups if len(group)]
-        if not filled:
-            return [0.0] * len(groups)
-        derived = self._derive()
-        r0, r1, c0, c1 = derived.box
-        explored = np.zeros_like(self._explored)
-        explored[r0:r1, c0:c1] = derived.explored
-        rows, cols = self._grid.shape
-        passable = ~explored & ~self._blocked((0, rows, 0, cols))
-        cells = np.ascontiguousarray(np.concatenate(filled), dtype=np.int64)
-        starts = np.cumsum([0, *(len(group) for group in filled)], dtype=np.int64)
-        margin = math.ceil(reach / self._grid.resolution)
-        sizes = iter(pocket_sizes(np.ascontiguousarray(passable), cells, starts, margin))
-        return [float(next(sizes)) * self._grid.resolution**2 if len(group) else 0.0 for group in groups]
 
     def _extract_frontiers(self) -> list[Frontier]:
         derived = self._derive()

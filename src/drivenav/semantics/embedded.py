@@ -25,6 +25,10 @@ similarity of their embeddings. With the :class:`EmbeddedReasonerConfig` paramet
     :func:`~drivenav.semantics.geometric.direction_score` (frontier cells discounted by travel distance over
     ``distance_scale``), so an empty corridor is worth something but less than a view of a related object.
 
+  With the way back (``Candidate.return_time``, beyond the paper: ``drive-nav-plus``) the sum is divided by
+  ``1 + return_time / distance_scale``: of two equally promising directions, the one whose far end is nearer is
+  finished first (coming back to it later would cost the whole way again).
+
   A direction whose view shows the target is chosen outright (the one with the largest target area), as the
   VLM is asked to return the target-bearing direction (Sec. IV-B). Ties go to the smaller ``|turn|``, then the
   smaller label;
@@ -94,8 +98,6 @@ class EmbeddedReasonerConfig:
     exploration_weight: float = 0.3
     exploration_half: float = 40.0
     distance_scale: float = 5.0
-    dead_end_weight: float = 0.5
-    visited_weight: float = 0.5
 
     def __post_init__(self) -> None:
         if self.min_pixels < 1:
@@ -104,9 +106,6 @@ class EmbeddedReasonerConfig:
             raise ValueError("need -1 <= unrelated_similarity < uncertain_similarity <= sure_similarity <= 1")
         if not 0.0 <= self.area_floor <= 1.0:
             raise ValueError(f"area_floor must be in [0, 1], got {self.area_floor}")
-        for name in ("dead_end_weight", "visited_weight"):
-            if not 0.0 <= getattr(self, name) <= 1.0:
-                raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)!r}")
         for name in ("area_half_share", "exploration_half", "distance_scale"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
@@ -226,7 +225,7 @@ class EmbeddedReasoner:
 
     def _assess(self, goal: str, candidate: Candidate, shown: list[tuple[str, int]]) -> _Assessment:
         exploration = self._exploration(candidate)
-        prospect = evidence_factor(candidate, self.config)
+        prospect = return_factor(candidate, self.config)
         view = candidate.view
         if view is None:
             return _Assessment(candidate, exploration * prospect, 0, None)
@@ -267,25 +266,13 @@ class EmbeddedReasoner:
         return "uncertain" if related >= self.config.uncertain_similarity else "not"
 
 
-def evidence_factor(candidate: Candidate, config: EmbeddedReasonerConfig) -> float:
-    """What the dead-end evidence and the way back leave of a candidate's value (module docstring); 1 for a
-    candidate without them."""
-    factor = 1.0
-    if candidate.open_area is not None and candidate.open_reach is not None:
-        factor *= 1.0 - config.dead_end_weight * (1.0 - openness(candidate.open_area, candidate.open_reach))
-    if candidate.visited is not None:
-        factor *= 1.0 - config.visited_weight * min(max(candidate.visited, 0.0), 1.0)
-    if candidate.return_time is not None:
-        way = candidate.return_time if math.isfinite(candidate.return_time) else math.inf
-        factor /= 1.0 + max(way, 0.0) / config.distance_scale
-    return factor
-
-
-def openness(area: float, reach: float) -> float:
-    """How open a direction is, in [0, 1): its open area ``a`` against a half disc of radius ``reach`` (``h``, the
-    unexplored side of a frontier that goes on for ``reach``), ``a / (a + h)`` -- one half when the two are equal."""
-    area = max(area, 0.0)
-    return area / (area + 0.5 * math.pi * reach * reach)
+def return_factor(candidate: Candidate, config: EmbeddedReasonerConfig) -> float:
+    """What the way back leaves of a candidate's value (module docstring): ``1 / (1 + r / distance_scale)`` for a
+    candidate whose far end is ``r`` metres away, 1 for a candidate without it (the paper's)."""
+    if candidate.return_time is None:
+        return 1.0
+    way = candidate.return_time if math.isfinite(candidate.return_time) else math.inf
+    return 1.0 / (1.0 + max(way, 0.0) / config.distance_scale)
 
 
 def goal_phrases(goal: str, truth: GroundTruth | None) -> list[str]:

@@ -62,16 +62,10 @@ def _candidate_line(candidate: Candidate) -> str:
 
 
 def _evidence(candidate: Candidate) -> str:
-    """The dead-end evidence and the way back, where the agent measured them (beyond the paper)."""
-    parts = []
-    if candidate.open_area is not None:
-        reach = f" within {candidate.open_reach:g} m" if candidate.open_reach is not None else ""
-        parts.append(f"opens onto {candidate.open_area:.1f} m^2 of unexplored floor{reach}")
-    if candidate.visited is not None:
-        parts.append(f"{100.0 * candidate.visited:.0f} % of the way there over paths already driven")
-    if candidate.return_time is not None and math.isfinite(candidate.return_time):
-        parts.append(f"its far end {candidate.return_time:.1f} m away (the way back if it is a dead end)")
-    return "".join(f", {part}" for part in parts)
+    """The way back, where the agent measured it (beyond the paper)."""
+    if candidate.return_time is None or not math.isfinite(candidate.return_time):
+        return ""
+    return f", its far end {candidate.return_time:.1f} m away (the way back if it is a dead end)"
 
 
 def select_text(goal: str, candidates: Sequence[Candidate], omitted: int) -> str:
@@ -100,20 +94,13 @@ def select_text(goal: str, candidates: Sequence[Candidate], omitted: int) -> str
 
 
 def _evidence_advice(candidates: Sequence[Candidate]) -> list[str]:
-    """How to read the dead-end evidence and the way back, when a candidate carries them."""
-    advice = []
-    if any(c.open_area is not None or c.visited is not None for c in candidates):
-        advice.append(
-            "Little unexplored floor behind a direction means a dead end whose walls are already mapped: only a "
-            "view showing the target or its kind of room justifies it. A direction whose way there runs mostly over "
-            "paths already driven leads back the way the robot came."
-        )
-    if any(c.return_time is not None for c in candidates):
-        advice.append(
-            "When two directions are about equally promising, finish a short side branch (near far end, little "
-            "unexplored floor) before committing to a long one: coming back later costs the whole way again."
-        )
-    return advice
+    """How to weigh the way back, when a candidate carries it."""
+    if all(c.return_time is None for c in candidates):
+        return []
+    return [
+        "When two directions are about equally promising, finish the one whose far end is nearer before committing "
+        "to a far one: coming back later costs the whole way again."
+    ]
 
 
 def propose_text(goal: str, description: str, failed: Sequence[str]) -> str:

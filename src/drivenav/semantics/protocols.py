@@ -78,11 +78,8 @@ class Candidate:
     unexplored extent); ``view`` its representative view, if any; ``current`` marks the direction being
     followed (a VLM prompt says "you are heading toward ...").
 
-    Dead-end evidence (beyond the paper; None where the agent does not measure it, as the paper's agent does not):
-    ``open_area`` the unexplored space in m^2 its frontier opens onto within ``open_reach`` metres (little: a room
-    or corridor whose walls have been seen, a dead end); ``visited`` the share of its frontier lying in a region
-    the robot has already driven through; ``return_time`` the travel time to where following it leads (its
-    farthest frontier point), the way back should it end there.
+    ``return_time`` (beyond the paper; None where the agent does not measure it, as the paper's agent does not) is
+    the travel to where following it leads (its farthest frontier point): the way back should the branch end there.
     """
 
     label: int
@@ -92,9 +89,6 @@ class Candidate:
     frontier_cells: int
     view: View | None = None
     current: bool = False  # the direction the robot is following now
-    open_area: float | None = None
-    open_reach: float | None = None
-    visited: float | None = None
     return_time: float | None = None
 
 

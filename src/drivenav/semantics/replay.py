@@ -117,15 +117,9 @@ def select_request(goal: str, candidates: Sequence[Candidate]) -> Request:
 
 
 def _evidence(candidate: Candidate) -> dict[str, float | str]:
-    """The dead-end evidence a candidate carries (beyond the paper), only where measured: recordings made without
-    it still match."""
-    values = {
-        "open_area": candidate.open_area,
-        "open_reach": candidate.open_reach,
-        "visited": candidate.visited,
-        "return_time": candidate.return_time,
-    }
-    return {key: _number(value) for key, value in values.items() if value is not None}
+    """The way back a candidate carries (beyond the paper), only where measured: recordings made without it still
+    match."""
+    return {} if candidate.return_time is None else {"return_time": _number(candidate.return_time)}
 
 
 def propose_request(goal: str, view: View, description: str, failed: Sequence[str]) -> Request:

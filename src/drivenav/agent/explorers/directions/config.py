@@ -19,10 +19,7 @@ class DirectionsConfig:
     decision_scan: bool = False  # True: a full 360 deg scan at every decision point (Table II: direction-360)
     reidentify_steps: int = 500  # ours: steps a removed direction is remembered, to recognise it under a fresh label
     skip_void_events: bool = False  # an inspection whose new directions are all gone by its end asks no reasoner
-    dead_end_evidence: bool = False  # each candidate carries its open area and how much of it was driven through
     return_aware: bool = False  # each candidate carries the way back from it; short side branches are finished first
-    evidence_reach: float = 2.0  # m: how far beyond its frontier a direction's open area is measured
-    visited_radius: float = 0.5  # m: a way this close to the path driven re-drives it (the revisit radius, Sec. V-C)
 
 
 EXPLORER = ExplorerEntry(

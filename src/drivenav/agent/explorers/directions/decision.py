@@ -14,11 +14,10 @@ left with one direction whose view the reasoner has already judged is no questio
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 
 from drivenav.agent.context import StepContext, replan
-from drivenav.agent.explorers.directions.evidence import Evidence, driven_before, gather, nearest_target
 from drivenav.agent.explorers.directions.memory import Directions, Phase
+from drivenav.agent.explorers.directions.returns import nearest_target, return_time
 from drivenav.agent.loop import Loop
 from drivenav.agent.trace import DirectionSelected
 from drivenav.directions import Direction
@@ -82,10 +81,7 @@ def candidates(d: Directions, loop: Loop, ctx: StepContext, reason: str) -> list
         usable = forward or usable
     with_views = [x for x in usable if d.views.has_view(x.label)]
     offered = with_views or usable
-    if not (d.config.dead_end_evidence or d.config.return_aware):
-        return [_candidate(d, ctx, x) for x in offered]
-    found = gather(loop.state.mapper, ctx, offered, driven_before(d, loop), d.config)
-    return [_with_evidence(d, _candidate(d, ctx, x), found[x.label]) for x in offered]
+    return [_candidate(d, ctx, x) for x in offered]
 
 
 def select(
@@ -140,7 +136,8 @@ def _forward_only(d: Directions, loop: Loop, reason: str) -> bool:
 
 
 def _candidate(d: Directions, ctx: StepContext, direction: Direction) -> Candidate:
-    """What the reasoner is told of a direction: bearing, turn from the heading, travel time, view."""
+    """What the reasoner is told of a direction: bearing, turn from the heading, travel time, view; with
+    ``return_aware`` (beyond the paper), the way back from its farthest frontier point too."""
     times = [ctx.result.paths[f].travel_time for f in direction.frontier_ids if f in ctx.result.paths]
     return Candidate(
         label=direction.label,
@@ -150,18 +147,8 @@ def _candidate(d: Directions, ctx: StepContext, direction: Direction) -> Candida
         frontier_cells=len(direction.points),
         view=d.views.get(direction.label),
         current=direction.label == d.selected,
+        return_time=return_time(ctx, direction) if d.config.return_aware else None,
     )
-
-
-def _with_evidence(d: Directions, candidate: Candidate, evidence: Evidence) -> Candidate:
-    """The candidate with the dead-end evidence and the way back its switches give the reasoner."""
-    config = d.config
-    if config.dead_end_evidence:
-        reach = config.evidence_reach
-        candidate = replace(candidate, open_area=evidence.open_area, open_reach=reach, visited=evidence.visited)
-    if config.return_aware:
-        candidate = replace(candidate, return_time=evidence.return_time)
-    return candidate
 
 
 def _chosen_label(selection: Selection, offered: list[Candidate]) -> int:

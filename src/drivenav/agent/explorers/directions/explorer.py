@@ -69,8 +69,6 @@ class DirectionsExplorer(Explorer):
         """Carry each direction's state over its relabelling, then record representative views (timed together as
         ``inspection``)."""
         start = time.perf_counter()
-        if self.memory.config.dead_end_evidence:
-            self.memory.driven.append((ctx.pose.x, ctx.pose.y))
         carry_over(self.memory, loop, ctx)
         record_views(self.memory, loop, observation, ctx)
         timings["inspection"] = (time.perf_counter() - start) * 1000.0

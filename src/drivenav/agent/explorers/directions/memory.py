@@ -29,13 +29,13 @@ class Phase(Enum):
 @dataclass(frozen=True)
 class DirectionCounters:
     """How an episode's exploration went (Sec. IV-A b-c): direction labels the tracker created, merged and removed;
-    inspection events; reasoner decisions by trigger (``scan``, ``inspection``, ``vanished``, ``stuck``); decisions at a dead end (no still-relevant direction in the forward
-    240 deg, so the rear range was offered); how often the followed direction was carried over a relabelling
-    (``followed_through_relabel``) or lost its label with no successor (``selected_lost``); fresh labels recognised
-    as a retired direction (removed, or merged away) back at its place (``labels_reidentified``); inspection events
-    that ended without a decision because every direction that started them was gone (``void_events``) and choices
-    left with one direction whose view the reasoner had judged, made without it (``forced_choices``; both with
-    ``skip_void_events``)."""
+    inspection events; reasoner decisions by trigger (``scan``, ``inspection``, ``vanished``, ``stuck``); decisions
+    at a dead end (no still-relevant direction in the forward 240 deg, so the rear range was offered); how often the
+    followed direction was carried over a relabelling (``followed_through_relabel``) or lost its label with no
+    successor (``selected_lost``); fresh labels recognised as a retired direction (removed, or merged away) back at
+    its place (``labels_reidentified``). Beyond the paper, with ``skip_void_events``: inspection events that ended
+    without a decision because every direction that started them was gone (``void_events``), and choices left with
+    one direction whose view the reasoner had judged, made without it (``forced_choices``)."""
 
     labels_created: int = 0
     labels_merged: int = 0
@@ -77,15 +77,14 @@ class Directions:
 
     ``scan_turns`` are the start scan's turns left; ``inspected`` holds the labels an inspection event or decision
     has already covered, ``blacklist`` the directions that could not be followed (label -> step until which they are
-    left out), ``selected`` the direction followed and ``followed`` that direction as of the previous step; ``previous`` holds the previous
-    step's directions and ``gone`` the retired ones with the step they went (Sec. IV-A b). ``event_heading`` is the
-    heading when the current inspection event began (Sec. IV-A c) and ``event_labels`` the directions that started
-    it; ``turning_back`` whether the last decision's options lay behind the robot only (a dead end) and
-    ``returning`` whether the followed direction was chosen so and is followed toward its nearest frontier;
-    ``driven`` the position at each step (dead-end evidence: which ways re-drive the path driven).
-    ``descriptions`` and ``enriched`` are the reasoner's words on each direction and the directions enrichment has
-    run on (Sec. IV-B); ``judged`` the steps of the views the reasoner has been shown. ``counts`` are the episode's
-    counters.
+    left out), ``selected`` the direction followed and ``followed`` that direction as of the previous step;
+    ``previous`` holds the previous step's directions and ``gone`` the retired ones with the step they went (Sec.
+    IV-A b). ``event_heading`` is the heading when the current inspection event began (Sec. IV-A c) and
+    ``event_labels`` the directions that started it. ``turning_back`` says whether the last decision's options lay
+    behind the robot only (a dead end), ``returning`` whether the followed direction was chosen so and is followed
+    toward its nearest frontier (``return_aware``). ``descriptions`` and ``enriched`` are the reasoner's words on each
+    direction and the directions enrichment has run on (Sec. IV-B); ``judged`` the steps of the views the reasoner
+    has been shown. ``counts`` are the episode's counters.
     """
 
     config: DirectionsConfig
@@ -107,7 +106,6 @@ class Directions:
     turning_back: bool = False
     returning: bool = False
     event_labels: tuple[int, ...] = ()
-    driven: list[tuple[float, float]] = field(default_factory=list)
     counts: DirectionTally = field(default_factory=DirectionTally)
 
     def enter(self, loop: Loop, phase: Phase) -> None:
