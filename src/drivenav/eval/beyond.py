@@ -5,7 +5,7 @@ A method of :data:`~drivenav.methods.METHODS` without a paper table names its ``
 on the episodes both finished without an error: SR wins and losses (solved by one and not the other), the mean SPL
 difference with its 95 % percentile-bootstrap interval (episodes resampled in pairs), and each one's median
 direction decisions per episode. :func:`beyond_table_ii` is Table II's comparison (common successes over 10 m)
-over the paper's Table II methods and the methods beyond the paper built on one of them.
+over the paper's Table II methods and the methods beyond the paper built directly on one of them.
 """
 
 from __future__ import annotations
@@ -82,29 +82,23 @@ def paired_entries(runs: RunRecords) -> dict[str, PairedEntry]:
     """Every method beyond the paper that was run with its base, by name."""
     entries = {}
     for name in runs:
-        method = method_named(name)
-        if method is not None and method.base in runs:
-            entry = paired_entry(runs, name, method.base)
-            if entry is not None:
-                entries[name] = entry
+        base = _base(name)
+        entry = paired_entry(runs, name, base) if base in runs else None
+        if entry is not None:
+            entries[name] = entry
     return entries
 
 
-def lineage(name: str) -> list[str]:
-    """``name``, its base, its base's base, ... (the methods beyond the paper it builds on)."""
-    chain: list[str] = []
-    method = method_named(name)
-    while method is not None and method.name not in chain:
-        chain.append(method.name)
-        method = method_named(method.base) if method.base else None
-    return chain
-
-
 def beyond_table_ii(runs: RunRecords, table_ii: tuple[str, ...]) -> Comparison | None:
-    """Table II's comparison over the Table II methods run and the methods beyond the paper whose lineage reaches
-    one of them; None when no such method was run."""
-    beyond = [name for name in runs if name not in table_ii and set(lineage(name)[1:]) & set(table_ii)]
+    """Table II's comparison over the Table II methods run and the methods beyond the paper built directly on one
+    of them (``drive-nav-plus``, not its ablation rows, which the pairing compares); None when none was run."""
+    beyond = [name for name in runs if name not in table_ii and _base(name) in table_ii]
     if not beyond:
         return None
     chosen = [name for name in table_ii if name in runs] + beyond
     return compare_runs({name: runs[name] for name in chosen})
+
+
+def _base(name: str) -> str:
+    method = method_named(name)
+    return method.base if method is not None else ""

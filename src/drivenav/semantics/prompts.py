@@ -57,11 +57,11 @@ def _candidate_line(candidate: Candidate) -> str:
     seen = "" if candidate.view is not None else " (no view)"
     return (
         f"- direction {candidate.label}: turn {abs(degrees):.0f} deg {side}, {distance}, "
-        f"{candidate.frontier_cells} unexplored frontier cells{_evidence(candidate)}{seen}"
+        f"{candidate.frontier_cells} unexplored frontier cells{_way_back(candidate)}{seen}"
     )
 
 
-def _evidence(candidate: Candidate) -> str:
+def _way_back(candidate: Candidate) -> str:
     """The way back, where the agent measured it (beyond the paper)."""
     if candidate.return_time is None or not math.isfinite(candidate.return_time):
         return ""
@@ -87,13 +87,13 @@ def select_text(goal: str, candidates: Sequence[Candidate], omitted: int) -> str
         "and the openings each view shows, and preferring nearer directions when the evidence is similar. "
         "Say whether the target itself is visible in any view and in which direction, and describe each "
         "view briefly.",
-        *_evidence_advice(candidates),
+        *_way_back_advice(candidates),
         _answer_with(SELECT_SCHEMA),
     ]
     return "\n".join(lines)
 
 
-def _evidence_advice(candidates: Sequence[Candidate]) -> list[str]:
+def _way_back_advice(candidates: Sequence[Candidate]) -> list[str]:
     """How to weigh the way back, when a candidate carries it."""
     if all(c.return_time is None for c in candidates):
         return []

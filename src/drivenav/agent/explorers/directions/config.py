@@ -18,8 +18,8 @@ class DirectionsConfig:
 
     decision_scan: bool = False  # True: a full 360 deg scan at every decision point (Table II: direction-360)
     reidentify_steps: int = 500  # ours: steps a removed direction is remembered, to recognise it under a fresh label
-    skip_void_events: bool = False  # an inspection whose new directions are all gone by its end asks no reasoner
-    return_aware: bool = False  # each candidate carries the way back from it; short side branches are finished first
+    skip_void_events: bool = False  # no reasoner question after a void inspection event, nor for a forced choice
+    return_aware: bool = False  # the way back counts: a turn back finishes the near remainder first
 
 
 EXPLORER = ExplorerEntry(

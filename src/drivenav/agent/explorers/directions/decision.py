@@ -80,8 +80,7 @@ def candidates(d: Directions, loop: Loop, ctx: StepContext, reason: str) -> list
         d.turning_back = not forward
         usable = forward or usable
     with_views = [x for x in usable if d.views.has_view(x.label)]
-    offered = with_views or usable
-    return [_candidate(d, ctx, x) for x in offered]
+    return [_candidate(d, ctx, x) for x in (with_views or usable)]
 
 
 def select(
@@ -117,7 +116,7 @@ def goal_point(d: Directions, ctx: StepContext, direction: Direction) -> tuple[f
 
 
 def _first_step(d: Directions, loop: Loop, observation: Observation, ctx: StepContext, direction: Direction) -> Action:
-    """Re-plan toward the direction's farthest frontier point and take the first step of following it; turn
+    """Re-plan toward the direction's goal point (:func:`goal_point`) and take the first step of following it; turn
     toward its bearing when the planner has no step."""
     state = loop.state
     ctx = replan(state.pipeline, ctx, goal_point(d, ctx, direction))
