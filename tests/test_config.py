@@ -17,7 +17,7 @@ from drivenav.agents import make_agent
 from drivenav.cli import main
 from drivenav.errors import InputError
 from drivenav.mapping.config import MappingConfig, MapTuning
-from drivenav.methods import ALL_METHODS, METHODS
+from drivenav.methods import ALL_METHODS, BEYOND_PAPER, METHOD_NAMES, METHODS
 from drivenav.settings import (
     Settings,
     agent_names,
@@ -137,6 +137,13 @@ EXPECTED = {
         "weighted": False,
     },
 }
+PLUS_RULES = ("skip_void_events", "return_aware")
+# beyond the paper: drive-nav with every rule of drive-nav-plus, and its ablation rows each without one
+BEYOND = {
+    "drive-nav-plus": dict.fromkeys(PLUS_RULES, True),
+    "drive-nav-plus-no-void": {rule: True for rule in PLUS_RULES if rule != "skip_void_events"},
+    "drive-nav-plus-no-return": {rule: True for rule in PLUS_RULES if rule != "return_aware"},
+}
 
 
 def _switches(settings: Settings) -> dict[str, object]:
@@ -145,18 +152,19 @@ def _switches(settings: Settings) -> dict[str, object]:
         **{k: v for k, v in settings_to_dict(settings)["agent"].items()},
         "explorer": settings.explorer.name,
         "decision_scan": settings.explorer.directions.decision_scan,  # type: ignore[attr-defined]
+        **{rule: getattr(settings.explorer.directions, rule) for rule in PLUS_RULES},  # type: ignore[attr-defined]
         "cluster_span_deg": p.directions.cluster_span_deg,
         "weighted": p.speed.weighted,
         "restrict_forward": p.inspection.restrict_forward,
     }
 
 
-@pytest.mark.parametrize("name", sorted(EXPECTED))
+@pytest.mark.parametrize("name", sorted({**EXPECTED, **BEYOND}))
 def test_every_method_is_a_preset_over_the_defaults(name: str) -> None:
     settings = load_settings(name)
     default = _switches(load_settings())
     changed = {k: v for k, v in _switches(settings).items() if default[k] != v}
-    assert changed == EXPECTED[name]
+    assert changed == {**EXPECTED, **BEYOND}[name]
     agent = make_agent(settings)
     assert isinstance(agent, ExplorerAgent) and agent.name == name
     assert agent.config == settings.agent and agent.paper == settings.paper
@@ -164,8 +172,9 @@ def test_every_method_is_a_preset_over_the_defaults(name: str) -> None:
 
 
 def test_one_list_of_methods_for_registry_and_ablations() -> None:
-    assert [m.name for m in METHODS] == list(ALL_METHODS) and set(ALL_METHODS) == set(EXPECTED)
-    assert agent_names() == sorted([*EXPECTED, "oracle", "random"])
+    assert [m.name for m in METHODS] == list(METHOD_NAMES) == [*ALL_METHODS, *BEYOND_PAPER]
+    assert set(ALL_METHODS) == set(EXPECTED) and set(BEYOND_PAPER) == set(BEYOND)
+    assert agent_names() == sorted([*EXPECTED, *BEYOND, "oracle", "random"])
     assert isinstance(make_agent(load_settings("oracle")), OracleAgent)
 
 
@@ -220,7 +229,10 @@ def test_methods_name_the_papers_tables() -> None:
     }
     assert {name for name, t in tables.items() if "I" in t} == {"drive-nav", "vlfm", "apexnav"}
     assert {name for name, t in tables.items() if "V" in t} == {"directional", "no-weighted-fmm", "no-240"}
-    assert all(m.description and m.tables for m in METHODS)
+    assert all(m.description and (m.tables or m.base) for m in METHODS)
+    bases = {m.name: m.base for m in METHODS if not m.tables}
+    rows = {name: "drive-nav-plus" for name in BEYOND if name != "drive-nav-plus"}  # each without one rule
+    assert bases == {"drive-nav-plus": "drive-nav", **rows}
 
 
 def test_first_difference_names_the_key() -> None:

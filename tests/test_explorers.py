@@ -17,7 +17,7 @@ from drivenav.agents import make_agent
 from drivenav.envs.embedded.env import EmbeddedEnv
 from drivenav.errors import InputError
 from drivenav.eval.runner import run_episode
-from drivenav.methods import ALL_METHODS, METHODS, REFERENCE_AGENTS
+from drivenav.methods import METHOD_NAMES, METHODS, REFERENCE_AGENTS
 from drivenav.robot.registry import BUILT_IN_MOTIONS, BUILT_IN_SOURCES
 from drivenav.settings import explorer_section, load_settings, settings_from_dict, settings_to_dict
 from drivenav.types import SimConfig
@@ -106,7 +106,7 @@ def test_a_plugin_explorer_is_a_method_with_its_own_section_and_counters(monkeyp
 # ----------------------------------------------------------------------------------------------- no name dispatch
 
 NAMES = sorted(
-    {*ALL_METHODS, *REFERENCE_AGENTS, *BUILT_IN_EXPLORERS, *BUILT_IN_WORLDS, *BUILT_IN_SOURCES, *BUILT_IN_MOTIONS}
+    {*METHOD_NAMES, *REFERENCE_AGENTS, *BUILT_IN_EXPLORERS, *BUILT_IN_WORLDS, *BUILT_IN_SOURCES, *BUILT_IN_MOTIONS}
 )
 _QUOTED = "|".join(re.escape(name) for name in NAMES)
 DISPATCH = re.compile(
@@ -132,4 +132,4 @@ def test_the_dispatch_check_finds_an_if_chain() -> None:
     assert DISPATCH.search("    elif agent in ('nearest-frontier', 'frontier'):")
     assert DISPATCH.search('    if source == "bag":') and DISPATCH.search('    if args.env != "habitat":')
     assert not DISPATCH.search('    Method("vlfm", ("II",), "VLFM")')
-    assert [m.name for m in METHODS] == list(ALL_METHODS)
+    assert [m.name for m in METHODS] == list(METHOD_NAMES)

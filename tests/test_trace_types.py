@@ -16,6 +16,7 @@ from drivenav.agent.trace import (
     DirectionSelected,
     Event,
     InspectionStarted,
+    InspectionVoid,
     ScanStarted,
     StopEvent,
     TargetAccepted,
@@ -42,6 +43,7 @@ EXAMPLES: tuple[Event, ...] = (
     TargetRejected(10, 3, (-1.0, 0.5), "verification"),
     TargetSetAside(11, 5, (6.0, 1.0), 40),
     StopEvent(12, "target_reached"),
+    InspectionVoid(13, (1, 2)),
 )
 
 

@@ -24,11 +24,24 @@ components; VI: module ablation."""
 
 _DIRECTIONAL = ("agent.enrich=false", "agent.verify=false")
 
+_PLUS = (
+    "explorer.directions.skip_void_events=true",
+    "explorer.directions.return_aware=true",
+)
+"""drive-nav-plus's rules beyond the paper (docs/agent.md "Beyond the paper"), each an ``explorer.directions``
+switch."""
+
+
+def _plus_without(switch: str) -> tuple[str, ...]:
+    """drive-nav-plus with the rule ``switch`` off: its ablation row."""
+    return tuple(rule for rule in _PLUS if not rule.startswith(f"explorer.directions.{switch}="))
+
 
 @dataclass(frozen=True)
 class Method:
-    """One agent variant: its ``--agent`` name, the paper's tables it appears in, what it is, its overrides, and the
-    explorer it runs (``plugin``: one another package registers, a method of its own name)."""
+    """One agent variant: its ``--agent`` name, the paper's tables it appears in (none: a method beyond the paper),
+    what it is, its overrides, the explorer it runs (``plugin``: one another package registers, a method of its own
+    name) and, for a method beyond the paper, the method it is measured against (``base``: the report pairs them)."""
 
     name: str
     tables: tuple[PaperTable, ...]
@@ -36,6 +49,7 @@ class Method:
     overrides: tuple[str, ...] = ()
     explorer: str = "directions"
     plugin: bool = False
+    base: str = ""
 
 
 METHODS: tuple[Method, ...] = (
@@ -88,8 +102,31 @@ METHODS: tuple[Method, ...] = (
         ("paper.speed.weighted=false",),  # ApexNav's paths are A*'s shortest ones, not kept clear of obstacles
         explorer="apexnav",
     ),
+    Method(
+        "drive-nav-plus",
+        (),
+        "DRIVE-Nav beyond the paper: void events and forced choices skipped, return-aware choice",
+        _PLUS,
+        base="drive-nav",
+    ),
+    Method(
+        "drive-nav-plus-no-void",
+        (),
+        "drive-nav-plus asking the reasoner after every inspection event",
+        _plus_without("skip_void_events"),
+        base="drive-nav-plus",
+    ),
+    Method(
+        "drive-nav-plus-no-return",
+        (),
+        "drive-nav-plus without the return-aware choice",
+        _plus_without("return_aware"),
+        base="drive-nav-plus",
+    ),
 )
-"""DRIVE-Nav and its baselines / ablations (paper Tables I, II, V, VI), in the order of the ablation report."""
+"""DRIVE-Nav, its baselines / ablations and the peers it is compared with (paper Tables I, II, V, VI), in the order of
+the ablation report, then the methods beyond the paper (no table of the paper: ``drive-nav-plus`` and its ablation
+rows, each without one rule)."""
 
 REFERENCE_AGENTS: dict[str, str] = {
     "oracle": "drivenav.agent.oracle:OracleAgent",  # follows the ground-truth shortest path to the goal
@@ -108,7 +145,7 @@ def method_named(name: str) -> Method | None:
 def _plugin_methods() -> dict[str, Method]:
     """The explorers other packages register (by entry-point name, nothing imported), each a method of its own
     name; a name that a method or reference agent already has stays theirs."""
-    taken = {*ALL_METHODS, *REFERENCE_AGENTS}
+    taken = {*METHOD_NAMES, *REFERENCE_AGENTS}
     return {
         p.name: Method(p.name, (), f"the {p.name} explorer of {p.source}", explorer=p.name, plugin=True)
         for p in plugins_of("drivenav.explorers")
@@ -116,15 +153,21 @@ def _plugin_methods() -> dict[str, Method]:
     }
 
 
-ALL_METHODS = tuple(method.name for method in METHODS)
-"""The methods of the paper's tables, in the order ``bench ablations`` runs them."""
+ALL_METHODS = tuple(method.name for method in METHODS if method.tables)
+"""The methods of the paper's tables, in the order ``bench ablations`` runs them by default."""
+
+BEYOND_PAPER = tuple(method.name for method in METHODS if not method.tables)
+"""Our methods beyond the paper (``bench ablations --methods`` runs them; the report pairs each with its base)."""
+
+METHOD_NAMES = (*ALL_METHODS, *BEYOND_PAPER)
+"""Every method of :data:`METHODS`, in its order."""
 
 PRESETS = "data/configs"  # the --config presets shipped with drivenav, under the package
 
 
 def agent_names() -> list[str]:
     """Every ``--agent`` name: the methods of the paper's tables, the reference agents and plug-in explorers."""
-    return sorted([*REFERENCE_AGENTS, *ALL_METHODS, *_plugin_methods()])
+    return sorted([*REFERENCE_AGENTS, *METHOD_NAMES, *_plugin_methods()])
 
 
 def preset_names() -> list[str]:

@@ -64,6 +64,15 @@ class InspectionStarted(Event):
 
 
 @dataclass(frozen=True)
+class InspectionVoid(Event):
+    """An inspection event ended without a decision: every direction that started it (``labels``) was gone by the
+    sweep's end, so following went on (``explorer.directions.skip_void_events``, beyond the paper)."""
+
+    labels: tuple[int, ...]
+    kind: ClassVar[str] = "inspection_void"
+
+
+@dataclass(frozen=True)
 class ViewCaptured(Event):
     """A representative view was recorded (``updated``: it replaced an older, less aligned one)."""
 

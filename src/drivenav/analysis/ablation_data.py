@@ -12,6 +12,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TypeVar
 
+from drivenav.analysis.beyond import PairedEntry
 from drivenav.analysis.compare import Comparison
 from drivenav.errors import InputError
 from drivenav.jsonstream import DOCUMENT, JsonObject
@@ -238,7 +239,9 @@ class AblationReport:
     """``ablations.json``: every method's entry, the Table II comparison, Table VII, and what the runs were; with
     episodes of vocabulary splits (``info["split"]``, benchmark v2), each method per split under ``splits`` (a key
     the file has only then); with ``drive-nav`` among the methods, each method's paired wins and losses against it
-    under ``paired`` (likewise)."""
+    under ``paired`` (likewise); with methods beyond the paper, each against its base under ``beyond`` and Table
+    II's comparison with them under ``table_ii_beyond`` (:mod:`drivenav.analysis.beyond`; keys the file has only
+    then)."""
 
     methods: dict[str, MethodEntry]
     table_ii: Comparison
@@ -252,6 +255,8 @@ class AblationReport:
     pictures: Pictures = field(default_factory=Pictures)
     splits: Splits = field(default_factory=dict)
     paired: dict[str, Paired] = field(default_factory=dict)
+    beyond: dict[str, PairedEntry] = field(default_factory=dict)
+    table_ii_beyond: Comparison | None = None
 
     def to_json(self) -> JsonObject:
         """The ``ablations.json`` object."""
@@ -271,6 +276,10 @@ class AblationReport:
             data["splits"] = {name: {m: e.to_json() for m, e in by.items()} for name, by in self.splits.items()}
         if self.paired:
             data["paired"] = {name: paired.to_json() for name, paired in self.paired.items()}
+        if self.beyond:
+            data["beyond"] = {name: entry.to_json() for name, entry in self.beyond.items()}
+        if self.table_ii_beyond is not None:
+            data["table_ii_beyond"] = self.table_ii_beyond.to_json()
         return data
 
     @staticmethod
@@ -290,6 +299,8 @@ class AblationReport:
                 Pictures.from_json(data.get("pictures")),
                 {name: _each(by_method, SplitEntry.from_json) for name, by_method in data.get("splits", {}).items()},
                 _each(data.get("paired", {}), Paired.from_json),
+                _each(data.get("beyond", {}), PairedEntry.from_json),
+                Comparison.from_json(data["table_ii_beyond"]) if "table_ii_beyond" in data else None,
             )
         except (KeyError, TypeError, AttributeError, IndexError) as error:
             expected = "an ablations.json written by 'drivenav bench ablations'"

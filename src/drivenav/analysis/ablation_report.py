@@ -19,6 +19,7 @@ from drivenav.analysis.ablation_data import (
     SplitEntry,
     Splits,
 )
+from drivenav.analysis.beyond_report import beyond_section
 from drivenav.analysis.compare import Comparison
 from drivenav.analysis.paper_tables import (
     PAIRED_REFERENCE,
@@ -76,6 +77,7 @@ def format_markdown(report: AblationReport) -> str:
         _table_vi(report.methods),
         _table_v(report.methods),
         _table_ii(report.table_ii),
+        *([beyond_section(report)] if report.beyond else []),
         _table_vii(report.runtime),
         _decisions(report.methods),
         _steps(report.methods),

@@ -31,6 +31,7 @@ from drivenav.analysis.ablation_data import (
     Splits,
 )
 from drivenav.analysis.ablation_report import format_markdown, write_csv
+from drivenav.analysis.beyond import beyond_table_ii, paired_entries
 from drivenav.analysis.compare import RunRecords, compare_runs, load_runs, shared_ids
 from drivenav.analysis.paper_tables import PAIRED_REFERENCE, TABLE_II_METHODS
 from drivenav.analysis.stats import bootstrap_mean_interval, wilson_interval
@@ -265,6 +266,8 @@ def build_report(
         commit=git_commit(),
         splits=split_entries(runs, splits or {}),
         paired=paired_outcomes(runs),
+        beyond=paired_entries(runs),
+        table_ii_beyond=beyond_table_ii(runs, TABLE_II_METHODS),
     )
 
 

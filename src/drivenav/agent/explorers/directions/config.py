@@ -11,10 +11,16 @@ from drivenav.ranges import STEPS, check_ranges
 @dataclass(frozen=True)
 class DirectionsConfig:
     """The directions explorer's switches and tuning; the paper's constants it reads are ``paper.directions`` and
-    ``paper.inspection`` (:class:`~drivenav.paper.DriveNavConfig`)."""
+    ``paper.inspection`` (:class:`~drivenav.paper.DriveNavConfig`).
+
+    The switches after ``reidentify_steps`` go beyond the paper (the ``drive-nav-plus`` method, docs/agent.md
+    "Beyond the paper"); each is off by default, so ``drive-nav`` and every other method is the paper's agent.
+    """
 
     decision_scan: bool = False  # True: a full 360 deg scan at every decision point (Table II: direction-360)
     reidentify_steps: int = 500  # ours: steps a removed direction is remembered, to recognise it under a fresh label
+    skip_void_events: bool = False  # no reasoner question after a void inspection event, nor for a forced choice
+    return_aware: bool = False  # the way back counts: a turn back finishes the near remainder first
 
     def __post_init__(self) -> None:
         check_ranges(self, {"reidentify_steps": STEPS})

@@ -6,7 +6,9 @@ still-relevant directions (docs/agent.md): after the start scan every direction;
 blacklisted, with a view) within the forward 240 deg of the heading at the decision -- at an inspection event,
 the heading when it began -- unless none is left there (a dead end), when the rear range is offered too. The
 chosen direction is followed toward its farthest frontier point; a direction whose view shows the target, which
-the grounder has not found, is enriched first (Sec. IV-B).
+the grounder has not found, is enriched first (Sec. IV-B). With ``skip_void_events`` (beyond the paper) a choice
+left with one direction whose view the reasoner has already judged is no question: that direction is followed
+(``forced_choices``), and the reasoner is asked only where it has something new to judge.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import math
 
 from drivenav.agent.context import StepContext, replan
 from drivenav.agent.explorers.directions.memory import Directions, Phase
+from drivenav.agent.explorers.directions.returns import nearest_target, return_time
 from drivenav.agent.loop import Loop
 from drivenav.agent.trace import DirectionSelected
 from drivenav.directions import Direction
@@ -32,12 +35,18 @@ def decide(d: Directions, loop: Loop, observation: Observation, ctx: StepContext
     offered = candidates(d, loop, ctx, reason)
     if not offered:
         return loop.stop("no_frontier")
+    if forced(d, offered):
+        d.counts.forced_choices += 1
+        direction = ctx.directions[offered[0].label]
+        select(d, loop, ctx, direction, reason, [direction.label], False)
+        return _first_step(d, loop, observation, ctx, direction)
     d.counts.decisions[reason] += 1
     selection = state.reasoner.select_direction(loop.host.goal_text, offered)
+    d.judged.update(c.view.step for c in offered if c.view is not None)
     d.descriptions.update(selection.descriptions)
     label = _chosen_label(selection, offered)
     direction = ctx.directions[label]
-    select(d, loop, direction, reason, [c.label for c in offered], selection.fallback)
+    select(d, loop, ctx, direction, reason, [c.label for c in offered], selection.fallback)
     wants_enrichment = loop.tuning.config.enrich and label not in d.enriched and state.search.current() is None
     if label == selection.target_label and wants_enrichment:
         d.enrich_label = label
@@ -46,41 +55,71 @@ def decide(d: Directions, loop: Loop, observation: Observation, ctx: StepContext
     return _first_step(d, loop, observation, ctx, direction)
 
 
+def forced(d: Directions, offered: list[Candidate]) -> bool:
+    """Whether the choice is forced, with nothing for the reasoner to judge (``skip_void_events``, beyond the paper):
+    a single direction is offered and the reasoner has already seen its view (or it has none)."""
+    if not d.config.skip_void_events or len(offered) != 1:
+        return False
+    view = offered[0].view
+    return view is None or view.step in d.judged
+
+
 def candidates(d: Directions, loop: Loop, ctx: StepContext, reason: str) -> list[Candidate]:
     """The still-relevant directions a decision offers (module docstring; docs/agent.md)."""
     usable = [x for x in ctx.result.directions if d.blacklist.get(x.label, -1) < loop.step]
     if not usable:
         d.blacklist.clear()
         usable = list(ctx.result.directions)
+    d.turning_back = False
     if _forward_only(d, loop, reason):
         heading = d.event_heading if reason == "inspection" else ctx.pose.yaw
         half_range = loop.tuning.paper.inspection.forward_range / 2.0
         forward = [x for x in usable if within(signed_offset(x.bearing, heading), half_range)]
         if not forward:
             d.counts.dead_end_decisions += 1
+        d.turning_back = not forward
         usable = forward or usable
     with_views = [x for x in usable if d.views.has_view(x.label)]
     return [_candidate(d, ctx, x) for x in (with_views or usable)]
 
 
-def select(d: Directions, loop: Loop, direction: Direction, reason: str, offered: list[int], fallback: bool) -> None:
+def select(
+    d: Directions,
+    loop: Loop,
+    ctx: StepContext,
+    direction: Direction,
+    reason: str,
+    offered: list[int],
+    fallback: bool,
+) -> None:
     """Follow ``direction``; choosing a different direction starts a new segment (revisit metric, Sec. V-C)."""
     if direction.label != d.selected:
         loop.state.planner.reset()
         loop.start_segment()
     d.selected = direction.label
-    loop.state.goal = direction.farthest_point
-    event = DirectionSelected(
-        loop.step, direction.label, direction.bearing, direction.farthest_point, tuple(offered), reason, fallback
-    )
+    d.returning = d.config.return_aware and d.turning_back
+    goal = goal_point(d, ctx, direction)
+    loop.state.goal = goal
+    event = DirectionSelected(loop.step, direction.label, direction.bearing, goal, tuple(offered), reason, fallback)
     loop.trace.add(event)
 
 
+def goal_point(d: Directions, ctx: StepContext, direction: Direction) -> tuple[float, float]:
+    """Where following ``direction`` drives: its farthest frontier point (Sec. IV-A c) or, turning back with
+    ``return_aware`` (beyond the paper), its nearest frontier -- the remainder near the dead end is finished before
+    the long way back, which would pass it by and come back for it."""
+    if d.returning:
+        near = nearest_target(ctx, direction)
+        if near is not None:
+            return near
+    return direction.farthest_point
+
+
 def _first_step(d: Directions, loop: Loop, observation: Observation, ctx: StepContext, direction: Direction) -> Action:
-    """Re-plan toward the direction's farthest frontier point and take the first step of following it; turn
+    """Re-plan toward the direction's goal point (:func:`goal_point`) and take the first step of following it; turn
     toward its bearing when the planner has no step."""
     state = loop.state
-    ctx = replan(state.pipeline, ctx, direction.farthest_point)
+    ctx = replan(state.pipeline, ctx, goal_point(d, ctx, direction))
     d.enter(loop, Phase.FOLLOW)
     action = state.planner.act(ctx.path_along(direction), ctx.pose, observation.collided, ctx.free)
     if action is not None:
@@ -96,7 +135,8 @@ def _forward_only(d: Directions, loop: Loop, reason: str) -> bool:
 
 
 def _candidate(d: Directions, ctx: StepContext, direction: Direction) -> Candidate:
-    """What the reasoner is told of a direction: bearing, turn from the heading, travel time, view."""
+    """What the reasoner is told of a direction: bearing, turn from the heading, travel time, view; with
+    ``return_aware`` (beyond the paper), the way back from its farthest frontier point too."""
     times = [ctx.result.paths[f].travel_time for f in direction.frontier_ids if f in ctx.result.paths]
     return Candidate(
         label=direction.label,
@@ -106,6 +146,7 @@ def _candidate(d: Directions, ctx: StepContext, direction: Direction) -> Candida
         frontier_cells=len(direction.points),
         view=d.views.get(direction.label),
         current=direction.label == d.selected,
+        return_time=return_time(ctx, direction) if d.config.return_aware else None,
     )
 
 

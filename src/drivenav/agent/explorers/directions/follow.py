@@ -4,13 +4,15 @@ Between reasoning events the low-level planner drives toward the farthest fronti
 direction, re-planned every step, until an inspection event interrupts it, the direction is gone (a ``vanished``
 decision) or the planner cannot follow it (the direction is blacklisted for a while and a ``stuck`` decision
 follows). A followed direction that only got a fresh label is still followed
-(:mod:`~drivenav.agent.explorers.directions.relabel`).
+(:mod:`~drivenav.agent.explorers.directions.relabel`). With ``return_aware`` (beyond the paper) a direction chosen
+when nothing was left ahead is followed toward its nearest frontier instead
+(:func:`~drivenav.agent.explorers.directions.decision.goal_point`).
 """
 
 from __future__ import annotations
 
 from drivenav.agent.context import StepContext
-from drivenav.agent.explorers.directions.decision import decide
+from drivenav.agent.explorers.directions.decision import decide, goal_point
 from drivenav.agent.explorers.directions.memory import Directions
 from drivenav.agent.explorers.directions.sweep import inspection_event
 from drivenav.agent.loop import Loop
@@ -25,7 +27,7 @@ def act(d: Directions, loop: Loop, observation: Observation, ctx: StepContext) -
         return decide(d, loop, observation, ctx, "vanished")
     direction = ctx.directions[d.selected]
     state = loop.state
-    state.goal = direction.farthest_point
+    state.goal = goal_point(d, ctx, direction)
     action = state.planner.act(ctx.path_along(direction), ctx.pose, observation.collided, ctx.free)
     if action is None:
         d.blacklist[direction.label] = loop.step + loop.tuning.config.blacklist_steps

@@ -33,7 +33,9 @@ class DirectionCounters:
     at a dead end (no still-relevant direction in the forward 240 deg, so the rear range was offered); how often the
     followed direction was carried over a relabelling (``followed_through_relabel``) or lost its label with no
     successor (``selected_lost``); fresh labels recognised as a retired direction (removed, or merged away) back at
-    its place (``labels_reidentified``)."""
+    its place (``labels_reidentified``). Beyond the paper, with ``skip_void_events``: inspection events that ended
+    without a decision because every direction that started them was gone (``void_events``), and choices left with
+    one direction whose view the reasoner had judged, made without it (``forced_choices``)."""
 
     labels_created: int = 0
     labels_merged: int = 0
@@ -44,6 +46,8 @@ class DirectionCounters:
     followed_through_relabel: int = 0
     selected_lost: int = 0
     labels_reidentified: int = 0
+    void_events: int = 0
+    forced_choices: int = 0
 
 
 @dataclass
@@ -59,6 +63,8 @@ class DirectionTally:
     followed_through_relabel: int = 0
     selected_lost: int = 0
     labels_reidentified: int = 0
+    void_events: int = 0
+    forced_choices: int = 0
 
     def freeze(self) -> DirectionCounters:
         values = {name: getattr(self, name) for name in DirectionCounters.__dataclass_fields__}
@@ -73,9 +79,12 @@ class Directions:
     has already covered, ``blacklist`` the directions that could not be followed (label -> step until which they are
     left out), ``selected`` the direction followed and ``followed`` that direction as of the previous step;
     ``previous`` holds the previous step's directions and ``gone`` the retired ones with the step they went (Sec.
-    IV-A b). ``event_heading`` is the heading when the current inspection event began (Sec. IV-A c).
-    ``descriptions`` and ``enriched`` are the reasoner's words on each direction and the directions enrichment has
-    run on (Sec. IV-B). ``counts`` are the episode's counters.
+    IV-A b). ``event_heading`` is the heading when the current inspection event began (Sec. IV-A c) and
+    ``event_labels`` the directions that started it. ``turning_back`` says whether the last decision's options lay
+    behind the robot only (a dead end), ``returning`` whether the followed direction was chosen so and is followed
+    toward its nearest frontier (``return_aware``). ``descriptions`` and ``enriched`` are the reasoner's words on each
+    direction and the directions enrichment has run on (Sec. IV-B); ``judged`` the steps of the views the reasoner
+    has been shown. ``counts`` are the episode's counters.
     """
 
     config: DirectionsConfig
@@ -87,12 +96,16 @@ class Directions:
     blacklist: dict[int, int] = field(default_factory=dict)
     descriptions: dict[int, str] = field(default_factory=dict)
     enriched: set[int] = field(default_factory=set)
+    judged: set[int] = field(default_factory=set)
     enrich_label: int | None = None
     selected: int | None = None
     followed: Direction | None = None
     previous: dict[int, Direction] = field(default_factory=dict)
     gone: dict[int, tuple[Direction, int]] = field(default_factory=dict)
     event_heading: float = 0.0
+    turning_back: bool = False
+    returning: bool = False
+    event_labels: tuple[int, ...] = ()
     counts: DirectionTally = field(default_factory=DirectionTally)
 
     def enter(self, loop: Loop, phase: Phase) -> None:

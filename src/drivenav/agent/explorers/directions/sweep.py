@@ -5,6 +5,11 @@ within the forward 240 deg that lack representative views and no event has cover
 only over those directions, from the side needing the smaller initial turn (:func:`~drivenav.inspection.plan_sweep`;
 views are recorded on the way), and the reasoner selects the next direction. With ``decision_scan`` the event
 starts a full 360 deg scan instead.
+
+With ``skip_void_events`` (ours, beyond the paper; ``drive-nav-plus``) an event whose directions are all gone when
+the sweep ends -- a piece of the followed direction's frontier that split off for a few steps and merged back, or
+was seen empty during the turn -- asks the reasoner nothing: it would be offered what it chose from before
+(docs/ablations-v2/decisions.md). Following the selected direction goes on, if it is still tracked.
 """
 
 from __future__ import annotations
@@ -14,15 +19,28 @@ from drivenav.agent.explorers.directions.decision import decide
 from drivenav.agent.explorers.directions.memory import Directions, Phase
 from drivenav.agent.explorers.directions.scan import start as start_scan
 from drivenav.agent.loop import Loop
-from drivenav.agent.trace import InspectionStarted
+from drivenav.agent.trace import InspectionStarted, InspectionVoid
 from drivenav.inspection import needs_inspection, plan_sweep, turn_toward
 from drivenav.types import Action, Observation
 
 
 def act(d: Directions, loop: Loop, observation: Observation, ctx: StepContext) -> Action:
-    """Turn toward the next yaw of the sweep; once every yaw is faced, decide."""
+    """Turn toward the next yaw of the sweep; once every yaw is faced, decide (or, for a void event, follow on)."""
     action = _continue_sweep(d, loop, ctx.pose.yaw)
-    return action if action is not None else decide(d, loop, observation, ctx, "inspection")
+    if action is not None:
+        return action
+    if d.config.skip_void_events and void(d, ctx):
+        d.counts.void_events += 1
+        loop.trace.add(InspectionVoid(loop.step, d.event_labels))
+        d.enter(loop, Phase.FOLLOW)
+        return loop.policy(observation, ctx)
+    return decide(d, loop, observation, ctx, "inspection")
+
+
+def void(d: Directions, ctx: StepContext) -> bool:
+    """Whether the event just swept is void: none of the directions that started it is tracked any more, and the
+    direction followed before it still is."""
+    return d.selected in ctx.directions and not any(label in ctx.directions for label in d.event_labels)
 
 
 def inspection_event(d: Directions, loop: Loop, ctx: StepContext) -> bool:
@@ -36,6 +54,7 @@ def inspection_event(d: Directions, loop: Loop, ctx: StepContext) -> bool:
         return False
     d.inspected.update(ctx.directions)
     d.event_heading = ctx.pose.yaw
+    d.event_labels = tuple(direction.label for direction in fresh)
     d.counts.inspection_events += 1
     if d.config.decision_scan:
         start_scan(d, loop)
