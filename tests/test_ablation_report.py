@@ -106,3 +106,19 @@ def test_table_i_holds_apexnavs_published_numbers() -> None:
         "HM3Dv2": (76.2, 38.0),
         "MP3D": (39.2, 17.8),
     }
+
+
+def test_each_explorer_shows_only_its_own_kinds_of_decision() -> None:
+    """Counters are written sparsely: DRIVE-Nav's triggers and ApexNav's modes share the name ``decisions``, so a
+    row shows ``-`` for the other family's kinds, and 0.00 for a kind of its own that never happened."""
+    report = AblationReport.from_json(json.loads((DATA / "ablations.json").read_text(encoding="utf-8")))
+    base = report.methods["drive-nav"]
+    apexnav = replace(base, decisions={"decisions": 5.0, "decisions.semantic": 3.0, "decisions.geometric": 2.0})
+    drive_nav = replace(base, decisions={"decisions": 2.0, "decisions.scan": 1.0, "decisions.inspection": 1.0})
+    markdown = format_markdown(replace(report, methods={"drive-nav": drive_nav, "apexnav": apexnav}))
+    lines = markdown.split("## Decisions and direction labels per episode")[1].split("\n## ")[0].splitlines()
+    header = next(line for line in lines if line.startswith("| method |")).strip("| ").split(" | ")
+    cells = {row[0]: dict(zip(header, row, strict=False)) for row in (line.strip("| ").split(" | ") for line in lines)}
+    kinds = ("scan", "inspection", "vanished", "stuck", "semantic", "geometric")
+    assert [cells["`apexnav`"][kind] for kind in kinds] == ["-", "-", "-", "-", "3.00", "2.00"]
+    assert [cells["`drive-nav`"][kind] for kind in kinds] == ["1.00", "1.00", "0.00", "0.00", "-", "-"]

@@ -330,10 +330,19 @@ def _decisions(methods: Methods) -> list[str]:
     return lines
 
 
+DECISION_KINDS = (
+    ("decisions.scan", "decisions.inspection", "decisions.vanished", "decisions.stuck"),
+    ("decisions.semantic", "decisions.geometric"),
+)
+"""The kinds of ``decisions`` each explorer family counts: DRIVE-Nav's triggers (its explorer and the greedy), and
+ApexNav's modes. Counters are written sparsely (a kind that never happened is left out of a record)."""
+
+
 def _counter(means: dict[str, float], key: str) -> str:
-    """A counter's mean; ``-`` where the explorer keeps no such counter (``decisions.scan``: none of its kind is
-    ``decisions``)."""
-    kept = key.split(".")[0] in means
+    """A counter's mean; ``-`` where the explorer keeps no such counter: none of its name, or, for a kind of
+    decision, none of that kind's family (:data:`DECISION_KINDS`: ApexNav has modes, not triggers)."""
+    family = next((kinds for kinds in DECISION_KINDS if key in kinds), (key.split(".")[0],))
+    kept = any(name in means for name in family)
     return f"{means.get(key, 0.0):.2f}" if kept else "-"
 
 
