@@ -288,12 +288,17 @@ def _number(value: float | None, template: str) -> str:
     return "-" if value is None else template.format(value)
 
 
+TRIGGERS = ("scan", "inspection", "vanished", "stuck")
+"""DRIVE-Nav's kinds of decision (its explorer's and the greedy's ``decisions`` counter): what triggered it."""
+MODES = ("semantic", "geometric")
+"""ApexNav's kinds of decision: the mode it decided in."""
+DECISION_KINDS = tuple(tuple(f"decisions.{kind}" for kind in family) for family in (TRIGGERS, MODES))
+"""The kinds of ``decisions`` each explorer family counts. Counters are written sparsely (a kind that never
+happened is left out of a record), so a family is kept when any of its kinds is."""
+
 DECISION_COLUMNS = (
     ("decisions", "decisions"),
-    ("decisions.scan", "scan"),
-    ("decisions.inspection", "inspection"),
-    ("decisions.vanished", "vanished"),
-    ("decisions.stuck", "stuck"),
+    *((f"decisions.{kind}", kind) for kind in TRIGGERS),
     ("dead_end_decisions", "dead end"),
     ("inspection_events", "inspection events"),
     ("labels_created", "labels created"),
@@ -302,8 +307,7 @@ DECISION_COLUMNS = (
     ("labels_reidentified", "re-identified"),
     ("followed_through_relabel", "followed through relabel"),
     ("selected_lost", "followed lost"),
-    ("decisions.semantic", "semantic"),
-    ("decisions.geometric", "geometric"),
+    *((f"decisions.{kind}", kind) for kind in MODES),
     ("tsp_solves", "TSPs"),
     ("dormant_frontiers", "dormant"),
 )
@@ -328,14 +332,6 @@ def _decisions(methods: Methods) -> list[str]:
         cells = " | ".join(_counter(entry.decisions, key) for key, _ in DECISION_COLUMNS)
         lines.append(f"| `{name}` | {calls} | {cells} |")
     return lines
-
-
-DECISION_KINDS = (
-    ("decisions.scan", "decisions.inspection", "decisions.vanished", "decisions.stuck"),
-    ("decisions.semantic", "decisions.geometric"),
-)
-"""The kinds of ``decisions`` each explorer family counts: DRIVE-Nav's triggers (its explorer and the greedy), and
-ApexNav's modes. Counters are written sparsely (a kind that never happened is left out of a record)."""
 
 
 def _counter(means: dict[str, float], key: str) -> str:
