@@ -27,6 +27,7 @@ _DIRECTIONAL = ("agent.enrich=false", "agent.verify=false")
 _PLUS = (
     "explorer.directions.skip_void_events=true",
     "explorer.directions.return_aware=true",
+    "explorer.directions.settle_steps=3",
 )
 """drive-nav-plus's rules beyond the paper (docs/agent.md "Beyond the paper"), each an ``explorer.directions``
 switch."""
@@ -105,7 +106,7 @@ METHODS: tuple[Method, ...] = (
     Method(
         "drive-nav-plus",
         (),
-        "DRIVE-Nav beyond the paper: void events and forced choices skipped, return-aware choice",
+        "DRIVE-Nav beyond the paper: settled directions, void events and forced choices skipped, near remainder first",
         _PLUS,
         base="drive-nav",
     ),
@@ -119,8 +120,15 @@ METHODS: tuple[Method, ...] = (
     Method(
         "drive-nav-plus-no-return",
         (),
-        "drive-nav-plus without the return-aware choice",
+        "drive-nav-plus following a turn back to its farthest point, as the paper",
         _plus_without("return_aware"),
+        base="drive-nav-plus",
+    ),
+    Method(
+        "drive-nav-plus-no-settle",
+        (),
+        "drive-nav-plus starting an inspection event at a direction's first sight, as the paper",
+        _plus_without("settle_steps"),
         base="drive-nav-plus",
     ),
 )

@@ -25,10 +25,6 @@ similarity of their embeddings. With the :class:`EmbeddedReasonerConfig` paramet
     :func:`~drivenav.semantics.geometric.direction_score` (frontier cells discounted by travel distance over
     ``distance_scale``), so an empty corridor is worth something but less than a view of a related object.
 
-  With the way back (``Candidate.return_time``, beyond the paper: ``drive-nav-plus``) the sum is divided by
-  ``1 + return_time / distance_scale``: of two equally promising directions, the one whose far end is nearer is
-  finished first (coming back to it later would cost the whole way again).
-
   A direction whose view shows the target is chosen outright (the one with the largest target area), as the
   VLM is asked to return the target-bearing direction (Sec. IV-B). Ties go to the smaller ``|turn|``, then the
   smaller label;
@@ -247,16 +243,15 @@ class EmbeddedReasoner:
 
     def _assess(self, goal: str, candidate: Candidate, shown: list[tuple[str, int]]) -> _Assessment:
         exploration = self._exploration(candidate)
-        prospect = return_factor(candidate, self.config)
         view = candidate.view
         if view is None:
-            return _Assessment(candidate, exploration * prospect, 0, None)
+            return _Assessment(candidate, exploration, 0, None)
         pixels = view.semantic.size if view.semantic is not None else 1
         related = [(self.relatedness(label, goal), area / pixels, area) for label, area in shown]
         semantic = semantic_value([(r, share) for r, share, _ in related], self.config)
         target_area = max((area for r, _, area in related if r >= self.config.sure_similarity), default=0)
         names = ", ".join(label for label, _ in shown) or "nothing recognisable"
-        return _Assessment(candidate, (semantic + exploration) * prospect, target_area, f"shows: {names}")
+        return _Assessment(candidate, semantic + exploration, target_area, f"shows: {names}")
 
     def _exploration(self, candidate: Candidate) -> float:
         c = self.config
@@ -308,15 +303,6 @@ def _nearest(name: str, texts: Sequence[str], embedder: TextEmbedder) -> list[tu
     """``texts`` with their embedding cosine to ``name``, nearest first (ties by text)."""
     scored = [(embedder.similarity(name, normalize_phrase(text)), text) for text in texts]
     return sorted(scored, key=lambda item: (-item[0], item[1]))
-
-
-def return_factor(candidate: Candidate, config: EmbeddedReasonerConfig) -> float:
-    """What the way back leaves of a candidate's value (module docstring): ``1 / (1 + r / distance_scale)`` for a
-    candidate whose far end is ``r`` metres away, 1 for a candidate without it (the paper's)."""
-    if candidate.return_time is None:
-        return 1.0
-    way = candidate.return_time if math.isfinite(candidate.return_time) else math.inf
-    return 1.0 / (1.0 + max(way, 0.0) / config.distance_scale)
 
 
 def goal_phrases(goal: str, truth: GroundTruth | None) -> list[str]:

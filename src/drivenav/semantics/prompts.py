@@ -66,15 +66,8 @@ def _candidate_line(candidate: Candidate) -> str:
     seen = "" if candidate.view is not None else " (no view)"
     return (
         f"- direction {candidate.label}: turn {abs(degrees):.0f} deg {side}, {distance}, "
-        f"{candidate.frontier_cells} unexplored frontier cells{_way_back(candidate)}{seen}"
+        f"{candidate.frontier_cells} unexplored frontier cells{seen}"
     )
-
-
-def _way_back(candidate: Candidate) -> str:
-    """The way back, where the agent measured it (beyond the paper)."""
-    if candidate.return_time is None or not math.isfinite(candidate.return_time):
-        return ""
-    return f", its far end {candidate.return_time:.1f} m away (the way back if it is a dead end)"
 
 
 def select_text(goal: str, candidates: Sequence[Candidate], omitted: int) -> str:
@@ -96,20 +89,9 @@ def select_text(goal: str, candidates: Sequence[Candidate], omitted: int) -> str
         "and the openings each view shows, and preferring nearer directions when the evidence is similar. "
         "Say whether the target itself is visible in any view and in which direction, and describe each "
         "view briefly.",
-        *_way_back_advice(candidates),
         _answer_with(SELECT_SCHEMA),
     ]
     return "\n".join(lines)
-
-
-def _way_back_advice(candidates: Sequence[Candidate]) -> list[str]:
-    """How to weigh the way back, when a candidate carries it."""
-    if all(c.return_time is None for c in candidates):
-        return []
-    return [
-        "When two directions are about equally promising, finish the one whose far end is nearer before committing "
-        "to a far one: coming back later costs the whole way again."
-    ]
 
 
 def propose_text(goal: str, description: str, failed: Sequence[str]) -> str:

@@ -77,9 +77,6 @@ class Candidate:
     weighted-FMM time to its nearest frontier cell; ``frontier_cells`` how many frontier cells support it (its
     unexplored extent); ``view`` its representative view, if any; ``current`` marks the direction being
     followed (a VLM prompt says "you are heading toward ...").
-
-    ``return_time`` (beyond the paper; None where the agent does not measure it, as the paper's agent does not) is
-    the travel to where following it leads (its farthest frontier point): the way back should the branch end there.
     """
 
     label: int
@@ -89,7 +86,6 @@ class Candidate:
     frontier_cells: int
     view: View | None = None
     current: bool = False  # the direction the robot is following now
-    return_time: float | None = None
 
 
 @dataclass(frozen=True)

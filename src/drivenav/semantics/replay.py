@@ -112,18 +112,11 @@ def select_request(goal: str, candidates: Sequence[Candidate]) -> Request:
                 "travel_time": _number(c.travel_time),
                 "frontier_cells": c.frontier_cells,
                 "view": None if c.view is None else array_digest(c.view.rgb),
-                **_way_back(c),
             }
             for c in candidates
         ]
     }
     return Request("select_direction", goal, inputs, f"candidate labels {[c.label for c in candidates]}")
-
-
-def _way_back(candidate: Candidate) -> dict[str, float | str]:
-    """The way back a candidate carries (beyond the paper), only where measured: recordings made without it still
-    match."""
-    return {} if candidate.return_time is None else {"return_time": _number(candidate.return_time)}
 
 
 def propose_request(goal: str, view: View, description: str, failed: Sequence[str]) -> Request:

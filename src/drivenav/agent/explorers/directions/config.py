@@ -19,11 +19,12 @@ class DirectionsConfig:
 
     decision_scan: bool = False  # True: a full 360 deg scan at every decision point (Table II: direction-360)
     reidentify_steps: int = 500  # ours: steps a removed direction is remembered, to recognise it under a fresh label
-    skip_void_events: bool = False  # no reasoner question after a void inspection event, nor for a forced choice
-    return_aware: bool = False  # the way back counts: a turn back finishes the near remainder first
+    skip_void_events: bool = False  # no reasoner question with nothing new to judge: a void event, a forced choice
+    return_aware: bool = False  # a turn back finishes the near remainder of the chosen direction first
+    settle_steps: int = 0  # steps a direction is tracked before it may start an inspection event (0: the paper's)
 
     def __post_init__(self) -> None:
-        check_ranges(self, {"reidentify_steps": STEPS})
+        check_ranges(self, {"reidentify_steps": STEPS, "settle_steps": STEPS})
 
 
 EXPLORER = ExplorerEntry(

@@ -16,8 +16,8 @@ from __future__ import annotations
 import math
 
 from drivenav.agent.context import StepContext, replan
-from drivenav.agent.explorers.directions.memory import Directions, Phase
-from drivenav.agent.explorers.directions.returns import nearest_target, return_time
+from drivenav.agent.explorers.directions.memory import Directions, Phase, settled
+from drivenav.agent.explorers.directions.returns import nearest_target
 from drivenav.agent.loop import Loop
 from drivenav.agent.trace import DirectionSelected
 from drivenav.directions import Direction
@@ -31,7 +31,7 @@ from drivenav.types import Action, Observation
 def decide(d: Directions, loop: Loop, observation: Observation, ctx: StepContext, reason: str) -> Action:
     """Ask the reasoner for the next direction, then take the first step toward it (or start enrichment)."""
     state = loop.state
-    d.inspected.update(ctx.directions)
+    d.inspected.update(label for label in ctx.directions if settled(d, loop.step, label))
     offered = candidates(d, loop, ctx, reason)
     if not offered:
         return loop.stop("no_frontier")
@@ -135,8 +135,7 @@ def _forward_only(d: Directions, loop: Loop, reason: str) -> bool:
 
 
 def _candidate(d: Directions, ctx: StepContext, direction: Direction) -> Candidate:
-    """What the reasoner is told of a direction: bearing, turn from the heading, travel time, view; with
-    ``return_aware`` (beyond the paper), the way back from its farthest frontier point too."""
+    """What the reasoner is told of a direction: bearing, turn from the heading, travel time, view."""
     times = [ctx.result.paths[f].travel_time for f in direction.frontier_ids if f in ctx.result.paths]
     return Candidate(
         label=direction.label,
@@ -146,7 +145,6 @@ def _candidate(d: Directions, ctx: StepContext, direction: Direction) -> Candida
         frontier_cells=len(direction.points),
         view=d.views.get(direction.label),
         current=direction.label == d.selected,
-        return_time=return_time(ctx, direction) if d.config.return_aware else None,
     )
 
 

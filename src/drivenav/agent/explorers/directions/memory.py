@@ -84,7 +84,8 @@ class Directions:
     behind the robot only (a dead end), ``returning`` whether the followed direction was chosen so and is followed
     toward its nearest frontier (``return_aware``). ``descriptions`` and ``enriched`` are the reasoner's words on each
     direction and the directions enrichment has run on (Sec. IV-B); ``judged`` the steps of the views the reasoner
-    has been shown. ``counts`` are the episode's counters.
+    has been shown. ``born`` holds the step since which each live or recently retired direction has been tracked
+    (:func:`settled`). ``counts`` are the episode's counters.
     """
 
     config: DirectionsConfig
@@ -106,6 +107,7 @@ class Directions:
     turning_back: bool = False
     returning: bool = False
     event_labels: tuple[int, ...] = ()
+    born: dict[int, int] = field(default_factory=dict)
     counts: DirectionTally = field(default_factory=DirectionTally)
 
     def enter(self, loop: Loop, phase: Phase) -> None:
@@ -121,3 +123,11 @@ class Directions:
         if self.phase is Phase.SCAN:
             return "scan" if self.counts.decisions else "start_scan"
         return str(self.phase.value)
+
+
+def settled(d: Directions, step: int, label: int) -> bool:
+    """Whether direction ``label`` has been tracked for ``settle_steps`` steps (ours, beyond the paper; always true in
+    the paper's agent, whose ``settle_steps`` is 0): only a settled direction starts an inspection event or counts
+    as covered by one. A piece of the followed direction's frontier that splits off for a step or two and merges
+    back never gets there (docs/agent.md "Beyond the paper")."""
+    return step - d.born.get(label, step) >= d.config.settle_steps

@@ -32,13 +32,26 @@ def carry_over(d: Directions, loop: Loop, ctx: StepContext) -> None:
         _follow_successor(d, loop, ctx)
     d.followed = ctx.directions.get(d.selected) if d.selected is not None else None
     d.previous = ctx.directions
+    _note_births(d, loop, ctx)
 
 
 def relabel(d: Directions, label: int, parents: tuple[int, ...], bearing: float) -> None:
-    """``label`` takes over from ``parents``: inspected if one of them was, and their view facing it best."""
+    """``label`` takes over from ``parents``: inspected if one of them was, their view facing it best, and tracked
+    since the earliest of them was."""
     if d.inspected.intersection(parents):
         d.inspected.add(label)
+    since = [d.born[parent] for parent in parents if parent in d.born]
+    if since:
+        d.born[label] = min(since)
     d.views.inherit(label, parents, bearing)
+
+
+def _note_births(d: Directions, loop: Loop, ctx: StepContext) -> None:
+    """A direction seen for the first time is tracked from this step; labels neither live nor remembered as retired
+    are forgotten."""
+    for label in ctx.directions:
+        d.born.setdefault(label, loop.step)
+    d.born = {label: step for label, step in d.born.items() if label in ctx.directions or label in d.gone}
 
 
 def _remember_retired(d: Directions, loop: Loop, removed: tuple[int, ...]) -> None:

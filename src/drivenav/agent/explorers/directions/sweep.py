@@ -16,11 +16,12 @@ from __future__ import annotations
 
 from drivenav.agent.context import StepContext
 from drivenav.agent.explorers.directions.decision import decide
-from drivenav.agent.explorers.directions.memory import Directions, Phase
+from drivenav.agent.explorers.directions.memory import Directions, Phase, settled
 from drivenav.agent.explorers.directions.scan import start as start_scan
 from drivenav.agent.loop import Loop
 from drivenav.agent.trace import InspectionStarted, InspectionVoid
 from drivenav.inspection import needs_inspection, plan_sweep, turn_toward
+from drivenav.inspection.sweep import signed_offset, within
 from drivenav.types import Action, Observation
 
 
@@ -29,7 +30,7 @@ def act(d: Directions, loop: Loop, observation: Observation, ctx: StepContext) -
     action = _continue_sweep(d, loop, ctx.pose.yaw)
     if action is not None:
         return action
-    if d.config.skip_void_events and void(d, ctx):
+    if d.config.skip_void_events and void(d, loop, ctx):
         d.counts.void_events += 1
         loop.trace.add(InspectionVoid(loop.step, d.event_labels))
         d.enter(loop, Phase.FOLLOW)
@@ -37,10 +38,16 @@ def act(d: Directions, loop: Loop, observation: Observation, ctx: StepContext) -
     return decide(d, loop, observation, ctx, "inspection")
 
 
-def void(d: Directions, ctx: StepContext) -> bool:
-    """Whether the event just swept is void: none of the directions that started it is tracked any more, and the
-    direction followed before it still is."""
-    return d.selected in ctx.directions and not any(label in ctx.directions for label in d.event_labels)
+def void(d: Directions, loop: Loop, ctx: StepContext) -> bool:
+    """Whether the event just swept is void: none of the directions that started it is tracked any more, the
+    direction followed before it still is, and the sweep left the reasoner nothing new to judge -- every forward
+    direction's view is one it has seen (a view captured during the sweep may show the target)."""
+    if d.selected not in ctx.directions or any(label in ctx.directions for label in d.event_labels):
+        return False
+    half_range = loop.tuning.paper.inspection.forward_range / 2.0
+    forward = [x for x in ctx.result.directions if within(signed_offset(x.bearing, d.event_heading), half_range)]
+    views = [d.views.get(x.label) for x in forward]
+    return all(view is None or view.step in d.judged for view in views)
 
 
 def inspection_event(d: Directions, loop: Loop, ctx: StepContext) -> bool:
@@ -48,11 +55,11 @@ def inspection_event(d: Directions, loop: Loop, ctx: StepContext) -> bool:
     fresh = [
         direction
         for direction in needs_inspection(ctx.result.directions, d.views, ctx.pose.yaw, loop.tuning.paper.inspection)
-        if direction.label not in d.inspected
+        if direction.label not in d.inspected and settled(d, loop.step, direction.label)
     ]
     if not fresh:
         return False
-    d.inspected.update(ctx.directions)
+    d.inspected.update(label for label in ctx.directions if settled(d, loop.step, label))
     d.event_heading = ctx.pose.yaw
     d.event_labels = tuple(direction.label for direction in fresh)
     d.counts.inspection_events += 1
