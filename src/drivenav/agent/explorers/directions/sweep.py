@@ -20,6 +20,7 @@ from drivenav.agent.explorers.directions.memory import Directions, Phase, settle
 from drivenav.agent.explorers.directions.scan import start as start_scan
 from drivenav.agent.loop import Loop
 from drivenav.agent.trace import InspectionStarted, InspectionVoid
+from drivenav.directions import Direction
 from drivenav.inspection import needs_inspection, plan_sweep, turn_toward
 from drivenav.inspection.sweep import signed_offset, within
 from drivenav.types import Action, Observation
@@ -51,10 +52,11 @@ def void(d: Directions, loop: Loop, ctx: StepContext) -> bool:
 
 
 def inspection_event(d: Directions, loop: Loop, ctx: StepContext) -> bool:
-    """Start an inspection event if new forward directions lack views; True if rotation starts."""
+    """Start an inspection event if new forward directions lack views (with ``settle_steps``: new settled forward
+    directions the reasoner has not judged); True if it starts."""
     fresh = [
         direction
-        for direction in needs_inspection(ctx.result.directions, d.views, ctx.pose.yaw, loop.tuning.paper.inspection)
+        for direction in _due(d, loop, ctx)
         if direction.label not in d.inspected and settled(d, loop.step, direction.label)
     ]
     if not fresh:
@@ -66,10 +68,32 @@ def inspection_event(d: Directions, loop: Loop, ctx: StepContext) -> bool:
     if d.config.decision_scan:
         start_scan(d, loop)
         return True
-    d.pending_yaws = plan_sweep(ctx.pose.yaw, [direction.bearing for direction in fresh], loop.tuning.turn)
+    unseen = [direction.bearing for direction in fresh if not d.views.has_view(direction.label)]
+    d.pending_yaws = plan_sweep(ctx.pose.yaw, unseen, loop.tuning.turn)
     loop.trace.add(InspectionStarted(loop.step, tuple(x.label for x in fresh), tuple(d.pending_yaws)))
     d.enter(loop, Phase.SWEEP)
     return True
+
+
+def _due(d: Directions, loop: Loop, ctx: StepContext) -> list[Direction]:
+    """The forward directions that call for an event (Sec. IV-A c): those lacking a view. A direction that must first
+    settle (``settle_steps``, beyond the paper) may have been seen in passing while it settled: it is still due while
+    the reasoner has not judged its view -- a new exit is never passed by unasked."""
+    inspection = loop.tuning.paper.inspection
+    if d.config.settle_steps == 0:
+        return needs_inspection(ctx.result.directions, d.views, ctx.pose.yaw, inspection)
+    half_range = inspection.forward_range / 2.0
+    ahead = [
+        x
+        for x in ctx.result.directions
+        if not inspection.restrict_forward or within(signed_offset(x.bearing, ctx.pose.yaw), half_range)
+    ]
+    return [x for x in ahead if not d.views.has_view(x.label) or _unjudged(d, x.label)]
+
+
+def _unjudged(d: Directions, label: int) -> bool:
+    view = d.views.get(label)
+    return view is not None and view.step not in d.judged
 
 
 def _continue_sweep(d: Directions, loop: Loop, yaw: float) -> Action | None:
