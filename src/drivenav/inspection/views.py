@@ -92,19 +92,19 @@ def _stored_images(observation: Observation) -> _Stored:
     return (PackedImage.pack(observation.rgb) if render is None else DeferredImage(render)), semantic
 
 
+def inspectable(directions: Sequence[Direction], heading: float, config: InspectionConfig) -> list[Direction]:
+    """The directions an inspection event may cover (Sec. IV-A c): ``|alpha_k| <= forward_range / 2`` (the forward
+    240 deg set) when ``config.restrict_forward`` holds, and every direction otherwise (the "w/o 240 deg inspection
+    view" ablation)."""
+    if not config.restrict_forward:
+        return list(directions)
+    half_range = config.forward_range / 2.0
+    return [d for d in directions if within(signed_offset(d.bearing, heading), half_range)]
+
+
 def needs_inspection(
     directions: Sequence[Direction], views: RepresentativeViews, heading: float, config: InspectionConfig
 ) -> list[Direction]:
-    """The directions an inspection event must turn to (Sec. IV-A c): inspectable and lacking a view.
-
-    Inspectable means ``|alpha_k| <= forward_range / 2`` (the forward 240 deg set) when ``config.restrict_forward``
-    holds, and every direction otherwise (the "w/o 240 deg inspection view" ablation). Directions that already have
-    a view trigger no rotation.
-    """
-    half_range = config.forward_range / 2.0
-    return [
-        d
-        for d in directions
-        if not views.has_view(d.label)
-        and (not config.restrict_forward or within(signed_offset(d.bearing, heading), half_range))
-    ]
+    """The directions an inspection event must turn to (Sec. IV-A c): :func:`inspectable` and lacking a view.
+    Directions that already have a view trigger no rotation."""
+    return [d for d in inspectable(directions, heading, config) if not views.has_view(d.label)]

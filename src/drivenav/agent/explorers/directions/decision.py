@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 
 from drivenav.agent.context import StepContext, replan
-from drivenav.agent.explorers.directions.memory import Directions, Phase, settled
+from drivenav.agent.explorers.directions.memory import Directions, Phase, settled, unjudged
 from drivenav.agent.explorers.directions.returns import nearest_target
 from drivenav.agent.loop import Loop
 from drivenav.agent.trace import DirectionSelected
@@ -60,8 +60,7 @@ def forced(d: Directions, offered: list[Candidate]) -> bool:
     a single direction is offered and the reasoner has already seen its view (or it has none)."""
     if not d.config.skip_void_events or len(offered) != 1:
         return False
-    view = offered[0].view
-    return view is None or view.step in d.judged
+    return not unjudged(d, offered[0].view)
 
 
 def candidates(d: Directions, loop: Loop, ctx: StepContext, reason: str) -> list[Candidate]:

@@ -15,6 +15,7 @@ from drivenav.agent.explorers.directions.config import DirectionsConfig
 from drivenav.agent.loop import Loop
 from drivenav.directions import Direction
 from drivenav.inspection import RepresentativeViews
+from drivenav.semantics.protocols import View
 
 
 class Phase(Enum):
@@ -131,3 +132,8 @@ def settled(d: Directions, step: int, label: int) -> bool:
     as covered by one. A piece of the followed direction's frontier that splits off for a step or two and merges
     back never gets there (docs/agent.md "Beyond the paper")."""
     return step - d.born.get(label, step) >= d.config.settle_steps
+
+
+def unjudged(d: Directions, view: View | None) -> bool:
+    """Whether ``view`` is one the reasoner has not been shown yet (None, no view, is nothing new)."""
+    return view is not None and view.step not in d.judged

@@ -16,12 +16,12 @@ from __future__ import annotations
 
 from drivenav.agent.context import StepContext
 from drivenav.agent.explorers.directions.decision import decide
-from drivenav.agent.explorers.directions.memory import Directions, Phase, settled
+from drivenav.agent.explorers.directions.memory import Directions, Phase, settled, unjudged
 from drivenav.agent.explorers.directions.scan import start as start_scan
 from drivenav.agent.loop import Loop
 from drivenav.agent.trace import InspectionStarted, InspectionVoid
 from drivenav.directions import Direction
-from drivenav.inspection import needs_inspection, plan_sweep, turn_toward
+from drivenav.inspection import inspectable, plan_sweep, turn_toward
 from drivenav.inspection.sweep import signed_offset, within
 from drivenav.types import Action, Observation
 
@@ -47,8 +47,7 @@ def void(d: Directions, loop: Loop, ctx: StepContext) -> bool:
         return False
     half_range = loop.tuning.paper.inspection.forward_range / 2.0
     forward = [x for x in ctx.result.directions if within(signed_offset(x.bearing, d.event_heading), half_range)]
-    views = [d.views.get(x.label) for x in forward]
-    return all(view is None or view.step in d.judged for view in views)
+    return not any(unjudged(d, d.views.get(x.label)) for x in forward)
 
 
 def inspection_event(d: Directions, loop: Loop, ctx: StepContext) -> bool:
@@ -79,21 +78,9 @@ def _due(d: Directions, loop: Loop, ctx: StepContext) -> list[Direction]:
     """The forward directions that call for an event (Sec. IV-A c): those lacking a view. A direction that must first
     settle (``settle_steps``, beyond the paper) may have been seen in passing while it settled: it is still due while
     the reasoner has not judged its view -- a new exit is never passed by unasked."""
-    inspection = loop.tuning.paper.inspection
-    if d.config.settle_steps == 0:
-        return needs_inspection(ctx.result.directions, d.views, ctx.pose.yaw, inspection)
-    half_range = inspection.forward_range / 2.0
-    ahead = [
-        x
-        for x in ctx.result.directions
-        if not inspection.restrict_forward or within(signed_offset(x.bearing, ctx.pose.yaw), half_range)
-    ]
-    return [x for x in ahead if not d.views.has_view(x.label) or _unjudged(d, x.label)]
-
-
-def _unjudged(d: Directions, label: int) -> bool:
-    view = d.views.get(label)
-    return view is not None and view.step not in d.judged
+    ahead = inspectable(ctx.result.directions, ctx.pose.yaw, loop.tuning.paper.inspection)
+    settling = d.config.settle_steps > 0
+    return [x for x in ahead if not d.views.has_view(x.label) or (settling and unjudged(d, d.views.get(x.label)))]
 
 
 def _continue_sweep(d: Directions, loop: Loop, yaw: float) -> Action | None:
