@@ -9,13 +9,12 @@ from drivenav.inspection.sweep import (
     turn_toward,
     within,
 )
-from drivenav.inspection.views import RepresentativeViews, inspectable, needs_inspection
+from drivenav.inspection.views import RepresentativeViews, needs_inspection
 
 __all__ = [
     "ANGLE_EPS",
     "RepresentativeViews",
     "full_scan_turns",
-    "inspectable",
     "needs_inspection",
     "plan_sweep",
     "signed_offset",

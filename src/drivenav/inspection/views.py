@@ -15,7 +15,7 @@ directions it becomes the view of), or an RGB image the world has not rendered y
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 
 from drivenav.directions.types import Direction
 from drivenav.inspection.sweep import signed_offset, within
@@ -103,8 +103,13 @@ def inspectable(directions: Sequence[Direction], heading: float, config: Inspect
 
 
 def needs_inspection(
-    directions: Sequence[Direction], views: RepresentativeViews, heading: float, config: InspectionConfig
+    directions: Sequence[Direction],
+    views: RepresentativeViews,
+    heading: float,
+    config: InspectionConfig,
+    still_due: Callable[[Direction], bool] = lambda _: False,
 ) -> list[Direction]:
-    """The directions an inspection event must turn to (Sec. IV-A c): :func:`inspectable` and lacking a view.
-    Directions that already have a view trigger no rotation."""
-    return [d for d in inspectable(directions, heading, config) if not views.has_view(d.label)]
+    """The directions that call for an inspection event (Sec. IV-A c): :func:`inspectable` and lacking a view.
+    Directions that already have a view trigger no rotation, unless ``still_due`` says otherwise (beyond the paper:
+    a view the reasoner has not judged yet)."""
+    return [d for d in inspectable(directions, heading, config) if not views.has_view(d.label) or still_due(d)]

@@ -21,7 +21,7 @@ from drivenav.agent.explorers.directions.scan import start as start_scan
 from drivenav.agent.loop import Loop
 from drivenav.agent.trace import InspectionStarted, InspectionVoid
 from drivenav.directions import Direction
-from drivenav.inspection import inspectable, plan_sweep, turn_toward
+from drivenav.inspection import needs_inspection, plan_sweep, turn_toward
 from drivenav.inspection.sweep import signed_offset, within
 from drivenav.types import Action, Observation
 
@@ -78,9 +78,14 @@ def _due(d: Directions, loop: Loop, ctx: StepContext) -> list[Direction]:
     """The forward directions that call for an event (Sec. IV-A c): those lacking a view. A direction that must first
     settle (``settle_steps``, beyond the paper) may have been seen in passing while it settled: it is still due while
     the reasoner has not judged its view -- a new exit is never passed by unasked."""
-    ahead = inspectable(ctx.result.directions, ctx.pose.yaw, loop.tuning.paper.inspection)
     settling = d.config.settle_steps > 0
-    return [x for x in ahead if not d.views.has_view(x.label) or (settling and unjudged(d, d.views.get(x.label)))]
+    return needs_inspection(
+        ctx.result.directions,
+        d.views,
+        ctx.pose.yaw,
+        loop.tuning.paper.inspection,
+        lambda x: settling and unjudged(d, d.views.get(x.label)),
+    )
 
 
 def _continue_sweep(d: Directions, loop: Loop, yaw: float) -> Action | None:
