@@ -137,12 +137,13 @@ EXPECTED = {
         "weighted": False,
     },
 }
-PLUS_RULES: dict[str, object] = {"skip_void_events": True, "return_aware": True, "settle_steps": 3}
+PLUS_RULES: dict[str, object] = {"skip_void_events": True, "return_aware": True, "settle_steps": 3, "target_check": 0.5}
 # beyond the paper: drive-nav with every rule of drive-nav-plus, and its ablation rows each without one
 BEYOND = {
     "drive-nav-plus": PLUS_RULES,
     "drive-nav-plus-no-void": {rule: on for rule, on in PLUS_RULES.items() if rule != "skip_void_events"},
     "drive-nav-plus-no-return": {rule: on for rule, on in PLUS_RULES.items() if rule != "return_aware"},
+    "drive-nav-plus-no-check": {rule: on for rule, on in PLUS_RULES.items() if rule != "target_check"},
     "drive-nav-plus-no-settle": {rule: on for rule, on in PLUS_RULES.items() if rule != "settle_steps"},
 }
 

@@ -39,7 +39,8 @@ def make_agent(settings: Settings) -> Agent:
     entry = explorer_entry(settings.explorer.name)
     models = settings.models
     requires = model_requirements(models)
-    if explorer_class(entry).uses_scorer and scorer_reads_labels(models):
+    explorer_config = explorer_section(settings, entry.name)
+    if explorer_class(entry).needs_scorer(explorer_config) and scorer_reads_labels(models):
         requires |= {SEMANTIC}
     return ExplorerAgent(
         settings.sim,
@@ -48,7 +49,7 @@ def make_agent(settings: Settings) -> Agent:
         settings.mapping,
         name=name,
         explorer=entry,
-        explorer_config=explorer_section(settings, entry.name),
+        explorer_config=explorer_config,
         reasoner_factory=partial(make_reasoner, models),
         grounder_factory=partial(make_grounder, models),
         requires=requires,

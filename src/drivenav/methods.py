@@ -28,6 +28,7 @@ _PLUS = (
     "explorer.directions.skip_void_events=true",
     "explorer.directions.return_aware=true",
     "explorer.directions.settle_steps=3",
+    "explorer.directions.target_check=0.5",
 )
 """drive-nav-plus's rules beyond the paper (docs/agent.md "Beyond the paper"), each an ``explorer.directions``
 switch."""
@@ -106,7 +107,7 @@ METHODS: tuple[Method, ...] = (
     Method(
         "drive-nav-plus",
         (),
-        "DRIVE-Nav beyond the paper: settled directions, void events and forced choices skipped, near remainder first",
+        "DRIVE-Nav beyond the paper: settled directions, no void questions, near remainder first, target check",
         _PLUS,
         base="drive-nav",
     ),
@@ -122,6 +123,13 @@ METHODS: tuple[Method, ...] = (
         (),
         "drive-nav-plus following a turn back to its farthest point, as the paper",
         _plus_without("return_aware"),
+        base="drive-nav-plus",
+    ),
+    Method(
+        "drive-nav-plus-no-check",
+        (),
+        "drive-nav-plus judging a promising new view only at the next decision, as the paper",
+        _plus_without("target_check"),
         base="drive-nav-plus",
     ),
     Method(

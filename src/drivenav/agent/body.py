@@ -95,7 +95,8 @@ class ExplorerAgent(Agent):
         self.explorer_entry = explorer or explorer_entry(DEFAULT_EXPLORER)
         self.explorer_config = explorer_config if explorer_config is not None else self.explorer_entry.config()
         self.explorer_type = explorer_class(self.explorer_entry)
-        if self.explorer_type.uses_scorer and scorer_factory is None:
+        self.uses_scorer = self.explorer_type.needs_scorer(self.explorer_config)
+        if self.uses_scorer and scorer_factory is None:
             raise ValueError(f"{name}: the {self.explorer_entry.name} explorer needs an image-text scorer")
         self._reasoner_factory = reasoner_factory
         self._grounder_factory = grounder_factory
@@ -147,9 +148,9 @@ class ExplorerAgent(Agent):
     def _explorer_setup(self, goal_text: str, truth: GroundTruth | None, mapper: OccupancyMapper) -> ExplorerSetup:
         """What the explorer is made from; the image-text scorer (BLIP-2: gigabytes) is built at the first episode
         of an explorer that uses one, and kept."""
-        if self.explorer_type.uses_scorer and self._scorer is None and self._scorer_factory is not None:
+        if self.uses_scorer and self._scorer is None and self._scorer_factory is not None:
             self._scorer = self._scorer_factory()
-        scorer = self._scorer if self.explorer_type.uses_scorer else None
+        scorer = self._scorer if self.uses_scorer else None
         hints = self.state.hints if self.state is not None and self.explorer_type.uses_hints else None
         return ExplorerSetup(self.explorer_config, self.tuning, goal_text, truth, mapper, scorer, hints)
 

@@ -31,7 +31,7 @@ if TYPE_CHECKING:
 class ExplorerSetup:
     """What an explorer is made from at an episode's start: its settings section (``config``, an instance of its
     entry's config class), the agent's tuning, the episode's goal text and ground truth (for stand-in models), the
-    mapper (its grid), for an explorer that scores frames (:attr:`Explorer.uses_scorer`) the worker's image-text
+    mapper (its grid), for an explorer that scores frames (:meth:`Explorer.needs_scorer`) the worker's image-text
     scorer, built once per worker, and for one that reads them (:attr:`Explorer.uses_hints`) the reasoner's
     hints on the goal's category."""
 
@@ -48,7 +48,13 @@ class Explorer(ABC):
     """One episode's exploration: its memory and its step hooks."""
 
     uses_scorer: ClassVar[bool] = False
-    """Whether the explorer scores frames with the image-text scorer (``models.scorer``)."""
+    """Whether the explorer scores frames with the image-text scorer (``models.scorer``) whatever its settings."""
+
+    @classmethod
+    def needs_scorer(cls, config: object) -> bool:
+        """Whether the explorer scores frames with the image-text scorer under ``config``, its settings section: one
+        that uses it only behind a switch says so here, so that a method with the switch off never loads it."""
+        return cls.uses_scorer
 
     uses_hints: ClassVar[bool] = False
     """Whether the explorer reads the reasoner's hints on the goal's category (ApexNav's room for its prompt)."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from drivenav.agent.config import ExplorerEntry
-from drivenav.ranges import STEPS, check_ranges
+from drivenav.ranges import STEPS, UNIT, check_ranges
 
 
 @dataclass(frozen=True)
@@ -22,9 +22,10 @@ class DirectionsConfig:
     skip_void_events: bool = False  # no reasoner question with nothing new to judge: a void event, a forced choice
     return_aware: bool = False  # a turn back finishes the near remainder of the chosen direction first
     settle_steps: int = 0  # steps a direction is tracked before it may start an inspection event (0: the paper's)
+    target_check: float = 0.0  # image-text score of a new view at which it is judged at once (0: no check)
 
     def __post_init__(self) -> None:
-        check_ranges(self, {"reidentify_steps": STEPS, "settle_steps": STEPS})
+        check_ranges(self, {"reidentify_steps": STEPS, "settle_steps": STEPS, "target_check": UNIT})
 
 
 EXPLORER = ExplorerEntry(

@@ -35,6 +35,7 @@ from drivenav.agent.explorers.directions.relabel import carry_over
 from drivenav.agent.loop import Loop
 from drivenav.agent.trace import ScanStarted, ViewCaptured
 from drivenav.inspection import RepresentativeViews, full_scan_turns
+from drivenav.semantics.protocols import ImageTextScorer, ModelCall
 from drivenav.types import Action, Observation
 
 Mode = Callable[[Directions, Loop, Observation, StepContext], Action]
@@ -61,6 +62,14 @@ class DirectionsExplorer(Explorer):
         if not isinstance(setup.config, DirectionsConfig):
             raise TypeError(f"the directions explorer takes a DirectionsConfig, not {type(setup.config).__name__}")
         self.memory = begin_directions(setup, setup.config)
+        self.scorer: ImageTextScorer | None = setup.scorer if setup.config.target_check > 0.0 else None
+        if self.scorer is not None:
+            self.scorer.begin_episode(setup.truth)
+
+    @classmethod
+    def needs_scorer(cls, config: object) -> bool:
+        """Only with the target check (``target_check``, beyond the paper): the paper's agent loads no scorer."""
+        return isinstance(config, DirectionsConfig) and config.target_check > 0.0
 
     def begin(self, loop: Loop) -> None:
         loop.trace.add(ScanStarted(0, self.memory.scan_turns))
@@ -70,7 +79,8 @@ class DirectionsExplorer(Explorer):
         ``inspection``)."""
         start = time.perf_counter()
         carry_over(self.memory, loop, ctx)
-        record_views(self.memory, loop, observation, ctx)
+        if record_views(self.memory, loop, observation, ctx) and self.scorer is not None:
+            self.memory.view_scores[loop.step] = self.scorer.score(loop.host.goal_text, observation)
         timings["inspection"] = (time.perf_counter() - start) * 1000.0
 
     def act(self, loop: Loop, observation: Observation, ctx: StepContext) -> Action:
@@ -86,12 +96,17 @@ class DirectionsExplorer(Explorer):
     def counters(self) -> DirectionCounters:
         return self.memory.counts.freeze()
 
+    def model_calls(self) -> list[ModelCall]:
+        return list(self.scorer.calls) if self.scorer is not None else []
 
-def record_views(d: Directions, loop: Loop, observation: Observation, ctx: StepContext) -> None:
+
+def record_views(d: Directions, loop: Loop, observation: Observation, ctx: StepContext) -> bool:
     """Keep the views of live and recently retired directions, and record a view of every direction the camera now
-    faces better than before (Sec. IV-A c)."""
+    faces better than before (Sec. IV-A c); True if this frame became a view."""
     d.views.retain([*ctx.directions, *d.gone])
-    for label, updated in d.views.observe(ctx.result.directions, observation, loop.step):
+    written = d.views.observe(ctx.result.directions, observation, loop.step)
+    for label, updated in written:
         view = d.views.get(label)
         if view is not None:
             loop.trace.add(ViewCaptured(loop.step, label, view.pose.yaw, view.error, updated))
+    return bool(written)

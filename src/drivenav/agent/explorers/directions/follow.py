@@ -6,7 +6,9 @@ decision) or the planner cannot follow it (the direction is blacklisted for a wh
 follows). A followed direction that only got a fresh label is still followed
 (:mod:`~drivenav.agent.explorers.directions.relabel`). With ``return_aware`` (beyond the paper) a direction chosen
 when nothing was left ahead is followed toward its nearest frontier instead
-(:func:`~drivenav.agent.explorers.directions.decision.goal_point`).
+(:func:`~drivenav.agent.explorers.directions.decision.goal_point`). With ``target_check`` a forward view the
+reasoner has not judged and the image-text scorer rates high is judged at once
+(:func:`~drivenav.agent.explorers.directions.sweep.promising_views`).
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ from __future__ import annotations
 from drivenav.agent.context import StepContext
 from drivenav.agent.explorers.directions.decision import decide, goal_point
 from drivenav.agent.explorers.directions.memory import Directions
-from drivenav.agent.explorers.directions.sweep import inspection_event
+from drivenav.agent.explorers.directions.sweep import inspection_event, promising_views
 from drivenav.agent.loop import Loop
 from drivenav.types import Action, Observation
 
@@ -23,6 +25,11 @@ def act(d: Directions, loop: Loop, observation: Observation, ctx: StepContext) -
     """The next step toward the selected direction's farthest frontier point, or a decision."""
     if inspection_event(d, loop, ctx):
         return loop.policy(observation, ctx)
+    promising = promising_views(d, loop, ctx)
+    if promising:  # the view is there: the reasoner judges it now, without a turn
+        d.checked.update(promising)
+        d.event_heading = ctx.pose.yaw
+        return decide(d, loop, observation, ctx, "inspection")
     if d.selected not in ctx.directions:
         return decide(d, loop, observation, ctx, "vanished")
     direction = ctx.directions[d.selected]

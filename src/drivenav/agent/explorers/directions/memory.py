@@ -86,7 +86,9 @@ class Directions:
     toward its nearest frontier (``return_aware``). ``descriptions`` and ``enriched`` are the reasoner's words on each
     direction and the directions enrichment has run on (Sec. IV-B); ``judged`` the steps of the views the reasoner
     has been shown. ``born`` holds the step since which each live or recently retired direction has been tracked
-    (:func:`settled`). ``counts`` are the episode's counters.
+    (:func:`settled`). With ``target_check``, ``view_scores`` holds the image-text score of each view's frame (by
+    step) and ``checked`` the directions a promising view has started a decision for. ``counts`` are the episode's
+    counters.
     """
 
     config: DirectionsConfig
@@ -109,6 +111,8 @@ class Directions:
     returning: bool = False
     event_labels: tuple[int, ...] = ()
     born: dict[int, int] = field(default_factory=dict)
+    view_scores: dict[int, float] = field(default_factory=dict)
+    checked: set[int] = field(default_factory=set)
     counts: DirectionTally = field(default_factory=DirectionTally)
 
     def enter(self, loop: Loop, phase: Phase) -> None:

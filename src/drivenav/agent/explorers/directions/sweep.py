@@ -88,6 +88,22 @@ def _due(d: Directions, loop: Loop, ctx: StepContext) -> list[Direction]:
     )
 
 
+def promising_views(d: Directions, loop: Loop, ctx: StepContext) -> list[int]:
+    """With ``target_check`` (ours, beyond the paper): whether a forward direction has a view the reasoner has not
+    judged whose frame the image-text scorer rated at least ``target_check``. Such a view may show the target, and
+    the reasoner's answer whether it does is what steers the robot to it and starts prompt enrichment (Sec. IV-B);
+    with fewer decisions it would wait for the next one (docs/ablations-v2/drive-nav-plus-dev.md, C4). Each
+    direction is checked so once (``checked``): a view retaken as the robot nears the target starts no more."""
+    threshold = d.config.target_check
+    if threshold <= 0.0:
+        return []
+    ahead = inspectable(ctx.result.directions, ctx.pose.yaw, loop.tuning.paper.inspection)
+    views = [(x.label, d.views.get(x.label)) for x in ahead if x.label not in d.checked]
+    return [
+        label for label, v in views if v is not None and unjudged(d, v) and d.view_scores.get(v.step, 0.0) >= threshold
+    ]
+
+
 def _continue_sweep(d: Directions, loop: Loop, yaw: float) -> Action | None:
     """The turn toward the first yaw not yet faced, or None when the sweep is done."""
     pending = d.pending_yaws
