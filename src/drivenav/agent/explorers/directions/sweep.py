@@ -23,6 +23,7 @@ from drivenav.agent.trace import InspectionStarted, InspectionVoid
 from drivenav.directions import Direction
 from drivenav.inspection import needs_inspection, plan_sweep, turn_toward
 from drivenav.inspection.sweep import signed_offset, within
+from drivenav.inspection.views import inspectable
 from drivenav.types import Action, Observation
 
 
