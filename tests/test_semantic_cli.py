@@ -38,6 +38,14 @@ def _recorded(recording: Path, out: Path, agent: str) -> None:
     assert recording.stat().st_size > 0
 
 
+def _same_actions(tmp_path: Path, recorded: list[dict[str, object]]) -> None:
+    """Every episode of the replayed run took the recorded run's actions."""
+    for record in recorded:
+        trace_a = json.loads((tmp_path / "recorded" / "traces" / f"{record['episode_id']}.json").read_text())
+        trace_b = json.loads((tmp_path / "replayed" / "traces" / f"{record['episode_id']}.json").read_text())
+        assert trace_a["actions"] == trace_b["actions"]
+
+
 def test_replay_reproduces_a_recorded_run_exactly(tmp_path: Path) -> None:
     recording = tmp_path / "vlm.jsonl"
     _recorded(recording, tmp_path / "recorded", "drive-nav")
@@ -45,10 +53,7 @@ def test_replay_reproduces_a_recorded_run_exactly(tmp_path: Path) -> None:
     assert second.returncode == 0, second.stderr
     recorded, replayed = _records(tmp_path / "recorded"), _records(tmp_path / "replayed")
     assert [_without_timing(r) for r in recorded] == [_without_timing(r) for r in replayed]
-    for record in recorded:
-        trace_a = json.loads((tmp_path / "recorded" / "traces" / f"{record['episode_id']}.json").read_text())
-        trace_b = json.loads((tmp_path / "replayed" / "traces" / f"{record['episode_id']}.json").read_text())
-        assert trace_a["actions"] == trace_b["actions"]
+    _same_actions(tmp_path, recorded)
 
 
 def test_vlfm_replays_its_scores_exactly(tmp_path: Path) -> None:
@@ -61,10 +66,7 @@ def test_vlfm_replays_its_scores_exactly(tmp_path: Path) -> None:
     recorded, replayed = _records(tmp_path / "recorded"), _records(tmp_path / "replayed")
     assert [_without_timing(r) for r in recorded] == [_without_timing(r) for r in replayed]
     assert all(r["vlm_calls_by_kind"] == {"score": r["steps"]} for r in recorded)
-    for record in recorded:
-        trace_a = json.loads((tmp_path / "recorded" / "traces" / f"{record['episode_id']}.json").read_text())
-        trace_b = json.loads((tmp_path / "replayed" / "traces" / f"{record['episode_id']}.json").read_text())
-        assert trace_a["actions"] == trace_b["actions"]
+    _same_actions(tmp_path, recorded)
 
 
 def test_apexnav_replays_its_category_answers_and_scores_exactly(tmp_path: Path) -> None:
@@ -80,10 +82,23 @@ def test_apexnav_replays_its_category_answers_and_scores_exactly(tmp_path: Path)
     assert all(r["vlm_calls_by_kind"] == {"category_hints": 1, "score": r["steps"]} for r in recorded)
     kinds = {json.loads(line)["kind"] for line in recording.read_text().splitlines()}
     assert kinds == {"category_hints", "score"}
-    for record in recorded:
-        trace_a = json.loads((tmp_path / "recorded" / "traces" / f"{record['episode_id']}.json").read_text())
-        trace_b = json.loads((tmp_path / "replayed" / "traces" / f"{record['episode_id']}.json").read_text())
-        assert trace_a["actions"] == trace_b["actions"]
+    _same_actions(tmp_path, recorded)
+
+
+def test_drive_nav_plus_replays_its_target_checks_exactly(tmp_path: Path) -> None:
+    """drive-nav-plus's target check scores each new view (beyond the paper): its scores and the reasoner's choices,
+    recorded into one file and both answered from it, give the same records and actions; the paper's agent asks
+    the scorer nothing."""
+    recording = tmp_path / "calls.jsonl"
+    _recorded(recording, tmp_path / "recorded", "drive-nav-plus")
+    both = ["--reasoner", "replay", "--scorer", "replay", "--vlm-replay", str(recording)]
+    replay = run_cli("eval", "--agent", "drive-nav-plus", *EPISODE_ARGS, *both, "--out", str(tmp_path / "replayed"))
+    assert replay.returncode == 0, replay.stderr
+    recorded, replayed = _records(tmp_path / "recorded"), _records(tmp_path / "replayed")
+    assert [_without_timing(r) for r in recorded] == [_without_timing(r) for r in replayed]
+    assert all(0 < r["vlm_calls_by_kind"]["score"] < r["steps"] for r in recorded)  # type: ignore[index]
+    assert {json.loads(line)["kind"] for line in recording.read_text().splitlines()} >= {"score", "select_direction"}
+    _same_actions(tmp_path, recorded)
 
 
 def _eval_against_fake_server(tmp_path: Path, mode: str) -> list[dict[str, object]]:
