@@ -38,12 +38,16 @@ def _recorded(recording: Path, out: Path, agent: str) -> None:
     assert recording.stat().st_size > 0
 
 
-def _same_actions(tmp_path: Path, recorded: list[dict[str, object]]) -> None:
-    """Every episode of the replayed run took the recorded run's actions."""
+def _replayed_exactly(tmp_path: Path) -> list[dict[str, object]]:
+    """The replayed run's records equal the recorded run's (timings aside) and every episode took the recorded
+    actions; the recorded records."""
+    recorded, replayed = _records(tmp_path / "recorded"), _records(tmp_path / "replayed")
+    assert [_without_timing(r) for r in recorded] == [_without_timing(r) for r in replayed]
     for record in recorded:
         trace_a = json.loads((tmp_path / "recorded" / "traces" / f"{record['episode_id']}.json").read_text())
         trace_b = json.loads((tmp_path / "replayed" / "traces" / f"{record['episode_id']}.json").read_text())
         assert trace_a["actions"] == trace_b["actions"]
+    return recorded
 
 
 def test_replay_reproduces_a_recorded_run_exactly(tmp_path: Path) -> None:
@@ -52,10 +56,8 @@ def test_replay_reproduces_a_recorded_run_exactly(tmp_path: Path) -> None:
     _recorded(recording, tmp_path / "recorded", "drive-nav")
     second = _replay(recording, tmp_path / "replayed")
     assert second.returncode == 0, second.stderr
-    recorded, replayed = _records(tmp_path / "recorded"), _records(tmp_path / "replayed")
-    assert [_without_timing(r) for r in recorded] == [_without_timing(r) for r in replayed]
+    recorded = _replayed_exactly(tmp_path)
     assert all("score" not in r["vlm_calls_by_kind"] for r in recorded)  # type: ignore[operator]
-    _same_actions(tmp_path, recorded)
 
 
 def test_vlfm_replays_its_scores_exactly(tmp_path: Path) -> None:
@@ -65,10 +67,8 @@ def test_vlfm_replays_its_scores_exactly(tmp_path: Path) -> None:
     _recorded(recording, tmp_path / "recorded", "vlfm")
     replay = _replay(recording, tmp_path / "replayed", "vlfm", "--scorer")
     assert replay.returncode == 0, replay.stderr
-    recorded, replayed = _records(tmp_path / "recorded"), _records(tmp_path / "replayed")
-    assert [_without_timing(r) for r in recorded] == [_without_timing(r) for r in replayed]
+    recorded = _replayed_exactly(tmp_path)
     assert all(r["vlm_calls_by_kind"] == {"score": r["steps"]} for r in recorded)
-    _same_actions(tmp_path, recorded)
 
 
 def _replayed_from_one_file(tmp_path: Path, agent: str) -> tuple[list[dict[str, object]], set[str]]:
@@ -79,9 +79,7 @@ def _replayed_from_one_file(tmp_path: Path, agent: str) -> tuple[list[dict[str, 
     both = ["--reasoner", "replay", "--scorer", "replay", "--vlm-replay", str(recording)]
     replay = run_cli("eval", "--agent", agent, *EPISODE_ARGS, *both, "--out", str(tmp_path / "replayed"))
     assert replay.returncode == 0, replay.stderr
-    recorded, replayed = _records(tmp_path / "recorded"), _records(tmp_path / "replayed")
-    assert [_without_timing(r) for r in recorded] == [_without_timing(r) for r in replayed]
-    _same_actions(tmp_path, recorded)
+    recorded = _replayed_exactly(tmp_path)
     return recorded, {json.loads(line)["kind"] for line in recording.read_text().splitlines()}
 
 

@@ -62,7 +62,7 @@ class DirectionsExplorer(Explorer):
         if not isinstance(setup.config, DirectionsConfig):
             raise TypeError(f"the directions explorer takes a DirectionsConfig, not {type(setup.config).__name__}")
         self.memory = begin_directions(setup, setup.config)
-        self.scorer: ImageTextScorer | None = setup.scorer if setup.config.target_check > 0.0 else None
+        self.scorer: ImageTextScorer | None = setup.scorer  # given only when needs_scorer says so
         if self.scorer is not None:
             self.scorer.begin_episode(setup.truth)
 
