@@ -5,12 +5,15 @@ from __future__ import annotations
 import csv
 import hashlib
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
 
-from drivenav.analysis.ablation_report import ordering_differences
-from drivenav.analysis.ablations import method_entry, split_entries
+from drivenav.agent.base import ModelStats
+from drivenav.analysis.ablation_data import AblationReport, Runtime
+from drivenav.analysis.ablation_report import format_markdown, ordering_differences
+from drivenav.analysis.ablations import method_entry, model_call_latency, split_entries
 from drivenav.analysis.stats import bootstrap_mean_interval, wilson_interval
 from drivenav.benchmarks.benchmark import BENCHMARK_V1, BENCHMARK_V2, BenchmarkDefinition, generate_benchmark
 from drivenav.cli import main
@@ -37,6 +40,7 @@ METHOD_KEYS = {
     "vlm_calls",
     "failure_causes",
 }
+DATA = Path(__file__).parent / "data" / "ablations"
 TINY = ["--episodes", "2", "--methods", "drive-nav,nearest-frontier", "--max-steps", "20", "--scenes", "procedural:1"]
 MODELS = ["--reasoner", "geometric", "--detector", "ground-truth"]
 
@@ -229,3 +233,23 @@ def test_split_entries_are_each_methods_results_on_each_splits_episodes() -> Non
     assert (unseen.episodes, unseen.success_rate, unseen.spl) == (2, 0.5, 0.25)
     assert table["other"]["drive-nav"].success_rate == 0.0
     assert split_entries(runs, {}) == {}
+
+
+def test_model_calls_are_given_per_method_beside_their_pooled_rate() -> None:
+    def record(k: int, method: str, scores: int) -> EpisodeRecord:
+        stats = ModelStats({"score": scores} if scores else {}, {"score": 2.0 * scores} if scores else {})
+        return EpisodeRecord(str(k), "s", "chair", method, 10, 0, "timeout", "", stats=stats)
+
+    runs = {
+        "vlfm": {str(k): record(k, "vlfm", 300) for k in range(2)},
+        "drive-nav-plus": {str(k): record(k, "drive-nav-plus", 30 + 10 * k) for k in range(2)},
+        "drive-nav": {str(k): record(k, "drive-nav", 0) for k in range(2)},
+    }
+    score = model_call_latency(runs)["score"]
+    assert (score.calls, score.calls_per_episode, score.mean_latency_ms) == (670, 167.5, 2.0)
+    assert score.by_method == {"vlfm": 300.0, "drive-nav-plus": 35.0}  # drive-nav makes none
+    stored = AblationReport.from_json(json.loads((DATA / "ablations.json").read_text(encoding="utf-8")))
+    markdown = format_markdown(replace(stored, runtime=Runtime(None, {"score": score})))
+    assert "| 167.50 per episode (`drive-nav-plus` 35.00, `vlfm` 300.00) |" in markdown
+    alone = model_call_latency({"vlfm": runs["vlfm"]})["score"]
+    assert "| 300.00 per episode |" in format_markdown(replace(stored, runtime=Runtime(None, {"score": alone})))

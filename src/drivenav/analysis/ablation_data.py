@@ -119,17 +119,24 @@ class Paired:
 @dataclass(frozen=True)
 class ModelCalls:
     """One kind of model call over the runs: how many, how many per episode of the runs that make it, mean
-    latency."""
+    latency, and calls per episode of each method that makes it (methods call a kind at very different rates:
+    VLFM scores every frame, ``drive-nav-plus`` only its representative views)."""
 
     calls: int
     calls_per_episode: float
     mean_latency_ms: float
+    by_method: dict[str, float] = field(default_factory=dict)
 
     def to_json(self) -> JsonObject:
-        return asdict(self)
+        """``by_method`` is left out when empty, as reports written before it have it."""
+        data = asdict(self)
+        if not self.by_method:
+            del data["by_method"]
+        return data
 
     @staticmethod
     def from_json(data: JsonObject) -> ModelCalls:
+        """Reads reports written before ``by_method`` existed as well (it is then empty)."""
         return ModelCalls(**data)
 
 

@@ -13,6 +13,7 @@ from drivenav.analysis.ablation_data import (
     ComputeTable,
     Interval,
     MethodEntry,
+    ModelCalls,
     Paired,
     Pictures,
     Runtime,
@@ -260,10 +261,17 @@ def _table_vii(runtime: Runtime) -> list[str]:
     for kind, calls in runtime.model_calls.items():
         lines.append(
             f"| model call: {kind} | {calls.mean_latency_ms:.1f} ms (mean) |"
-            f" {calls.calls_per_episode:.2f} per episode |"
+            f" {calls.calls_per_episode:.2f} per episode{_by_method(calls)} |"
         )
     lines.extend(["", f"Paper (real-world workstation): {TABLE_VII_PAPER}."])
     return lines
+
+
+def _by_method(calls: ModelCalls) -> str:
+    """Each method's calls per episode, when more than one method makes the call (their pooled mean hides them)."""
+    if len(calls.by_method) < 2:
+        return ""
+    return " (" + ", ".join(f"`{method}` {rate:.2f}" for method, rate in sorted(calls.by_method.items())) + ")"
 
 
 def _compute_rows(compute: ComputeTable | None) -> list[str]:

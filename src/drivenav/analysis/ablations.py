@@ -171,19 +171,24 @@ def failure_counts(records: list[EpisodeRecord]) -> dict[str, int]:
 
 
 def model_call_latency(runs: RunRecords) -> dict[str, ModelCalls]:
-    """Per model-call kind: mean latency per call, and calls per episode over the runs that make such calls."""
+    """Per model-call kind: mean latency per call, calls per episode over the runs that make such calls, and calls
+    per episode of each of those runs."""
     calls: Counter[str] = Counter()
     latency: Counter[str] = Counter()
     episodes: Counter[str] = Counter()
-    for records in runs.values():
+    by_method: dict[str, dict[str, float]] = {}
+    for method, records in runs.items():
         run_calls: Counter[str] = Counter()
         for record in records.values():
             run_calls.update(record.stats.vlm_calls_by_kind)
             latency.update(record.stats.vlm_latency_ms)
         calls.update(run_calls)
-        episodes.update({kind: len(records) for kind, count in run_calls.items() if count})
+        for kind, count in run_calls.items():
+            if count:
+                episodes[kind] += len(records)
+                by_method.setdefault(kind, {})[method] = round(count / len(records), 3)
     return {
-        kind: ModelCalls(count, round(count / episodes[kind], 3), round(latency[kind] / count, 3))
+        kind: ModelCalls(count, round(count / episodes[kind], 3), round(latency[kind] / count, 3), by_method[kind])
         for kind, count in sorted(calls.items())
         if count
     }
