@@ -98,7 +98,13 @@ def inspectable(directions: Sequence[Direction], heading: float, config: Inspect
     view" ablation)."""
     if not config.restrict_forward:
         return list(directions)
-    half_range = config.forward_range / 2.0
+    return forward_of(directions, heading, config.forward_range)
+
+
+def forward_of(directions: Sequence[Direction], heading: float, forward_range: float) -> list[Direction]:
+    """The directions whose bearing lies within ``forward_range / 2`` of ``heading`` (Sec. IV-A c: the forward
+    240 deg the paper's inspection and decisions keep to)."""
+    half_range = forward_range / 2.0
     return [d for d in directions if within(signed_offset(d.bearing, heading), half_range)]
 
 

@@ -23,7 +23,7 @@ from drivenav.agent.trace import DirectionSelected
 from drivenav.directions import Direction
 from drivenav.grid import wrap_angle
 from drivenav.inspection import turn_toward
-from drivenav.inspection.sweep import signed_offset, within
+from drivenav.inspection.views import forward_of
 from drivenav.semantics.protocols import Candidate, Selection
 from drivenav.types import Action, Observation
 
@@ -40,7 +40,7 @@ def decide(d: Directions, loop: Loop, observation: Observation, ctx: StepContext
         direction = ctx.directions[offered[0].label]
         select(d, loop, ctx, direction, reason, [direction.label], False)
         return _first_step(d, loop, observation, ctx, direction)
-    d.counts.decisions[reason] += 1
+    d.counts.decisions[reason] = d.counts.decisions.get(reason, 0) + 1
     selection = state.reasoner.select_direction(loop.host.goal_text, offered)
     d.judged.update(c.view.step for c in offered if c.view is not None)
     d.descriptions.update(selection.descriptions)
@@ -72,8 +72,7 @@ def candidates(d: Directions, loop: Loop, ctx: StepContext, reason: str) -> list
     d.turning_back = False
     if _forward_only(d, loop, reason):
         heading = d.event_heading if reason == "inspection" else ctx.pose.yaw
-        half_range = loop.tuning.paper.inspection.forward_range / 2.0
-        forward = [x for x in usable if within(signed_offset(x.bearing, heading), half_range)]
+        forward = forward_of(usable, heading, loop.tuning.paper.inspection.forward_range)
         if not forward:
             d.counts.dead_end_decisions += 1
         d.turning_back = not forward

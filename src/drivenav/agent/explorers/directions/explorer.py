@@ -94,7 +94,7 @@ class DirectionsExplorer(Explorer):
         return self.memory.activity(escaping)
 
     def counters(self) -> DirectionCounters:
-        return self.memory.counts.freeze()
+        return self.memory.counts.recorded()
 
     def model_calls(self) -> list[ModelCall]:
         return list(self.scorer.calls) if self.scorer is not None else []

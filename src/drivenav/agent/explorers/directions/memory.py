@@ -7,8 +7,7 @@ which the mode modules (:mod:`~drivenav.agent.explorers.directions.scan` and its
 
 from __future__ import annotations
 
-from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import Enum
 
 from drivenav.agent.explorers.directions.config import DirectionsConfig
@@ -27,7 +26,7 @@ class Phase(Enum):
     ENRICH = "enrich"
 
 
-@dataclass(frozen=True)
+@dataclass
 class DirectionCounters:
     """How an episode's exploration went (Sec. IV-A b-c): direction labels the tracker created, merged and removed;
     inspection events; reasoner decisions by trigger (``scan``, ``inspection``, ``vanished``, ``stuck``); decisions
@@ -36,7 +35,8 @@ class DirectionCounters:
     successor (``selected_lost``); fresh labels recognised as a retired direction (removed, or merged away) back at
     its place (``labels_reidentified``). Beyond the paper, with ``skip_void_events``: inspection events that ended
     without a decision because every direction that started them was gone (``void_events``), and choices left with
-    one direction whose view the reasoner had judged, made without it (``forced_choices``)."""
+    one direction whose view the reasoner had judged, made without it (``forced_choices``). The explorer counts
+    into its memory's instance while the episode runs; :meth:`recorded` is what the record keeps."""
 
     labels_created: int = 0
     labels_merged: int = 0
@@ -50,26 +50,10 @@ class DirectionCounters:
     void_events: int = 0
     forced_choices: int = 0
 
-
-@dataclass
-class DirectionTally:
-    """The episode's :class:`DirectionCounters`, while it runs."""
-
-    labels_created: int = 0
-    labels_merged: int = 0
-    labels_removed: int = 0
-    inspection_events: int = 0
-    decisions: Counter[str] = field(default_factory=Counter)
-    dead_end_decisions: int = 0
-    followed_through_relabel: int = 0
-    selected_lost: int = 0
-    labels_reidentified: int = 0
-    void_events: int = 0
-    forced_choices: int = 0
-
-    def freeze(self) -> DirectionCounters:
-        values = {name: getattr(self, name) for name in DirectionCounters.__dataclass_fields__}
-        return DirectionCounters(**{**values, "decisions": dict(sorted(self.decisions.items()))})
+    def recorded(self) -> DirectionCounters:
+        """A copy for the record: decisions by trigger in name order (the order they first happened in depends
+        on the episode)."""
+        return replace(self, decisions=dict(sorted(self.decisions.items())))
 
 
 @dataclass
@@ -113,7 +97,7 @@ class Directions:
     born: dict[int, int] = field(default_factory=dict)
     view_scores: dict[int, float] = field(default_factory=dict)
     checked: set[int] = field(default_factory=set)
-    counts: DirectionTally = field(default_factory=DirectionTally)
+    counts: DirectionCounters = field(default_factory=DirectionCounters)
 
     def enter(self, loop: Loop, phase: Phase) -> None:
         """Switch to ``phase``: the explorer acts from now on (an approach under way gives way to it)."""

@@ -22,8 +22,7 @@ from drivenav.agent.loop import Loop
 from drivenav.agent.trace import InspectionStarted, InspectionVoid
 from drivenav.directions import Direction
 from drivenav.inspection import needs_inspection, plan_sweep, turn_toward
-from drivenav.inspection.sweep import signed_offset, within
-from drivenav.inspection.views import inspectable
+from drivenav.inspection.views import forward_of, inspectable
 from drivenav.types import Action, Observation
 
 
@@ -46,8 +45,7 @@ def void(d: Directions, loop: Loop, ctx: StepContext) -> bool:
     direction's view is one it has seen (a view captured during the sweep may show the target)."""
     if d.selected not in ctx.directions or any(label in ctx.directions for label in d.event_labels):
         return False
-    half_range = loop.tuning.paper.inspection.forward_range / 2.0
-    forward = [x for x in ctx.result.directions if within(signed_offset(x.bearing, d.event_heading), half_range)]
+    forward = forward_of(ctx.result.directions, d.event_heading, loop.tuning.paper.inspection.forward_range)
     return not any(unjudged(d, d.views.get(x.label)) for x in forward)
 
 
