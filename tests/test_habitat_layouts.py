@@ -17,7 +17,7 @@ from drivenav.cli import main
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.habitat.benchmarks import BENCHMARKS, LAYOUTS, OBJECTNAV_V1, OVON
 from drivenav.envs.habitat.config import hydra_overrides, paper_values
-from drivenav.envs.habitat.layouts import goals_key, read_split, scene_path, split_files, write_split
+from drivenav.envs.habitat.layouts import as_held, goals_key, read_split, scene_path, split_files, write_split
 from drivenav.envs.habitat.observations import depth_in_metres, pose_from_gps_compass, to_observation
 from drivenav.envs.habitat.spec import HabitatSpec
 from drivenav.episode import Episode
@@ -30,7 +30,7 @@ from drivenav.types import GEODESIC, SEMANTIC, SimConfig
 def episodes(tmp_path_factory: pytest.TempPathFactory) -> list[Episode]:
     path = tmp_path_factory.mktemp("episodes") / "episodes.json.gz"
     save_episodes(generate_episodes(SceneLibrary("procedural", 0), 8, 4), path)
-    return load_episodes(path)
+    return [as_held(episode) for episode in load_episodes(path)]
 
 
 @pytest.mark.parametrize("layout", LAYOUTS)

@@ -9,7 +9,6 @@ import json
 import logging
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
@@ -18,8 +17,8 @@ from drivenav.benchmarks.generate import generate_episodes
 from drivenav.cli import main
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.habitat.benchmarks import OBJECTNAV_V1, OVON
-from drivenav.envs.habitat.layouts import read_split, write_split
-from drivenav.episode import Episode, ObjectGoal, ViewPoint, habitat_object_id, parse_object_id, rounded
+from drivenav.envs.habitat.layouts import as_held, read_split, write_split
+from drivenav.episode import Episode, ObjectGoal, ViewPoint, habitat_object_id, parse_object_id
 from drivenav.errors import InputError
 from drivenav.eval.episodes import load_episodes, save_episodes
 from drivenav.validation import Fields
@@ -35,10 +34,11 @@ def released(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def own(tmp_path_factory: pytest.TempPathFactory) -> list[Episode]:
-    """drivenav's generated episodes as a user's file holds them (synonyms and several goals among them)."""
+    """drivenav's generated episodes as a user's file holds them (synonyms and several goals among them), with
+    coordinates as a Habitat layout holds them."""
     path = tmp_path_factory.mktemp("own") / "episodes.json.gz"
     save_episodes(generate_episodes(SceneLibrary("procedural", 0), 16, 7), path)
-    return load_episodes(path)
+    return [as_held(episode) for episode in load_episodes(path)]
 
 
 def test_the_released_form_reads_as_hm3d_ovon_means_it(released: Path) -> None:
@@ -67,28 +67,14 @@ def test_the_released_form_is_written_back_field_by_field(released: Path, tmp_pa
 
 
 def test_the_released_form_survives_drivenavs_own_file(released: Path, tmp_path: Path) -> None:
-    """Read, saved as drivenav's episodes file, loaded, exported (``drivenav episodes export``): the fixture, but
-    for coordinates, which drivenav's files keep to 0.1 mm (4 decimals; habitat-lab writes 5)."""
+    """Read, saved as drivenav's episodes file, loaded, exported (``drivenav episodes export``): the fixture, every
+    field and every digit of its coordinates."""
     source = tmp_path / "episodes.json.gz"
     save_episodes(read_split(released, OVON), source)
     out = tmp_path / "datasets" / "ovon" / "hm3d" / "v1"
     argv = ["episodes", "export", "--episodes", str(source), "--format", "ovon", "--split", "val_seen"]
     assert main([*argv, "--out", str(out)]) == 0
-    assert read_documents(out / "val_seen" / "val_seen.json.gz") == _coordinates_to_4_decimals(fixture_files())
-
-
-def _coordinates_to_4_decimals(document: Any) -> Any:
-    if isinstance(document, dict):
-        return {
-            key: [round(v, 4) for v in value] if key in COORDINATES else _coordinates_to_4_decimals(value)
-            for key, value in document.items()
-        }
-    if isinstance(document, list):
-        return [_coordinates_to_4_decimals(item) for item in document]
-    return document
-
-
-COORDINATES = ("position", "rotation", "start_position", "start_rotation")
+    assert read_documents(out / "val_seen" / "val_seen.json.gz") == fixture_files()
 
 
 def test_macos_metadata_files_are_skipped_with_one_warning(
@@ -205,17 +191,12 @@ def test_view_point_radius_and_text_ids_survive_drivenavs_own_file(released: Pat
     path = tmp_path / "e.json.gz"
     save_episodes(episodes, path)
     loaded = load_episodes(path)
-    assert [replace(e, goals=()) for e in loaded] == [_start_to_4_decimals(replace(e, goals=())) for e in episodes]
+    assert loaded == episodes  # every field, every digit
     assert [[g.dataset_id for g in e.goals] for e in loaded] == [[g.dataset_id for g in e.goals] for e in episodes]
     radii = [vp.radius for e in loaded for g in e.goals for vp in g.view_points]
     assert radii == [vp.radius for e in episodes for g in e.goals for vp in g.view_points]
     assert all(vp.radius is not None for e in episodes for g in e.goals for vp in g.view_points)
     assert any(g.dataset_id is not None for e in episodes for g in e.goals)
-
-
-def _start_to_4_decimals(episode: Episode) -> Episode:
-    position, rotation = rounded(episode.start_position), rounded(episode.start_rotation)
-    return replace(episode, start_position=(position[0], position[1], position[2]), start_rotation=(*rotation,))
 
 
 def test_one_scene_and_category_with_two_sets_of_goals_is_refused(own: list[Episode], tmp_path: Path) -> None:

@@ -122,9 +122,11 @@ class Episode:
 # -- the JSON form ----------------------------------------------------------------------------------------------
 
 
-def rounded(values: tuple[float, ...], digits: int = 4) -> list[float]:
-    """Coordinates as episode files store them: 4 decimals (0.1 mm) unless ``digits`` says otherwise."""
-    return [round(float(v), digits) for v in values]
+def coordinates(values: tuple[float, ...], digits: int | None = None) -> list[float]:
+    """Coordinates as episode files store them: exactly (JSON writes the shortest text that reads back as the same
+    float), so an episode read from its file is the episode that ran; or to ``digits`` decimals where a format
+    asks for it (Habitat's layouts: :data:`~drivenav.envs.habitat.layouts.HABITAT_DIGITS`)."""
+    return [float(v) if digits is None else round(float(v), digits) for v in values]
 
 
 def habitat_object_id(goal: ObjectGoal) -> str:
@@ -132,9 +134,9 @@ def habitat_object_id(goal: ObjectGoal) -> str:
     return goal.dataset_id if goal.dataset_id is not None else f"{goal.object_category}_{goal.object_id}"
 
 
-def view_point_to_dict(point: ViewPoint, digits: int = 4) -> JsonObject:
-    """A view point in the JSON form (``radius`` where it has one), coordinates to ``digits`` decimals."""
-    state = {"position": rounded(point.position, digits), "rotation": rounded(point.rotation, digits)}
+def view_point_to_dict(point: ViewPoint, digits: int | None = None) -> JsonObject:
+    """A view point in the JSON form (``radius`` where it has one), coordinates exact or to ``digits`` decimals."""
+    state = {"position": coordinates(point.position, digits), "rotation": coordinates(point.rotation, digits)}
     item: JsonObject = {"agent_state": state, "iou": point.iou}
     if point.radius is not None:
         item["radius"] = point.radius
@@ -147,7 +149,7 @@ def goal_to_dict(goal: ObjectGoal) -> JsonObject:
     return {
         "object_id": goal.dataset_id if goal.dataset_id is not None else goal.object_id,
         "object_category": goal.object_category,
-        "position": rounded(goal.position),
+        "position": coordinates(goal.position),
         "view_points": [view_point_to_dict(vp) for vp in goal.view_points],
     }
 

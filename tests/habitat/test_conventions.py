@@ -19,7 +19,6 @@ from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.habitat.env import HabitatEnv, check_gps_compass
 from drivenav.envs.habitat.observations import depth_in_metres, pose_from_gps_compass
 from drivenav.episode import Episode
-from drivenav.eval.episodes import load_episodes, save_episodes
 from drivenav.types import Action, Pose, SimConfig
 
 TURN = math.radians(30.0)
@@ -27,10 +26,9 @@ TURN = math.radians(30.0)
 
 @pytest.fixture(scope="module")
 def episode(tmp_path_factory: pytest.TempPathFactory) -> Episode:
-    """A generated episode as its file stores it (coordinates to 4 decimals, as the Habitat layouts hold it)."""
-    path = tmp_path_factory.mktemp("episode") / "episode.json.gz"
-    save_episodes(generate_episodes(SceneLibrary("procedural", 0), 1, 11), path)
-    return load_episodes(path)[0]
+    """A generated episode as the Habitat layouts hold it (coordinates to habitat-lab's 5 decimals)."""
+    spec = export(generate_episodes(SceneLibrary("procedural", 0), 1, 11), tmp_path_factory.mktemp("held"), "hm3d-ovon")
+    return spec.episodes()[0]
 
 
 @pytest.fixture()

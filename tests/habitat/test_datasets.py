@@ -18,7 +18,7 @@ from drivenav.envs.habitat.benchmarks import BENCHMARKS
 from drivenav.envs.habitat.env import HabitatEnv
 from drivenav.envs.habitat.layouts import goals_key, scene_name
 from drivenav.envs.habitat.spec import HabitatSpec
-from drivenav.episode import Episode, ObjectGoal, ViewPoint, goal_to_dict, rounded
+from drivenav.episode import Episode, ObjectGoal, ViewPoint, coordinates, goal_to_dict
 from drivenav.types import Action
 
 
@@ -35,8 +35,8 @@ def _ovon_split(data_dir: Path, episode: Episode) -> HabitatSpec:
     scene = episode.scene_id
     common = {
         "scene_id": scene,
-        "start_position": rounded(episode.start_position),
-        "start_rotation": rounded(episode.start_rotation),
+        "start_position": coordinates(episode.start_position),
+        "start_rotation": coordinates(episode.start_rotation),
         "object_category": "sofa",
         "goals": [],
         "info": {"geodesic_distance": 1.0},

@@ -28,11 +28,11 @@ from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.episode import (
     Episode,
     ObjectGoal,
+    coordinates,
     episode_extras,
     goal_to_dict,
     parse_episode_with,
     parse_goals,
-    rounded,
 )
 from drivenav.errors import InputError
 from drivenav.jsonstream import DOCUMENT, ArrayStream, Convert, JsonObject
@@ -49,8 +49,8 @@ def _episode_dict(episode: Episode, goals: Any) -> JsonObject:
     return {
         "episode_id": episode.episode_id,
         "scene_id": episode.scene_id,
-        "start_position": rounded(episode.start_position),
-        "start_rotation": rounded(episode.start_rotation),
+        "start_position": coordinates(episode.start_position),
+        "start_rotation": coordinates(episode.start_rotation),
         "object_category": episode.object_category,
         "goals": goals,
         "info": dict(episode.info),

@@ -40,9 +40,11 @@ from drivenav.episode import (
     CHILDREN,
     Episode,
     ObjectGoal,
+    Quat,
+    Vec3,
+    coordinates,
     habitat_object_id,
     parse_episode,
-    rounded,
     view_point_to_dict,
 )
 from drivenav.errors import InputError
@@ -171,6 +173,29 @@ def _unique_ids(episodes: list[Episode]) -> list[Episode]:
 # ----------------------------------------------------------------------------------------------- writing
 
 
+def as_held(episode: Episode) -> Episode:
+    """``episode`` as a Habitat layout holds it: :func:`write_split` writes coordinates to habitat-lab's
+    :data:`HABITAT_DIGITS` decimals (drivenav's own files keep every digit), so a generated episode read back from
+    an export is this one."""
+
+    def vec(values: Vec3) -> Vec3:
+        x, y, z = coordinates(values, HABITAT_DIGITS)
+        return x, y, z
+
+    def quat(values: Quat) -> Quat:
+        a, b, c, d = coordinates(values, HABITAT_DIGITS)
+        return a, b, c, d
+
+    def goal(g: ObjectGoal) -> ObjectGoal:
+        points = tuple(replace(vp, position=vec(vp.position), rotation=quat(vp.rotation)) for vp in g.view_points)
+        return replace(g, position=vec(g.position), view_points=points)
+
+    goals = tuple(goal(g) for g in episode.goals)
+    return replace(
+        episode, start_position=vec(episode.start_position), start_rotation=quat(episode.start_rotation), goals=goals
+    )
+
+
 def write_split(
     episodes: Sequence[Episode], split_file: Path, layout: str, source: str | Path = "episodes"
 ) -> list[Path]:
@@ -239,7 +264,7 @@ def _keyed_goals(episode: Episode, layout: str) -> dict[str, list[JsonObject]]:
 
 def _goal_item(goal: ObjectGoal, category: str, layout: str) -> JsonObject:
     """A goal as the layout writes it: HM3D-OVON's text id and view point radii, ObjectNav v1's integer id."""
-    position = rounded(goal.position, HABITAT_DIGITS)
+    position = coordinates(goal.position, HABITAT_DIGITS)
     if layout == OVON:
         points = [view_point_to_dict(vp, HABITAT_DIGITS) for vp in goal.view_points]
         return {"object_category": category, "object_id": habitat_object_id(goal), "position": position,
@@ -252,8 +277,8 @@ def _episode_item(episode: Episode, layout: str) -> JsonObject:
     """An episode without its goals: HM3D-OVON's every field (habitat-lab's ``Episode`` ones included), ObjectNav
     v1's as before plus ``scene_dataset_config``."""
     start = {
-        "start_position": rounded(episode.start_position, HABITAT_DIGITS),
-        "start_rotation": rounded(episode.start_rotation, HABITAT_DIGITS),
+        "start_position": coordinates(episode.start_position, HABITAT_DIGITS),
+        "start_rotation": coordinates(episode.start_rotation, HABITAT_DIGITS),
     }
     info = _with_euclidean_distance(episode)
     head = {"episode_id": _file_episode_id(episode), "scene_id": episode.scene_id}
