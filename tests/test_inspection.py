@@ -20,6 +20,7 @@ from drivenav.inspection import (
     sweep_turns,
     turn_toward,
 )
+from drivenav.inspection.views import forward_of
 from drivenav.packing import DeferredImage, PackedImage
 from drivenav.paper import InspectionConfig
 from drivenav.types import Action, CameraIntrinsics, Observation, Pose
@@ -167,6 +168,15 @@ def test_forward_range_boundary_and_existing_views() -> None:
     assert needs_inspection([edge, past], views, 0.0, FORWARD) == [edge]
     views.observe([edge], observation(math.radians(-120.0)), 0)
     assert needs_inspection([edge, past], views, 0.0, FORWARD) == []
+
+
+def test_forward_of_keeps_the_240_deg_around_a_heading_across_the_wrap() -> None:
+    """Heading 170 deg: bearings 180 (10 off), -70 (120 off: the edge) and 50 (-120 off) are forward; -69 (121
+    off) and 0 (-170 off) are not."""
+    bearings = {1: 180.0, 2: -70.0, 3: -69.0, 4: 50.0, 5: 0.0}
+    directions = [direction(label, bearing) for label, bearing in bearings.items()]
+    forward = forward_of(directions, math.radians(170.0), FORWARD.forward_range)
+    assert [d.label for d in forward] == [1, 2, 4]
 
 
 # --- RepresentativeViews ---------------------------------------------------------------------------------------
