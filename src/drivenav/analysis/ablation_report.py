@@ -282,7 +282,8 @@ def _compute_rows(compute: ComputeTable | None) -> list[str]:
         f"Agent compute per step (models excluded), `{compute.agent}`, every step of its {compute.episodes} "
         f"episodes ({compute.steps} steps, {compute.width}x{compute.height}): median "
         f"{compute.latency.median_ms:.1f} ms, p90 {compute.latency.p90_ms:.1f} ms. Model calls: mean latency per "
-        "call over every run above, calls per episode over the runs of the methods that make them.",
+        "call over every run above, calls per episode over the runs of the methods that make them (and, where "
+        "several do, each one's).",
         *header,
     ]
     for name, module in compute.modules.items():
