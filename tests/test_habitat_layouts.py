@@ -17,13 +17,14 @@ from drivenav.cli import main
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.habitat.benchmarks import BENCHMARKS, LAYOUTS, OBJECTNAV_V1, OVON
 from drivenav.envs.habitat.config import hydra_overrides, paper_values
-from drivenav.envs.habitat.layouts import as_held, goals_key, read_split, scene_path, split_files, write_split
+from drivenav.envs.habitat.layouts import goals_key, read_split, scene_path, split_files, write_split
 from drivenav.envs.habitat.observations import depth_in_metres, pose_from_gps_compass, to_observation
 from drivenav.envs.habitat.spec import HabitatSpec
 from drivenav.episode import Episode
 from drivenav.errors import InputError
 from drivenav.eval.episodes import episode_to_dict, load_episodes, save_episodes
 from drivenav.types import GEODESIC, SEMANTIC, SimConfig
+from held import as_held
 
 
 @pytest.fixture(scope="module")

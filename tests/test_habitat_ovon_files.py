@@ -17,11 +17,12 @@ from drivenav.benchmarks.generate import generate_episodes
 from drivenav.cli import main
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.habitat.benchmarks import OBJECTNAV_V1, OVON
-from drivenav.envs.habitat.layouts import as_held, read_split, write_split
+from drivenav.envs.habitat.layouts import read_split, write_split
 from drivenav.episode import Episode, ObjectGoal, ViewPoint, habitat_object_id, parse_object_id
 from drivenav.errors import InputError
 from drivenav.eval.episodes import load_episodes, save_episodes
 from drivenav.validation import Fields
+from held import as_held
 from ovon_fixture import fixture_files, read_documents, write_released
 
 HM3D_CONFIG = "./data/scene_datasets/hm3d/hm3d_annotated_basis.scene_dataset_config.json"

@@ -40,8 +40,6 @@ from drivenav.episode import (
     CHILDREN,
     Episode,
     ObjectGoal,
-    Quat,
-    Vec3,
     coordinates,
     habitat_object_id,
     parse_episode,
@@ -171,29 +169,6 @@ def _unique_ids(episodes: list[Episode]) -> list[Episode]:
 
 
 # ----------------------------------------------------------------------------------------------- writing
-
-
-def as_held(episode: Episode) -> Episode:
-    """``episode`` as a Habitat layout holds it: :func:`write_split` writes coordinates to habitat-lab's
-    :data:`HABITAT_DIGITS` decimals (drivenav's own files keep every digit), so a generated episode read back from
-    an export is this one."""
-
-    def vec(values: Vec3) -> Vec3:
-        x, y, z = coordinates(values, HABITAT_DIGITS)
-        return x, y, z
-
-    def quat(values: Quat) -> Quat:
-        a, b, c, d = coordinates(values, HABITAT_DIGITS)
-        return a, b, c, d
-
-    def goal(g: ObjectGoal) -> ObjectGoal:
-        points = tuple(replace(vp, position=vec(vp.position), rotation=quat(vp.rotation)) for vp in g.view_points)
-        return replace(g, position=vec(g.position), view_points=points)
-
-    goals = tuple(goal(g) for g in episode.goals)
-    return replace(
-        episode, start_position=vec(episode.start_position), start_rotation=quat(episode.start_rotation), goals=goals
-    )
 
 
 def write_split(
