@@ -63,6 +63,11 @@ class ViewPoint:
     def xy(self) -> tuple[float, float]:
         return habitat_to_world(self.position)
 
+    @property
+    def height(self) -> float:
+        """Height above the scene's ground floor (Habitat's ``y``)."""
+        return float(self.position[1])
+
 
 @dataclass(frozen=True)
 class ObjectGoal:
@@ -107,6 +112,11 @@ class Episode:
         return habitat_to_world(self.start_position)
 
     @property
+    def start_height(self) -> float:
+        """Height of the start above the scene's ground floor (Habitat's ``y``): 0 on a one-floor scene."""
+        return float(self.start_position[1])
+
+    @property
     def start_yaw(self) -> float:
         return quaternion_to_yaw(self.start_rotation)
 
@@ -117,6 +127,10 @@ class Episode:
     def view_points_xy(self) -> list[tuple[float, float]]:
         """All goals' view points as 2-D world points."""
         return [vp.xy for goal in self.goals for vp in goal.view_points]
+
+    def view_points_xyz(self) -> list[tuple[float, float, float]]:
+        """All goals' view points as world points with their heights."""
+        return [(*vp.xy, vp.height) for goal in self.goals for vp in goal.view_points]
 
 
 # -- the JSON form ----------------------------------------------------------------------------------------------

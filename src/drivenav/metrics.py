@@ -34,16 +34,23 @@ def spl(is_success: bool, geodesic_distance: float, path_length: float) -> float
 
 
 def path_length(positions: NDArray[np.float64]) -> float:
-    """Length of the polyline through ``(T, 2)`` positions."""
+    """Length of the polyline through ``(T, 2)`` positions, or ``(T, 3)`` ones with their heights."""
     if len(positions) < 2:
         return 0.0
     return float(np.sum(np.linalg.norm(np.diff(positions, axis=0), axis=1)))
 
 
+def _points(positions: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``positions`` as a ``(T, D)`` array: planar points, or points with their heights (a trajectory through a
+    building's floors, so that two floors' paths above each other are never near)."""
+    points = np.asarray(positions, dtype=np.float64)
+    return points.reshape(-1, points.shape[-1] if points.ndim == 2 else 2)
+
+
 def densify(positions: NDArray[np.float64], spacing: float) -> NDArray[np.float64]:
     """Points along the polyline no farther apart than ``spacing`` (vertices included)."""
     if len(positions) < 2:
-        return positions.reshape(-1, 2)
+        return _points(positions)
     pieces = [positions[:1]]
     for a, b in itertools.pairwise(positions):
         n = max(1, int(np.ceil(np.linalg.norm(b - a) / spacing)))
@@ -95,7 +102,7 @@ def retraced(
     needs no agent's segments, so it measures every method alike (the paper's count, :func:`count_revisits`,
     depends on where each method starts its segments).
     """
-    points = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
+    points = _points(positions)
     steps = np.linalg.norm(np.diff(points, axis=0), axis=1)
     moves = np.flatnonzero(steps > 1e-9)
     if len(moves) < 2:

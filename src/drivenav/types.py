@@ -35,11 +35,14 @@ class Action(IntEnum):
 
 @dataclass(frozen=True)
 class Pose:
-    """A planar pose: position in metres and yaw in radians (counter-clockwise)."""
+    """A pose on the floor: planar position in metres, yaw in radians (counter-clockwise), and the height ``z`` of
+    the agent's feet (metres, up; what odometry or habitat's agent state reports, 0 in a world without floors).
+    Headings stay planar: the body is upright, so a frame change turns about the vertical and shifts ``z``."""
 
     x: float
     y: float
     yaw: float
+    z: float = 0.0
 
     def compose(self, local: Pose) -> Pose:
         """``self * local``: the pose ``local`` (given in this pose's frame) in the parent frame."""
@@ -48,12 +51,13 @@ class Pose:
             self.x + c * local.x - s * local.y,
             self.y + s * local.x + c * local.y,
             self.yaw + local.yaw,
+            self.z + local.z,
         )
 
     def inverse(self) -> Pose:
         """The pose of the parent frame's origin in this pose's frame."""
         c, s = math.cos(self.yaw), math.sin(self.yaw)
-        return Pose(-c * self.x - s * self.y, s * self.x - c * self.y, -self.yaw)
+        return Pose(-c * self.x - s * self.y, s * self.x - c * self.y, -self.yaw, -self.z)
 
 
 @dataclass(frozen=True)
@@ -220,12 +224,13 @@ class GeodesicOracle(Protocol):
         """The episode's start pose in the world frame."""
         ...
 
-    def distance(self, x: float, y: float) -> float:
-        """Geodesic distance from a world-frame point to the nearest goal (the success metric's own)."""
+    def distance(self, pose: Pose) -> float:
+        """Geodesic distance from a world-frame pose's point (its height included) to the nearest goal (the success
+        metric's own)."""
         ...
 
-    def forward(self, x: float, y: float, yaw: float) -> tuple[float, float, bool]:
-        """Where a forward step from ``(x, y)`` along ``yaw`` ends, and whether it collides."""
+    def forward(self, pose: Pose) -> tuple[Pose, bool]:
+        """Where a forward step from a world-frame pose along its yaw ends, and whether it collides."""
         ...
 
 

@@ -17,7 +17,9 @@ The rules follow the generator of HM3D-OVON (Yokoyama, Ramrakhya et al., arXiv 2
   of the 2-D world always lies on the one reachable island, also on floor where the agent can turn: every point
   within one forward step (:attr:`~drivenav.types.SimConfig.forward_step`, 0.25 m) of the start is navigable, so
   the agent can turn to any heading and step forward;
-- single-floor paths hold by construction (the embedded world has one floor).
+- in a building, a start lies on a storey's floor (not on the stairs); :class:`~drivenav.benchmarks.generate.Storeys`
+  may ask for a share of episodes that need a floor change (HM3D-OVON's released splits have none; benchmark v3
+  asks for HM3D v1's share).
 
 The generator samples starts around clusters of the navigable mesh; here a start is drawn uniformly from the
 cells that pass the distance limits and the island rule, up to ``start_retries`` times per category (the
@@ -41,9 +43,19 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
-from drivenav.benchmarks.generate import EpisodeDraft, build_episode, cell_start, least_used_first, start_cells
-from drivenav.envs.embedded.geodesic import nearest_by_geodesic
-from drivenav.envs.embedded.goals import SceneGoals, scene_goals
+from drivenav.benchmarks.generate import (
+    ANY_FLOOR,
+    EpisodeDraft,
+    Start,
+    Storeys,
+    build_episode,
+    cell_start,
+    floor_info,
+    least_used_first,
+    start_cells,
+)
+from drivenav.envs.embedded.goals import SceneGoals, scene_goals, view_points_of
+from drivenav.envs.embedded.levels import Point3
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.vocabulary import VOCABULARY, Vocabulary, vocabulary_split
 from drivenav.episode import Episode
@@ -90,15 +102,19 @@ def split_categories(vocab: Vocabulary = VOCABULARY) -> dict[str, frozenset[str]
 
 def island_radius(island: NDArray[np.bool_], resolution: float) -> float:
     """The largest distance (m) from the island's centroid to the centre of one of its cells (Habitat's
-    ``island_radius``: the radius of the circle about the island's centroid that holds it)."""
-    cells = np.argwhere(island).astype(np.float64)
+    ``island_radius``: the radius of the circle about the island's centroid that holds it), in plan (a building's
+    layers taken together)."""
+    cells = np.argwhere(island)[:, -2:].astype(np.float64)
     if len(cells) == 0:
         return 0.0
     return float(np.max(np.linalg.norm(cells - cells.mean(axis=0), axis=1)) * resolution)
 
 
 def turnable(reachable: NDArray[np.bool_], resolution: float, clearance: float) -> NDArray[np.bool_]:
-    """The reachable cells from whose centre every cell centre closer than ``clearance`` (m) is reachable too."""
+    """The reachable cells from whose centre every cell centre closer than ``clearance`` (m) is reachable too
+    (per layer of a building: of its own surface)."""
+    if reachable.ndim == 3:
+        return np.stack([turnable(layer, resolution, clearance) for layer in reachable])
     distance = ndimage.distance_transform_edt(np.pad(reachable, 1))[1:-1, 1:-1] * resolution
     return np.asarray(reachable & (distance >= clearance))
 
@@ -113,21 +129,19 @@ class OvonScene:
 
 def ovon_scene(goals: SceneGoals, sim: SimConfig, rules: OvonRules) -> OvonScene:
     """The start cells of one scene: none where the reachable island is smaller than ``rules.island_radius``."""
-    resolution = goals.scene.grid.resolution
+    resolution = goals.grid.resolution
     if island_radius(goals.reachable, resolution) < rules.island_radius:
         return OvonScene(goals, np.zeros_like(goals.reachable))
     return OvonScene(goals, turnable(goals.reachable, resolution, sim.forward_step))
 
 
-def _view_points(goals: SceneGoals, category: str) -> list[tuple[float, float]]:
-    return [vp.xy for goal in goals.goals[category] for vp in goal.view_points]
-
-
-def straightness(goals: SceneGoals, category: str, start: tuple[float, float], geodesic: float) -> float:
+def straightness(goals: SceneGoals, category: str, start: Point3, geodesic: float) -> float:
     """Geodesic / Euclidean distance from ``start`` to the category's view point that is nearest by geodesic
     distance (the generator's ``dist_ratio``): one geodesic solve from the start finds that view point."""
-    points = _view_points(goals, category)
-    k, _ = nearest_by_geodesic(goals.reachable, goals.scene.grid, start, points)
+    points = view_points_of(goals.goals[category])
+    from_start = goals.terrain.field([start])
+    distances = [from_start.at(*p) for p in points]
+    k = int(np.argmin(distances))
     return _ratio(geodesic, math.dist(start, points[k]))
 
 
@@ -136,21 +150,24 @@ def _ratio(geodesic: float, euclidean: float) -> float:
 
 
 def filtered_start(
-    scene: OvonScene, category: str, rng: np.random.Generator, rules: OvonRules
-) -> tuple[tuple[float, float], float] | None:
-    """A start for ``category`` that passes every filter, or None after ``rules.start_retries`` draws.
+    scene: OvonScene, category: str, rng: np.random.Generator, rules: OvonRules, storeys: Storeys = ANY_FLOOR
+) -> Start | None:
+    """A start for ``category`` on a storey ``storeys`` allows that passes every filter, or None after
+    ``rules.start_retries`` draws.
 
     The straight-line distance to the geodesically nearest view point is at least the distance to the nearest
     view point, so a start whose ratio to the latter is below ``min_ratio`` is rejected without the solve of
     :func:`straightness` (the same starts pass either way, with the same draws)."""
-    cells = start_cells(scene.goals, category, scene.allowed)
+    allowed = storeys.allowed(scene.goals, category, rng)
+    cells = start_cells(scene.goals, category, scene.allowed if allowed is None else scene.allowed & allowed)
     if len(cells) == 0:
         return None
-    points = np.asarray(_view_points(scene.goals, category))
+    points = np.asarray(view_points_of(scene.goals.goals[category]))
     for _ in range(rules.start_retries):
-        (x, y), geodesic = cell_start(scene.goals, category, cells[rng.integers(len(cells))])
-        start = (round(x, 4), round(y, 4))  # as the episode stores it
-        nearest = float(np.min(np.hypot(points[:, 0] - start[0], points[:, 1] - start[1])))
+        (x, y, height), geodesic = cell_start(scene.goals, category, cells[rng.integers(len(cells))])
+        start = (round(x, 4), round(y, 4), height)  # as the episode stores it
+        across = np.hypot(points[:, 0] - start[0], points[:, 1] - start[1])
+        nearest = float(np.min(np.hypot(across, points[:, 2] - height)))
         if _ratio(geodesic, nearest) < rules.min_ratio:
             continue
         ratio = straightness(scene.goals, category, start, geodesic)
@@ -161,13 +178,19 @@ def filtered_start(
 
 
 def generate_ovon_episodes(
-    library: SceneLibrary, num: int, seed: int, sim: SimConfig | None = None, rules: OvonRules = OvonRules()
+    library: SceneLibrary,
+    num: int,
+    seed: int,
+    sim: SimConfig | None = None,
+    rules: OvonRules = OvonRules(),
+    storeys: Storeys = ANY_FLOOR,
 ) -> list[Episode]:
     """``num`` episodes, episode ``i`` of split ``SPLITS[i % 3]``, each split round-robin over the library's
     scenes (a scene without a start that passes the filters for a category of the split is skipped for that
-    turn). Deterministic in ``seed``; generated in order, so the first N are the episodes of ``num = N``. No scene
-    with such a start at all for a split is an :class:`InputError`."""
-    generation = _Generation(library, sim or SimConfig(), rules, np.random.default_rng(seed))
+    turn), starts on a storey chosen as ``storeys`` says. Deterministic in ``seed``; generated in order, so the
+    first N are the episodes of ``num = N``. No scene with such a start at all for a split is an
+    :class:`InputError`."""
+    generation = _Generation(library, sim or SimConfig(), rules, np.random.default_rng(seed), storeys)
     episodes: list[Episode] = []
     while len(episodes) < num and library.scene_ids:
         episodes.append(generation.next_episode(len(episodes)))
@@ -182,6 +205,7 @@ class _Generation:
     sim: SimConfig
     rules: OvonRules
     rng: np.random.Generator
+    storeys: Storeys
     allowed: dict[str, frozenset[str]] = field(default_factory=split_categories)
     scenes: dict[str, OvonScene] = field(default_factory=dict)
     used: dict[str, Counter[str]] = field(default_factory=lambda: {name: Counter() for name in SPLITS})
@@ -213,12 +237,13 @@ class _Generation:
         scene = self.scene(scene_id)
         present = [c for c in scene.goals.goals if c in self.allowed[split]]
         for category in least_used_first(present, self.used[split], self.rng):
-            start = filtered_start(scene, category, self.rng, self.rules)
+            start = filtered_start(scene, category, self.rng, self.rules, self.storeys)
             if start is None:
                 continue
             synonym = split == SPLITS[1]
             text = _pick(VOCABULARY.synonyms(category), self.rng) if synonym else category
-            return EpisodeDraft(episode_id, scene_id, category, start, text, synonym, ((SPLIT_KEY, split),))
+            extra = ((SPLIT_KEY, split), *floor_info(scene.goals, category, start))
+            return EpisodeDraft(episode_id, scene_id, category, start, text, synonym, extra)
         return None
 
 

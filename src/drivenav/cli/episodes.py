@@ -18,10 +18,19 @@ def add_episodes(commands: Commands) -> None:
     parser = commands.add_parser("episodes", help="episode files")
     sub = parser.add_subparsers(dest="episodes_command", required=True)
     generate = sub.add_parser("generate", help="generate HM3D-OVON-style episodes (json.gz)")
-    generate.add_argument("--scenes", default="procedural")
+    generate.add_argument(
+        "--scenes", default="procedural", help="a --scenes SPEC (storeys[:K]: homes of several floors)"
+    )
     generate.add_argument("--num", type=int, required=True)
     generate.add_argument("--seed", type=int, default=0)
     generate.add_argument("--out", type=path, required=True)
+    generate.add_argument(
+        "--cross-floor",
+        type=str,
+        metavar="SHARE",
+        help="in scenes of several storeys, the share of episodes (0 to 1) whose target has no instance on the start "
+        "floor, so that the agent must change floors (default: starts on any floor)",
+    )
     generate.set_defaults(handler=_cmd_episodes_generate)
     export = sub.add_parser("export", help="write an episodes file in a Habitat layout (ObjectNav v1 or HM3D-OVON)")
     export.add_argument("--episodes", required=True, type=path, help="an episodes file (drivenav's json.gz)")
@@ -52,19 +61,33 @@ them, by id) and the packaged floor plans."""
 
 
 def _cmd_episodes_generate(args: argparse.Namespace) -> int:
-    from drivenav.benchmarks.generate import generate_episodes
+    from drivenav.benchmarks.generate import Storeys, generate_episodes
     from drivenav.envs.embedded.library import SceneLibrary
     from drivenav.eval.episodes import save_episodes
     from drivenav.types import SimConfig
 
     count = episode_count(args.num, "--num")
+    storeys = Storeys(None if args.cross_floor is None else share(args.cross_floor, "--cross-floor"))
     library = SceneLibrary(args.scenes, seed(args.seed))
-    episodes = generate_episodes(library, count, args.seed, SimConfig())
+    episodes = generate_episodes(library, count, args.seed, SimConfig(), storeys)
     save_episodes(episodes, args.out)
     synonyms = sum(bool(e.info.get("synonym")) for e in episodes)
     scenes = len({e.scene_id for e in episodes})
-    print(f"wrote {len(episodes)} episodes over {scenes} scenes ({synonyms} by synonym) to {args.out}")
+    cross = sum(e.info.get("cross_floor") is True for e in episodes)
+    floors = f", {cross} needing a floor change" if any("cross_floor" in e.info for e in episodes) else ""
+    print(f"wrote {len(episodes)} episodes over {scenes} scenes ({synonyms} by synonym{floors}) to {args.out}")
     return 0
+
+
+def share(text: str, option: str) -> float:
+    """A share from the command line: a number from 0 to 1 (one line and exit 2 otherwise)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not 0.0 <= value <= 1.0:
+        raise InputError("command line", option, "a share from 0 to 1", text)
+    return value
 
 
 def _cmd_episodes_export(args: argparse.Namespace) -> int:

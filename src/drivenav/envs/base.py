@@ -69,9 +69,9 @@ def measured(
 
 def episode_pose(start: Pose, pose: Pose) -> Pose:
     """A world-frame ``pose`` in the episode frame of a world whose episode started at ``start`` (what every
-    world reports as :attr:`Observation.pose`), yaw in ``(-pi, pi]``."""
+    world reports as :attr:`Observation.pose`), yaw in ``(-pi, pi]``, height relative to the start's."""
     local = start.inverse().compose(pose)
-    return Pose(local.x, local.y, wrap_angle(local.yaw))
+    return Pose(local.x, local.y, wrap_angle(local.yaw), local.z)
 
 
 class Env(Protocol):

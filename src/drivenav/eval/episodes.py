@@ -22,9 +22,8 @@ from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import Any
 
-from drivenav.envs.embedded.geodesic import GeodesicField, largest_component
-from drivenav.envs.embedded.goals import SceneGoals
 from drivenav.envs.embedded.library import SceneLibrary
+from drivenav.envs.embedded.terrain import START_TOLERANCE, DistanceField, FlatTerrain, Terrain, terrain_of
 from drivenav.episode import (
     Episode,
     ObjectGoal,
@@ -209,59 +208,54 @@ def _refuse_duplicates(fields: Fields, episodes: list[Episode]) -> None:
 GEODESIC_TOLERANCE = 0.10  # an episode's info.geodesic_distance may differ this much from the world's own
 
 
-FLOOR_TOLERANCE = 0.25  # metres: the embedded world's floor is at height 0 (Habitat's one-floor step limit)
+FLOOR_TOLERANCE = START_TOLERANCE  # metres: a start stands on a floor (Habitat's one-floor step limit)
 
 
 def validate_for_scenes(episodes: list[Episode], library: SceneLibrary, source: str | Path, sim: SimConfig) -> None:
     """Every episode fits the world: its scene is in ``library``; its start and view points lie on the scene's one
-    connected navigable area (:func:`largest_component`), so a goal is reachable from the start; and
-    ``info.geodesic_distance`` (if given) is the world's start-to-goal distance (what SPL divides by) within 10 %.
-    Goals that episodes share (one tuple, as a file's repeated goals text reads) are checked once."""
+    connected navigable area (:mod:`drivenav.envs.embedded.terrain`; in a building, on a floor within 0.25 m of
+    their heights), so a goal is reachable from the start; and ``info.geodesic_distance`` (if given) is the world's
+    start-to-goal distance (what SPL divides by) within 10 %. Goals that episodes share (one tuple, as a file's
+    repeated goals text reads) are checked once."""
     fields = Fields(source)
-    contexts: dict[str, SceneGoals] = {}
-    distances: dict[tuple[str, tuple[int, ...]], GeodesicField] = {}  # by the goals' ids: all alive in ``episodes``
+    terrains: dict[str, Terrain] = {}
+    distances: dict[tuple[str, tuple[int, ...]], DistanceField] = {}  # by the goals' ids: all alive in ``episodes``
     for i, episode in enumerate(episodes):
         if episode.scene_id not in library:
             raise fields.error(f"episodes[{i}].scene_id", f"a scene of --scenes {library.spec}", episode.scene_id)
-        if episode.scene_id not in contexts:
-            scene = library.load(episode.scene_id)
-            reachable = largest_component(scene.navigable_grid(sim.agent_radius, sim.agent_height))
-            contexts[episode.scene_id] = SceneGoals(scene, reachable, {})
-        context = contexts[episode.scene_id]
+        if episode.scene_id not in terrains:
+            terrains[episode.scene_id] = terrain_of(library.load(episode.scene_id), sim)
+        terrain = terrains[episode.scene_id]
         key = (episode.scene_id, tuple(map(id, episode.goals)))
         if key not in distances:
-            _check_view_points(episode, f"episodes[{i}]", context, fields)
-            distances[key] = GeodesicField(context.reachable, context.scene.grid, episode.view_points_xy())
-        _check_start(episode, f"episodes[{i}]", context, fields)
+            _check_view_points(episode, f"episodes[{i}]", terrain, fields)
+            distances[key] = terrain.field(episode.view_points_xyz())
+        _check_start(episode, f"episodes[{i}]", terrain, fields)
         _check_geodesic(episode, f"episodes[{i}]", distances[key], fields)
-
-
-def _on_reachable(context: SceneGoals, xy: tuple[float, float]) -> bool:
-    row, col = context.scene.grid.cell_at(*xy)
-    rows, cols = context.reachable.shape
-    return bool(0 <= row < rows and 0 <= col < cols and context.reachable[row, col])
 
 
 def _where(episode: Episode) -> str:
     return f"a navigable position the agent can reach in {episode.scene_id}"
 
 
-def _check_view_points(episode: Episode, name: str, context: SceneGoals, fields: Fields) -> None:
+def _check_view_points(episode: Episode, name: str, terrain: Terrain, fields: Fields) -> None:
     for k, goal in enumerate(episode.goals):
         for m, point in enumerate(goal.view_points):
-            if not _on_reachable(context, point.xy):
+            if not terrain.on_reachable(*point.xy, point.height):
                 field = f"{name}.goals[{k}].view_points[{m}].agent_state.position"
                 raise fields.error(field, _where(episode), list(point.position))
 
 
-def _check_start(episode: Episode, name: str, context: SceneGoals, fields: Fields) -> None:
-    if not _on_reachable(context, episode.start_xy) or abs(episode.start_position[1]) > FLOOR_TOLERANCE:
-        expected = f"{_where(episode)}, on its floor (height 0)"
+def _check_start(episode: Episode, name: str, terrain: Terrain, fields: Fields) -> None:
+    height = episode.start_height
+    flat = isinstance(terrain, FlatTerrain)
+    if not terrain.on_reachable(*episode.start_xy, height) or (flat and abs(height) > FLOOR_TOLERANCE):
+        expected = f"{_where(episode)}, on its floor (height 0)" if flat else f"{_where(episode)}, on a floor"
         raise fields.error(f"{name}.start_position", expected, list(episode.start_position))
 
 
-def _check_geodesic(episode: Episode, name: str, goals: GeodesicField, fields: Fields) -> None:
-    distance = goals.at(*episode.start_xy)  # finite: start and view points share one component
+def _check_geodesic(episode: Episode, name: str, goals: DistanceField, fields: Fields) -> None:
+    distance = goals.at(*episode.start_xy, episode.start_height)  # finite: start and view points share one area
     given = episode.info.get("geodesic_distance")
     if given is not None and abs(given - distance) > GEODESIC_TOLERANCE * distance:
         expected = f"the world's start-to-goal distance {distance:.2f} m within {GEODESIC_TOLERANCE:.0%}"

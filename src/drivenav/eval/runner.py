@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 from tqdm import tqdm
 from tqdm.contrib.logging import logging_redirect_tqdm
 
@@ -92,12 +93,22 @@ class _Trajectory:
 
     positions: list[tuple[float, float]] = field(default_factory=list)
     yaws: list[float] = field(default_factory=list)
+    heights: list[float] = field(default_factory=list)
     actions: list[int] = field(default_factory=list)
 
     def add(self, env: Env) -> None:
         pose = env.world_pose()
         self.positions.append((pose.x, pose.y))
         self.yaws.append(pose.yaw)
+        self.heights.append(pose.z)
+
+    def points(self) -> NDArray[np.float64]:
+        """The positions as ``(T, 2)``, or ``(T, 3)`` with their heights where the agent left height 0 (a building's
+        floors: paths on two floors are never near each other)."""
+        planar = np.asarray(self.positions, dtype=np.float64).reshape(-1, 2)
+        if not any(self.heights):
+            return planar
+        return np.column_stack([planar, np.asarray(self.heights, dtype=np.float64)])
 
 
 def _observed(observation: Observation, agent: Agent) -> Observation:
@@ -166,7 +177,7 @@ def _record(
 ) -> EpisodeRecord:
     """The episode's record: what it was, what the world measured, what the agent did (paper Sec. V metrics)."""
     calls, stats = _model_use(agent, started=bool(path.positions))
-    positions = np.asarray(path.positions).reshape(-1, 2)
+    positions = path.points()
     retraced_revisits, retraced_m = metrics.retraced(positions)
     return EpisodeRecord(
         episode_id=episode.episode_id,
@@ -197,13 +208,16 @@ def _record(
 
 
 def _trace(episode: Episode, agent: Agent, path: _Trajectory, error: EpisodeError | None) -> EpisodeTrace:
-    """The episode's trace: the poses rounded to 0.1 mm (and 1e-4 rad), the agent's events and step timings."""
+    """The episode's trace: the poses rounded to 0.1 mm (and 1e-4 rad; heights where the agent left height 0),
+    the agent's events and step timings."""
     positions = np.round(np.asarray(path.positions, dtype=np.float64).reshape(-1, 2), 4).tolist()
+    heights = np.round(path.heights, 4).tolist() if any(path.heights) else []
     return EpisodeTrace(
         episode_id=episode.episode_id,
         scene_id=episode.scene_id,
         positions=tuple((float(x), float(y)) for x, y in positions),
         yaws=tuple(float(yaw) for yaw in np.round(path.yaws, 4).tolist()),
+        heights=tuple(float(z) for z in heights),
         actions=tuple(path.actions),
         segment_starts=tuple(agent.segment_starts),
         events=tuple(agent.trace.events),

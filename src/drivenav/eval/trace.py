@@ -1,9 +1,10 @@
 """The saved episode trace (``RUN_DIR/traces/<id>.json``): what the runner writes and every picture reads.
 
-:class:`EpisodeTrace` is one episode as the runner saw it: world-frame poses (``positions``, ``yaws``, one per
-step from the start), the actions taken, where the agent's trajectory segments start, the agent's typed events
-(:mod:`drivenav.agent.trace`; event points and bearings are in the episode frame), the per-step module timings
-(``step_ms``, :mod:`drivenav.eval.timings`) and, for an episode an exception ended, that exception.
+:class:`EpisodeTrace` is one episode as the runner saw it: world-frame poses (``positions``, ``yaws``, one per step from
+the start, and ``heights`` where the agent left height 0: a building's floors), the actions taken, where the agent's
+trajectory segments start, the agent's typed events (:mod:`drivenav.agent.trace`; event points and bearings are in the
+episode frame), the per-step module timings (``step_ms``, :mod:`drivenav.eval.timings`) and, for an episode an exception
+ended, that exception.
 
 The file layout has a version. Version 1 is the layout written before the key ``version`` existed (its files
 have no such key; the oldest lack ``segment_starts`` and ``step_ms`` too); version 2 is the same keys plus
@@ -61,6 +62,7 @@ class EpisodeTrace:
     positions: tuple[Point, ...]
     yaws: tuple[float, ...]
     actions: tuple[int, ...] = ()
+    heights: tuple[float, ...] = ()
     segment_starts: tuple[int, ...] = ()
     events: tuple[Event, ...] = ()
     step_ms: StepColumns = field(default_factory=dict)
@@ -82,6 +84,8 @@ class EpisodeTrace:
         }
         if self.error is not None:
             data["error"] = self.error.to_json()
+        if self.heights:
+            data["heights"] = list(self.heights)
         data["version"] = TRACE_VERSION
         return data
 
@@ -98,6 +102,10 @@ class EpisodeTrace:
         yaws = tuple(fields.number(y, f"yaws[{k}]") for k, y in enumerate(fields.sequence(obj["yaws"], "yaws")))
         if len(yaws) != len(positions):
             raise fields.error("yaws", f"one yaw per position ({len(positions)})", len(yaws))
+        no_heights: tuple[float, ...] = ()
+        heights = _optional(obj, "heights", no_heights, lambda v: _numbers(v, "heights", fields))
+        if heights and len(heights) != len(positions):
+            raise fields.error("heights", f"one height per position ({len(positions)})", len(heights))
         return EpisodeTrace(
             episode_id=_optional(obj, "episode_id", "", lambda v: _text(v, "episode_id", fields)),
             scene_id=_optional(obj, "scene_id", "", lambda v: _text(v, "scene_id", fields)),
@@ -108,6 +116,7 @@ class EpisodeTrace:
             events=_optional(obj, "events", (), lambda v: _events(v, fields)),
             step_ms=_optional(obj, "step_ms", {}, lambda v: _step_ms(v, fields)),
             error=_optional(obj, "error", None, lambda v: _error(v, fields)),
+            heights=heights,
             version=version,
         )
 
@@ -139,6 +148,10 @@ def _text(value: Any, field: str, fields: Fields) -> str:
 def _point(value: Any, field: str, fields: Fields) -> Point:
     x, y = fields.numbers(value, field, 2)
     return x, y
+
+
+def _numbers(value: Any, field: str, fields: Fields) -> tuple[float, ...]:
+    return tuple(fields.number(item, f"{field}[{k}]") for k, item in enumerate(fields.sequence(value, field)))
 
 
 def _integers(value: Any, field: str, fields: Fields) -> tuple[int, ...]:

@@ -16,7 +16,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivenav.envs.base import EpisodeMeasures
+from drivenav.envs.embedded.building import floor_plan
 from drivenav.envs.embedded.env import EmbeddedEnv
+from drivenav.envs.embedded.scene import Scene
 from drivenav.episode import Episode
 from drivenav.grid import GridSpec
 from drivenav.robot.parts import MotionResult, SensorFrame
@@ -63,7 +65,7 @@ class SimulatedRobot:
         self._episodes = {e.episode_id: e for e in episodes}
         self._lidar = lidar
         self._observation: Observation | None = None
-        self._blocked: NDArray[np.bool_] | None = None
+        self._blocked: tuple[Scene, NDArray[np.bool_]] | None = None  # a floor plan and its obstacles
 
     def info(self) -> RobotInfo:
         """What this robot says of itself at HELLO: the world's sensor and body, ground-truth labels."""
@@ -101,10 +103,10 @@ class SimulatedRobot:
     def _scan(self, pose: Pose) -> NDArray[np.float32] | None:
         if self._lidar is None:
             return None
-        scene = self._env.scene
-        if self._blocked is None:
-            self._blocked = scene.obstacle_grid(self._env.config.agent_height)
-        return self._lidar.scan(self._blocked, scene.grid, pose)
+        plan = floor_plan(self._env.scene, pose.z)
+        if self._blocked is None or self._blocked[0] is not plan:
+            self._blocked = (plan, plan.obstacle_grid(self._env.config.agent_height))
+        return self._lidar.scan(self._blocked[1], plan.grid, pose)
 
     def close(self) -> None:
         self._env.close()

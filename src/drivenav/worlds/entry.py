@@ -21,6 +21,7 @@ from drivenav.plugins import OptionAdder, no_options, refuse_options
 
 if TYPE_CHECKING:
     from drivenav.envs.base import EnvSpec
+    from drivenav.envs.embedded.building import Building
     from drivenav.envs.embedded.scene import Scene
     from drivenav.episode import Episode
     from drivenav.eval.runner import RunSpec
@@ -28,7 +29,7 @@ if TYPE_CHECKING:
 
 SpecBuilder = Callable[[argparse.Namespace, "Settings"], "EnvSpec"]
 EpisodeSource = Callable[[argparse.Namespace, "RunSpec"], "list[Episode]"]
-SceneLoader = Callable[[str], "Scene"]
+SceneLoader = Callable[[str], "Scene | Building"]
 
 
 def no_presets(args: argparse.Namespace) -> list[str]:
@@ -79,7 +80,7 @@ class WorldEntry:
             expected = f"a {self.name} world's fields ({', '.join(names)})"
             raise InputError(source, "config.env", expected, str(error)) from None
 
-    def scene(self, spec: EnvSpec, scene_id: str, source: str | Path) -> Scene | None:
+    def scene(self, spec: EnvSpec, scene_id: str, source: str | Path) -> Scene | Building | None:
         """The scene ``scene_id`` of the world ``spec`` describes (None where drivenav cannot draw this world's
         scenes); an :class:`InputError` naming ``source``'s ``scene_id`` when the world has no such scene (an
         episodes copy naming another world's scene)."""

@@ -24,11 +24,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivenav.envs.base import EpisodeMeasures, episode_pose
-from drivenav.envs.embedded.geodesic import GeodesicField, largest_component
+from drivenav.envs.embedded.building import Building, storeys_of
 from drivenav.envs.embedded.measures import EmbeddedMeasures
-from drivenav.envs.embedded.motion import forward_step, is_navigable
 from drivenav.envs.embedded.render import Images, Renderer
 from drivenav.envs.embedded.scene import Scene
+from drivenav.envs.embedded.terrain import DistanceField, Terrain, terrain_of
 from drivenav.envs.vocabulary import VOCABULARY
 from drivenav.episode import Episode
 from drivenav.grid import wrap_angle
@@ -40,11 +40,10 @@ _GEODESIC_CACHE = 4  # target sets whose distance fields are kept
 
 @dataclass(frozen=True)
 class _World:
-    """A loaded scene with what the env derives from it."""
+    """A loaded scene or building with what the env derives from it."""
 
-    scene: Scene
-    navigable: NDArray[np.bool_]
-    reachable: NDArray[np.bool_]  # the largest navigable component: where episodes start and goals are measured
+    scene: Scene | Building
+    terrain: Terrain  # where the agent can stand and go; its reachable part is where episodes start
     renderer: Renderer
 
 
@@ -68,27 +67,29 @@ class _Geodesic:
     """The embedded world's :class:`~drivenav.types.GeodesicOracle` for one episode."""
 
     world: _World
-    field: GeodesicField
+    field: DistanceField
     start_pose: Pose
     step: float
 
-    def distance(self, x: float, y: float) -> float:
-        return float(self.field.at(x, y))
+    def distance(self, pose: Pose) -> float:
+        return float(self.field.at(pose.x, pose.y, pose.z))
 
-    def forward(self, x: float, y: float, yaw: float) -> tuple[float, float, bool]:
-        return forward_step(self.world.navigable, self.world.scene.grid, x, y, yaw, self.step)
+    def forward(self, pose: Pose) -> tuple[Pose, bool]:
+        (x, y, z), collided = self.world.terrain.forward(pose.x, pose.y, pose.z, pose.yaw, self.step)
+        return Pose(x, y, pose.yaw, z), collided
 
 
 class EmbeddedEnv:
-    """ObjectNav environment over embedded scenes (Habitat action space and sensor defaults).
+    """ObjectNav environment over embedded scenes and buildings (Habitat action space and sensor defaults).
 
-    ``scene_loader`` maps an episode's ``scene_id`` to a :class:`Scene`; up to ``cache_size`` loaded scenes
-    are kept. Headings are kept as a whole number of turns from the start heading, so turning a full circle
-    gives back exactly the start yaw.
+    ``scene_loader`` maps an episode's ``scene_id`` to a :class:`Scene` or a :class:`Building`; up to ``cache_size``
+    loaded scenes are kept. The agent stands on the floor under it: a start is placed on the floor nearest its height
+    (an episode's ``start_position[1]``), and every pose carries that floor's height. Headings are kept as a whole
+    number of turns from the start heading, so turning a full circle gives back exactly the start yaw.
     """
 
     def __init__(
-        self, scene_loader: Callable[[str], Scene], config: SimConfig = _DEFAULT_CONFIG, cache_size: int = 2
+        self, scene_loader: Callable[[str], Scene | Building], config: SimConfig = _DEFAULT_CONFIG, cache_size: int = 2
     ) -> None:
         self._loader = scene_loader
         self._config = config
@@ -96,11 +97,11 @@ class EmbeddedEnv:
         self._worlds: OrderedDict[str, _World] = OrderedDict()
         self._scene_id: str | None = None
         self._start = Pose(0.0, 0.0, 0.0)
-        self._xy = (0.0, 0.0)
+        self._xyz = (0.0, 0.0, 0.0)
         self._turns = 0
         self._steps = 0
         self._measures = EmbeddedMeasures(config)
-        self._fields: OrderedDict[tuple[str | None, tuple[tuple[float, float], ...]], GeodesicField] = OrderedDict()
+        self._fields: OrderedDict[tuple[str | None, tuple[tuple[float, ...], ...]], DistanceField] = OrderedDict()
 
     # -- pickling: drop the scene cache ---------------------------------------------------------------
     def __getstate__(self) -> dict[str, object]:
@@ -119,8 +120,8 @@ class EmbeddedEnv:
         return self._config
 
     @property
-    def scene(self) -> Scene:
-        """The current episode's scene."""
+    def scene(self) -> Scene | Building:
+        """The current episode's scene or building."""
         return self._world().scene
 
     @property
@@ -130,8 +131,9 @@ class EmbeddedEnv:
 
     @property
     def state(self) -> Pose:
-        """The agent's current pose in the world frame."""
-        return Pose(self._xy[0], self._xy[1], self._yaw())
+        """The agent's current pose in the world frame (its height that of the floor under it)."""
+        x, y, z = self._xyz
+        return Pose(x, y, self._yaw(), z)
 
     @property
     def steps(self) -> int:
@@ -145,13 +147,16 @@ class EmbeddedEnv:
         self._scene_id = episode.scene_id
         world = self._world()
         x, y = episode.start_xy
-        if not is_navigable(world.navigable, world.scene.grid, x, y):
-            raise ValueError(f"episode {episode.episode_id}: start {(x, y)} is not navigable in {episode.scene_id}")
-        self._start = Pose(x, y, wrap_angle(episode.start_yaw))
-        self._xy = (x, y)
+        z = world.terrain.place(x, y, episode.start_height)
+        if z is None:
+            where = f"{(x, y)} at height {episode.start_height:g}" if episode.start_height else f"{(x, y)}"
+            raise ValueError(f"episode {episode.episode_id}: start {where} is not navigable in {episode.scene_id}")
+        self._start = Pose(x, y, wrap_angle(episode.start_yaw), z)
+        self._xyz = (x, y, z)
         self._turns = 0
         self._steps = 0
-        self._measures.reset(episode, world.reachable, world.scene.grid, self._start)
+        goal_ids = [goal.object_id for goal in episode.goals]
+        self._measures.reset(world.terrain.field(episode.view_points_xyz()), self._start, goal_ids)
         observation = self._observe(collided=False)
         self._measures.update(None, self.state, observation)
         return observation
@@ -161,15 +166,8 @@ class EmbeddedEnv:
         world = self._world()
         collided = False
         if action == Action.MOVE_FORWARD:
-            x, y, collided = forward_step(
-                world.navigable,
-                world.scene.grid,
-                self._xy[0],
-                self._xy[1],
-                self._yaw(),
-                self._config.forward_step,
-            )
-            self._xy = (x, y)
+            x, y, z = self._xyz
+            self._xyz, collided = world.terrain.forward(x, y, z, self._yaw(), self._config.forward_step)
         elif action == Action.TURN_LEFT:
             self._turns = self._wrap_turns(self._turns + 1)
         elif action == Action.TURN_RIGHT:
@@ -189,7 +187,8 @@ class EmbeddedEnv:
         """Instance labels and the vocabulary (``semantic``); the goal field and motion model (``geodesic``)."""
         world = self._world()
         semantic = SEMANTIC in kinds
-        labels = {obj.instance_id: obj.category for obj in world.scene.objects} if semantic else None
+        objects = [obj for storey in storeys_of(world.scene) for obj in storey.plan.objects]
+        labels = {obj.instance_id: obj.category for obj in objects} if semantic else None
         geodesic = None
         if GEODESIC in kinds:
             geodesic = _Geodesic(world, self._measures.goal_field, self._start, self._config.forward_step)
@@ -200,25 +199,26 @@ class EmbeddedEnv:
         self._worlds.clear()
         self._fields.clear()
 
-    def geodesic_distance(self, x: float, y: float, targets: Sequence[tuple[float, float]]) -> float:
-        """Geodesic distance (metres, inf if unreachable) from a world point to the nearest of ``targets`` over the
-        current scene's reachable cells: the measure of :class:`EmbeddedMeasures`, as a simulator's path finder
-        answers it (one Fast-Marching solve per target set, the last few kept)."""
+    def geodesic_distance(self, x: float, y: float, targets: Sequence[tuple[float, ...]], z: float = 0.0) -> float:
+        """Geodesic distance (metres, inf if unreachable) from a world point (at height ``z``) to the nearest of
+        ``targets`` (``(x, y)`` on a one-floor scene's floor, or ``(x, y, height)``) over the current scene's
+        reachable area: the measure of :class:`EmbeddedMeasures`, as a simulator's path finder answers it (one
+        distance solve per target set, the last few kept)."""
         world = self._world()
         key = (self._scene_id, tuple(targets))
         field = self._fields.get(key)
         if field is None:
-            field = GeodesicField(world.reachable, world.scene.grid, list(targets))
+            field = world.terrain.field([(t[0], t[1], t[2] if len(t) > 2 else 0.0) for t in targets])
             self._fields[key] = field
             while len(self._fields) > _GEODESIC_CACHE:
                 self._fields.popitem(last=False)
-        return float(field.at(x, y))
+        return float(field.at(x, y, z))
 
-    def forward(self, x: float, y: float, yaw: float, step: float) -> tuple[float, float, bool]:
-        """Where a straight move of ``step`` metres from a world point along ``yaw`` ends in the current scene
-        (sliding along walls), and whether it collided: the world's motion model."""
-        world = self._world()
-        return forward_step(world.navigable, world.scene.grid, x, y, yaw, step)
+    def forward(self, x: float, y: float, yaw: float, step: float, z: float = 0.0) -> tuple[float, float, bool]:
+        """Where a straight move of ``step`` metres from a world point (at height ``z``) along ``yaw`` ends in the
+        current scene (sliding along walls), and whether it collided: the world's motion model."""
+        (nx, ny, _), collided = self._world().terrain.forward(x, y, z, yaw, step)
+        return nx, ny, collided
 
     def render(self, pose_world: Pose) -> Images:
         """RGB, depth and semantic images from a world-frame pose of the current scene."""
@@ -233,9 +233,7 @@ class EmbeddedEnv:
             while len(self._worlds) >= self._cache_size:  # evicted before loading: a lower memory peak
                 self._worlds.popitem(last=False)
             scene = self._loader(self._scene_id)
-            cfg = self._config
-            navigable = scene.navigable_grid(cfg.agent_radius, cfg.agent_height)
-            world = _World(scene, navigable, largest_component(navigable), Renderer(scene, cfg))
+            world = _World(scene, terrain_of(scene, self._config), Renderer(scene, self._config))
             self._worlds[self._scene_id] = world
         self._worlds.move_to_end(self._scene_id)
         return world

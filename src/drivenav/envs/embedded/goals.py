@@ -1,7 +1,8 @@
 """The embedded world's goals: each object's view points, and per scene the reachable region, the goals by category
 and their geodesic fields (what episodes are generated and checked against).
 
-Goal view points: navigable positions within 1.0 m of an object from which it is visible.
+Goal view points: navigable positions within 1.0 m of an object from which it is visible, on the object's own
+floor (in a building: on that storey's floor, not on its stairs).
 
 Visibility in the 2.5-D world: a straight line from the view point to the object's footprint that crosses no
 structure (walls, door frames, unknown), and some part of the object inside the camera's vertical field of view
@@ -12,17 +13,21 @@ horizontal field of view does not restrict view points).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.envs.embedded.geodesic import GeodesicField, largest_component
+from drivenav.envs.embedded.building import Building, storeys_of
+from drivenav.envs.embedded.levels import Point3
 from drivenav.envs.embedded.rosmap import OBJECTS_FILE
 from drivenav.envs.embedded.scene import Material, ObjectInstance, Scene
+from drivenav.envs.embedded.terrain import DistanceField, Terrain, terrain_of
 from drivenav.episode import ObjectGoal, ViewPoint, world_to_habitat, yaw_to_quaternion
 from drivenav.errors import InputError
+from drivenav.grid import GridSpec
 from drivenav.types import SimConfig
 
 VIEW_POINT_RADIUS = 1.0  # metres from the object footprint (Habitat ObjectNav view points)
@@ -94,61 +99,84 @@ def view_point_cells(
     return points[visible]
 
 
-def object_goal(scene: Scene, obj: ObjectInstance, reachable: NDArray[np.bool_], sim: SimConfig) -> ObjectGoal:
-    """The goal entry of one object: its Habitat position and its view points facing it."""
+def object_goal(
+    scene: Scene, obj: ObjectInstance, reachable: NDArray[np.bool_], sim: SimConfig, elevation: float = 0.0
+) -> ObjectGoal:
+    """The goal entry of one object of a floor at ``elevation``: its Habitat position and its view points facing
+    it, on ``reachable`` cells of that floor."""
     points = view_point_cells(scene, obj, reachable, sim)
     view_points = []
     for x, y in points:
         yaw = math.atan2(obj.center[1] - y, obj.center[0] - x)
-        view_points.append(ViewPoint(world_to_habitat(x, y), yaw_to_quaternion(yaw)))
-    centre = world_to_habitat(obj.center[0], obj.center[1], obj.elevation + obj.size[2] / 2.0)
+        view_points.append(ViewPoint(world_to_habitat(x, y, elevation), yaw_to_quaternion(yaw)))
+    centre = world_to_habitat(obj.center[0], obj.center[1], elevation + obj.elevation + obj.size[2] / 2.0)
     return ObjectGoal(obj.instance_id, obj.category, centre, tuple(view_points))
 
 
 @dataclass
 class SceneGoals:
-    """Per scene: the reachable region, goals by category, and geodesic fields (built lazily)."""
+    """Per scene or building: where the agent can go, goals by category, and distance fields (built lazily)."""
 
-    scene: Scene
-    reachable: NDArray[np.bool_]
+    scene: Scene | Building
+    terrain: Terrain
     goals: dict[str, list[ObjectGoal]]
-    fields: dict[str, GeodesicField] = field(default_factory=dict)
+    fields: dict[str, DistanceField] = field(default_factory=dict)
 
-    def field_for(self, category: str) -> GeodesicField:
+    @property
+    def reachable(self) -> NDArray[np.bool_]:
+        """Per layer (one for a one-floor scene) and cell: the reachable area."""
+        return self.terrain.reachable
+
+    @property
+    def grid(self) -> GridSpec:
+        return self.terrain.grid
+
+    def field_for(self, category: str) -> DistanceField:
         if category not in self.fields:
-            points = [vp.xy for goal in self.goals[category] for vp in goal.view_points]
-            self.fields[category] = GeodesicField(self.reachable, self.scene.grid, points)
+            self.fields[category] = self.terrain.field(view_points_of(self.goals[category]))
         return self.fields[category]
 
 
-def _scene_source(scene: Scene) -> str:
-    """What errors about a scene name: its map YAML, or the procedural house."""
-    return scene.source if scene.source != "procedural" else f"procedural house {scene.scene_id}"
+def view_points_of(goals: Sequence[ObjectGoal]) -> list[Point3]:
+    """The goals' view points as world points with their heights."""
+    return [(*vp.xy, vp.height) for goal in goals for vp in goal.view_points]
 
 
-def objects_source(scene: Scene) -> str:
+GENERATED = {"procedural": "procedural house", "homes": "generated home", "storeys": "generated home"}
+"""What errors call a generated scene, by its ``source``."""
+
+
+def _scene_source(scene: Scene | Building) -> str:
+    """What errors about a scene name: its map YAML, or the generated house."""
+    kind = GENERATED.get(scene.source)
+    return scene.source if kind is None else f"{kind} {scene.scene_id}"
+
+
+def objects_source(scene: Scene | Building) -> str:
     """What errors about a scene's objects name: the map's objects.json where it has one, else the scene."""
     objects = Path(scene.source).with_name(OBJECTS_FILE)
-    return str(objects) if scene.source != "procedural" and objects.is_file() else _scene_source(scene)
+    return str(objects) if scene.source not in GENERATED and objects.is_file() else _scene_source(scene)
 
 
-def scene_goals(scene: Scene, sim: SimConfig) -> SceneGoals:
-    """Goals of every object that has at least one reachable view point, grouped by category.
+def scene_goals(scene: Scene | Building, sim: SimConfig) -> SceneGoals:
+    """Goals of every object that has at least one reachable view point on its own floor, grouped by category.
 
     A scene without free space the agent fits in, or without an object it can reach, is an :class:`InputError`
     naming the scene's file or its objects.json (never a scene silently left out of the episodes).
     """
-    reachable = largest_component(scene.navigable_grid(sim.agent_radius, sim.agent_height))
-    if not reachable.any():
+    terrain = terrain_of(scene, sim)
+    if not terrain.reachable.any():
         expected = f"free space an agent of radius {sim.agent_radius} m fits in"
         raise InputError(_scene_source(scene), "image", expected, "only walls, unknown or too narrow space")
     goals: dict[str, list[ObjectGoal]] = {}
-    for obj in scene.objects:
-        goal = object_goal(scene, obj, reachable, sim)
-        if goal.view_points:
-            goals.setdefault(obj.category, []).append(goal)
+    for j, storey in enumerate(storeys_of(scene)):
+        floor = terrain.reachable[j] & (terrain.heights[j] == storey.elevation)
+        for obj in storey.plan.objects:
+            goal = object_goal(storey.plan, obj, floor, sim, storey.elevation)
+            if goal.view_points:
+                goals.setdefault(obj.category, []).append(goal)
     if not goals:
         expected = "objects seen from where the agent can go (objects.json, or free space to place them in)"
-        got = f"{len(scene.objects)} objects, none reachable"
-        raise InputError(objects_source(scene), "objects", expected, got)
-    return SceneGoals(scene, reachable, goals)
+        objects = sum(len(storey.plan.objects) for storey in storeys_of(scene))
+        raise InputError(objects_source(scene), "objects", expected, f"{objects} objects, none reachable")
+    return SceneGoals(scene, terrain, goals)

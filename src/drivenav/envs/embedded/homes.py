@@ -32,6 +32,7 @@ from drivenav.envs.embedded.placement import place_objects
 from drivenav.envs.embedded.procedural import (
     MIN_BLOCK,
     Box,
+    Floor,
     Plan,
     allocate_cells,
     cut_door,
@@ -144,12 +145,16 @@ def generate_home(seed: int, config: HomesConfig = DEFAULT_HOMES, resolution: fl
     if not 0.01 <= resolution <= 0.2:
         raise InputError("generate_home", "resolution", "metres per cell in [0.01, 0.2]", resolution)
     rng = np.random.default_rng(seed)
-    program = _draw_program(rng, config)
-    plan, names, core = _layout(rng, program, config)
+    plan, names, core = home_layout(rng, config)
     plan = transform_plan(rng, plan)
     scene = _build(rng, plan, names, core, config, resolution, home_scene_id(seed))
     objects = place_objects(scene, rng, free_standing=dict(config.free_standing))
     return replace(scene, objects=objects)
+
+
+def home_layout(rng: np.random.Generator, config: HomesConfig = DEFAULT_HOMES) -> tuple[Plan, list[str], list[int]]:
+    """A home's plan in metres before its mirroring (rooms and halls), its room types and its open-plan core."""
+    return _layout(rng, _draw_program(rng, config), config)
 
 
 # --------------------------------------------------------------------------------------------- program
@@ -172,12 +177,12 @@ def _draw_program(rng: np.random.Generator, config: HomesConfig) -> _Program:
         allowed = [(t, w) for t, w, cap in config.private_extra if taken.count(t) < cap]
         weights = np.array([w for _, w in allowed])
         private.append(allowed[int(rng.choice(len(allowed), p=weights / weights.sum()))][0])
-    areas = [_draw_area(rng, config, t) for t in row]
-    private_areas = [rng.uniform(*config.primary_bedroom_area)] + [_draw_area(rng, config, t) for t in private[1:]]
+    areas = [draw_area(rng, config, t) for t in row]
+    private_areas = [rng.uniform(*config.primary_bedroom_area)] + [draw_area(rng, config, t) for t in private[1:]]
     return _Program(list(zip(row, areas, strict=True)), list(zip(private, private_areas, strict=True)))
 
 
-def _draw_area(rng: np.random.Generator, config: HomesConfig, room_type: str) -> float:
+def draw_area(rng: np.random.Generator, config: HomesConfig, room_type: str) -> float:
     return float(rng.uniform(*config.area_range(room_type)))
 
 
@@ -211,7 +216,7 @@ def _layout(rng: np.random.Generator, program: _Program, config: HomesConfig) ->
     y_spine = depth + spine_width
     plan = Plan(length, y_spine + public_depth, [], [Box(0.0, depth, length, y_spine)])
 
-    widths = _public_widths([a for _, a in program.public], length, config.min_public_width)
+    widths = public_widths([a for _, a in program.public], length, config.min_public_width)
     x = 0.0
     for w in widths:
         plan.rooms.append(Box(x, y_spine, min(x + w, length), plan.height))
@@ -224,11 +229,11 @@ def _layout(rng: np.random.Generator, program: _Program, config: HomesConfig) ->
     for (box, touch), k in zip(blocks, allocate_cells(len(program.private), [b.area for b, _ in blocks]), strict=True):
         private_boxes.extend(split_box(rng, box, k, touch))
     plan.rooms.extend(private_boxes)
-    names.extend(_match_by_size(rng, private_boxes, program.private))
+    names.extend(match_by_size(rng, private_boxes, program.private))
     return plan, names, core
 
 
-def _public_widths(areas: list[float], length: float, minimum: float) -> list[float]:
+def public_widths(areas: list[float], length: float, minimum: float) -> list[float]:
     """Widths along the spine proportional to the rooms' areas, none below ``minimum``, summing to ``length``."""
     widths = np.array(areas) * length / sum(areas)
     for _ in range(len(areas)):
@@ -241,7 +246,7 @@ def _public_widths(areas: list[float], length: float, minimum: float) -> list[fl
     return [float(w) for w in widths]
 
 
-def _match_by_size(rng: np.random.Generator, boxes: list[Box], rooms: list[tuple[str, float]]) -> list[str]:
+def match_by_size(rng: np.random.Generator, boxes: list[Box], rooms: list[tuple[str, float]]) -> list[str]:
     """Room types for ``boxes``: the largest box gets the type drawn largest (areas jittered by 20 %)."""
     keys = np.array([a for _, a in rooms]) * rng.lognormal(0.0, 0.2, len(rooms))
     types = [rooms[i][0] for i in np.argsort(-keys, kind="stable")]
@@ -265,12 +270,29 @@ def _build(
     scene_id: str,
 ) -> Scene:
     """Walls, halls opened into each other, doors and open-plan openings on the structure grid; room polygons."""
-    floor = lay_out_floor(rng, plan, names, resolution)
-    for door in choose_doors(rng, config.doors, floor.raster, floor.boxes, floor.labels, len(plan.rooms), core):
+    return build_floor(rng, plan, names, core, config.doors, resolution).scene(scene_id, "homes")
+
+
+def build_floor(
+    rng: np.random.Generator,
+    plan: Plan,
+    names: list[str],
+    core: list[int],
+    rules: DoorRules,
+    resolution: float,
+    walled: frozenset[int] = frozenset(),
+    wall: float | None = None,
+) -> Floor:
+    """A home plan on the structure grid: walls (``wall`` metres thick, else of a random thickness), halls opened
+    into each other, doors by ``rules`` (none into the ``walled`` boxes) and open-plan openings between the ``core``
+    rooms."""
+    floor = lay_out_floor(rng, plan, names, resolution, wall)
+    n_rooms = len(plan.rooms)
+    for door in choose_doors(rng, rules, floor.raster, floor.boxes, floor.labels, n_rooms, core, walled):
         edge = shared_edge(floor.boxes[door.a], floor.boxes[door.b])
         assert edge is not None
         if door.open:
-            cut_opening(rng, floor.structure, floor.raster, edge, config.doors.open_width)
+            cut_opening(rng, floor.structure, floor.raster, edge, rules.open_width)
         else:
             cut_door(rng, floor.structure, floor.raster, edge)
-    return floor.scene(scene_id, "homes")
+    return floor

@@ -99,8 +99,10 @@ def choose_doors(
     labels: list[str],
     n_rooms: int,
     core: list[int],
+    walled: frozenset[int] = frozenset(),
 ) -> list[Door]:
-    """The doors of one home. Boxes ``0..n_rooms-1`` are rooms, the rest halls; ``core`` is the open-plan row.
+    """The doors of one home. Boxes ``0..n_rooms-1`` are rooms, the rest halls; ``core`` is the open-plan row;
+    ``walled`` boxes get no door (a hall strip that holds stairs).
 
     Every room ends up connected to the halls. Pairs whose shared wall cannot hold a door are never chosen.
     """
@@ -108,7 +110,9 @@ def choose_doors(
         (a, b): door_capacity(raster, edge)
         for a in range(n_rooms)
         for b in range(a + 1, len(boxes))
-        if (edge := shared_edge(boxes[a], boxes[b])) is not None and door_capacity(raster, edge) >= raster.min_door
+        if b not in walled
+        and (edge := shared_edge(boxes[a], boxes[b])) is not None
+        and door_capacity(raster, edge) >= raster.min_door
     }
     doors = _Doors(labels, n_rooms, pairs)
     for a, b in pairwise(core):

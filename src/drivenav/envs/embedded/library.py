@@ -1,13 +1,14 @@
 """Scene sets named on the command line (``--scenes SPEC``) and loading scenes by id.
 
-SPEC is one part or several joined by commas (``procedural:40,maps``). A part is ``procedural`` (procedural
-houses; ``procedural:K`` picks K houses for episode generation), ``homes`` (HM3D-like one-floor homes of
-:mod:`drivenav.envs.embedded.homes`; ``homes:K`` picks K), ``maps`` (the nine real floor plans shipped with
+SPEC is one part or several joined by commas (``procedural:40,maps``). A part is ``procedural`` (procedural houses;
+``procedural:K`` picks K houses for episode generation), ``homes`` (HM3D-like one-floor homes of
+:mod:`drivenav.envs.embedded.homes`; ``homes:K`` picks K), ``storeys`` (homes of one to three storeys joined by stairs,
+:mod:`drivenav.envs.embedded.storeys`; ``storeys:K`` picks K), ``maps`` (the nine real floor plans shipped with
 drivenav, :func:`drivenav.envs.embedded.rosmap.packaged_maps_dir`), a scene directory (a ROS map YAML plus optional
-objects.json), or a folder of scene directories (a folder of your own named ``maps`` is ``./maps``). Generated
-scene ids (``procedural/house_00042``, ``homes/home_00042``) carry their seed, so any of them can be rebuilt from
-the id alone; both parts use seeds ``1000 * S + k`` for ``--seed S`` and K scenes (8 when K is not given, at most
-1000). A map scene's id is its directory name (the packaged plans' too: ``uos_avz``).
+objects.json), or a folder of scene directories (a folder of your own named ``maps`` is ``./maps``). Generated scene ids
+(``procedural/house_00042``, ``homes/home_00042``, ``storeys/home_00042``) carry their seed, so any of them can be
+rebuilt from the id alone; the generated parts use seeds ``1000 * S + k`` for ``--seed S`` and K scenes (8 when K is not
+given, at most 1000). A map scene's id is its directory name (the packaged plans' too: ``uos_avz``).
 """
 
 from __future__ import annotations
@@ -16,11 +17,13 @@ import re
 from functools import lru_cache
 from pathlib import Path
 
+from drivenav.envs.embedded.building import Building
 from drivenav.envs.embedded.scene import Scene
 from drivenav.errors import InputError
 
 PROCEDURAL_ID = re.compile(r"^procedural/house_(\d+)$")
 HOMES_ID = re.compile(r"^homes/home_(\d+)$")
+STOREYS_ID = re.compile(r"^storeys/home_(\d+)$")
 DEFAULT_PROCEDURAL_HOUSES = 8
 DEFAULT_HOMES = 8  # homes in the part ``homes`` without ``:K``
 SEEDS_PER_RUN_SEED = 1000  # a part's K scenes of --seed S have seeds 1000 S .. 1000 S + K - 1: K is at most this
@@ -33,6 +36,10 @@ def procedural_scene_id(seed: int) -> str:
 
 def home_scene_id(seed: int) -> str:
     return f"homes/home_{seed:05d}"
+
+
+def storeyed_scene_id(seed: int) -> str:
+    return f"storeys/home_{seed:05d}"
 
 
 @lru_cache(maxsize=8)
@@ -50,6 +57,13 @@ def _load_home(seed: int) -> Scene:
 
 
 @lru_cache(maxsize=8)
+def _load_storeyed(seed: int) -> Building:
+    from drivenav.envs.embedded.storeys import generate_storeyed_home
+
+    return generate_storeyed_home(seed)
+
+
+@lru_cache(maxsize=8)
 def _load_map(path: str) -> Scene:
     from drivenav.envs.embedded.rosmap import load_map_scene
 
@@ -64,6 +78,7 @@ class SceneLibrary:
         self._maps: dict[str, Path] = {}
         self._procedural = False
         self._homes = False
+        self._storeys = False
         self._order: list[str] = []
         for part in spec.split(","):
             self._add_part(part.strip(), seed)
@@ -78,6 +93,10 @@ class SceneLibrary:
         elif part == "homes" or part.startswith("homes:"):
             self._homes = True
             ids = [home_scene_id(seed * SEEDS_PER_RUN_SEED + k) for k in range(_parse_count(part, DEFAULT_HOMES))]
+        elif part == "storeys" or part.startswith("storeys:"):
+            self._storeys = True
+            count = _parse_count(part, DEFAULT_HOMES)
+            ids = [storeyed_scene_id(seed * SEEDS_PER_RUN_SEED + k) for k in range(count)]
         else:
             maps = _find_map_dirs(part)
             for scene_id, path in maps.items():
@@ -96,10 +115,11 @@ class SceneLibrary:
             scene_id in self._maps
             or (self._procedural and PROCEDURAL_ID.match(scene_id) is not None)
             or (self._homes and HOMES_ID.match(scene_id) is not None)
+            or (self._storeys and STOREYS_ID.match(scene_id) is not None)
         )
 
-    def load(self, scene_id: str) -> Scene:
-        """The scene with this id (cached per process)."""
+    def load(self, scene_id: str) -> Scene | Building:
+        """The scene or building with this id (cached per process)."""
         if scene_id in self._maps:
             return _load_map(str(self._maps[scene_id]))
         match = PROCEDURAL_ID.match(scene_id)
@@ -108,6 +128,9 @@ class SceneLibrary:
         match = HOMES_ID.match(scene_id)
         if match is not None and self._homes:
             return _load_home(int(match.group(1)))
+        match = STOREYS_ID.match(scene_id)
+        if match is not None and self._storeys:
+            return _load_storeyed(int(match.group(1)))
         raise KeyError(scene_id)
 
 

@@ -2,21 +2,22 @@
 
 Like habitat-lab's ``Success``, ``SPL``, ``DistanceToGoal`` and ``Collisions`` measures, they follow the agent
 from ``reset`` to the end of the episode: geodesic distances come from one Fast-Marching solve to the goal view
-points on the world's navigable grid (its largest component, where every episode starts), SPL's d0 is the
-world's own start distance (as habitat-lab computes it, never the episode file's), and path length is the
-executed translation.
+points over the world's reachable area (:mod:`drivenav.envs.embedded.terrain`: the one-floor navigable grid's
+largest component, or a building's surfaces, up and down its stairs), SPL's d0 is the world's own start distance
+(as habitat-lab computes it, never the episode file's), and path length is the executed translation in three
+dimensions (habitat-lab's ``SPL`` sums the distances between the agent's successive 3-D positions).
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
 
 from drivenav import metrics
 from drivenav.envs.base import EpisodeMeasures, measured, shows_goal
-from drivenav.envs.embedded.geodesic import GeodesicField
-from drivenav.episode import Episode
-from drivenav.grid import GridSpec
+from drivenav.envs.embedded.terrain import DistanceField
 from drivenav.types import Action, Observation, Pose, SimConfig
 
 
@@ -25,25 +26,26 @@ class EmbeddedMeasures:
 
     def __init__(self, config: SimConfig) -> None:
         self._config = config
-        self._goal_field: GeodesicField | None = None
+        self._goal_field: DistanceField | None = None
         self._goal_ids: NDArray[np.int64] = np.zeros(0, dtype=np.int64)
-        self._positions: list[tuple[float, float]] = []
+        self._positions: list[tuple[float, float, float]] = []
         self._collisions = 0
         self._called_stop = False
         self._target_seen = False
 
     @property
-    def goal_field(self) -> GeodesicField:
+    def goal_field(self) -> DistanceField:
         """The episode's geodesic distance field to its goal view points."""
         if self._goal_field is None:
             raise RuntimeError("EmbeddedMeasures: reset() first")
         return self._goal_field
 
-    def reset(self, episode: Episode, navigable: NDArray[np.bool_], grid: GridSpec, start: Pose) -> None:
-        """Start measuring ``episode`` from ``start`` (world frame) on the world's reachable cells."""
-        self._goal_field = GeodesicField(navigable, grid, episode.view_points_xy())
-        self._goal_ids = np.array([goal.object_id for goal in episode.goals], dtype=np.int64)
-        self._positions = [(start.x, start.y)]
+    def reset(self, goal_field: DistanceField, start: Pose, goal_ids: Sequence[int] = ()) -> None:
+        """Start measuring an episode from ``start`` (world frame) with the distance field to its goals' view
+        points over the world's reachable area and its goals' instance ids."""
+        self._goal_field = goal_field
+        self._goal_ids = np.array(list(goal_ids), dtype=np.int64)
+        self._positions = [(start.x, start.y, start.z)]
         self._collisions = 0
         self._called_stop = False
         self._target_seen = False
@@ -51,7 +53,7 @@ class EmbeddedMeasures:
     def update(self, action: Action | None, pose: Pose, observation: Observation) -> None:
         """After ``action`` (None at reset) the agent is at ``pose`` (world frame) and sees ``observation``."""
         if action is not None:
-            self._positions.append((pose.x, pose.y))
+            self._positions.append((pose.x, pose.y, pose.z))
             self._collisions += int(observation.collided)
             self._called_stop = self._called_stop or action == Action.STOP
         self._target_seen = self._target_seen or shows_goal(observation, self._goal_ids)

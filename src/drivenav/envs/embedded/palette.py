@@ -27,6 +27,9 @@ BASEBOARD_COLOR: RGB = (112, 96, 80)
 DOOR_FRAME_COLOR: RGB = (138, 92, 52)
 UNKNOWN_COLOR: RGB = (48, 48, 52)
 CEILING_COLOR: RGB = (236, 238, 242)
+STAIR_COLOR: RGB = (150, 104, 62)  # treads and risers: wood
+RAILING_COLOR: RGB = (70, 56, 44)
+SLAB_EDGE_COLOR: RGB = (214, 210, 200)  # the cut edge of a floor slab round a stairwell
 
 _CATEGORY_COLORS: dict[str, RGB] = {
     "chair": (230, 25, 75),

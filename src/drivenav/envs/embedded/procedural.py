@@ -285,17 +285,36 @@ def split_box(rng: np.random.Generator, box: Box, k: int, touch: Touch) -> list[
     return split_box(rng, first, k_first, touch_first) + split_box(rng, second, k - k_first, touch_second)
 
 
+Transform = tuple[bool, bool, bool]
+"""A plan's mirroring in x, in y, and whether its axes are swapped."""
+
+
+def draw_transform(rng: np.random.Generator) -> Transform:
+    """A mirroring and axis swap drawn at random (one draw of three bits)."""
+    flip_x, flip_y, swap = (bool(v) for v in rng.integers(0, 2, 3))
+    return flip_x, flip_y, swap
+
+
 def transform_plan(rng: np.random.Generator, plan: Plan) -> Plan:
     """Mirror the plan in x and/or y and maybe swap the axes, for variety."""
-    flip_x, flip_y, swap = (bool(v) for v in rng.integers(0, 2, 3))
+    return apply_transform(plan, draw_transform(rng))
 
-    def move(box: Box) -> Box:
-        xa, xb = (plan.width - box.x1, plan.width - box.x0) if flip_x else (box.x0, box.x1)
-        ya, yb = (plan.height - box.y1, plan.height - box.y0) if flip_y else (box.y0, box.y1)
-        return Box(ya, xa, yb, xb) if swap else Box(xa, ya, xb, yb)
 
+def apply_transform(plan: Plan, transform: Transform) -> Plan:
+    """The plan mirrored and swapped as ``transform`` says."""
+    swap = transform[2]
+    rooms = [transform_box(plan, b, transform) for b in plan.rooms]
+    corridors = [transform_box(plan, b, transform) for b in plan.corridors]
     width, height = (plan.height, plan.width) if swap else (plan.width, plan.height)
-    return Plan(width, height, [move(b) for b in plan.rooms], [move(b) for b in plan.corridors], plan.fixed_types)
+    return Plan(width, height, rooms, corridors, plan.fixed_types)
+
+
+def transform_box(plan: Plan, box: Box, transform: Transform) -> Box:
+    """One box of ``plan`` mirrored and swapped as ``transform`` says."""
+    flip_x, flip_y, swap = transform
+    xa, xb = (plan.width - box.x1, plan.width - box.x0) if flip_x else (box.x0, box.x1)
+    ya, yb = (plan.height - box.y1, plan.height - box.y0) if flip_y else (box.y0, box.y1)
+    return Box(ya, xa, yb, xb) if swap else Box(xa, ya, xb, yb)
 
 
 def _room_types(rng: np.random.Generator, plan: Plan) -> list[str]:
@@ -396,9 +415,12 @@ class Floor:
         return Scene(scene_id, grid, self.structure, rooms=rooms, source=source)
 
 
-def lay_out_floor(rng: np.random.Generator, plan: Plan, names: list[str], resolution: float) -> Floor:
-    """Draw ``plan`` on a structure grid at ``resolution`` (a random wall thickness), before any door is cut."""
-    t = max(1, round(rng.uniform(*WALL_THICKNESS) / resolution))
+def lay_out_floor(
+    rng: np.random.Generator, plan: Plan, names: list[str], resolution: float, wall: float | None = None
+) -> Floor:
+    """Draw ``plan`` on a structure grid at ``resolution`` (walls ``wall`` metres thick, else of a random thickness),
+    before any door is cut."""
+    t = max(1, round((rng.uniform(*WALL_THICKNESS) if wall is None else wall) / resolution))
     raster = Raster(resolution, t, t + round(OUTSIDE_MARGIN / resolution), max(1, round(JAMB / resolution)))
     boxes = [raster.snap(b) for b in plan.rooms] + [raster.snap(b) for b in plan.corridors]
     outline = raster.snap(Box(0.0, 0.0, plan.width, plan.height))

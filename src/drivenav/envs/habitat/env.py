@@ -55,9 +55,11 @@ class HabitatEpisode(Protocol):
 
 
 def habitat_pose(position: Any, rotation: Sequence[float]) -> Pose:
-    """A Habitat position and rotation quaternion ``[x, y, z, w]`` as a world-frame pose."""
-    x, y = habitat_to_world(list(np.asarray(position, dtype=np.float64)))
-    return Pose(x, y, quaternion_to_yaw([float(v) for v in rotation]))
+    """A Habitat position and rotation quaternion ``[x, y, z, w]`` as a world-frame pose (its height Habitat's
+    ``y``)."""
+    point = np.asarray(position, dtype=np.float64)
+    x, y = habitat_to_world(list(point))
+    return Pose(x, y, quaternion_to_yaw([float(v) for v in rotation]), float(point[1]))
 
 
 def agent_pose(state: Any) -> Pose:
@@ -74,21 +76,21 @@ class _SimGeodesic:
     episode: Any
     targets: list[Any]  # the goals' view point positions, as habitat-lab's DistanceToGoal measures to
     start_pose: Pose
-    height: float
     step: float
     sliding: bool
 
-    def distance(self, x: float, y: float) -> float:
-        position = list(world_to_habitat(x, y, self.height))
+    def distance(self, pose: Pose) -> float:
+        position = list(world_to_habitat(pose.x, pose.y, pose.z))
         return float(self.sim.geodesic_distance(position, self.targets, self.episode))
 
-    def forward(self, x: float, y: float, yaw: float) -> tuple[float, float, bool]:
-        start = np.array(world_to_habitat(x, y, self.height))
-        end = np.array(world_to_habitat(x + self.step * math.cos(yaw), y + self.step * math.sin(yaw), self.height))
+    def forward(self, pose: Pose) -> tuple[Pose, bool]:
+        x, y, yaw = pose.x, pose.y, pose.yaw
+        start = np.array(world_to_habitat(x, y, pose.z))
+        end = np.array(world_to_habitat(x + self.step * math.cos(yaw), y + self.step * math.sin(yaw), pose.z))
         finder = self.sim.pathfinder
         reached = np.asarray(finder.try_step(start, end) if self.sliding else finder.try_step_no_sliding(start, end))
         nx, ny = habitat_to_world(list(reached))
-        return nx, ny, bool(np.linalg.norm(reached - end) > COLLISION_EPSILON)
+        return Pose(nx, ny, yaw, float(reached[1])), bool(np.linalg.norm(reached - end) > COLLISION_EPSILON)
 
 
 class HabitatEnv:
@@ -177,9 +179,7 @@ class HabitatEnv:
     def _geodesic(self) -> _SimGeodesic:
         episode = self._env.current_episode
         targets = [vp.agent_state.position for goal in episode.goals for vp in goal.view_points]
-        height = float(episode.start_position[1])
-        step = self._config.forward_step
-        return _SimGeodesic(self._env.sim, episode, targets, self._start_pose, height, step, self._sliding)
+        return _SimGeodesic(self._env.sim, episode, targets, self._start_pose, self._config.forward_step, self._sliding)
 
     def close(self) -> None:
         self._env.close()

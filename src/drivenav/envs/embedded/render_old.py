@@ -1,0 +1,457 @@
+"""Perspective renderer of the 2.5-D embedded world: RGB, z-depth and instance semantics in one pass.
+
+The world (:mod:`drivenav.envs.embedded.scene`) is a structure grid whose non-free cells are full-height opaque
+prisms, plus box objects, between a floor at height 0 and a ceiling. The camera is a level pinhole at the
+agent's position and camera height, looking along its yaw.
+
+Every quantity is parameterised by the z-depth ``d`` (distance along the optical axis), so no cosine
+correction is needed. Image column ``u`` sees the horizontal ray ``p(d) = c + d * (f + t_u * l)`` with ``f``
+the heading, ``l`` the left unit vector and ``t_u = (cx - u) / fx``; image row ``v`` has height
+``z(d) = h + k_v * d`` with ``k_v = (cy - v) / fy``. The renderer therefore
+
+1. per column, walks the structure grid with an exact DDA (Amanatides & Woo; every cell the ray crosses is
+   visited, so one-cell walls never leak) to the first opaque cell (cells outside the grid are unknown space,
+   which is opaque), and slab-tests the ray against every object footprint, giving ``[d_in, d_out]`` and the
+   entry face;
+2. per pixel, takes the nearest of floor (``d = h / -k_v``), ceiling, wall and each box's footprint interval
+   intersected with its height interval ``{d : z0 <= z(d) <= z1}``;
+3. shades the pixel's surface into the RGB image (about three quarters of a frame's cost). A world whose consumer
+   may not read the RGB image asks for depth and semantics only (:meth:`Renderer.render_geometry`) and renders the
+   whole frame again if the image is read: the pixels come out the same either way.
+
+The kernels are numba-compiled and single-threaded; :class:`Renderer` holds a scene's packed arrays.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from drivenav.directions.edt import edt
+from drivenav.envs.embedded import palette
+from drivenav.envs.embedded.scene import Material, Scene
+from drivenav.jit import jit
+from drivenav.types import Pose, SimConfig
+
+Images = tuple[NDArray[np.uint8], NDArray[np.float32], NDArray[np.int32]]
+
+# Surface kinds of a pixel and faces of a box.
+_FLOOR, _CEILING, _WALL, _OBJECT = 0, 1, 2, 3
+_FACE_U, _FACE_V, _FACE_INSIDE, _FACE_TOP, _FACE_BOTTOM = 0, 1, 2, 3, 4
+
+# Rows of the structure colour table (passed to the kernel as data: numba would freeze global constants into
+# its on-disk cache, which does not notice edits to the palette module).
+_SURFACE_COLORS = (
+    palette.WALL_COLOR,
+    palette.BASEBOARD_COLOR,
+    palette.DOOR_FRAME_COLOR,
+    palette.UNKNOWN_COLOR,
+    palette.CEILING_COLOR,
+)
+_WALL_ROW, _BASEBOARD_ROW, _DOOR_ROW, _UNKNOWN_ROW, _CEILING_ROW = range(5)
+
+# Layout of the per-object geometry rows.
+_GEOM_FIELDS = 8  # cx, cy, cos(yaw), sin(yaw), half sx, half sy, bottom z, top z
+
+_AO_RANGE = 0.3  # metres from walls/furniture over which the floor darkens (contact shadow)
+_FALLOFF = 0.035  # brightness = 1 / (1 + _FALLOFF * d)
+_TILE = 0.5  # floor tile edge, metres
+_PLANK_WIDTH, _PLANK_LENGTH = 0.18, 1.2
+_WALL_PANEL = 1.2  # spacing of vertical wall panel seams, metres
+_BASEBOARD = 0.1  # baseboard height, metres
+
+
+class PackedScene:
+    """A scene as the flat arrays the render kernel reads (built once per scene)."""
+
+    def __init__(self, scene: Scene) -> None:
+        grid = scene.grid
+        self.structure: NDArray[np.uint8] = np.ascontiguousarray(scene.structure, dtype=np.uint8)
+        self.origin = (float(grid.origin[0]), float(grid.origin[1]))
+        self.resolution = float(grid.resolution)
+        self.ceiling_height = float(scene.ceiling_height)
+        self.room_index: NDArray[np.int16] = np.ascontiguousarray(scene.room_index, dtype=np.int16)
+        names = ["", *(room.name for room in scene.rooms)]
+        self.floor_rgb: NDArray[np.float32] = np.array([palette.floor_color(n) for n in names], np.float32)
+        self.floor_pattern: NDArray[np.int64] = np.array([palette.floor_pattern(n) for n in names], np.int64)
+        self.floor_shade = _contact_shadow(scene)
+        self.surface_rgb: NDArray[np.float32] = np.array(_SURFACE_COLORS, np.float32)
+        n = len(scene.objects)
+        self.obj_geom: NDArray[np.float64] = np.zeros((n, _GEOM_FIELDS), np.float64)
+        self.obj_id: NDArray[np.int32] = np.zeros(n, np.int32)
+        self.obj_rgb: NDArray[np.float32] = np.zeros((n, 3), np.float32)
+        for i, obj in enumerate(scene.objects):
+            self.obj_geom[i] = (
+                obj.center[0],
+                obj.center[1],
+                math.cos(obj.yaw),
+                math.sin(obj.yaw),
+                obj.size[0] / 2.0,
+                obj.size[1] / 2.0,
+                obj.elevation,
+                obj.top,
+            )
+            self.obj_id[i] = obj.instance_id
+            self.obj_rgb[i] = palette.category_color(obj.category)
+
+
+def _contact_shadow(scene: Scene) -> NDArray[np.float32]:
+    """Per-cell floor brightness factor in ``[0.7, 1]``: darker within :data:`_AO_RANGE` of an obstacle."""
+    obstacles = scene.obstacle_grid(0.05)
+    dist = edt(obstacles) * scene.grid.resolution
+    closeness = 1.0 - np.clip(dist / _AO_RANGE, 0.0, 1.0)
+    return np.ascontiguousarray(1.0 - 0.3 * closeness**2, dtype=np.float32)
+
+
+class Renderer:
+    """Renders RGB, z-depth and semantic images of one scene for a camera described by ``config``."""
+
+    def __init__(self, scene: Scene, config: SimConfig) -> None:
+        self.scene = scene
+        self.config = config
+        self.packed = PackedScene(scene)
+        intr = config.intrinsics
+        self._camera = np.array(
+            [config.camera_height, intr.fx, intr.fy, intr.cx, intr.cy, config.min_depth, config.max_depth],
+            dtype=np.float64,
+        )
+
+    def render(self, pose: Pose) -> Images:
+        """Images from the world-frame ``pose``: ``(H, W, 3)`` uint8, ``(H, W)`` float32, ``(H, W)`` int32."""
+        h, w = self.config.height, self.config.width
+        rgb = np.empty((h, w, 3), np.uint8)
+        depth, semantic = self._draw(pose, rgb)
+        return rgb, depth, semantic
+
+    def render_geometry(self, pose: Pose) -> tuple[NDArray[np.float32], NDArray[np.int32]]:
+        """Depth and semantic images only: the same numbers as :meth:`render`'s, without shading the RGB image
+        (about a quarter of a frame's cost)."""
+        return self._draw(pose, np.empty((0, 0, 3), np.uint8))
+
+    def _draw(self, pose: Pose, rgb: NDArray[np.uint8]) -> tuple[NDArray[np.float32], NDArray[np.int32]]:
+        """Run the kernel for ``pose``; it shades into ``rgb`` unless ``rgb`` is empty."""
+        p = self.packed
+        h, w = self.config.height, self.config.width
+        depth = np.empty((h, w), np.float32)
+        semantic = np.empty((h, w), np.int32)
+        _render_kernel(
+            p.structure,
+            p.origin[0],
+            p.origin[1],
+            p.resolution,
+            p.ceiling_height,
+            p.room_index,
+            p.floor_rgb,
+            p.floor_pattern,
+            p.floor_shade,
+            p.surface_rgb,
+            p.obj_geom,
+            p.obj_id,
+            p.obj_rgb,
+            float(pose.x),
+            float(pose.y),
+            float(pose.yaw),
+            self._camera,
+            rgb,
+            depth,
+            semantic,
+        )
+        return depth, semantic
+
+
+def render_views(scene: Scene, pose: Pose, config: SimConfig) -> Images:
+    """One-off rendering (packs the scene each call; use :class:`Renderer` for many frames)."""
+    return Renderer(scene, config).render(pose)
+
+
+# ----------------------------------------------------------------------------------------------- kernels
+
+
+@jit(inline=True)
+def _structure_hit(
+    structure: NDArray[np.uint8], ox: float, oy: float, res: float, px: float, py: float, dx: float, dy: float
+) -> tuple[float, int, int]:
+    """Exact grid DDA from ``(px, py)`` along ``(dx, dy)`` to the first opaque cell.
+
+    Returns ``(d, face, material)``: the ray parameter at the entry of that cell, the face crossed (0: a face
+    of constant x, 1: of constant y) and the cell's material (outside the grid: unknown).
+    """
+    rows, cols = structure.shape
+    gx, gy = (px - ox) / res, (py - oy) / res
+    col, row = math.floor(gx), math.floor(gy)
+    inf = math.inf
+    step_c = 1 if dx > 0.0 else -1
+    step_r = 1 if dy > 0.0 else -1
+    if dx != 0.0:
+        next_x = (col + 1 - gx) if dx > 0.0 else (gx - col)
+        t_max_x, t_delta_x = next_x * res / abs(dx), res / abs(dx)
+    else:
+        t_max_x, t_delta_x = inf, inf
+    if dy != 0.0:
+        next_y = (row + 1 - gy) if dy > 0.0 else (gy - row)
+        t_max_y, t_delta_y = next_y * res / abs(dy), res / abs(dy)
+    else:
+        t_max_y, t_delta_y = inf, inf
+    d, face = 0.0, 0
+    while True:
+        if row < 0 or row >= rows or col < 0 or col >= cols:
+            return d, face, 3  # Material.UNKNOWN
+        material = structure[row, col]
+        if material != 0:
+            return d, face, int(material)
+        if t_max_x < t_max_y:
+            d, face = t_max_x, 0
+            t_max_x += t_delta_x
+            col += step_c
+        else:
+            d, face = t_max_y, 1
+            t_max_y += t_delta_y
+            row += step_r
+
+
+@jit(inline=True)
+def _box_interval(geom: NDArray[np.float64], px: float, py: float, dx: float, dy: float) -> tuple[float, float, int]:
+    """Slab test of the ray against one box footprint in the box frame: ``(d_in, d_out, entry face)``.
+
+    ``d_in > d_out`` means a miss. A ray starting inside the footprint has ``d_in = 0`` and face
+    :data:`_FACE_INSIDE`.
+    """
+    c, s, hx, hy = geom[2], geom[3], geom[4], geom[5]
+    rx, ry = px - geom[0], py - geom[1]
+    ou, ov = c * rx + s * ry, -s * rx + c * ry
+    du, dv = c * dx + s * dy, -s * dx + c * dy
+    lo, hi, face = -math.inf, math.inf, _FACE_INSIDE
+    for axis in range(2):
+        o, dd, half = (ou, du, hx) if axis == 0 else (ov, dv, hy)
+        if abs(dd) < 1e-12:
+            if abs(o) > half:
+                return 1.0, 0.0, face
+            continue
+        t1, t2 = (-half - o) / dd, (half - o) / dd
+        if t1 > t2:
+            t1, t2 = t2, t1
+        if t1 > lo:
+            lo, face = t1, axis
+        hi = min(hi, t2)
+    if lo < 0.0:
+        lo, face = 0.0, _FACE_INSIDE
+    return lo, hi, face
+
+
+@jit(inline=True)
+def _hash01(i: int, j: int) -> float:
+    """A deterministic pseudo-random value in ``[0, 1)`` for an integer pair (texture variation)."""
+    h = (i * 73856093) ^ (j * 19349663)
+    h = (h ^ (h >> 13)) * 1274126177
+    return float((h >> 8) & 1023) / 1024.0
+
+
+@jit(inline=True)
+def _line_weight(frac: float, width: float) -> float:
+    """1 on a periodic line of ``width`` (in units of the period) centred at integer positions, else 0."""
+    f = frac - math.floor(frac)
+    return 1.0 if (f < width * 0.5 or f > 1.0 - width * 0.5) else 0.0
+
+
+@jit(inline=True)
+def _floor_shade(pattern: int, x: float, y: float, d: float, texel: float) -> float:
+    """Brightness factor of the floor texture at world ``(x, y)``; line contrast fades with distance ``d``."""
+    fade = min(1.0, max(0.0, 1.0 - (d - 2.5) / 3.0))
+    if pattern == 0:  # tiles with grout
+        tu, tv = x / _TILE, y / _TILE
+        tone = 1.0 + 0.06 * (_hash01(math.floor(tu), math.floor(tv)) - 0.5)
+        grout = max(_line_weight(tu, texel / _TILE), _line_weight(tv, texel / _TILE))
+        return tone * (1.0 - 0.35 * fade * grout)
+    if pattern == 1:  # planks running along x, staggered per row
+        pv = y / _PLANK_WIDTH
+        row = math.floor(pv)
+        pu = x / _PLANK_LENGTH + _hash01(row, 7)
+        tone = 1.0 + 0.16 * (_hash01(row, math.floor(pu)) - 0.5)
+        seam = max(_line_weight(pv, texel / _PLANK_WIDTH), _line_weight(pu, texel / _PLANK_LENGTH))
+        return tone * (1.0 - 0.4 * fade * seam)
+    return 1.0
+
+
+@jit(inline=True)
+def _bilinear(grid: NDArray[np.float32], gx: float, gy: float) -> float:
+    """Bilinear sample of a cell-centred grid at fractional cell coordinates (clamped to the grid)."""
+    rows, cols = grid.shape
+    fx = min(max(gx - 0.5, 0.0), cols - 1.0)
+    fy = min(max(gy - 0.5, 0.0), rows - 1.0)
+    c0, r0 = min(int(fx), cols - 2), min(int(fy), rows - 2)
+    if c0 < 0 or r0 < 0:
+        return float(grid[max(r0, 0), max(c0, 0)])
+    ax, ay = fx - c0, fy - r0
+    top = grid[r0, c0] * (1.0 - ax) + grid[r0, c0 + 1] * ax
+    bottom = grid[r0 + 1, c0] * (1.0 - ax) + grid[r0 + 1, c0 + 1] * ax
+    return float(top * (1.0 - ay) + bottom * ay)
+
+
+@jit(inline=True)
+def _box_edge_distance(geom: NDArray[np.float64], face: int, x: float, y: float, z: float) -> float:
+    """Distance from a point on a box face to the nearest edge of that face (for outlines)."""
+    c, s = geom[2], geom[3]
+    rx, ry = x - geom[0], y - geom[1]
+    eu = geom[4] - abs(c * rx + s * ry)
+    ev = geom[5] - abs(-s * rx + c * ry)
+    ez = min(geom[7] - z, z - geom[6])
+    if face == _FACE_U:
+        return float(min(ev, ez))
+    if face == _FACE_V:
+        return float(min(eu, ez))
+    if face == _FACE_INSIDE:
+        return float(ez)
+    return float(min(eu, ev))
+
+
+@jit(
+    "void(u1[:, ::1], f8, f8, f8, f8, i2[:, ::1], f4[:, ::1], i8[::1], f4[:, ::1], f4[:, ::1], f8[:, ::1], i4[::1],"
+    " f4[:, ::1], f8, f8, f8, f8[::1], u1[:, :, ::1], f4[:, ::1], i4[:, ::1])",
+)
+def _render_kernel(
+    structure: NDArray[np.uint8],
+    ox: float,
+    oy: float,
+    res: float,
+    ceiling: float,
+    room_index: NDArray[np.int16],
+    floor_rgb: NDArray[np.float32],
+    floor_pattern: NDArray[np.int64],
+    floor_shade: NDArray[np.float32],
+    surface_rgb: NDArray[np.float32],
+    obj_geom: NDArray[np.float64],
+    obj_id: NDArray[np.int32],
+    obj_rgb: NDArray[np.float32],
+    px: float,
+    py: float,
+    yaw: float,
+    camera: NDArray[np.float64],
+    rgb: NDArray[np.uint8],
+    depth: NDArray[np.float32],
+    semantic: NDArray[np.int32],
+) -> None:
+    """Fill ``depth`` and ``semantic`` for a camera at ``(px, py)`` facing ``yaw`` (module doc), and shade ``rgb``
+    unless it is empty (the geometry of every pixel is computed the same way either way)."""
+    cam_h, fx, fy, ccx, ccy = camera[0], camera[1], camera[2], camera[3], camera[4]
+    min_d, max_d = camera[5], camera[6]
+    height, width = depth.shape
+    shade_rgb = rgb.size > 0
+    n_obj = obj_geom.shape[0]
+    rows, cols = structure.shape
+    fwd_x, fwd_y = math.cos(yaw), math.sin(yaw)
+
+    # Pass 1: per column, the structure hit and the sorted object footprint intervals.
+    ray_x = np.empty(width)
+    ray_y = np.empty(width)
+    wall_d = np.empty(width)
+    wall_face = np.empty(width, np.int64)
+    wall_mat = np.empty(width, np.int64)
+    n_hits = np.zeros(width, np.int64)
+    hit_in = np.empty((width, max(n_obj, 1)))
+    hit_out = np.empty((width, max(n_obj, 1)))
+    hit_obj = np.empty((width, max(n_obj, 1)), np.int64)
+    hit_face = np.empty((width, max(n_obj, 1)), np.int64)
+    for u in range(width):
+        t = (ccx - u) / fx
+        dx, dy = fwd_x - t * fwd_y, fwd_y + t * fwd_x
+        ray_x[u], ray_y[u] = dx, dy
+        wd, wf, wm = _structure_hit(structure, ox, oy, res, px, py, dx, dy)
+        wall_d[u], wall_face[u], wall_mat[u] = wd, wf, wm
+        for o in range(n_obj):
+            a, b, face = _box_interval(obj_geom[o], px, py, dx, dy)
+            if a > b or b <= 0.0 or a >= wd:
+                continue
+            k = n_hits[u]
+            while k > 0 and hit_in[u, k - 1] > a:  # insertion sort by entry distance
+                hit_in[u, k], hit_out[u, k] = hit_in[u, k - 1], hit_out[u, k - 1]
+                hit_obj[u, k], hit_face[u, k] = hit_obj[u, k - 1], hit_face[u, k - 1]
+                k -= 1
+            hit_in[u, k], hit_out[u, k], hit_obj[u, k], hit_face[u, k] = a, b, o, face
+            n_hits[u] += 1
+
+    # Pass 2: per pixel, the nearest surface, then its shade.
+    color = np.empty(3)
+    for v in range(height):
+        k = (ccy - v) / fy
+        if k < 0.0:
+            plane_d, plane_kind = cam_h / -k, _FLOOR
+        elif k > 0.0:
+            plane_d, plane_kind = (ceiling - cam_h) / k, _CEILING
+        else:
+            plane_d, plane_kind = math.inf, _FLOOR
+        for u in range(width):
+            best, kind, obj, face = plane_d, plane_kind, -1, 0
+            if wall_d[u] < best:
+                best, kind = wall_d[u], _WALL
+            for hh in range(n_hits[u]):
+                a = hit_in[u, hh]
+                if a >= best:
+                    break
+                o = hit_obj[u, hh]
+                z0, z1 = obj_geom[o, 6], obj_geom[o, 7]
+                if k > 0.0:
+                    c, e = (z0 - cam_h) / k, (z1 - cam_h) / k
+                elif k < 0.0:
+                    c, e = (z1 - cam_h) / k, (z0 - cam_h) / k
+                elif z0 <= cam_h <= z1:
+                    c, e = -math.inf, math.inf
+                else:
+                    continue
+                lo = max(a, c)
+                if lo <= min(hit_out[u, hh], e) and lo < best:
+                    best, kind, obj = lo, _OBJECT, o
+                    face = (_FACE_TOP if k < 0.0 else _FACE_BOTTOM) if c > a else hit_face[u, hh]
+
+            depth[v, u] = min(max(best, min_d), max_d)
+            semantic[v, u] = obj_id[obj] if kind == _OBJECT else 0
+            if not shade_rgb:
+                continue
+            hx, hy, hz = px + best * ray_x[u], py + best * ray_y[u], cam_h + k * best
+            texel = 1.5 * best / fx  # about 1.5 pixels in metres at this depth
+            if kind == _FLOOR:
+                gx, gy = (hx - ox) / res, (hy - oy) / res
+                r = min(max(math.floor(gy), 0), rows - 1)
+                cc = min(max(math.floor(gx), 0), cols - 1)
+                room = room_index[r, cc]
+                shade = _floor_shade(floor_pattern[room], hx, hy, best, texel)
+                shade *= _bilinear(floor_shade, gx, gy)
+                for ch in range(3):
+                    color[ch] = floor_rgb[room, ch] * shade
+            elif kind == _CEILING:
+                for ch in range(3):
+                    color[ch] = surface_rgb[_CEILING_ROW, ch]
+            elif kind == _WALL:
+                mat = wall_mat[u]
+                shade = 0.86 if wall_face[u] == 0 else 1.0
+                if mat == Material.WALL:
+                    along = hy if wall_face[u] == 0 else hx
+                    seam = _line_weight(along / _WALL_PANEL, texel / _WALL_PANEL)
+                    row = _BASEBOARD_ROW if hz < _BASEBOARD else _WALL_ROW
+                    shade *= 1.0 - 0.12 * seam
+                elif mat == Material.DOOR_FRAME:
+                    row = _DOOR_ROW
+                else:
+                    row = _UNKNOWN_ROW
+                for ch in range(3):
+                    color[ch] = surface_rgb[row, ch] * shade
+            else:
+                if face == _FACE_TOP:
+                    shade = 1.0
+                elif face == _FACE_U:
+                    shade = 0.78
+                elif face == _FACE_V:
+                    shade = 0.62
+                else:
+                    shade = 0.5
+                lum = 0.3 * obj_rgb[obj, 0] + 0.59 * obj_rgb[obj, 1] + 0.11 * obj_rgb[obj, 2]
+                on_edge = _box_edge_distance(obj_geom[obj], face, hx, hy, hz) < texel
+                for ch in range(3):
+                    value = obj_rgb[obj, ch] * shade
+                    if on_edge:
+                        value = value * 0.45 if lum > 70.0 else value + 90.0
+                    color[ch] = value
+            light = 1.0 / (1.0 + _FALLOFF * best)
+            for ch in range(3):
+                rgb[v, u, ch] = np.uint8(min(255.0, max(0.0, color[ch] * light)))
