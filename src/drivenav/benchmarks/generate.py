@@ -66,9 +66,10 @@ def cell_start(goals: SceneGoals, category: str, cell: NDArray[np.int64]) -> Sta
     return (float(x), float(y), height), float(goals.field_for(category).distances[layer, row, col])
 
 
-def _sample_start(goals: SceneGoals, category: str, rng: np.random.Generator, storeys: Storeys) -> Start | None:
-    """A start cell on the reachable floor whose geodesic distance to the category lies in the allowed range."""
-    candidates = start_cells(goals, category, storeys.allowed(goals, category, rng))
+def _sample_start(goals: SceneGoals, category: str, rng: np.random.Generator, cross: bool | None) -> Start | None:
+    """A start cell on the reachable floor (of a storey ``cross`` allows) whose geodesic distance to the category
+    lies in the allowed range."""
+    candidates = start_cells(goals, category, start_layers(goals, category, cross))
     if len(candidates) == 0:
         return None
     return cell_start(goals, category, candidates[rng.integers(len(candidates))])
@@ -80,21 +81,27 @@ class Storeys:
 
     ``cross_floor`` (None: any floor): the share of episodes whose start lies on a storey without an instance of
     their category, so that they need a floor change (ASCENT's and the HM3D v1 count's definition); the others
-    start on a storey with one. It applies to scenes of several storeys only, and draws from the generator only
-    there, so one-floor scene sets give the episodes they always gave.
+    start on a storey with one. It is drawn once per episode and scene, in scenes of several storeys only, so one-floor
+    scene sets give the episodes they always gave.
     """
 
     cross_floor: float | None = None
 
-    def allowed(self, goals: SceneGoals, category: str, rng: np.random.Generator) -> NDArray[np.bool_] | None:
-        """The layers a start may lie on (all: None), drawing whether the episode needs a floor change."""
-        count = len(storeys_of(goals.scene))
-        if self.cross_floor is None or count == 1:
+    def draw(self, goals: SceneGoals, rng: np.random.Generator) -> bool | None:
+        """Whether the episode drafted in this scene must need a floor change (None: any floor)."""
+        if self.cross_floor is None or len(storeys_of(goals.scene)) == 1:
             return None
-        cross = bool(rng.random() < self.cross_floor)
-        holding = goal_storeys(goals, category)
-        layers = np.array([(j not in holding) == cross for j in range(count)])
-        return np.broadcast_to(layers[:, None, None], goals.reachable.shape)
+        return bool(rng.random() < self.cross_floor)
+
+
+def start_layers(goals: SceneGoals, category: str, cross: bool | None) -> NDArray[np.bool_] | None:
+    """The layers a start may lie on: those without an instance of ``category`` (``cross``), those with one (not
+    ``cross``), or all (None)."""
+    if cross is None:
+        return None
+    holding = goal_storeys(goals, category)
+    layers = np.array([(j not in holding) == cross for j in range(len(storeys_of(goals.scene)))])
+    return np.broadcast_to(layers[:, None, None], goals.reachable.shape)
 
 
 def goal_storeys(goals: SceneGoals, category: str) -> frozenset[int]:
@@ -157,8 +164,9 @@ def _make_episode(
     rng: np.random.Generator,
     storeys: Storeys,
 ) -> Episode | None:
+    cross = storeys.draw(goals, rng)
     for category in least_used_first(goals.goals, used, rng):
-        start = _sample_start(goals, category, rng, storeys)
+        start = _sample_start(goals, category, rng, cross)
         if start is None:
             continue
         names = _synonyms(category)

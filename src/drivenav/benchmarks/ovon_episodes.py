@@ -53,6 +53,7 @@ from drivenav.benchmarks.generate import (
     floor_info,
     least_used_first,
     start_cells,
+    start_layers,
 )
 from drivenav.envs.embedded.goals import SceneGoals, scene_goals, view_points_of
 from drivenav.envs.embedded.levels import Point3
@@ -150,16 +151,16 @@ def _ratio(geodesic: float, euclidean: float) -> float:
 
 
 def filtered_start(
-    scene: OvonScene, category: str, rng: np.random.Generator, rules: OvonRules, storeys: Storeys = ANY_FLOOR
+    scene: OvonScene, category: str, rng: np.random.Generator, rules: OvonRules, cross: bool | None = None
 ) -> Start | None:
-    """A start for ``category`` on a storey ``storeys`` allows that passes every filter, or None after
-    ``rules.start_retries`` draws.
+    """A start for ``category`` that passes every filter (on a storey without an instance of it where ``cross``,
+    with one where not ``cross``), or None after ``rules.start_retries`` draws.
 
     The straight-line distance to the geodesically nearest view point is at least the distance to the nearest
     view point, so a start whose ratio to the latter is below ``min_ratio`` is rejected without the solve of
     :func:`straightness` (the same starts pass either way, with the same draws)."""
-    allowed = storeys.allowed(scene.goals, category, rng)
-    cells = start_cells(scene.goals, category, scene.allowed if allowed is None else scene.allowed & allowed)
+    layers = start_layers(scene.goals, category, cross)
+    cells = start_cells(scene.goals, category, scene.allowed if layers is None else scene.allowed & layers)
     if len(cells) == 0:
         return None
     points = np.asarray(view_points_of(scene.goals.goals[category]))
@@ -236,8 +237,9 @@ class _Generation:
         """The split's episode in this scene: the least-used category of the split with a start that passes."""
         scene = self.scene(scene_id)
         present = [c for c in scene.goals.goals if c in self.allowed[split]]
+        cross = self.storeys.draw(scene.goals, self.rng)
         for category in least_used_first(present, self.used[split], self.rng):
-            start = filtered_start(scene, category, self.rng, self.rules, self.storeys)
+            start = filtered_start(scene, category, self.rng, self.rules, cross)
             if start is None:
                 continue
             synonym = split == SPLITS[1]

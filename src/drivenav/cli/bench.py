@@ -37,6 +37,11 @@ def add_bench(commands: Commands) -> None:
     sub = parser.add_subparsers(dest="bench_command", required=True)
     sim = sub.add_parser("sim", help="embedded simulator frames per second (RGB + depth + semantic, one core)")
     sim.add_argument("--frames", type=int, default=300)
+    sim.add_argument(
+        "--scene",
+        metavar="SCENE_ID",
+        help="a generated scene by id, e.g. storeys/home_00004 (a home of three storeys); default: procedural house 0",
+    )
     sim.add_argument("--json", action="store_true", help="print one JSON object")
     sim.set_defaults(handler=_cmd_bench_sim)
     directions = sub.add_parser("directions", help="map -> labelled directions for all frontiers (480x480 map)")
@@ -141,8 +146,16 @@ def add_benchmark(commands: Commands) -> None:
 
 def _cmd_bench_sim(args: argparse.Namespace) -> int:
     from drivenav.envs.embedded.bench import bench_sim
+    from drivenav.envs.embedded.library import SceneLibrary
 
-    return print_bench(bench_sim(frames=positive(args.frames, "--frames")), args.json)
+    scene = None
+    if args.scene is not None:
+        library = SceneLibrary("procedural,homes,storeys")
+        if args.scene not in library:
+            expected = "a generated scene id: procedural/house_N, homes/home_N or storeys/home_N"
+            raise InputError("command line", "--scene", expected, args.scene)
+        scene = library.load(args.scene)
+    return print_bench(bench_sim(frames=positive(args.frames, "--frames"), scene=scene), args.json)
 
 
 def _cmd_bench_directions(args: argparse.Namespace) -> int:

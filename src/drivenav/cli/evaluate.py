@@ -87,7 +87,7 @@ def add_config(commands: Commands) -> None:
 
 
 def add_viz(commands: Commands) -> None:
-    parser = commands.add_parser("viz", help="pictures of a finished episode")
+    parser = commands.add_parser("viz", help="pictures of a finished episode (a building's: a top-down map per floor)")
     parser.add_argument("run_dir", type=path)
     parser.add_argument("episode_id")
     parser.add_argument("--out", type=path, default=None, help="output folder (default RUN_DIR/viz)")

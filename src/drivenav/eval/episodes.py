@@ -22,8 +22,16 @@ from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import Any
 
+from drivenav.envs.embedded.building import Building
 from drivenav.envs.embedded.library import SceneLibrary
-from drivenav.envs.embedded.terrain import START_TOLERANCE, DistanceField, FlatTerrain, Terrain, terrain_of
+from drivenav.envs.embedded.terrain import (
+    START_TOLERANCE,
+    DistanceField,
+    FlatTerrain,
+    LevelTerrain,
+    Terrain,
+    terrain_of,
+)
 from drivenav.episode import (
     Episode,
     ObjectGoal,
@@ -214,9 +222,10 @@ FLOOR_TOLERANCE = START_TOLERANCE  # metres: a start stands on a floor (Habitat'
 def validate_for_scenes(episodes: list[Episode], library: SceneLibrary, source: str | Path, sim: SimConfig) -> None:
     """Every episode fits the world: its scene is in ``library``; its start and view points lie on the scene's one
     connected navigable area (:mod:`drivenav.envs.embedded.terrain`; in a building, on a floor within 0.25 m of
-    their heights), so a goal is reachable from the start; and ``info.geodesic_distance`` (if given) is the world's
-    start-to-goal distance (what SPL divides by) within 10 %. Goals that episodes share (one tuple, as a file's
-    repeated goals text reads) are checked once."""
+    their heights), so a goal is reachable from the start; in a building, every goal has a view point on its own
+    floor and a start off the navigable area over a stairwell is named as such; and ``info.geodesic_distance`` (if
+    given) is the world's start-to-goal distance (what SPL divides by) within 10 %. Goals that episodes share (one
+    tuple, as a file's repeated goals text reads) are checked once."""
     fields = Fields(source)
     terrains: dict[str, Terrain] = {}
     distances: dict[tuple[str, tuple[int, ...]], DistanceField] = {}  # by the goals' ids: all alive in ``episodes``
@@ -244,6 +253,19 @@ def _check_view_points(episode: Episode, name: str, terrain: Terrain, fields: Fi
             if not terrain.on_reachable(*point.xy, point.height):
                 field = f"{name}.goals[{k}].view_points[{m}].agent_state.position"
                 raise fields.error(field, _where(episode), list(point.position))
+        if isinstance(terrain, LevelTerrain):
+            _check_goal_floor(goal, f"{name}.goals[{k}]", terrain.building, fields)
+
+
+def _check_goal_floor(goal: ObjectGoal, name: str, building: Building, fields: Fields) -> None:
+    """A goal of a building has a view point on its own floor (where :mod:`drivenav.envs.embedded.goals` puts them):
+    the storey under the goal's ``position``, an object's centre, which lies between its floor and the slab above."""
+    storey = building.storey_at(goal.position[1])
+    floor = building.elevations[storey]
+    if not any(abs(point.height - floor) <= FLOOR_TOLERANCE for point in goal.view_points):
+        expected = f"a view point on the goal's floor (storey {storey}, height {floor:g} m, under its position)"
+        heights = sorted({round(point.height, 3) for point in goal.view_points})
+        raise fields.error(f"{name}.view_points", expected, f"view points at heights {heights}")
 
 
 def _check_start(episode: Episode, name: str, terrain: Terrain, fields: Fields) -> None:
@@ -251,7 +273,18 @@ def _check_start(episode: Episode, name: str, terrain: Terrain, fields: Fields) 
     flat = isinstance(terrain, FlatTerrain)
     if not terrain.on_reachable(*episode.start_xy, height) or (flat and abs(height) > FLOOR_TOLERANCE):
         expected = f"{_where(episode)}, on its floor (height 0)" if flat else f"{_where(episode)}, on a floor"
+        if isinstance(terrain, LevelTerrain) and _in_stairwell(terrain.building, episode):
+            storey = terrain.building.storey_at(height)
+            expected = f"{expected}, not in the void of a stairwell (storey {storey}'s floor is open there)"
         raise fields.error(f"{name}.start_position", expected, list(episode.start_position))
+
+
+def _in_stairwell(building: Building, episode: Episode) -> bool:
+    """Whether the start lies over a stairwell of the storey at its height (where that storey has no floor)."""
+    row, col = building.grid.cell_at(*episode.start_xy)
+    rows, cols = building.grid.shape
+    holes = building.holes[building.storey_at(episode.start_height)]
+    return 0 <= row < rows and 0 <= col < cols and bool(holes[row, col])
 
 
 def _check_geodesic(episode: Episode, name: str, goals: DistanceField, fields: Fields) -> None:

@@ -1,7 +1,8 @@
 """One episode page per (episode, run): what happened, from the record and the trace.
 
-The page shows the record's measures; the top-down picture with the decisions, the other pictures and the video
-where there are some; each direction decision with the candidate directions offered (the step of the
+The page shows the record's measures and, for an episode in a building, the floor it started on and the floors of
+its goals; the top-down picture with the decisions (a building's: one map per storey), the other pictures and the
+video where there are some; each direction decision with the candidate directions offered (the step of the
 representative view each had then), the one chosen and the reasoner's answer; the detections, the verification
 verdicts and the target decisions; the prompt enrichment; the per-step module timings as a small plot; links to
 the trace and the record (copied into the site) and to the same episode in the other runs.
@@ -24,11 +25,13 @@ from drivenav.agent.trace import (
     VerificationEvent,
     of_type,
 )
+from drivenav.episode import Episode
 from drivenav.eval.records import EpisodeRecord, missed_cause
 from drivenav.eval.report import shown
 from drivenav.eval.trace import EpisodeTrace
 from drivenav.report.config import ReportConfig
 from drivenav.report.html import Cell, element, esc, link, page, table, void
+from drivenav.report.pictures import SUFFIXES
 from drivenav.report.timing_plot import timing_svg
 from drivenav.viz.saved_trace import SavedTrace
 from drivenav.viz.thumbnails import capture_step
@@ -59,9 +62,38 @@ class EpisodeView:
     record_file: str
     siblings: tuple[Sibling, ...]
     note: str = ""  # why a picture or the trace is missing
+    episode: Episode | None = None  # None without the run's copy of its episodes
 
 
-def _facts(record: EpisodeRecord) -> str:
+def _listed(value: object) -> str:
+    """An episode info's value as text: a list's items joined by commas (a file's info is kept as given)."""
+    return ", ".join(str(item) for item in value) if isinstance(value, list) else str(value)
+
+
+def floor_facts(episode: Episode | None) -> list[tuple[str, str]]:
+    """Where an episode in a building starts and where its goals are: the floors its info names (``start_floor``,
+    ``goal_floors``, ``cross_floor``, as ``drivenav episodes generate`` writes them) with the heights of its start
+    and of its goals' view points; nothing for an episode whose heights are all 0 and whose info names no floor."""
+    if episode is None:
+        return []
+    info = episode.info
+    heights = sorted({round(height, 1) for *_, height in episode.view_points_xyz()})
+    named = {"start_floor", "goal_floors", "cross_floor"} & set(info)
+    if not named and episode.start_height == 0 and not any(heights):
+        return []
+    start = f"at {episode.start_height:.1f} m"
+    goals = "view points at " + (", ".join(f"{height:.1f} m" for height in heights) or "-")
+    if "start_floor" in info:
+        start = f"floor {_listed(info['start_floor'])} ({start})"
+    if "goal_floors" in info:
+        goals = f"floor {_listed(info['goal_floors'])} ({goals})"
+    facts = [("start floor", start), ("goal floors", goals)]
+    if "cross_floor" in info:
+        facts.append(("floor change needed", "yes" if info["cross_floor"] is True else "no"))
+    return facts
+
+
+def _facts(record: EpisodeRecord, episode: Episode | None) -> str:
     cause = record.failure_cause
     if cause == "missed_target":
         cause += f" ({missed_cause(record)})"
@@ -69,6 +101,7 @@ def _facts(record: EpisodeRecord) -> str:
     facts = [
         ("goal", record.object_category),
         ("scene", record.scene_id),
+        *floor_facts(episode),
         ("success", shown(record.success, "{:.0f}")),
         ("SPL", shown(record.spl, "{:.3f}")),
         ("steps", str(record.steps)),
@@ -86,11 +119,16 @@ def _facts(record: EpisodeRecord) -> str:
     return element("dl", items, {"class": "facts"})
 
 
+def _picture(src: str, episode_id: str) -> str:
+    """A picture scaled to the page's width, linked to itself at full size; the top-down picture (a building's is
+    one map per storey side by side, wide) on a line of its own."""
+    image = void("img", {"src": src, "alt": f"{Path(src).stem} of episode {episode_id}"})
+    wide = "topdown" if src.endswith(SUFFIXES[0]) else None
+    return element("figure", element("a", image, {"href": src}), {"class": wide})
+
+
 def _media(view: EpisodeView) -> str:
-    figures = "".join(
-        element("figure", void("img", {"src": src, "alt": f"{Path(src).stem} of episode {view.record.episode_id}"}))
-        for src in view.pictures
-    )
+    figures = "".join(_picture(src, view.record.episode_id) for src in view.pictures)
     if view.video is not None:
         figures += element("figure", element("video", "", {"src": view.video, "controls": "", "preload": "metadata"}))
     if not figures:
@@ -214,7 +252,7 @@ def episode_html(view: EpisodeView, config: ReportConfig) -> str:
     events = () if view.trace is None else view.trace.events
     title = f"Episode {record.episode_id} · {view.run}"
     back = element("p", link(f"{ROOT}episodes.html#method={view.run}", f"all episodes of {view.run}"))
-    body = element("h1", esc(title)) + back + _facts(record)
+    body = element("h1", esc(title)) + back + _facts(record, view.episode)
     if view.note:
         body += element("p", esc(view.note), {"class": "note"})
     body += _media(view) + _decisions(view, events, config.rows_per_table)

@@ -18,6 +18,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from drivenav.analysis.ablations import RUNS_DIR
+from drivenav.envs.embedded.building import Building
 from drivenav.envs.embedded.scene import Scene
 from drivenav.episode import Episode
 from drivenav.eval.records import EpisodeRecord
@@ -103,9 +104,9 @@ SCENES_KEPT = 16  # scenes kept per drawing process (workers take the pages in s
 
 
 @lru_cache(maxsize=SCENES_KEPT)
-def _scene(world: str, scene_id: str, source: str) -> Scene | None:
-    """A scene of a recorded world (``world``: its ``run.json`` record as JSON text), or None for worlds whose scenes
-    drivenav cannot draw; a few are kept per process."""
+def _scene(world: str, scene_id: str, source: str) -> Scene | Building | None:
+    """A scene or building of a recorded world (``world``: its ``run.json`` record as JSON text), or None for worlds
+    whose scenes drivenav cannot draw; a few are kept per process."""
     entry, spec = recorded_world(json.loads(world), source)
     return entry.scene(spec, scene_id, Path(source) / EPISODES_COPY)
 

@@ -240,6 +240,7 @@ def _write_page(item: PageItem, site: Path, config: ReportConfig) -> int:
         _write_record(record, site, stem),
         item.siblings,
         " ".join(note for note in notes if note),
+        item.episode,
     )
     page = site / "episodes" / f"{stem}.html"
     page.parent.mkdir(parents=True, exist_ok=True)

@@ -5,8 +5,10 @@ has read its run already (the report, ``bench ablations``' pictures, the demo) b
 :func:`episode_material`, and :func:`load_episode` reads one from a run directory for the command line. Writes
 ``<id>_topdown.png`` (the map with the trace, a legend and the last decisions' representative views),
 ``<id>_start_view.png`` and ``<id>_end_view.png`` (RGB, depth, semantics) and ``<id>.mp4`` (needs imageio-ffmpeg).
-Everything is re-rendered from the saved trace with the default camera (:class:`SimConfig`). A Habitat run gets the
-top-down picture only, its trace, decisions and goals on a blank floor (:func:`trace_scene`).
+Everything is re-rendered from the saved trace with the default camera (:class:`SimConfig`), each view from the height
+the trace gives its pose (a building's views from the floor the agent was on). A building's top-down picture has one
+map per storey (:func:`~drivenav.viz.topdown.draw_episode`). A Habitat run gets the top-down picture only, its trace,
+decisions and goals on a blank floor (:func:`trace_scene`).
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 from PIL import Image
 
+from drivenav.envs.embedded.building import Building
 from drivenav.envs.embedded.render import Renderer
 from drivenav.envs.embedded.scene import Material, Scene
 from drivenav.episode import Episode
@@ -30,7 +33,7 @@ from drivenav.eval.rundir import EPISODES_COPY, RUN_FILE, RunContents, inside, r
 from drivenav.eval.trace import EpisodeTrace
 from drivenav.grid import GridSpec
 from drivenav.types import Pose, SimConfig
-from drivenav.viz.coverage import explored_cells
+from drivenav.viz.coverage import explored_floors
 from drivenav.viz.rerun_log import import_rerun, write_rerun
 from drivenav.viz.saved_trace import SavedTrace
 from drivenav.viz.thumbnails import decision_views
@@ -93,10 +96,10 @@ def trace_picture(episode: Episode, trace: SavedTrace, record: EpisodeRecord | N
 
 @dataclass(frozen=True)
 class EpisodeMaterial:
-    """What an episode's pictures are drawn from: its scene (None for worlds whose scenes drivenav cannot draw), the
-    episode, its trace and its record (None when the run holds none)."""
+    """What an episode's pictures are drawn from: its scene or building (None for worlds whose scenes drivenav cannot
+    draw), the episode, its trace and its record (None when the run holds none)."""
 
-    scene: Scene | None
+    scene: Scene | Building | None
     episode: Episode
     trace: SavedTrace
     record: EpisodeRecord | None
@@ -147,7 +150,7 @@ def render_episode_pictures(
         return [trace_picture(episode, trace, record, folder)]
     sim = SimConfig()
     renderer = Renderer(scene, sim)
-    topdown = draw_episode(scene, episode, trace, record, explored_cells(scene, trace, sim))
+    topdown = draw_episode(scene, episode, trace, record, explored_floors(scene, trace, sim))
     views = decision_views(renderer, trace, topdown.width)
     written = [save_png(stack([topdown] if views is None else [topdown, views]), folder / f"{stem}_topdown.png")]
     for label, step in (("start", 0), ("end", len(trace) - 1)):

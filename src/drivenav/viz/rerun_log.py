@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from drivenav.agent.trace import Event
+from drivenav.envs.embedded.building import Building
 from drivenav.envs.embedded.scene import Scene
 from drivenav.episode import Episode
 from drivenav.errors import InputError
@@ -41,8 +42,9 @@ def event_text(event: Event) -> str:
     return f"{event.kind}: {json.dumps(fields, sort_keys=True)}"
 
 
-def write_rerun(path: Path, scene: Scene, episode: Episode, trace: SavedTrace, sim: SimConfig) -> Path:
-    """Write the episode's streams to ``path`` (an ``.rrd`` recording)."""
+def write_rerun(path: Path, world: Scene | Building, episode: Episode, trace: SavedTrace, sim: SimConfig) -> Path:
+    """Write the episode's streams to ``path`` (an ``.rrd`` recording; a building's views and map from the floor
+    the agent is on)."""
     rr = import_rerun()
     recording = rr.RecordingStream("drivenav", recording_id=f"{episode.scene_id}/{episode.episode_id}")
     recording.save(str(path))
@@ -53,7 +55,7 @@ def write_rerun(path: Path, scene: Scene, episode: Episode, trace: SavedTrace, s
     for event in trace.events:
         recording.set_time("step", sequence=event.step)
         recording.log("events", rr.TextLog(event_text(event)))
-    for frame in step_frames(scene, episode, trace, sim):
+    for frame in step_frames(world, episode, trace, sim):
         recording.set_time("step", sequence=frame.step)
         recording.log("camera/rgb", rr.Image(frame.rgb))
         recording.log("camera/depth", rr.DepthImage(frame.depth, meter=1.0))

@@ -1,9 +1,10 @@
 """A saved episode trace placed in the world, as the pictures read it: a thin view over
 :class:`~drivenav.eval.trace.EpisodeTrace`.
 
-Poses (``positions``, ``yaws``) are in the world frame, one per step from the start; event points and bearings
-are in the episode frame and go to the world through the episode's start pose. The view adds only that start
-pose and the poses as arrays; everything else is read from the trace it wraps.
+Poses (``positions``, ``yaws``, ``heights``) are in the world frame, one per step from the start; event points and
+bearings are in the episode frame and go to the world through the episode's start pose. A trace without heights (a
+one-floor world's) is at height 0 throughout. The view adds only that start pose and the poses as arrays; everything
+else is read from the trace it wraps.
 """
 
 from __future__ import annotations
@@ -22,13 +23,14 @@ from drivenav.types import Pose
 
 @dataclass(frozen=True)
 class SavedTrace:
-    """``trace`` of an episode that started at ``start`` (world frame); ``positions`` (N x 2) and ``yaws`` (N) are
-    its poses as arrays."""
+    """``trace`` of an episode that started at ``start`` (world frame); ``positions`` (N x 2), ``yaws`` (N) and
+    ``heights`` (N, the agent's feet above the ground floor) are its poses as arrays."""
 
     trace: EpisodeTrace
     start: Pose
     positions: NDArray[np.float64]
     yaws: NDArray[np.float64]
+    heights: NDArray[np.float64]
 
     @staticmethod
     def of(trace: EpisodeTrace, episode: Episode) -> SavedTrace:
@@ -36,9 +38,11 @@ class SavedTrace:
         be drawn: ValueError."""
         positions = np.asarray(trace.positions, dtype=np.float64).reshape(-1, 2)
         yaws = np.asarray(trace.yaws, dtype=np.float64).reshape(-1)
-        if len(positions) == 0 or len(positions) != len(yaws):
-            raise ValueError("positions and yaws must be non-empty and of equal length")
-        return SavedTrace(trace, Pose(*episode.start_xy, episode.start_yaw), positions, yaws)
+        heights = np.asarray(trace.heights or np.zeros(len(yaws)), dtype=np.float64).reshape(-1)
+        if len(positions) == 0 or not len(positions) == len(yaws) == len(heights):
+            raise ValueError("positions, yaws (and heights, where given) must be non-empty and of equal length")
+        start = Pose(*episode.start_xy, episode.start_yaw, episode.start_height)
+        return SavedTrace(trace, start, positions, yaws, heights)
 
     @property
     def events(self) -> tuple[Event, ...]:
@@ -56,10 +60,15 @@ class SavedTrace:
     def __len__(self) -> int:
         return len(self.positions)
 
+    def index(self, step: int) -> int:
+        """The pose index of ``step``, clamped to the trajectory."""
+        return min(max(step, 0), len(self) - 1)
+
     def pose(self, step: int) -> Pose:
-        """The world pose at ``step`` (clamped to the trajectory)."""
-        index = min(max(step, 0), len(self) - 1)
-        return Pose(float(self.positions[index, 0]), float(self.positions[index, 1]), float(self.yaws[index]))
+        """The world pose at ``step`` (clamped to the trajectory), its height included."""
+        index = self.index(step)
+        x, y = self.positions[index]
+        return Pose(float(x), float(y), float(self.yaws[index]), float(self.heights[index]))
 
     def xy(self, step: int) -> Point:
         pose = self.pose(step)

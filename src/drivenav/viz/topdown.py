@@ -3,6 +3,10 @@
 :class:`Canvas` maps world metres to pixels of a cropped, scaled structure grid under a one-line header. The
 trace overlay is drawn event by event (:func:`draw_event`, :func:`draw_move`), so a video can add it step by step
 to a map drawn once, and a picture draws it all at once (:func:`draw_episode`).
+
+A building gets one map per storey (:mod:`drivenav.viz.floors`), all on one canvas: each shows its storey's plan,
+the stairs rising from it, its stairwell and railings, the goals and view points on it, and what happened on it
+(the part of the path walked there, the trace's events at its poses, where the path leaves and enters it).
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ from drivenav.agent.trace import (
     TargetAccepted,
     TargetRejected,
 )
+from drivenav.envs.embedded.building import Building, Flight, Rect, storeys_of
 from drivenav.envs.embedded.palette import category_color
 from drivenav.envs.embedded.scene import Material, Scene
 from drivenav.episode import Episode
@@ -33,6 +38,7 @@ from drivenav.eval.records import EpisodeRecord
 from drivenav.eval.report import shown
 from drivenav.types import Pose
 from drivenav.viz.directions import label_color
+from drivenav.viz.floors import Floor, floor_changes, floors_of, move_floors, pose_floors
 from drivenav.viz.saved_trace import SavedTrace
 
 RGB = tuple[int, int, int]
@@ -40,6 +46,8 @@ Draw = ImageDraw.ImageDraw
 Marker = Callable[[Draw, float, float], None]  # draws a symbol at picture coordinates
 
 MAX_SIDE = 1000  # pixels of the longer side of the map area
+FLOOR_SIDE = 700  # the same for each storey's map of a building (they lie side by side)
+FLOOR_GAP = 12  # pixels between two storeys' maps
 MARGIN_CELLS = 10
 HEADER = 28
 LEGEND_WIDTH = 250
@@ -61,25 +69,34 @@ VIEW_POINT_COLOR = (20, 120, 50)
 INSPECTION_COLOR = (150, 60, 200)
 DETECTION_COLOR = (235, 150, 0)
 SEGMENT_RAMP = ((40, 70, 200), (150, 50, 170), (215, 50, 70), (240, 140, 0))
+STAIRS_TINT = (110, 160, 215)
+STAIRS_ALPHA = 0.5  # weight of the tint blended into the cells of stairs rising from a floor
+TREAD_COLOR = (50, 80, 140)
+HOLE_COLOR = (35, 45, 80)  # a stairwell: the floor is open onto the storey below
+RAILING_COLOR = (0, 140, 150)
+FLOOR_CHANGE_COLOR = (20, 20, 20)
 ARROW_LENGTH = 1.2  # metres, along a selected direction's bearing
 
 
 class Canvas:
-    """World-to-pixel mapping of a cropped structure grid scaled so its longer side is ``max_side`` pixels."""
+    """World-to-pixel mapping of a cropped structure grid scaled so its longer side is ``max_side`` pixels (a
+    building's: the crop of every storey's known cells, so that its storeys' maps are alike)."""
 
-    def __init__(self, scene: Scene, max_side: int = MAX_SIDE, header: int = HEADER) -> None:
-        known = np.argwhere(scene.structure != Material.UNKNOWN)
+    def __init__(self, world: Scene | Building, max_side: int = MAX_SIDE, header: int = HEADER) -> None:
+        storeys = storeys_of(world)
+        grid = storeys[0].plan.grid
+        known = np.argwhere(np.any([s.plan.structure != Material.UNKNOWN for s in storeys], axis=0))
         if len(known) == 0:
-            known = np.array([[0, 0], [scene.grid.shape[0] - 1, scene.grid.shape[1] - 1]])
+            known = np.array([[0, 0], [grid.shape[0] - 1, grid.shape[1] - 1]])
         lo = np.maximum(known.min(axis=0) - MARGIN_CELLS, 0)
-        hi = np.minimum(known.max(axis=0) + MARGIN_CELLS + 1, scene.grid.shape)
+        hi = np.minimum(known.max(axis=0) + MARGIN_CELLS + 1, grid.shape)
         self.rows = (int(lo[0]), int(hi[0]))
         self.cols = (int(lo[1]), int(hi[1]))
         self.scale = max_side / max(self.rows[1] - self.rows[0], self.cols[1] - self.cols[0])
         self.header = header
-        self.res = scene.grid.resolution
-        self.x0 = scene.grid.origin[0] + self.cols[0] * self.res
-        self.y1 = scene.grid.origin[1] + self.rows[1] * self.res
+        self.res = grid.resolution
+        self.x0 = grid.origin[0] + self.cols[0] * self.res
+        self.y1 = grid.origin[1] + self.rows[1] * self.res
 
     @property
     def size(self) -> tuple[int, int]:
@@ -96,18 +113,22 @@ class Canvas:
     def window(self, grid: NDArray[Any]) -> NDArray[Any]:
         return grid[self.rows[0] : self.rows[1], self.cols[0] : self.cols[1]]
 
-    def base_image(self, scene: Scene, explored: NDArray[np.bool_] | None = None) -> Image.Image:
-        """The structure (rooms tinted, explored free cells tinted) under a white header."""
-        window = self.window(scene.structure)
+    def base_image(self, floor: Floor, explored: NDArray[np.bool_] | None = None) -> Image.Image:
+        """A floor's structure (rooms tinted, explored free cells tinted, the stairs rising from it tinted, its
+        stairwell dark) under a white header."""
+        window = self.window(floor.plan.structure)
         rgb = np.zeros((*window.shape, 3), dtype=np.float64)
         for material, color in STRUCTURE_COLORS.items():
             rgb[window == material] = color
         free = window == Material.FREE
-        rooms = self.window(scene.room_index)
+        rooms = self.window(floor.plan.room_index)
         rgb[free & (rooms > 0) & (rooms % 2 == 0)] = (226, 232, 238)
         if explored is not None:
-            seen = free & self.window(explored)
-            rgb[seen] = (1.0 - EXPLORED_ALPHA) * rgb[seen] + EXPLORED_ALPHA * np.array(EXPLORED_TINT)
+            _tint(rgb, free & self.window(explored), EXPLORED_TINT, EXPLORED_ALPHA)
+        if floor.stair_cells is not None:
+            _tint(rgb, free & self.window(floor.stair_cells), STAIRS_TINT, STAIRS_ALPHA)
+        if floor.hole is not None:
+            rgb[self.window(floor.hole)] = HOLE_COLOR
         width, height = self.size
         grid = Image.fromarray(rgb[::-1].astype(np.uint8)).resize(
             (width, height - self.header), Image.Resampling.NEAREST
@@ -115,6 +136,17 @@ class Canvas:
         image = Image.new("RGB", (width, height), (255, 255, 255))
         image.paste(grid, (0, self.header))
         return image
+
+
+def _tint(rgb: NDArray[np.float64], cells: NDArray[np.bool_], tint: RGB, alpha: float) -> None:
+    """Blend ``tint`` with weight ``alpha`` into the ``cells`` of an image array, in place."""
+    rgb[cells] = (1.0 - alpha) * rgb[cells] + alpha * np.array(tint)
+
+
+def blended(color: RGB, tint: RGB, alpha: float) -> RGB:
+    """``color`` with ``tint`` blended in with weight ``alpha`` (what :func:`_tint` makes of it)."""
+    r, g, b = ((1.0 - alpha) * np.array(color) + alpha * np.array(tint)).astype(int)
+    return int(r), int(g), int(b)
 
 
 def darker(color: RGB, factor: float = 0.6) -> RGB:
@@ -189,14 +221,24 @@ def mark_rejected(draw: Draw, px: float, py: float) -> None:
     _cross(draw, px, py, 8, FAILURE_COLOR, 4)
 
 
+def mark_floor_change(draw: Draw, px: float, py: float, up: bool, leaving: bool) -> None:
+    """Where the path changes floors: a triangle pointing up or down the stairs, filled where it leaves the floor
+    drawn, hollow where it enters it."""
+    tip = -9.0 if up else 9.0
+    corners = [(px, py + tip), (px - 8, py - tip * 0.7), (px + 8, py - tip * 0.7)]
+    draw.polygon(corners, fill=FLOOR_CHANGE_COLOR if leaving else (255, 255, 255), outline=FLOOR_CHANGE_COLOR, width=2)
+
+
 # ---------------------------------------------------------------------------------------------- scene and trace
 
 
-def draw_scene(
-    scene: Scene, episode: Episode, canvas: Canvas, explored: NDArray[np.bool_] | None = None
+def draw_floor(
+    floor: Floor, episode: Episode, canvas: Canvas, explored: NDArray[np.bool_] | None = None
 ) -> Image.Image:
-    """Structure, room names, objects (goals outlined in red) and the goals' view points."""
-    image = canvas.base_image(scene, explored)
+    """A floor's structure, room names, objects (goals outlined in red), stairs, railings and the goals' view points
+    on it."""
+    scene = floor.plan
+    image = canvas.base_image(floor, explored)
     draw = ImageDraw.Draw(image)
     for room in scene.rooms:
         xs, ys = zip(*room.polygon, strict=True)
@@ -214,9 +256,40 @@ def draw_scene(
         draw.polygon(corners, fill=color, outline=darker(color))
         if obj.instance_id in goal_ids:
             draw.line([*corners, corners[0]], fill=GOAL_OUTLINE, width=3)
-    for x, y in episode.view_points_xy():
-        _disc(draw, *canvas.to_pixel(x, y), 1.5, VIEW_POINT_COLOR, None)
+    _draw_stairs(draw, canvas, floor)
+    for x, y, z in episode.view_points_xyz():
+        if floor.holds(z):
+            _disc(draw, *canvas.to_pixel(x, y), 1.5, VIEW_POINT_COLOR, None)
     return image
+
+
+def _pixel_rect(canvas: Canvas, rect: Rect) -> list[float]:
+    """A world rectangle as picture corners ``[left, top, right, bottom]``."""
+    x0, y0, x1, y1 = rect
+    left, bottom = canvas.to_pixel(x0, y0)
+    right, top = canvas.to_pixel(x1, y1)
+    return [left, top, right, bottom]
+
+
+def _draw_flight(draw: Draw, canvas: Canvas, flight: Flight) -> None:
+    """A flight's tread edges across it and an arrow up its middle."""
+    for k in range(flight.risers):
+        x0, y0, x1, y1 = flight.rect(k * flight.going, k * flight.going)
+        draw.line([canvas.to_pixel(x0, y0), canvas.to_pixel(x1, y1)], fill=TREAD_COLOR, width=1)
+    (fx, fy), (ux, uy), run = flight.foot, flight.axis, flight.run
+    tail = canvas.to_pixel(fx + 0.15 * run * ux, fy + 0.15 * run * uy)
+    _arrow(draw, tail, canvas.to_pixel(fx + run * ux, fy + run * uy), TREAD_COLOR)
+
+
+def _draw_stairs(draw: Draw, canvas: Canvas, floor: Floor) -> None:
+    """The flights and landings of the stairs rising from a floor, and the railings along its stairwell."""
+    for stair in floor.stairs:
+        for landing in stair.landings:
+            draw.rectangle(_pixel_rect(canvas, landing.rect), outline=TREAD_COLOR, width=1)
+        for flight in stair.flights:
+            _draw_flight(draw, canvas, flight)
+    for railing in floor.railings:
+        draw.rectangle(_pixel_rect(canvas, railing.rect), fill=RAILING_COLOR, outline=RAILING_COLOR, width=2)
 
 
 def draw_pose(draw: Draw, canvas: Canvas, xy: Point, yaw: float, color: RGB) -> None:
@@ -238,12 +311,35 @@ def draw_move(draw: Draw, canvas: Canvas, trace: SavedTrace, step: int, color: R
     draw.line([canvas.to_pixel(*trace.xy(step)), canvas.to_pixel(*trace.xy(step + 1))], fill=color, width=3)
 
 
-def draw_trajectory(draw: Draw, canvas: Canvas, trace: SavedTrace) -> None:
-    """The whole path, one polyline per segment, coloured along :func:`segment_color`."""
+def draw_trajectory(draw: Draw, canvas: Canvas, trace: SavedTrace, moves: NDArray[np.bool_] | None = None) -> None:
+    """The path, one polyline per segment (per stretch of it, when only the moves set in ``moves`` are drawn: those
+    on one floor), coloured along :func:`segment_color`."""
     segments = trace.segments()
     for index, (first, last) in enumerate(segments):
-        points = [canvas.to_pixel(*trace.xy(step)) for step in range(first, last + 1)]
-        draw.line(points, fill=segment_color(index, len(segments)), width=3, joint="curve")
+        for start, end in [(first, last)] if moves is None else _stretches(moves, first, last):
+            points = [canvas.to_pixel(*trace.xy(step)) for step in range(start, end + 1)]
+            draw.line(points, fill=segment_color(index, len(segments)), width=3, joint="curve")
+
+
+def _stretches(moves: NDArray[np.bool_], first: int, last: int) -> list[tuple[int, int]]:
+    """The first and last pose of each run of consecutive moves set in ``moves`` between poses ``first`` and
+    ``last``."""
+    steps = np.flatnonzero(moves[first:last]) + first
+    if len(steps) == 0:
+        return []
+    breaks = np.flatnonzero(np.diff(steps) > 1)
+    starts, ends = [steps[0], *steps[breaks + 1]], [*steps[breaks], steps[-1]]
+    return [(int(a), int(b) + 1) for a, b in zip(starts, ends, strict=True)]
+
+
+def draw_floor_change(
+    draws: Sequence[Draw], canvas: Canvas, trace: SavedTrace, floors: NDArray[np.int64], move: int
+) -> None:
+    """The markers of a move between two floors (``floors``: per pose, its floor; ``draws``: per floor, its map):
+    where the path leaves the one floor and where it enters the other."""
+    before, after = int(floors[move]), int(floors[move + 1])
+    mark_floor_change(draws[before], *canvas.to_pixel(*trace.xy(move)), after > before, leaving=True)
+    mark_floor_change(draws[after], *canvas.to_pixel(*trace.xy(move + 1)), after > before, leaving=False)
 
 
 def _draw_decision(draw: Draw, canvas: Canvas, trace: SavedTrace, event: DirectionSelected) -> None:
@@ -324,9 +420,8 @@ def _legend_entries(success: bool) -> list[tuple[str, Marker]]:
             draw.line([(px - 14 + 7 * k, py), (px - 7 + 7 * k, py)], fill=segment_color(k, 4), width=4)
 
     def explored(draw: Draw, px: float, py: float) -> None:
-        free = np.array(STRUCTURE_COLORS[Material.FREE])
-        r, g, b = ((1.0 - EXPLORED_ALPHA) * free + EXPLORED_ALPHA * np.array(EXPLORED_TINT)).astype(int)
-        draw.rectangle([px - 12, py - 7, px + 12, py + 7], fill=(int(r), int(g), int(b)), outline=(150, 150, 150))
+        fill = blended(STRUCTURE_COLORS[Material.FREE], EXPLORED_TINT, EXPLORED_ALPHA)
+        draw.rectangle([px - 12, py - 7, px + 12, py + 7], fill=fill, outline=(150, 150, 150))
 
     def decision(draw: Draw, px: float, py: float) -> None:
         mark_decision(draw, (px - 10, py + 5), (px + 6, py - 3), (px + 14, py - 6), label_color(2))
@@ -347,11 +442,40 @@ def _legend_entries(success: bool) -> list[tuple[str, Marker]]:
         ("target rejected", mark_rejected),
         (GOAL_ENTRY, goal),
         ("view points", lambda d, x, y: _disc(d, x, y, 2.5, VIEW_POINT_COLOR, None)),
+        *_floor_entries(),
     ]
+
+
+def _floor_entries() -> list[tuple[str, Marker]]:
+    """The legend of what only a building's maps show."""
+
+    def stairs(draw: Draw, px: float, py: float) -> None:
+        fill = blended(STRUCTURE_COLORS[Material.FREE], STAIRS_TINT, STAIRS_ALPHA)
+        draw.rectangle([px - 12, py - 7, px + 12, py + 7], fill=fill, outline=TREAD_COLOR)
+        for x in (px - 6, px, px + 6):
+            draw.line([(x, py - 7), (x, py + 7)], fill=TREAD_COLOR, width=1)
+
+    def hole(draw: Draw, px: float, py: float) -> None:
+        draw.rectangle([px - 12, py - 7, px + 12, py + 7], fill=HOLE_COLOR)
+
+    def railing(draw: Draw, px: float, py: float) -> None:
+        draw.rectangle([px - 12, py - 2, px + 12, py + 2], fill=RAILING_COLOR)
+
+    def changes(draw: Draw, px: float, py: float) -> None:
+        mark_floor_change(draw, px - 8, py, True, leaving=True)
+        mark_floor_change(draw, px + 10, py, True, leaving=False)
+
+    return list(zip(FLOOR_ENTRIES, (stairs, hole, railing, changes), strict=True))
 
 
 EXPLORED_ENTRY = "explored (approx., 5 m HFOV)"
 GOAL_ENTRY = "goal object"
+FLOOR_ENTRIES = (
+    "stairs up from this floor",
+    "stairwell (open below)",
+    "railing",
+    "path leaves / enters the floor",
+)
 
 
 def add_legend(image: Image.Image, success: bool, omit: frozenset[str] = frozenset()) -> Image.Image:
@@ -380,31 +504,69 @@ def title(episode: Episode, record: EpisodeRecord | None) -> str:
     return text
 
 
+def draw_trace(
+    draws: Sequence[Draw], canvas: Canvas, trace: SavedTrace, floors: NDArray[np.int64], success: bool
+) -> None:
+    """A whole trace on the floors' maps (``draws``: per floor, its map; ``floors``: per pose, its floor): on each
+    floor its part of the path, where the path leaves and enters it, the events at its poses, the start and the end
+    when they are on it."""
+    moves = move_floors(floors)
+    for index, draw in enumerate(draws):
+        draw_trajectory(draw, canvas, trace, moves == index)
+    for move in floor_changes(floors):
+        draw_floor_change(draws, canvas, trace, floors, move)
+    for kind in DRAW_ORDER:
+        for event in trace.of_type(kind):
+            draw_event(draws[floors[trace.index(event.step)]], canvas, trace, event)
+    draw_pose(draws[floors[0]], canvas, trace.xy(0), trace.start.yaw, START_COLOR)
+    last = trace.pose(len(trace) - 1)
+    draw_pose(draws[floors[-1]], canvas, (last.x, last.y), last.yaw, SUCCESS_COLOR if success else FAILURE_COLOR)
+
+
+def floor_heading(floor: Floor, episode: Episode, start: bool) -> str:
+    """A storey's map title: the floor, and whether the episode starts (``start``) or has goals on it."""
+    here = ["start"] if start else []
+    if any(floor.holds(z) for *_, z in episode.view_points_xyz()):
+        here.append("goal")
+    return floor.title + (f": {', '.join(here)}" if here else "")
+
+
 def draw_episode(
-    scene: Scene,
+    world: Scene | Building,
     episode: Episode,
     trace: SavedTrace,
     record: EpisodeRecord | None = None,
-    explored: NDArray[np.bool_] | None = None,
+    explored: Sequence[NDArray[np.bool_]] | None = None,
 ) -> Image.Image:
-    """Top-down picture of one episode with its trace and a legend."""
-    canvas = Canvas(scene)
-    image = draw_scene(scene, episode, canvas, explored)
-    draw = ImageDraw.Draw(image)
-    draw_trajectory(draw, canvas, trace)
-    for kind in DRAW_ORDER:
-        for event in trace.of_type(kind):
-            draw_event(draw, canvas, trace, event)
+    """Top-down picture of one episode with its trace and a legend; ``explored``: per floor, its explored cells.
+    A building gets one map per storey, side by side from the ground floor up, under the episode's title."""
+    floors = floors_of(world)
+    several = len(floors) > 1
+    canvas = Canvas(world, FLOOR_SIDE if several else MAX_SIDE)
+    maps = [draw_floor(f, episode, canvas, None if explored is None else explored[f.index]) for f in floors]
+    draws = [ImageDraw.Draw(image) for image in maps]
+    on = pose_floors(world, trace)
     success = bool(record and record.success)
-    draw_pose(draw, canvas, trace.xy(0), trace.start.yaw, START_COLOR)
-    last = trace.pose(len(trace) - 1)
-    draw_pose(draw, canvas, (last.x, last.y), last.yaw, SUCCESS_COLOR if success else FAILURE_COLOR)
-    draw.text((6, 7), title(episode, record), fill=(0, 0, 0), font=FONT)
-    omit = {EXPLORED_ENTRY} if explored is None else set()
+    draw_trace(draws, canvas, trace, on, success)
+    headings = [floor_heading(f, episode, f.index == on[0]) for f in floors] if several else [title(episode, record)]
+    for draw, heading in zip(draws, headings, strict=True):
+        draw.text((6, 7), heading, fill=(0, 0, 0), font=FONT)
+    image = maps[0]
+    if several:
+        row = beside(maps)
+        image = stack([_heading_strip(title(episode, record), row.width), row])
+    omit = ({EXPLORED_ENTRY} if explored is None else set()) | (set() if several else set(FLOOR_ENTRIES))
     goal_ids = {goal.object_id for goal in episode.goals}
-    if not any(obj.instance_id in goal_ids for obj in scene.objects):
+    if not any(obj.instance_id in goal_ids for floor in floors for obj in floor.plan.objects):
         omit.add(GOAL_ENTRY)  # e.g. a Habitat run drawn on a blank floor: goals show as view points only
     return add_legend(image, success, frozenset(omit))
+
+
+def _heading_strip(text: str, width: int) -> Image.Image:
+    """A white band of one header's height with ``text`` on it."""
+    strip = Image.new("RGB", (width, HEADER), (255, 255, 255))
+    ImageDraw.Draw(strip).text((6, 7), text, fill=(0, 0, 0), font=FONT)
+    return strip
 
 
 def stack(images: Sequence[Image.Image], background: RGB = (255, 255, 255)) -> Image.Image:
@@ -414,6 +576,17 @@ def stack(images: Sequence[Image.Image], background: RGB = (255, 255, 255)) -> I
     for image in images:
         out.paste(image, (0, y))
         y += image.height
+    return out
+
+
+def beside(images: Sequence[Image.Image], gap: int = FLOOR_GAP, background: RGB = (255, 255, 255)) -> Image.Image:
+    """Images side by side, ``gap`` pixels apart, top-aligned."""
+    width = sum(i.width for i in images) + gap * (len(images) - 1)
+    out = Image.new("RGB", (width, max(i.height for i in images)), background)
+    x = 0
+    for image in images:
+        out.paste(image, (x, 0))
+        x += image.width + gap
     return out
 
 

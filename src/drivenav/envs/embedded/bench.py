@@ -9,8 +9,10 @@ import time
 import numpy as np
 from numpy.typing import NDArray
 
+from drivenav.envs.embedded.building import Building, storeys_of
 from drivenav.envs.embedded.render import Renderer
 from drivenav.envs.embedded.scene import Material, ObjectInstance, Room, Scene
+from drivenav.envs.embedded.terrain import terrain_of
 from drivenav.grid import GridSpec
 from drivenav.types import Pose, SimConfig
 
@@ -119,19 +121,30 @@ def bench_scene() -> Scene:
     return scene if isinstance(scene, Scene) else demo_house()
 
 
-def sample_poses(scene: Scene, config: SimConfig, count: int, seed: int = 0) -> list[Pose]:
-    """``count`` random navigable world poses of ``scene`` (uniform cell, uniform yaw)."""
+def sample_poses(scene: Scene | Building, config: SimConfig, count: int, seed: int = 0) -> list[Pose]:
+    """``count`` random navigable world poses of ``scene`` (uniform cell, uniform yaw; in a building, over every
+    floor and stair, at the surface's height)."""
     rng = np.random.default_rng(seed)
-    cells = np.argwhere(scene.navigable_grid(config.agent_radius, config.agent_height))
+    if isinstance(scene, Building):
+        terrain = terrain_of(scene, config)
+        layered = np.argwhere(terrain.reachable)
+        cells, heights = layered[:, 1:], terrain.heights[layered[:, 0], layered[:, 1], layered[:, 2]]
+    else:
+        cells = np.argwhere(scene.navigable_grid(config.agent_radius, config.agent_height))
+        heights = np.zeros(len(cells))
     if len(cells) == 0:
         raise ValueError(f"scene {scene.scene_id} has no navigable cell")
-    picks = cells[rng.integers(0, len(cells), count)]
-    xy = scene.grid.cell_to_world(picks)
+    picked = rng.integers(0, len(cells), count)
+    xy = scene.grid.cell_to_world(cells[picked])
     yaws = rng.uniform(-np.pi, np.pi, count)
-    return [Pose(float(x), float(y), float(yaw)) for (x, y), yaw in zip(xy, yaws, strict=True)]
+    return [
+        Pose(float(x), float(y), float(yaw), float(z)) for (x, y), yaw, z in zip(xy, yaws, heights[picked], strict=True)
+    ]
 
 
-def bench_sim(frames: int = 300, scene: Scene | None = None, config: SimConfig | None = None) -> dict[str, object]:
+def bench_sim(
+    frames: int = 300, scene: Scene | Building | None = None, config: SimConfig | None = None
+) -> dict[str, object]:
     """Rendering throughput (RGB + depth + semantic per frame) on one thread, JIT compile time excluded."""
     config = config or SimConfig()
     scene = scene or bench_scene()
@@ -145,6 +158,7 @@ def bench_sim(frames: int = 300, scene: Scene | None = None, config: SimConfig |
         renderer.render(pose)
         times.append(time.perf_counter() - start)
     total = sum(times)
+    storeys = storeys_of(scene)
     return {
         "width": config.width,
         "height": config.height,
@@ -153,6 +167,7 @@ def bench_sim(frames: int = 300, scene: Scene | None = None, config: SimConfig |
         "ms_per_frame_mean": 1000.0 * total / frames,
         "frames": frames,
         "scene_id": scene.scene_id,
-        "objects": len(scene.objects),
+        "objects": sum(len(storey.plan.objects) for storey in storeys),
+        "storeys": len(storeys),
         "threads": 1,
     }

@@ -168,6 +168,12 @@ class Staircase:
             heights[inside] = flight.ramp(x[inside], y[inside])
         return heights
 
+    def ends(self, depth: float) -> tuple[Rect, Rect]:
+        """The floor ``depth`` metres deep, the stairs' width across, before the first riser (on the lower storey)
+        and beyond the last flight's top edge (on the upper one): where their users step on and off."""
+        first, last = self.flights[0], self.flights[-1]
+        return first.rect(-depth, 0.0), last.rect(last.run, last.run + depth)
+
     def slopes(self, x: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:
         """The surface's gradient at world points (0 on landings and off the footprint)."""
         slopes = np.zeros(np.shape(x))
@@ -353,3 +359,16 @@ def storeys_of(world: Scene | Building) -> tuple[Storey, ...]:
 def floor_plan(world: Scene | Building, height: float) -> Scene:
     """The plan of the floor a point of ``height`` stands on (a one-floor scene's own)."""
     return world.storeys[world.storey_at(height)].plan if isinstance(world, Building) else world
+
+
+def stair_ends(building: Building, storey: int, depth: float) -> NDArray[np.bool_]:
+    """The cells of ``storey``'s floor at the ends of its stairs (:meth:`Staircase.ends`): before the first riser of
+    those rising from it and beyond the top of those arriving on it."""
+    cells = np.zeros(building.grid.shape, dtype=bool)
+    for stair in building.stairs:
+        approach, arrival = stair.ends(depth)
+        if stair.lower == storey:
+            cells |= rect_cells(building.grid, approach)
+        if stair.lower + 1 == storey:
+            cells |= rect_cells(building.grid, arrival)
+    return cells

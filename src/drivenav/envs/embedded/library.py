@@ -5,10 +5,12 @@ SPEC is one part or several joined by commas (``procedural:40,maps``). A part is
 :mod:`drivenav.envs.embedded.homes`; ``homes:K`` picks K), ``storeys`` (homes of one to three storeys joined by stairs,
 :mod:`drivenav.envs.embedded.storeys`; ``storeys:K`` picks K), ``maps`` (the nine real floor plans shipped with
 drivenav, :func:`drivenav.envs.embedded.rosmap.packaged_maps_dir`), a scene directory (a ROS map YAML plus optional
-objects.json), or a folder of scene directories (a folder of your own named ``maps`` is ``./maps``). Generated scene ids
-(``procedural/house_00042``, ``homes/home_00042``, ``storeys/home_00042``) carry their seed, so any of them can be
-rebuilt from the id alone; the generated parts use seeds ``1000 * S + k`` for ``--seed S`` and K scenes (8 when K is not
-given, at most 1000). A map scene's id is its directory name (the packaged plans' too: ``uos_avz``).
+objects.json; or a building directory, whose ``building.yaml`` stacks such floor plans and joins them by stairs,
+:mod:`drivenav.envs.embedded.building_files`), or a folder of scene directories (a folder of your own named ``maps`` is
+``./maps``). Generated scene ids (``procedural/house_00042``, ``homes/home_00042``, ``storeys/home_00042``) carry their
+seed, so any of them can be rebuilt from the id alone; the generated parts use seeds ``1000 * S + k`` for ``--seed S``
+and K scenes (8 when K is not given, at most 1000). A map scene's or building's id is its directory name (the packaged
+plans' too: ``uos_avz``).
 """
 
 from __future__ import annotations
@@ -70,6 +72,13 @@ def _load_map(path: str) -> Scene:
     return load_map_scene(path)
 
 
+@lru_cache(maxsize=8)
+def _load_building(path: str) -> Building:
+    from drivenav.envs.embedded.building_files import load_building
+
+    return load_building(path)
+
+
 class SceneLibrary:
     """The scenes of one ``--scenes`` SPEC: their ids (for generating episodes) and a loader by id."""
 
@@ -121,7 +130,10 @@ class SceneLibrary:
     def load(self, scene_id: str) -> Scene | Building:
         """The scene or building with this id (cached per process)."""
         if scene_id in self._maps:
-            return _load_map(str(self._maps[scene_id]))
+            from drivenav.envs.embedded.building_files import BUILDING_FILE
+
+            path = self._maps[scene_id]
+            return _load_building(str(path)) if path.name == BUILDING_FILE else _load_map(str(path))
         match = PROCEDURAL_ID.match(scene_id)
         if match is not None and self._procedural:
             return _load_procedural(int(match.group(1)))
@@ -148,7 +160,9 @@ def _parse_count(part: str, default: int) -> int:
 
 
 def _find_map_dirs(part: str) -> dict[str, Path]:
-    """The map scenes of one SPEC part by id, in name order."""
+    """The map scenes and buildings of one SPEC part by id, in name order: a map scene's directory (or YAML), a
+    building's building.yaml."""
+    from drivenav.envs.embedded.building_files import find_building_yaml, read_building_yaml
     from drivenav.envs.embedded.rosmap import find_map_yaml, is_map_scene_dir, packaged_maps_dir, read_map_yaml
 
     path = packaged_maps_dir() if part == PACKAGED_MAPS_PART else Path(part)
@@ -157,11 +171,33 @@ def _find_map_dirs(part: str) -> dict[str, Path]:
             path, "--scenes", "'procedural', 'homes', 'maps', a scene directory, or a folder of scene directories", part
         )
     path = path.resolve()
+    building = find_building_yaml(path)
+    if building is not None:
+        read_building_yaml(building)  # a broken building.yaml names its own file and field
+        return {building.parent.name: building}
     if path.is_file() or is_map_scene_dir(path) or any(path.glob("*.yaml")):
         read_map_yaml(find_map_yaml(path))  # a broken map names its own file and field
         directory = path.parent if path.is_file() else path
         return {directory.name: path}
-    found = {child.name: child for child in sorted(path.iterdir()) if child.is_dir() and is_map_scene_dir(child)}
+    found = _scenes_in_folder(path)
     if not found:
-        raise InputError(path, "--scenes", "a scene directory (map YAML + image) or a folder of them", "no map found")
+        expected = "a scene directory (map YAML + image, or building.yaml) or a folder of them"
+        raise InputError(path, "--scenes", expected, "no map found")
+    return found
+
+
+def _scenes_in_folder(folder: Path) -> dict[str, Path]:
+    """The folder's building directories (by their building.yaml, read at once so that a broken one is no scene
+    silently left out) and map scene directories, by name."""
+    from drivenav.envs.embedded.building_files import find_building_yaml, read_building_yaml
+    from drivenav.envs.embedded.rosmap import is_map_scene_dir
+
+    found: dict[str, Path] = {}
+    for child in sorted(c for c in folder.iterdir() if c.is_dir()):
+        building = find_building_yaml(child)
+        if building is not None:
+            read_building_yaml(building)
+            found[child.name] = building
+        elif is_map_scene_dir(child):
+            found[child.name] = child
     return found

@@ -64,6 +64,7 @@ def place_objects(
     rng: np.random.Generator,
     density: float = 1.0,
     free_standing: Mapping[str, tuple[str, ...]] | None = None,
+    keep_clear: NDArray[np.bool_] | None = None,
 ) -> list[ObjectInstance]:
     """Place objects in ``scene`` (whose ``objects`` are ignored) using its rooms' types as priors.
 
@@ -72,10 +73,13 @@ def place_objects(
     ``free_standing`` maps a room type to categories placed first in that room's open floor, whatever their
     usual style (a sofa or a bookshelf dividing an open-plan living area, a kitchen island): furniture that
     partly blocks views and passages. ``None`` (the default) places none and draws nothing for them.
+    ``keep_clear`` marks free cells no object may cover (the floor before and after a flight of stairs).
     """
     if not (isinstance(density, int | float) and math.isfinite(density) and density >= 0.0):
         raise InputError("place_objects", "density", "a finite non-negative number", density)
     placer = _Placer(scene, rng, VOCABULARY)
+    if keep_clear is not None:
+        placer.blocked |= keep_clear
     if density > 0.0:
         for region in placer.regions:
             if free_standing is not None and region.room_type is not None:

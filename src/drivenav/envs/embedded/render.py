@@ -324,6 +324,30 @@ def _record_changes(
 
 
 @jit(inline=True)
+def _first_opening(
+    span_kind: NDArray[np.int64],
+    span: int,
+    u: int,
+    run_in: NDArray[np.float64],
+    run_out: NDArray[np.float64],
+    run_span: NDArray[np.int64],
+    n_runs: int,
+) -> float:
+    """Where column ``u``'s ray first passes over an opening of ``span``, a slab next to the camera's span (``inf``:
+    none before the grid's edge); 0 where ``span`` is no slab (nothing closes the way to it)."""
+    if span < 0 or span >= span_kind.shape[0] or span_kind[span] != _SLAB:
+        return 0.0
+    d = 0.0
+    for r in range(n_runs):
+        if run_span[u, r] != span:
+            continue
+        if run_in[u, r] > d:
+            return d
+        d = max(d, run_out[u, r])
+    return d
+
+
+@jit(inline=True)
 def _column_runs(
     opaque: NDArray[np.uint16],
     structures: NDArray[np.uint8],
@@ -644,12 +668,17 @@ def _render_kernel(
                 wall_in[u], wall_face[u], wall_mat[u] = run_in[u, r], run_face[u, r], run_mat[u, r]
                 break
         near_wall = wall_in[u]
+        open_below = _first_opening(span_kind, camera_span - 1, u, run_in, run_out, run_span, n_runs[u])
+        open_above = _first_opening(span_kind, camera_span + 1, u, run_in, run_out, run_span, n_runs[u])
         for o in range(n_obj):
             a, b, face = _box_interval(obj_geom[o], px, py, dx, dy)
             if a > b or b <= 0.0:
                 continue
-            if a >= near_wall and cam_lo <= obj_geom[o, 6] and obj_geom[o, 7] <= cam_hi:
-                continue
+            z0, z1 = obj_geom[o, 6], obj_geom[o, 7]
+            if a >= near_wall and cam_lo <= z0 and z1 <= cam_hi:
+                continue  # of the camera's span, beyond its first wall
+            if (z1 <= cam_lo and b <= open_below) or (z0 >= cam_hi and b <= open_above):
+                continue  # below or above the camera's span, and the ray passes no opening to it before the box
             k = n_hits[u]
             while k > 0 and hit_in[u, k - 1] > a:  # insertion sort by entry distance
                 hit_in[u, k], hit_out[u, k] = hit_in[u, k - 1], hit_out[u, k - 1]

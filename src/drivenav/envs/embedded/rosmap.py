@@ -377,21 +377,42 @@ def scene_rng(scene_id: str, seed: int | None = None) -> np.random.Generator:
     return np.random.default_rng(crc if seed is None else [crc, seed % 2**64])
 
 
+@dataclass(frozen=True, eq=False)
+class MapPlan:
+    """A floor plan as its map directory gives it: the map YAML, the grid and materials at the scene resolution,
+    and ``objects.json``'s objects (None where it gives none: no file, or rooms only) and rooms."""
+
+    yaml: Path
+    grid: GridSpec
+    structure: NDArray[np.uint8]
+    objects: list[ObjectInstance] | None
+    rooms: list[Room]
+
+
+def read_map_plan(path: str | Path, resolution: float = 0.05) -> MapPlan:
+    """Read a map directory (or its YAML file) and the ``objects.json`` beside the YAML, placing nothing: what
+    :func:`load_map_scene` builds a scene from, and a building (:mod:`drivenav.envs.embedded.building_files`) a
+    storey."""
+    yaml_path = find_map_yaml(path)
+    grid, structure = load_structure(yaml_path, resolution)
+    objects: list[ObjectInstance] | None = None
+    rooms: list[Room] = []
+    objects_path = yaml_path.parent / OBJECTS_FILE
+    if objects_path.is_file():
+        objects, rooms = read_objects_json(objects_path, grid, structure)
+    return MapPlan(yaml_path, grid, structure, objects, rooms)
+
+
 def load_map_scene(path: str | Path, *, resolution: float = 0.05, seed: int | None = None) -> Scene:
     """Load a scene from a map_server map directory (or its YAML file); ``scene_id`` is the directory name.
 
     Objects and rooms come from ``objects.json`` beside the YAML; without objects there they are placed by
     :func:`drivenav.envs.embedded.placement.place_objects` with :func:`scene_rng` ``(scene_id, seed)``.
     """
-    yaml_path = find_map_yaml(path)
-    grid, structure = load_structure(yaml_path, resolution)
-    scene_id = yaml_path.resolve().parent.name
-    objects: list[ObjectInstance] | None = None
-    rooms: list[Room] = []
-    objects_path = yaml_path.parent / OBJECTS_FILE
-    if objects_path.is_file():
-        objects, rooms = read_objects_json(objects_path, grid, structure)
+    plan = read_map_plan(path, resolution)
+    scene_id = plan.yaml.resolve().parent.name
+    objects = plan.objects
     if objects is None:  # placed on a separate, object-free scene so that no cached grids go stale
-        bare = Scene(scene_id, grid, structure, rooms=list(rooms), source=str(yaml_path))
+        bare = Scene(scene_id, plan.grid, plan.structure, rooms=list(plan.rooms), source=str(plan.yaml))
         objects = placement.place_objects(bare, scene_rng(scene_id, seed))
-    return Scene(scene_id, grid, structure, objects=list(objects), rooms=rooms, source=str(yaml_path))
+    return Scene(scene_id, plan.grid, plan.structure, objects=list(objects), rooms=plan.rooms, source=str(plan.yaml))

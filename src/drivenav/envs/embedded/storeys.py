@@ -28,7 +28,16 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from drivenav.envs.embedded.building import SLAB_THICKNESS, Box3, Building, Flight, Landing, Staircase, Storey
+from drivenav.envs.embedded.building import (
+    SLAB_THICKNESS,
+    Box3,
+    Building,
+    Flight,
+    Landing,
+    Staircase,
+    Storey,
+    stair_ends,
+)
 from drivenav.envs.embedded.homes import (
     CORE,
     DEFAULT_HOMES,
@@ -402,15 +411,17 @@ def _staircase(
 
 def _furnish(rng: np.random.Generator, building: Building, config: StoreysConfig) -> Building:
     """Objects on every storey, placed as in one-floor homes with the stairs, the stairwells and their railings
-    kept clear; instance ids numbered through the building."""
+    taken for walls (the floor left connected around them) and the floor before and after each flight kept clear;
+    instance ids numbered through the building."""
     storeys: list[Storey] = []
     first_id = 0
     railings = building.railings
     for j, storey in enumerate(building.storeys):
-        keep_clear = building.stair_cells[j] | building.holes[j] | _railing_cells(building, railings[j])
-        structure = np.where(keep_clear, np.uint8(Material.WALL), storey.plan.structure)
+        no_floor = building.stair_cells[j] | building.holes[j] | _railing_cells(building, railings[j])
+        structure = np.where(no_floor, np.uint8(Material.WALL), storey.plan.structure)
         masked = replace(storey.plan, structure=structure)
-        objects = place_objects(masked, rng, free_standing=dict(config.homes.free_standing))
+        landings = stair_ends(building, j, config.exit_landing)
+        objects = place_objects(masked, rng, free_standing=dict(config.homes.free_standing), keep_clear=landings)
         objects = [replace(obj, instance_id=obj.instance_id + first_id) for obj in objects]
         first_id += len(objects)
         storeys.append(Storey(replace(storey.plan, objects=objects), storey.elevation))
