@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from drivenav.benchmarks.generate import generate_episodes
+from drivenav.benchmarks.generate import Storeys, generate_episodes
 from drivenav.cli import main
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.habitat.benchmarks import BENCHMARKS, LAYOUTS, OBJECTNAV_V1, OVON
@@ -34,8 +34,27 @@ def episodes(tmp_path_factory: pytest.TempPathFactory) -> list[Episode]:
     return [as_held(episode) for episode in load_episodes(path)]
 
 
+@pytest.fixture(scope="module")
+def storeyed(tmp_path_factory: pytest.TempPathFactory) -> list[Episode]:
+    """Episodes in homes of several storeys: starts and view points at their floors' heights, floor info."""
+    path = tmp_path_factory.mktemp("storeyed") / "episodes.json.gz"
+    save_episodes(generate_episodes(SceneLibrary("storeys:3", 0), 12, 5, storeys=Storeys(0.5)), path)
+    return [as_held(episode) for episode in load_episodes(path)]
+
+
+def test_the_storeyed_set_has_heights_and_floor_changes(storeyed: list[Episode]) -> None:
+    assert {e.start_height > 0.0 for e in storeyed} == {True, False}
+    assert any(vp.height > 0.0 for e in storeyed for g in e.goals for vp in g.view_points)
+    assert {e.info.get("cross_floor") for e in storeyed} == {True, False, None}  # None: a home of one storey
+
+
 @pytest.mark.parametrize("layout", LAYOUTS)
-def test_export_reads_back_the_same_episodes(episodes: list[Episode], layout: str, tmp_path: Path) -> None:
+@pytest.mark.parametrize("source", ["episodes", "storeyed"])
+def test_export_reads_back_the_same_episodes(
+    source: str, layout: str, tmp_path: Path, request: pytest.FixtureRequest
+) -> None:
+    """Every field comes back, heights and ``info``'s ``start_floor``, ``goal_floors`` and ``cross_floor`` too."""
+    episodes: list[Episode] = request.getfixturevalue(source)
     split = tmp_path / "val" / "val.json.gz"
     write_split(episodes, split, layout)
     back = read_split(split, layout)

@@ -17,10 +17,11 @@ from agent_scenes import RES, Rect, carved_scene
 from conftest import run_cli
 from drivenav.benchmarks.floor_topology import enclosed_islands, room_graph, wall_free_floor
 from drivenav.benchmarks.generate import generate_episodes
-from drivenav.benchmarks.world_stats import Histogram, StatsConfig, measure_scene, scene_set, start_distances
+from drivenav.benchmarks.world_stats import Histogram, StatsConfig, measure_scene, scene_set, terrain_distances
 from drivenav.envs.embedded.geodesic import largest_component
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.embedded.scene import Room, Scene
+from drivenav.envs.embedded.terrain import terrain_of
 from drivenav.episode import Episode, ObjectGoal, ViewPoint, world_to_habitat, yaw_to_quaternion
 from drivenav.eval.episodes import save_episodes
 from drivenav.types import SimConfig
@@ -146,12 +147,12 @@ def test_ratio_uses_the_geodesically_nearest_view_point() -> None:
     (6, 1) is 5 m along the corridor. The ratio divides by the line to (6, 1): 5 / 5, not 5 / 4."""
     free = [(0.5, 0.5, 6.5, 1.5), (5.5, 0.5, 6.5, 5.5), (0.5, 4.5, 6.5, 5.5)]
     scene = carved_scene("u_turn", free, size=7.0)
-    reachable = largest_component(scene.navigable_grid(SIM.agent_radius, SIM.agent_height))
-    assert start_distances(_episode("u_turn", (1.0, 1.0), [(1.0, 5.0), (6.0, 1.0)], 5.0), reachable, scene.grid) == (
+    terrain = terrain_of(scene, SIM)
+    assert terrain_distances(_episode("u_turn", (1.0, 1.0), [(1.0, 5.0), (6.0, 1.0)], 5.0), terrain) == (
         5.0,
         pytest.approx(1.0),
     )
-    geodesic, ratio = start_distances(_episode("u_turn", (1.0, 1.0), [(1.0, 5.0)], math.nan), reachable, scene.grid)
+    geodesic, ratio = terrain_distances(_episode("u_turn", (1.0, 1.0), [(1.0, 5.0)], math.nan), terrain)
     assert 12.0 < geodesic < 14.0  # measured when the file has none: about 12.8 m hugging the inner corners
     assert ratio == pytest.approx(geodesic / 4.0)
 

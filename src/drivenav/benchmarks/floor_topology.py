@@ -6,7 +6,7 @@ way. The paper's Table II (revisits, steps) is measured in HM3D homes; these fig
 from being a tree. The methods are those of docs/world-vs-hm3d.md ("How the v1 figures were computed"):
 
 - the **floor** is the wall-free floor (:attr:`Material.FREE`, furniture ignored) in the 4-connected pieces that
-  hold the agent's reachable area;
+  hold the agent's reachable area; a building's storey has one of its own, without its stairwells;
 - the **room graph** has one node per :attr:`Scene.rooms` entry; every connected group of floor cells inside no
   room polygon (a door gap) joins the rooms it touches, and rooms whose polygons touch on the floor (no wall
   between them: open-plan areas, corridors that open into each other) are joined once per pair;
@@ -63,9 +63,13 @@ class Regions:
     degrees: tuple[int, ...]
 
 
-def wall_free_floor(scene: Scene, reachable: NDArray[np.bool_]) -> NDArray[np.bool_]:
-    """Free structure cells (furniture ignored) in the 4-connected pieces that hold a ``reachable`` cell."""
-    labels, _ = ndimage.label(scene.structure == Material.FREE)
+def wall_free_floor(
+    scene: Scene, reachable: NDArray[np.bool_], open_slab: NDArray[np.bool_] | None = None
+) -> NDArray[np.bool_]:
+    """Free structure cells (furniture ignored) in the 4-connected pieces that hold a ``reachable`` cell. On a
+    building's storey, ``open_slab`` marks where its slab is open (the stairwells): no floor there."""
+    free = scene.structure == Material.FREE
+    labels, _ = ndimage.label(free if open_slab is None else free & ~open_slab)
     kept = np.unique(labels[reachable & (labels > 0)])
     floor: NDArray[np.bool_] = np.isin(labels, kept) & (labels > 0)
     return floor

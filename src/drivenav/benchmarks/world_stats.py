@@ -1,18 +1,25 @@
 """World and episode statistics of an episodes file over its scenes (``drivenav episodes stats``).
 
 Per scene set (procedural houses, homes, floor plans: the part of the scene id before ``/``): rooms per scene, doors
-per room and per room type, junction degree, loops, navigable area; per episode set: the start-to-goal geodesic
-distance and the geodesic / Euclidean ratio, with their histograms. The methods are docs/world-vs-hm3d.md's ("How
-the v1 figures were computed"); the topology is :mod:`drivenav.benchmarks.floor_topology`. Navigable area is measured
-for HM3D's agent (radius 0.1 m, height 1.5 m: the HM3D paper's navigable-area figure, Ramakrishnan et al. 2021,
+per room and per room type, junction degree, loops, navigable area, storeys; per episode set: the start-to-goal
+geodesic distance and the geodesic / Euclidean ratio, with their histograms, and the shares of episodes in buildings
+of several storeys and of episodes that need a floor change. The methods are docs/world-vs-hm3d.md's ("How the v1
+figures were computed"); the topology is :mod:`drivenav.benchmarks.floor_topology`. Navigable area is measured for
+HM3D's agent (radius 0.1 m, height 1.5 m: the HM3D paper's navigable-area figure, Ramakrishnan et al. 2021,
 ``scale_comparison/metrics.py``) and for drivenav's own (:class:`SimConfig`).
+
+A building (:class:`~drivenav.envs.embedded.building.Building`) is measured storey by storey and its figures added
+up: each storey's floor plan gives rooms, doors, loops and regions over its own floor (the stairwell, where its slab
+is open, cut out), and the building's terrain (:mod:`drivenav.envs.embedded.terrain`) gives the reachable area of
+every storey and flight. Distances run up and down the stairs.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
+from collections import Counter
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -24,12 +31,12 @@ from drivenav.benchmarks.floor_topology import (
     segment_regions,
     wall_free_floor,
 )
-from drivenav.envs.embedded.geodesic import largest_component, nearest_by_geodesic
+from drivenav.envs.embedded.building import Building, storeys_of
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.embedded.scene import Scene
+from drivenav.envs.embedded.terrain import Terrain, terrain_of
 from drivenav.episode import Episode
 from drivenav.errors import InputError
-from drivenav.grid import GridSpec
 from drivenav.jsonstream import JsonObject
 from drivenav.types import SimConfig
 
@@ -50,6 +57,11 @@ class StatsConfig:
     - ``distance_edges`` (metres) and ``ratio_edges``: histogram bins, ``[a, b)``, the last one open.
     - ``long_episode``: 10 m, the paper's Table II threshold for long episodes.
     - ``straight_ratios``: 1.05, HM3D-OVON's generator's lowest ratio, and 1.2, below which it thins episodes out.
+    - ``half_storey``: an episode without ``info.cross_floor`` needs a floor change when none of its view points
+      lies within this many metres of its start's height (:func:`needs_floor_change`): 1.2 m, half of 2.4 m, the
+      lowest floor-to-floor height the embedded world's buildings assume (``levels.SURFACE_BAND``'s premise; the
+      ``storeys`` homes' floors are 2.8-3.2 m apart), so a view point one floor up or down is never within it, and
+      one on the start's floor (a few steps above or below at most) is.
     """
 
     hm3d_radius: float = 0.1
@@ -61,6 +73,7 @@ class StatsConfig:
     ratio_edges: tuple[float, ...] = (0.0, 1.05, 1.1, 1.2, 1.5, 2.0, 3.0, math.inf)
     long_episode: float = 10.0
     straight_ratios: tuple[float, ...] = (1.05, 1.2)
+    half_storey: float = 1.2
     segmentation: SegmentationConfig = field(default_factory=SegmentationConfig)
     sim: SimConfig = field(default_factory=SimConfig)
 
@@ -153,7 +166,8 @@ class Histogram:
 
 @dataclass(frozen=True)
 class SceneStats:
-    """One scene's figures. Room-graph figures are None for a scene without room labels."""
+    """One scene's figures (a building's: its storeys' together). Room-graph figures are None for a scene without
+    room labels."""
 
     scene_id: str
     scene_set: str
@@ -167,16 +181,20 @@ class SceneStats:
     islands: int
     island_extent: float
     region_degrees: tuple[int, ...]
+    storeys: int
 
 
 @dataclass(frozen=True)
 class EpisodeStats:
-    """One episode's start-to-goal geodesic distance and its ratio to the straight line (NaN without one)."""
+    """One episode's start-to-goal geodesic distance and its ratio to the straight line (NaN without one), whether
+    its scene has several storeys and whether it needs a floor change."""
 
     episode_id: str
     scene_set: str
     geodesic: float
     ratio: float
+    multi_storey: bool
+    floor_change: bool
 
 
 @dataclass(frozen=True)
@@ -212,11 +230,13 @@ class SceneSetStats:
     region_degree: DegreeSummary | None
     area_hm3d: Summary
     area_agent: Summary
+    storeys_per_scene: dict[str, Share]
 
 
 @dataclass(frozen=True)
 class EpisodeSetStats:
-    """An episode set's distances (metres) and geodesic / Euclidean ratios."""
+    """An episode set's distances (metres), geodesic / Euclidean ratios, and the episodes in scenes of several
+    storeys and those that need a floor change."""
 
     name: str
     episodes: int
@@ -226,6 +246,8 @@ class EpisodeSetStats:
     ratio: Summary | None
     ratio_histogram: Histogram
     ratio_below: dict[str, Share]
+    in_multi_storey_scenes: Share
+    floor_change: Share
 
 
 @dataclass(frozen=True)
@@ -267,43 +289,84 @@ def scene_set(scene_id: str) -> str:
     return scene_id.split("/", 1)[0] if "/" in scene_id else PLANS
 
 
-def measure_scene(scene: Scene, config: StatsConfig = StatsConfig()) -> SceneStats:
-    """One scene's figures (docs/world-vs-hm3d.md's methods)."""
-    sim, res = config.sim, scene.grid.resolution
-    reachable = largest_component(scene.navigable_grid(sim.agent_radius, sim.agent_height))
-    hm3d = largest_component(scene.navigable_grid(config.hm3d_radius, config.hm3d_height))
-    floor = wall_free_floor(scene, reachable)
-    extent = config.room_island_extent if scene.rooms else config.plan_island_extent
-    graph = room_graph(scene, floor) if scene.rooms else None
-    corridors = sum(room.name in config.corridors for room in scene.rooms)
+def measure_scene(
+    scene: Scene | Building, config: StatsConfig = StatsConfig(), terrain: Terrain | None = None
+) -> SceneStats:
+    """One scene's or building's figures (docs/world-vs-hm3d.md's methods; a building's storeys added up, see the
+    module's docstring). Staircases are no doors of the room graph, so a pair of storeys joined by one staircase (as
+    in every ``storeys`` home) adds no loop. ``terrain``: the scene's for drivenav's agent, if already built."""
+    terrain = terrain or terrain_of(scene, config.sim)
+    hm3d = terrain_of(scene, replace(config.sim, agent_radius=config.hm3d_radius, agent_height=config.hm3d_height))
+    res = terrain.grid.resolution
+    floors = storey_floors(scene, terrain)
+    labelled = any(plan.rooms for plan, _ in floors)
+    extent = config.room_island_extent if labelled else config.plan_island_extent
+    graphs = [room_graph(plan, floor) for plan, floor in floors if plan.rooms]
+    corridors = sum(room.name in config.corridors for plan, _ in floors for room in plan.rooms)
+    rooms = sum(len(plan.rooms) for plan, _ in floors) - corridors
     return SceneStats(
         scene_id=scene.scene_id,
         scene_set=scene_set(scene.scene_id),
-        area_hm3d=float(hm3d.sum()) * res * res,
-        area_agent=float(reachable.sum()) * res * res,
-        rooms=len(scene.rooms) - corridors if graph is not None else None,
-        corridors=corridors if graph is not None else None,
-        room_types=graph.names if graph is not None else (),
-        doors=graph.degrees if graph is not None else (),
-        room_loops=graph.loops if graph is not None else None,
-        islands=enclosed_islands(floor, res, extent),
+        area_hm3d=float(hm3d.reachable.sum()) * res * res,
+        area_agent=float(terrain.reachable.sum()) * res * res,
+        rooms=rooms if labelled else None,
+        corridors=corridors if labelled else None,
+        room_types=tuple(name for graph in graphs for name in graph.names),
+        doors=tuple(doors for graph in graphs for doors in graph.degrees),
+        room_loops=sum(graph.loops for graph in graphs) if labelled else None,
+        islands=sum(enclosed_islands(floor, res, extent) for _, floor in floors),
         island_extent=extent,
-        region_degrees=segment_regions(floor, res, config.segmentation).degrees,
+        region_degrees=tuple(
+            d for _, floor in floors for d in segment_regions(floor, res, config.segmentation).degrees
+        ),
+        storeys=len(floors),
     )
 
 
-def start_distances(episode: Episode, reachable: NDArray[np.bool_], grid: GridSpec) -> tuple[float, float]:
+def storey_floors(scene: Scene | Building, terrain: Terrain) -> list[tuple[Scene, NDArray[np.bool_]]]:
+    """Each storey's floor plan and its floor (:func:`wall_free_floor` around the storey's part of the terrain's
+    reachable area, with the stairs that rise from it and, in a building, without its stairwells): a one-floor
+    scene's is its own."""
+    holes = scene.holes if isinstance(scene, Building) else (None,)
+    return [
+        (storey.plan, wall_free_floor(storey.plan, terrain.reachable[j], holes[j]))
+        for j, storey in enumerate(storeys_of(scene))
+    ]
+
+
+def needs_floor_change(episode: Episode, half_storey: float) -> bool:
+    """Whether no goal of the episode lies on its start's floor: ``info.cross_floor`` where the episode has it
+    (drivenav's episodes in buildings of several storeys), else whether none of its view points lies within
+    ``half_storey`` metres of the start's height (HM3D's files carry no floor information; a goal is on the start's
+    floor when one of its view points is)."""
+    given = episode.info.get("cross_floor")
+    if isinstance(given, bool):
+        return given
+    return all(abs(height - episode.start_height) > half_storey for *_, height in episode.view_points_xyz())
+
+
+Distance = Callable[[float, float, float], float]
+"""Geodesic distance from an episode's start to a world point of some height (``inf``: no path)."""
+
+
+def terrain_distances(episode: Episode, terrain: Terrain) -> tuple[float, float]:
+    """:func:`distances_from_start` over a scene's or building's terrain (in a building, up and down the stairs)."""
+    return distances_from_start(episode, terrain.field([(*episode.start_xy, episode.start_height)]).at)
+
+
+def distances_from_start(episode: Episode, from_start: Distance) -> tuple[float, float]:
     """The episode's start-to-goal geodesic distance (``info.geodesic_distance``, else measured here) and its ratio to
-    the straight line from the start to the geodesically nearest view point, found by one fast-marching solve from
-    the start over ``reachable``: the quantity HM3D-OVON's generator filters on. The ratio is NaN if no view point
-    is reachable or the line has no length."""
-    points = episode.view_points_xy()
-    nearest, distance = nearest_by_geodesic(reachable, grid, episode.start_xy, points)
-    if nearest < 0 or not math.isfinite(distance):
+    the straight line from the start to the geodesically nearest view point (heights included), found by one
+    fast-marching solve from the start (``from_start``): the quantity HM3D-OVON's generator filters on. The ratio is
+    NaN if no view point is reachable or the line has no length."""
+    points = episode.view_points_xyz()
+    distances = [from_start(*point) for point in points]
+    nearest = int(np.argmin(distances)) if distances else -1
+    if nearest < 0 or not math.isfinite(distances[nearest]):
         return episode.geodesic_distance, math.nan
     given = episode.geodesic_distance
-    geodesic = given if math.isfinite(given) else distance
-    line = math.dist(episode.start_xy, points[nearest])
+    geodesic = given if math.isfinite(given) else distances[nearest]
+    line = math.dist((*episode.start_xy, episode.start_height), points[nearest])
     return geodesic, geodesic / line if line > 0.0 else math.nan
 
 
@@ -322,11 +385,9 @@ def measure(
     measured: list[EpisodeStats] = []
     for scene_id, scene_episodes in by_scene.items():
         scene = library.load(scene_id)
-        scenes.append(measure_scene(scene, config))
-        reachable = largest_component(scene.navigable_grid(config.sim.agent_radius, config.sim.agent_height))
-        for episode in scene_episodes:
-            geodesic, ratio = start_distances(episode, reachable, scene.grid)
-            measured.append(EpisodeStats(episode.episode_id, scenes[-1].scene_set, geodesic, ratio))
+        terrain = terrain_of(scene, config.sim)
+        scenes.append(measure_scene(scene, config, terrain))
+        measured.extend(_episode_stats(e, scenes[-1], terrain, config) for e in scene_episodes)
     names = list(dict.fromkeys(s.scene_set for s in scenes))
     groups = [*names, ALL] if len(names) > 1 else names
     return WorldStats(
@@ -337,6 +398,12 @@ def measure(
         ),
         scenes=tuple(scenes),
     )
+
+
+def _episode_stats(episode: Episode, scene: SceneStats, terrain: Terrain, config: StatsConfig) -> EpisodeStats:
+    geodesic, ratio = terrain_distances(episode, terrain)
+    floor_change = needs_floor_change(episode, config.half_storey)
+    return EpisodeStats(episode.episode_id, scene.scene_set, geodesic, ratio, scene.storeys > 1, floor_change)
 
 
 def _scene_set_stats(name: str, scenes: list[SceneStats], config: StatsConfig) -> SceneSetStats:
@@ -362,7 +429,14 @@ def _scene_set_stats(name: str, scenes: list[SceneStats], config: StatsConfig) -
         region_degree=DegreeSummary.of([d for s in scenes for d in s.region_degrees]),
         area_hm3d=Summary.of([s.area_hm3d for s in scenes]),
         area_agent=Summary.of([s.area_agent for s in scenes]),
+        storeys_per_scene=_storeys_per_scene([s.storeys for s in scenes]),
     )
+
+
+def _storeys_per_scene(storeys: Sequence[int]) -> dict[str, Share]:
+    """The scenes of each number of storeys (keys ``"1"``, ``"2"``, ... in increasing order)."""
+    counts = Counter(storeys)
+    return {str(n): Share(counts[n], len(storeys)) for n in sorted(counts)}
 
 
 def _episode_set_stats(name: str, episodes: list[EpisodeStats], config: StatsConfig) -> EpisodeSetStats:
@@ -377,4 +451,6 @@ def _episode_set_stats(name: str, episodes: list[EpisodeStats], config: StatsCon
         ratio=Summary.maybe(ratios),
         ratio_histogram=Histogram.of(ratios, config.ratio_edges),
         ratio_below={f"{limit:g}": Share.where([r < limit for r in ratios]) for limit in config.straight_ratios},
+        in_multi_storey_scenes=Share.where([e.multi_storey for e in episodes]),
+        floor_change=Share.where([e.floor_change for e in episodes]),
     )

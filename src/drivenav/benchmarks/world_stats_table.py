@@ -58,6 +58,11 @@ def loops(value: LoopSummary | None) -> str:
     return f"with a loop {share(value.scenes_with_loop)}, {counts}"
 
 
+def storeys(value: dict[str, Share]) -> str:
+    """``1: 25.0 % (2 / 8), 2: 62.5 % (5 / 8), 3: 12.5 % (1 / 8)`` (scenes by their number of storeys)."""
+    return ", ".join(f"{count}: {share(scenes)}" for count, scenes in value.items())
+
+
 def _bin(edges: tuple[float, ...], k: int) -> str:
     low, high = edges[k], edges[k + 1]
     return f"[{low:g}, {high:g})" if math.isfinite(high) else f">= {low:g}"
@@ -71,6 +76,7 @@ def _scene_rows(stats: WorldStats) -> list[Row[SceneSetStats]]:
     kinds = list(dict.fromkeys(k for s in stats.scene_sets for k in s.doors_by_type))
     rows: list[Row[SceneSetStats]] = [
         ("scenes", lambda s: str(s.scenes)),
+        ("storeys per scene", lambda s: storeys(s.storeys_per_scene)),
         ("rooms per scene (room labels)", lambda s: spread(s.rooms_per_scene)),
         (f"corridors per scene ({', '.join(config.corridors)})", lambda s: spread(s.corridors_per_scene)),
         ("doors per room (corridors not counted)", lambda s: degrees(s.doors_per_room)),
@@ -107,6 +113,12 @@ def _episode_rows(stats: WorldStats) -> list[Row[EpisodeSetStats]]:
     config = stats.config
     rows: list[Row[EpisodeSetStats]] = [
         ("episodes", lambda e: str(e.episodes)),
+        ("episodes in scenes of several storeys", lambda e: share(e.in_multi_storey_scenes)),
+        (
+            f"episodes needing a floor change (info.cross_floor, else no view point within {config.half_storey:g} m "
+            "of the start's height)",
+            lambda e: share(e.floor_change),
+        ),
         ("geodesic m: mean / median / p90", lambda e: _percentiles(e.geodesic)),
         (f"episodes > {config.long_episode:g} m", lambda e: share(e.over_long)),
         *(

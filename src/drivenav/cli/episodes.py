@@ -5,10 +5,15 @@ docs/world-vs-hm3d.md)."""
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
 from drivenav.cli.common import Commands
 from drivenav.errors import InputError
 from drivenav.eval.options import episode_count, path, seed
+
+if TYPE_CHECKING:
+    from drivenav.envs.embedded.library import SceneLibrary
+    from drivenav.episode import Episode
 
 
 def add_episodes(commands: Commands) -> None:
@@ -40,7 +45,17 @@ def add_episodes(commands: Commands) -> None:
     export.set_defaults(handler=_cmd_episodes_export)
     stats = sub.add_parser("stats", help="doors, loops, rooms and area of the scenes; distances of the episodes")
     benchmarks = ", ".join(BENCHMARKS)
-    stats.add_argument("episodes", metavar="EPISODES", help=f"an episodes file, or a benchmark name ({benchmarks})")
+    stats.add_argument(
+        "episodes",
+        metavar="EPISODES",
+        help=f"an episodes file, a Habitat split file with --format, or a benchmark name ({benchmarks})",
+    )
+    stats.add_argument(
+        "--format",
+        choices=LAYOUTS,
+        help="read EPISODES as a split file in this Habitat layout ({split}/{split}.json.gz and its content/ "
+        "files, as --env habitat reads them; HM3D's own ObjectNav v1 splits among them)",
+    )
     stats.add_argument(
         "--scenes",
         help=f"a --scenes SPEC with the episodes' scenes (default: the benchmark's, else {_STATS_SCENES})",
@@ -55,9 +70,9 @@ def add_episodes(commands: Commands) -> None:
     stats.set_defaults(handler=_cmd_episodes_stats)
 
 
-_STATS_SCENES = "procedural,homes,maps"
-"""Where ``episodes stats`` loads an episodes file's scenes from by default: procedural houses and homes (any of
-them, by id) and the packaged floor plans."""
+_STATS_SCENES = "procedural,homes,storeys,maps"
+"""Where ``episodes stats`` loads an episodes file's scenes from by default: procedural houses, homes and homes of
+several storeys (any of them, by id) and the packaged floor plans."""
 
 
 def _cmd_episodes_generate(args: argparse.Namespace) -> int:
@@ -105,32 +120,53 @@ def _cmd_episodes_export(args: argparse.Namespace) -> int:
 
 def _cmd_episodes_stats(args: argparse.Namespace) -> int:
     import json
+
+    from drivenav.benchmarks.world_stats import measure
+    from drivenav.benchmarks.world_stats_table import format_world_stats
+
+    episodes, library = _stats_input(args)
+    stats = measure(episodes, library, source=str(args.episodes))
+    print(json.dumps(stats.to_json(), indent=1) if args.json else format_world_stats(stats))
+    return 0
+
+
+def _stats_input(args: argparse.Namespace) -> tuple[list[Episode], SceneLibrary]:
+    """The episodes ``episodes stats`` measures and the scenes they use: a benchmark's, or a file's checked against
+    the scenes unless ``--no-check``."""
     import sys
     from pathlib import Path
 
     from drivenav.benchmarks.benchmark import BENCHMARKS, generate_benchmark
-    from drivenav.benchmarks.world_stats import StatsConfig, measure
-    from drivenav.benchmarks.world_stats_table import format_world_stats
+    from drivenav.benchmarks.world_stats import StatsConfig
     from drivenav.envs.embedded.library import SceneLibrary
-    from drivenav.eval.episodes import load_episodes, validate_for_scenes
+    from drivenav.eval.episodes import validate_for_scenes
 
     name = str(args.episodes)
-    benchmark = BENCHMARKS.get(name) if not Path(name).exists() else None
+    benchmark = BENCHMARKS.get(name) if not Path(name).exists() and args.format is None else None
     if benchmark is not None:
-        episodes, scenes = generate_benchmark(benchmark), args.scenes or benchmark.scenes
-        library = SceneLibrary(scenes, benchmark.seed)
+        return generate_benchmark(benchmark), SceneLibrary(args.scenes or benchmark.scenes, benchmark.seed)
+    episodes, library = _stats_file(name, args.format), SceneLibrary(args.scenes or _STATS_SCENES)
+    if args.no_check:
+        print(
+            f"drivenav: {name} not checked against the scenes (--no-check): figures as the file gives them",
+            file=sys.stderr,
+        )
     else:
-        if not Path(name).is_file():
-            expected = f"an episodes file or a benchmark name ({', '.join(BENCHMARKS)})"
-            raise InputError("command line", "EPISODES", expected, name)
-        episodes, library = load_episodes(name), SceneLibrary(args.scenes or _STATS_SCENES)
-        if args.no_check:
-            print(
-                f"drivenav: {name} not checked against the scenes (--no-check): figures as the file gives them",
-                file=sys.stderr,
-            )
-        else:
-            validate_for_scenes(episodes, library, name, StatsConfig().sim)
-    stats = measure(episodes, library, source=name)
-    print(json.dumps(stats.to_json(), indent=1) if args.json else format_world_stats(stats))
-    return 0
+        validate_for_scenes(episodes, library, name, StatsConfig().sim)
+    return episodes, library
+
+
+def _stats_file(name: str, layout: str | None) -> list[Episode]:
+    """The episodes of drivenav's own episodes file, or of a Habitat split file in ``layout`` (``--format``)."""
+    from pathlib import Path
+
+    from drivenav.benchmarks.benchmark import BENCHMARKS
+    from drivenav.envs.habitat.layouts import read_split
+    from drivenav.eval.episodes import load_episodes
+
+    if layout is not None:
+        return read_split(Path(name), layout)
+    if not Path(name).is_file():
+        expected = f"an episodes file or a benchmark name ({', '.join(BENCHMARKS)})"
+        raise InputError("command line", "EPISODES", expected, name)
+    return load_episodes(name)

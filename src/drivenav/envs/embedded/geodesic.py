@@ -77,19 +77,6 @@ class GeodesicField:
         return total / weight_sum if weight_sum > 0.0 else math.inf
 
 
-def nearest_by_geodesic(
-    reachable: NDArray[np.bool_], grid: GridSpec, start: tuple[float, float], points: Sequence[tuple[float, float]]
-) -> tuple[int, float]:
-    """The index of the point nearest to ``start`` by geodesic distance over ``reachable`` (one solve from the
-    start) and that distance; ``(-1, inf)`` without points."""
-    if not points:
-        return -1, math.inf
-    from_start = GeodesicField(reachable, grid, [start])
-    distances = [from_start.at(*p) for p in points]
-    nearest = int(np.argmin(distances))
-    return nearest, distances[nearest]
-
-
 def _goal_distances(
     navigable: NDArray[np.bool_], grid: GridSpec, goals: Sequence[tuple[float, float]]
 ) -> NDArray[np.float64]:
