@@ -8,7 +8,7 @@ metrics use (distance to goal, SPL's d0) and what the oracle agent descends.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import skfmm
@@ -55,26 +55,33 @@ class GeodesicField:
 
     def at(self, x: float, y: float) -> float:
         """Distance at a world point: bilinear over the finite ones of the four nearest cell centres."""
-        res = self.grid.resolution
-        fx = (x - self.grid.origin[0]) / res - 0.5
-        fy = (y - self.grid.origin[1]) / res - 0.5
-        c0, r0 = math.floor(fx), math.floor(fy)
-        tx, ty = fx - c0, fy - r0
-        total, weight_sum = 0.0, 0.0
-        for dr, dc, w in (
-            (0, 0, (1 - tx) * (1 - ty)),
-            (0, 1, tx * (1 - ty)),
-            (1, 0, (1 - tx) * ty),
-            (1, 1, tx * ty),
-        ):
-            r, c = r0 + dr, c0 + dc
-            if w <= 0.0 or not (0 <= r < self.grid.shape[0] and 0 <= c < self.grid.shape[1]):
-                continue
-            value = float(self.distances[r, c])
-            if math.isfinite(value):
-                total += w * value
-                weight_sum += w
-        return total / weight_sum if weight_sum > 0.0 else math.inf
+        return bilinear_finite(self.grid, x, y, lambda row, col: float(self.distances[row, col]))
+
+
+def bilinear_finite(grid: GridSpec, x: float, y: float, value: Callable[[int, int], float]) -> float:
+    """Bilinear interpolation at a world point of the cell values ``value(row, col)`` of the four nearest cell
+    centres on the grid, over the finite ones (``inf`` where none is): how the world reads a distance field between
+    cell centres."""
+    res = grid.resolution
+    fx = (x - grid.origin[0]) / res - 0.5
+    fy = (y - grid.origin[1]) / res - 0.5
+    c0, r0 = math.floor(fx), math.floor(fy)
+    tx, ty = fx - c0, fy - r0
+    total, weight_sum = 0.0, 0.0
+    for dr, dc, w in (
+        (0, 0, (1 - tx) * (1 - ty)),
+        (0, 1, tx * (1 - ty)),
+        (1, 0, (1 - tx) * ty),
+        (1, 1, tx * ty),
+    ):
+        r, c = r0 + dr, c0 + dc
+        if w <= 0.0 or not (0 <= r < grid.shape[0] and 0 <= c < grid.shape[1]):
+            continue
+        cell = value(r, c)
+        if math.isfinite(cell):
+            total += w * cell
+            weight_sum += w
+    return total / weight_sum if weight_sum > 0.0 else math.inf
 
 
 def _goal_distances(

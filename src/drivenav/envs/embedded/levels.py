@@ -36,6 +36,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from drivenav.envs.embedded.building import Box3, Building, rect_cells
+from drivenav.envs.embedded.geodesic import bilinear_finite
 from drivenav.grid import GridSpec
 from drivenav.jit import jit
 
@@ -322,27 +323,10 @@ class LevelField:
         """Distance at a world point of height ``z``: bilinear over the finite ones of the four nearest cell
         centres on its surface (cells whose node lies within the climb of ``z``), as the one-floor world's
         :meth:`~drivenav.envs.embedded.geodesic.GeodesicField.at`."""
-        lv = self.levels
-        res = lv.grid.resolution
-        fx = (x - lv.grid.origin[0]) / res - 0.5
-        fy = (y - lv.grid.origin[1]) / res - 0.5
-        c0, r0 = math.floor(fx), math.floor(fy)
-        tx, ty = fx - c0, fy - r0
-        total, weight_sum = 0.0, 0.0
-        for dr, dc, w in ((0, 0, (1 - tx) * (1 - ty)), (0, 1, tx * (1 - ty)), (1, 0, (1 - tx) * ty), (1, 1, tx * ty)):
-            if w <= 0.0:
-                continue
-            value = self._cell(r0 + dr, c0 + dc, z)
-            if math.isfinite(value):
-                total += w * value
-                weight_sum += w
-        return total / weight_sum if weight_sum > 0.0 else math.inf
+        return bilinear_finite(self.levels.grid, x, y, lambda row, col: self._cell(row, col, z))
 
     def _cell(self, row: int, col: int, z: float) -> float:
         lv = self.levels
-        rows, cols = lv.grid.shape
-        if not (0 <= row < rows and 0 <= col < cols):
-            return math.inf
         for j in range(lv.layers):
             k = int(lv.index[j, row, col])
             if k >= 0 and abs(lv.node_height[k] - z) <= MAX_STEP:

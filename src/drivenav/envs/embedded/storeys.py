@@ -14,9 +14,9 @@ the strip toward the outer wall, straight or with a half landing in line, and le
 (:mod:`drivenav.envs.embedded.building`). A three-storey home has a stair hall per storey pair, side by side
 along the spine, so that no flight stands in the stairwell of another.
 
-Dimensions: floor-to-floor heights of 2.8-3.2 m; the fewest risers of at most 0.19 m that climb a storey
-(0.175-0.19 m: the 15-20 cm of real stairs, under habitat-sim's 0.2 m climb), goings of 0.25-0.30 m (a slope of
-30-37 degrees, under the navmesh's 45), stairs 0.9-1.1 m wide. Everything is drawn from
+Dimensions: floor-to-floor heights of 2.8-3.2 m; the fewest risers of at most 0.19 m that climb a storey (0.175-0.19 m:
+the 15-20 cm of real stairs, under habitat-sim's 0.2 m climb), goings of 0.25-0.30 m (a ramp of 33-41 degrees, under the
+navmesh's 45), stair halls 0.9-1.1 m wide (the stairs between their walls 0.75-1.0 m). Everything is drawn from
 ``numpy.random.default_rng(seed)``, so a seed always gives the same home.
 """
 
