@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import base64
 import io
+import json
 import logging
 import re
 import subprocess
@@ -17,10 +18,19 @@ from PIL import Image
 
 from drivenav.errors import InputError
 from drivenav.semantics.answers import AnswerError, extract_json_object, parse_proposal, parse_selection, parse_verdict
-from drivenav.semantics.fake_vlm_server import fake_stats, start_fake_server
+from drivenav.semantics.fake_vlm_server import FAKE_FLOOR, fake_answer, fake_stats, start_fake_server
 from drivenav.semantics.geometric import GeometricReasoner
-from drivenav.semantics.openai_backend import OpenAIReasoner, fallback_phrase
-from drivenav.semantics.protocols import Candidate, Reasoner, VerificationFrame, View
+from drivenav.semantics.openai_backend import FLOOR_SCHEMA, OpenAIReasoner, fallback_phrase, floor_text, parse_floor
+from drivenav.semantics.prompts import SYSTEM_PROMPT
+from drivenav.semantics.protocols import (
+    FLOOR_GUESSES,
+    Candidate,
+    FloorGuess,
+    FloorJudgement,
+    Reasoner,
+    VerificationFrame,
+    View,
+)
 from drivenav.semantics.replay import RecordingReasoner
 from drivenav.types import Pose
 
@@ -36,6 +46,11 @@ def image(seed: int, shape: tuple[int, int] = (48, 64)) -> np.ndarray:
 def view(label: int) -> View:
     rgb = image(label)
     return View(label, rgb, None, Pose(0.0, 0.0, 0.0), 0.1, 0.05, 3)
+
+
+def floor_views(count: int, first: int = 1) -> list[View]:
+    """``count`` views of one floor, taken every 15 steps, each image its own."""
+    return [View(i, image(50 + i), None, Pose(0.0, 0.0, 0.0), 0.0, 0.0, 15 * i) for i in range(first, first + count)]
 
 
 def candidates(labels: list[int]) -> list[Candidate]:
@@ -344,3 +359,95 @@ def test_verdict_must_be_one_of_three() -> None:
     with pytest.raises(AnswerError, match="must be one of"):
         parse_verdict('{"judgement": "probably"}')
     assert parse_proposal('{"phrase": " wooden   chair "}', []).phrase == "wooden chair"
+
+
+# --- the floor question ---
+
+
+def captions(body: dict[str, Any]) -> list[str]:
+    """The texts after the question text: the images' captions."""
+    return [part["text"] for part in user_parts(body) if part["type"] == "text"][1:]
+
+
+@pytest.mark.parametrize("mode", ["ok", "fenced"])
+def test_the_floor_prompt_names_the_floors_and_the_goal_and_carries_the_views(server: StartServer, mode: str) -> None:
+    url = server(mode)
+    r = reasoner(url)
+    assert r.judge_floor(GOAL, floor_views(3)) == FloorJudgement(FAKE_FLOOR)
+    assert [(c.kind, c.outcome) for c in r.calls] == [("judge_floor", "ok")] and r.calls[0].latency_ms > 0
+    body = fake_stats(url)["bodies"][-1]
+    assert body["messages"][0]["content"] == SYSTEM_PROMPT and body["max_tokens"] == 128
+    text = user_parts(body)[0]["text"]
+    assert text.startswith('Target object: "chair".') and text.endswith(FLOOR_SCHEMA)
+    assert "a building of several floors" in text and "on this floor, on another floor, or" in text
+    assert all(f'"{guess}"' in text for guess in FLOOR_GUESSES) and "not shown" not in text
+    assert captions(body) == [
+        "view 1 of this floor (step 15)",
+        "view 2 of this floor (step 30)",
+        "view 3 of this floor (step 45)",
+    ]
+    assert len(image_urls(body)) == 3
+
+
+def test_the_floor_prompt_shows_the_latest_views_within_the_image_limit(server: StartServer) -> None:
+    url = server("ok")
+    reasoner(url, max_images=4).judge_floor(GOAL, floor_views(6))
+    body = fake_stats(url)["bodies"][-1]
+    assert (
+        "(2 older views of this floor are not shown: only the latest fit in one request.)"
+        in user_parts(body)[0]["text"]
+    )
+    assert captions(body) == [f"view {i} of this floor (step {15 * (i + 2)})" for i in range(1, 5)]
+    assert len(image_urls(body)) == 4
+
+
+def test_the_fake_server_answers_the_floor_question_the_same_each_time() -> None:
+    question = [{"role": "user", "content": floor_text("bed", floor_views(2), 0)}]
+    assert [json.loads(fake_answer("ok", question)) for _ in range(2)] == [{"floor": FAKE_FLOOR}] * 2
+
+
+@pytest.mark.parametrize("guess", FLOOR_GUESSES)
+def test_each_floor_guess_is_read(guess: FloorGuess) -> None:
+    assert parse_floor(f'{{"floor": "{guess}"}}') == FloorJudgement(guess)
+    assert parse_floor(f'Here:\n```json\n{{"floor": " {guess.upper()} "}}\n```').guess == guess
+
+
+@pytest.mark.parametrize(
+    ("answer", "problem"),
+    [
+        ('{"floor": "upstairs"}', '"floor" must be one of ["this", "other", "unsure"], got "upstairs"'),
+        ('{"floor": 2}', "got 2"),
+        ('{"judgement": "sure"}', "got null"),
+        ("this floor", "no JSON object"),
+    ],
+)
+def test_a_malformed_floor_answer_says_what_is_wrong(answer: str, problem: str) -> None:
+    with pytest.raises(AnswerError, match=re.escape(problem)):
+        parse_floor(answer)
+
+
+def test_a_malformed_floor_answer_is_repaired(server: StartServer) -> None:
+    url = server("bad-then-good")
+    r = reasoner(url)
+    assert r.judge_floor(GOAL, floor_views(2)) == FloorJudgement(FAKE_FLOOR)
+    assert outcomes(r) == ["repaired"] and fake_stats(url)["chat_requests"] == 2
+    repair = fake_stats(url)["bodies"][1]["messages"][-1]["content"]
+    assert '"floor" must be one of ["this", "other", "unsure"], got "up"' in repair and repair.endswith(FLOOR_SCHEMA)
+
+
+@pytest.mark.parametrize(("mode", "requests"), [("garbage", 2), ("error", 3), ("empty", 1)])
+def test_a_hopeless_floor_answer_falls_back_to_unsure(server: StartServer, mode: str, requests: int) -> None:
+    url = server(mode)
+    r = reasoner(url)
+    judgement = r.judge_floor(GOAL, floor_views(2))
+    assert (judgement.guess, judgement.fallback) == ("unsure", True) and judgement.note.startswith("fallback (")
+    assert [(c.kind, c.outcome) for c in r.calls] == [("judge_floor", "fallback")]
+    assert fake_stats(url)["chat_requests"] == requests  # question and repair; three tries; one empty reply
+
+
+def test_a_floor_without_views_is_unsure_without_a_request(server: StartServer) -> None:
+    url = server("ok")
+    r = reasoner(url)
+    assert r.judge_floor(GOAL, []) == FloorJudgement("unsure", note="no views")
+    assert [(c.kind, c.outcome) for c in r.calls] == [("judge_floor", "ok")]
+    assert fake_stats(url)["chat_requests"] == 0

@@ -19,6 +19,7 @@ from drivenav.semantics.geometric import GeometricReasoner
 from drivenav.semantics.model_spec import ModelSpec
 from drivenav.semantics.protocols import (
     Candidate,
+    FloorJudgement,
     Judgement,
     ModelCall,
     Proposal,
@@ -34,12 +35,13 @@ from drivenav.semantics.replay import (
     ReplayMissError,
     ReplayReasoner,
     ReplayScorer,
+    floor_request,
     score_request,
     select_request,
 )
 from drivenav.types import GroundTruth
 from frames import observation_of
-from test_openai_backend import GOAL, ask_all, candidates, frame, image, reasoner, view
+from test_openai_backend import GOAL, ask_all, candidates, floor_views, frame, image, reasoner, view
 
 
 class ScriptedReasoner(GeometricReasoner):
@@ -168,6 +170,97 @@ def test_unusable_replay_files_are_input_errors(tmp_path: Path) -> None:
         ReplayReasoner(path)
     path.write_bytes(b"\xff\xfe not text")
     with pytest.raises(InputError, match="expected a UTF-8 text file written with --vlm-record"):
+        ReplayReasoner(path)
+
+
+# --- the floor question's answers ---
+
+
+class ScriptedFloors(GeometricReasoner):
+    """Answers the floor question with a scripted sequence (every field of a judgement set somewhere)."""
+
+    def __init__(self, judgements: Sequence[FloorJudgement]) -> None:
+        super().__init__()
+        self.judgements = list(judgements)
+
+    def judge_floor(self, goal: str, views: Sequence[View]) -> FloorJudgement:
+        self.calls.append(ModelCall("judge_floor", 0.0, "ok"))
+        return self.judgements.pop(0)
+
+
+def test_floor_answers_replay_exactly_from_a_recorded_openai_run(tmp_path: Path) -> None:
+    path = tmp_path / "run.jsonl"
+    albums = [floor_views(2), floor_views(3, first=4), floor_views(2)]
+    url, stop = start_fake_server("bad-then-good", lifetime=30.0)
+    recorder = RecordingReasoner(reasoner(url), path)
+    recorder.begin_episode(GOAL, None)
+    recorded = [recorder.judge_floor(GOAL, album) for album in albums]
+    assert [(c.kind, c.outcome) for c in recorder.calls] == [("judge_floor", "repaired")] * 3
+    stop()
+    record = json.loads(path.read_text().splitlines()[0])
+    assert record["kind"] == "judge_floor" and record["key"] == floor_request(GOAL, albums[0]).key
+    assert record["answer"] == {"guess": "other", "fallback": False, "note": ""}
+    assert record["summary"] == "views of steps [15, 30]"
+
+    replay = ReplayReasoner(path)
+    replay.begin_episode(GOAL, None)
+    assert [replay.judge_floor(GOAL, album) for album in albums] == recorded
+    assert [(c.kind, c.outcome) for c in replay.calls] == [("judge_floor", "replayed")] * 3
+
+
+def test_every_floor_answer_replays_in_recorded_order(tmp_path: Path) -> None:
+    path = tmp_path / "run.jsonl"
+    answers = [FloorJudgement("this"), FloorJudgement("other", note="no bedroom"), FloorJudgement("unsure", True, "x")]
+    recorder = RecordingReasoner(ScriptedFloors(answers), path)
+    recorded = [recorder.judge_floor(GOAL, floor_views(2)) for _ in answers]
+    assert recorded == answers
+    replay = ReplayReasoner(path)
+    assert [replay.judge_floor(GOAL, floor_views(2)) for _ in range(4)] == [*answers, answers[-1]]
+
+
+def test_a_floor_question_not_recorded_misses_in_one_line(tmp_path: Path) -> None:
+    path = tmp_path / "run.jsonl"
+    RecordingReasoner(ScriptedFloors([FloorJudgement("this")]), path).judge_floor(GOAL, floor_views(2))
+    replay = ReplayReasoner(path)
+    repainted = floor_views(2)
+    repainted[1].rgb[0, 0, 0] ^= 1
+    for views in (repainted, floor_views(1)):
+        with pytest.raises(ReplayMissError) as missed:
+            replay.judge_floor(GOAL, views)
+        message = str(missed.value)
+        assert "\n" not in message and str(path) in message and "judge_floor question with goal 'chair'" in message
+        assert floor_request(GOAL, views).key[:16] in message and "holds 1 judge_floor answers for that goal" in message
+    with pytest.raises(ReplayMissError, match="holds 0 judge_floor answers for that goal"):
+        replay.judge_floor("bed", floor_views(2))
+
+
+def test_a_recording_without_floor_answers_still_reads_and_misses_them(tmp_path: Path) -> None:
+    """A file written before the floor question (no judge_floor kind) replays its questions as it did."""
+    path = tmp_path / "old.jsonl"
+    verdict = RecordingReasoner(ScriptedReasoner(["sure"]), path).verify(GOAL, frame(1, 4), [])
+    replay = ReplayReasoner(path)
+    assert replay.verify(GOAL, frame(1, 4), []) == verdict
+    with pytest.raises(ReplayMissError, match=r"judge_floor question .*views of steps \[15, 30\].*holds 0"):
+        replay.judge_floor(GOAL, floor_views(2))
+
+
+@pytest.mark.parametrize(
+    ("answer", "problem"),
+    [
+        ({"guess": "upstairs", "fallback": False, "note": ""}, r"answer\.guess': expected this or other or unsure"),
+        (
+            {"guess": "This", "fallback": False, "note": ""},
+            r"answer\.guess': expected this or other or unsure, got 'This'",
+        ),
+        ({"guess": "this", "fallback": False}, r"answer\.note': expected a text"),
+        ({"guess": "this", "note": ""}, r"answer\.fallback': expected true or false"),
+    ],
+)
+def test_a_recorded_floor_answer_that_is_no_guess_is_refused(tmp_path: Path, answer: object, problem: str) -> None:
+    path = tmp_path / "edited.jsonl"
+    record = {"key": "k", "kind": "judge_floor", "goal": GOAL, "summary": "", "answer": answer}
+    path.write_text(json.dumps(record) + "\n")
+    with pytest.raises(InputError, match="field 'line 1: " + problem):
         ReplayReasoner(path)
 
 

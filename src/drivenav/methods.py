@@ -54,7 +54,7 @@ class Method:
     base: str = ""
 
 
-METHODS: tuple[Method, ...] = (
+_METHODS: tuple[Method, ...] = (
     Method(
         "frontier",
         ("VI",),
@@ -143,6 +143,26 @@ METHODS: tuple[Method, ...] = (
 """DRIVE-Nav, its baselines / ablations and the peers it is compared with (paper Tables I, II, V, VI), in the order of
 the ablation report, then the methods beyond the paper (no table of the paper: ``drive-nav-plus`` and its ablation
 rows, each without one rule)."""
+
+FLOORS_OFF = ("drive-nav", "vlfm", "apexnav", "nearest-frontier", "direction-360", "drive-nav-plus")
+"""The methods measured with floors off too (docs/floors.md): Table I's, Table II's and drive-nav-plus."""
+
+
+def _floors_off(method: Method) -> Method:
+    """A method with the body's floors off: one planar map, no stairs taken (the method as published)."""
+    return Method(
+        f"{method.name}-floors-off",
+        (),
+        f"{method.name} with floors off: one planar map, no stairs taken (as published)",
+        (*method.overrides, "agent.floors.enabled=false"),
+        method.explorer,
+        base=method.name,
+    )
+
+
+METHODS: tuple[Method, ...] = (*_METHODS, *(_floors_off(m) for m in _METHODS if m.name in FLOORS_OFF))
+"""Every method: the paper's tables', the methods beyond the paper, then the floors-off rows of :data:`FLOORS_OFF`."""
+
 
 REFERENCE_AGENTS: dict[str, str] = {
     "oracle": "drivenav.agent.oracle:OracleAgent",  # follows the ground-truth shortest path to the goal

@@ -254,6 +254,11 @@ class CategoryVocabulary(Protocol):
         """The kinds of room the world's scenes have (empty where it does not say)."""
         ...
 
+    def room_shares(self, category: str) -> dict[str, float]:
+        """Where a category is found: room type -> share of its objects (summing to 1; empty where the vocabulary
+        does not say): the common knowledge a language model has of homes, which stand-in reasoners draw on."""
+        ...
+
 
 @dataclass(frozen=True)
 class GroundTruth:

@@ -6,9 +6,14 @@ own RGB and depth sensor classes clip and normalise), ``reconfigure``, ``reset``
 config, as the task writes it), ``step`` (also ``step(None)`` after STOP), ``step_physics``, ``get_agent_state``
 (position array, ``quaternion.quaternion`` rotation), ``geodesic_distance``, ``previous_step_collided``, ``seed``,
 ``close``, and a ``pathfinder`` with ``try_step`` / ``try_step_no_sliding`` for the oracle's motion model. Raw depth
-is metres, as habitat-sim's. Scenes are the embedded library's (``SCENES``), found by the scene path's part
-after ``scene_datasets/`` (an HM3D-form path by its house's name: :func:`embedded_scene_id`). Worker processes
-import it through ``--habitat-plugin drivenav_sim``.
+is metres, as habitat-sim's. Scenes are the embedded library's (``SCENES``: procedural houses and homes of several
+storeys), found by the scene path's part after ``scene_datasets/`` (an HM3D-form path by its house's name:
+:func:`embedded_scene_id`). Worker processes import it through ``--habitat-plugin drivenav_sim``.
+
+Floors are habitat-sim's: a position's ``y`` is its height. The agent starts on the floor nearest the start state's
+height (as the task writes the episode's start), ``get_agent_state`` reports the height of the floor or stairs under
+it, ``geodesic_distance`` runs between 3-D points through the stairs, and the path finder's steps climb and descend
+them (the embedded world's motion model, heights included).
 """
 
 from __future__ import annotations
@@ -30,14 +35,18 @@ from habitat.core.registry import registry
 from habitat.core.simulator import AgentState, SensorSuite, Simulator
 from habitat.sims.habitat_simulator.actions import HabitatSimActions
 
+from drivenav.envs.embedded.building import Building
 from drivenav.envs.embedded.env import EmbeddedEnv
 from drivenav.envs.embedded.library import SceneLibrary
+from drivenav.envs.embedded.scene import Scene
+from drivenav.envs.embedded.terrain import Terrain, terrain_of
 from drivenav.envs.habitat.benchmarks import SCENES_DIR
 from drivenav.episode import Episode, habitat_to_world, world_to_habitat, yaw_to_quaternion
 from drivenav.types import Action, Observation, SimConfig
 
 SIM_NAME = "DriveNavSim-v0"
-SCENES = "procedural"
+SCENES = "procedural,storeys"
+LIBRARY = SceneLibrary(SCENES, 0)
 SCENE_FOLDER = f"{SCENES_DIR}/"
 HM3D_FORM = re.compile(r"hm3d/[^/]+/\d{5}-([^/]+)/\1\.basis\.glb")
 
@@ -62,11 +71,15 @@ def sim_config(config: Any) -> SimConfig:
 
 def embedded_scene_id(scene: str) -> str:
     """The embedded scene of a scene path: its part after ``scene_datasets/``; a path in HM3D's form
-    (``hm3d/<split>/<NNNNN>-<name>/<name>.basis.glb``, as released episode files name scenes) names the procedural
-    house ``<name>``, so fixtures written like the released files run here."""
+    (``hm3d/<split>/<NNNNN>-<name>/<name>.basis.glb``, as released episode files name scenes) names the library's
+    scene ``<name>`` (``house_SSSSS`` a procedural house, ``home_SSSSS`` a home of several storeys), so fixtures
+    written like the released files run here."""
     scene = scene.split(SCENE_FOLDER, 1)[1] if SCENE_FOLDER in scene else scene
     match = HM3D_FORM.fullmatch(scene)
-    return f"procedural/{match.group(1)}" if match else scene
+    if match is None:
+        return scene
+    named = [f"{part}/{match.group(1)}" for part in SCENES.split(",")]
+    return next((scene_id for scene_id in named if scene_id in LIBRARY), named[0])
 
 
 @dataclass(frozen=True)
@@ -84,17 +97,29 @@ class _SemanticObject:
 
 
 class _PathFinder:
-    """habitat-sim's ``PathFinder.try_step`` family over the embedded motion model (which slides along walls)."""
+    """habitat-sim's ``PathFinder.try_step`` family over the embedded motion model (which slides along walls and
+    follows the floor and the stairs under it): the point reached from ``start`` toward ``end``, with its height.
+
+    The model is the current scene's terrain, built here once per scene (``EmbeddedEnv.forward`` gives the point
+    reached without its height)."""
 
     def __init__(self, sim: DriveNavSim) -> None:
         self._sim = sim
+        self._terrain: tuple[Scene | Building, Terrain] | None = None
 
     def try_step(self, start: Any, end: Any) -> np.ndarray:
         (x0, y0), (x1, y1) = habitat_to_world(list(start)), habitat_to_world(list(end))
-        x, y, _ = self._sim.world.forward(x0, y0, math.atan2(y1 - y0, x1 - x0), math.hypot(x1 - x0, y1 - y0))
-        return np.array(world_to_habitat(x, y, float(start[1])))
+        yaw, step = math.atan2(y1 - y0, x1 - x0), math.hypot(x1 - x0, y1 - y0)
+        (x, y, z), _ = self._current_terrain().forward(x0, y0, float(start[1]), yaw, step)
+        return np.array(world_to_habitat(x, y, z))
 
     try_step_no_sliding = try_step
+
+    def _current_terrain(self) -> Terrain:
+        scene = self._sim.world.scene
+        if self._terrain is None or self._terrain[0] is not scene:
+            self._terrain = (scene, terrain_of(scene, self._sim.world.config))
+        return self._terrain[1]
 
 
 @registry.register_simulator(name=SIM_NAME)
@@ -105,7 +130,7 @@ class DriveNavSim(Simulator):  # type: ignore[misc]
             registry.get_sensor(cfg.type)(cfg) for agent in config.agents.values() for cfg in agent.sim_sensors.values()
         ]
         self._sensor_suite = SensorSuite(sensors)
-        self.world = EmbeddedEnv(SceneLibrary(SCENES, 0).load, sim_config(config))
+        self.world = EmbeddedEnv(LIBRARY.load, sim_config(config))
         self.pathfinder = _PathFinder(self)
         self._collided = False
         self._last: Observation | None = None
@@ -126,6 +151,7 @@ class DriveNavSim(Simulator):  # type: ignore[misc]
         self.habitat_config = config
 
     def reset(self) -> Any:
+        """The agent at the start state the task wrote (the episode's start position, its height included)."""
         config = self.habitat_config
         agent = config.agents[config.agents_order[config.default_agent_id]]
         start = Episode(
@@ -147,12 +173,13 @@ class DriveNavSim(Simulator):  # type: ignore[misc]
     def get_agent_state(self, agent_id: int = 0) -> AgentState:
         pose = self.world.state
         x, y, z, w = yaw_to_quaternion(pose.yaw)
-        return AgentState(np.array(world_to_habitat(pose.x, pose.y)), quaternion.quaternion(w, x, y, z))
+        return AgentState(np.array(world_to_habitat(pose.x, pose.y, pose.z)), quaternion.quaternion(w, x, y, z))
 
     def geodesic_distance(self, position_a: Any, position_b: Any, episode: Any = None) -> float:
+        """Metres from ``position_a`` to the nearest of ``position_b`` (one position or several), heights included."""
         targets = position_b if np.ndim(position_b) == 2 else [position_b]
-        x, y = habitat_to_world(list(position_a))
-        return self.world.geodesic_distance(x, y, [habitat_to_world(list(p)) for p in targets])
+        x, y, z = _world_point(position_a)
+        return self.world.geodesic_distance(x, y, [_world_point(p) for p in targets], z)
 
     def semantic_annotations(self) -> Any:
         """habitat-sim's semantic scene, as far as the adapter reads it: objects with ``semantic_id`` and
@@ -170,6 +197,12 @@ class DriveNavSim(Simulator):  # type: ignore[misc]
         assert self._last is not None
         raw = {"rgb": self._last.rgb, "depth": self._last.depth, "semantic": self._last.semantic}
         return self._sensor_suite.get_observations(raw)
+
+
+def _world_point(position: Any) -> tuple[float, float, float]:
+    """A Habitat position as a world point with its height."""
+    x, y = habitat_to_world(list(position))
+    return x, y, float(position[1])
 
 
 _ACTIONS = {

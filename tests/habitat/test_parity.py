@@ -14,7 +14,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from worlds import BothWorlds, export, settings_for
+from worlds import BothWorlds, assert_same, export, settings_for
 
 from drivenav.benchmarks.generate import generate_episodes
 from drivenav.envs.embedded.library import SceneLibrary
@@ -24,7 +24,6 @@ from drivenav.eval.records import EpisodeRecord
 from drivenav.eval.trace import EpisodeTrace
 
 EPISODES = 12
-TOLERANCE = 1e-6
 CASES = {
     "oracle": (),
     "drive-nav": ("sim.width=320", "sim.height=240", "sim.max_steps=150"),
@@ -67,21 +66,8 @@ def test_same_actions_and_metrics_in_both_worlds(
                     direct[episode.episode_id] = worlds.direct(episode)
                 through = worlds.through(episode)
                 reference = direct[episode.episode_id]
-                _assert_same(reference, through, f"{benchmark} episode {episode.episode_id}")
+                assert_same(reference, through, f"{benchmark} episode {episode.episode_id}")
         finally:
             worlds.close()
     assert len(direct) == EPISODES // 2
     assert sum(int(record.success or 0) for record, _ in direct.values()) >= 1  # successes compared too
-
-
-def _assert_same(
-    direct: tuple[EpisodeRecord, EpisodeTrace], through: tuple[EpisodeRecord, EpisodeTrace], where: str
-) -> None:
-    (ours, our_trace), (theirs, their_trace) = direct, through
-    assert theirs.error == "" and ours.error == "", (where, theirs.error, ours.error)
-    assert their_trace.actions == our_trace.actions, where
-    assert theirs.success == ours.success, where
-    for key in ("spl", "distance_to_goal", "geodesic_distance", "path_length"):
-        assert getattr(theirs, key) == pytest.approx(getattr(ours, key), abs=TOLERANCE), (where, key)
-    assert (theirs.collisions, theirs.stop_reason) == (ours.collisions, ours.stop_reason), where
-    assert (theirs.failure_cause, theirs.revisits) == (ours.failure_cause, ours.revisits), where

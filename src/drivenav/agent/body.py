@@ -27,8 +27,9 @@ from drivenav.agent import approach
 from drivenav.agent.base import Agent, BodyStats, ExplorerStats, ModelStats
 from drivenav.agent.config import AgentConfig, ExplorerEntry
 from drivenav.agent.context import StepContext, perceive
-from drivenav.agent.explorer import Explorer, ExplorerSetup, counter_values
+from drivenav.agent.explorer import Explorer, ExplorerSetup, counter_values, sum_counters
 from drivenav.agent.explorers import DEFAULT_EXPLORER, explorer_entry
+from drivenav.agent.floors import NO_FRONTIER, STAIRS, Floor, Floors
 from drivenav.agent.fused_search import FusedTargetSearch
 from drivenav.agent.loop import Loop, Tuning
 from drivenav.agent.planner import LocalPlanner
@@ -104,23 +105,33 @@ class ExplorerAgent(Agent):
         self._grounder: Grounder | None = None  # built at the first episode and kept: weights load once
         self._scorer: ImageTextScorer | None = None  # likewise
         self._hints: dict[str, CategoryHints] = {}  # the reasoner's hints by goal text, asked once per agent
-        self.state: BodyState | None = None  # the running episode's state (none between episodes)
-        self.explorer: Explorer | None = None  # the running episode's explorer
+        self.state: BodyState | None = None  # the running episode's state (none between episodes): its floor's
+        self.explorer: Explorer | None = None  # the running episode's explorer: its floor's
+        self.floors: Floors | None = None  # the episode's floors, with agent.floors.enabled
+        self._truth: GroundTruth | None = None
+        self._ctx: StepContext | None = None  # this step's perception (a floor change sets off from it)
+        self._observation: Observation | None = None
 
     # ----------------------------------------------------------------- episode set-up
 
     def reset(self, goal_text: str, seed: int, truth: GroundTruth | None = None) -> None:
         super().reset(goal_text, seed, truth)
+        self._truth = truth
         self.state = self._begin(goal_text, seed, truth)
         self.explorer = self.explorer_type(self._explorer_setup(goal_text, truth, self.state.mapper))
         self.explorer.begin(self.loop())
+        floors = self.config.floors
+        first = Floor(0.0, self.state, self.explorer)
+        self.floors = (
+            Floors(floors, first, self._new_floor, self._switch_floor, self.sim.max_steps) if floors.enabled else None
+        )
 
     def _begin(self, goal_text: str, seed: int, truth: GroundTruth | None) -> BodyState:
         """A new episode: empty maps, a fresh planner, the models begun on the goal.
 
         The grounder (SAM3, OWLv2: gigabytes of weights) is built at the first episode and begun anew at each; the
         reasoner (a client or a stand-in) is built per episode."""
-        mapper = OccupancyMapper(MappingConfig.from_sim(self.sim, self.mapping))
+        mapper = self._mapper()
         pipeline = DirectionPipeline(self.paper)
         planner = LocalPlanner.from_config(self.sim, self.config.planner)
         reasoner = self._reasoner_factory()
@@ -132,6 +143,33 @@ class ExplorerAgent(Agent):
         grounder.begin_episode(truth, seed)
         search = self._target_search(goal_text, grounder, reasoner, hints)
         return BodyState(mapper, pipeline, planner, reasoner, search, hints=hints)
+
+    def _mapper(self) -> OccupancyMapper:
+        """A floor's empty maps; with floors on they read stairs from depth too."""
+        floors = self.config.floors
+        return OccupancyMapper(
+            MappingConfig.from_sim(self.sim, self.mapping), floors.stairs if floors.enabled else None
+        )
+
+    def _new_floor(self) -> tuple[BodyState, Explorer]:
+        """A floor first reached: its own empty maps, directions pipeline, planner, target search and explorer; the
+        episode's reasoner, grounder, counters and hints (:mod:`drivenav.agent.floors`)."""
+        assert self.state is not None and self._grounder is not None
+        episode = self.state
+        search = self._target_search(self.goal_text, self._grounder, episode.reasoner, episode.hints)
+        pipeline, planner = DirectionPipeline(self.paper), LocalPlanner.from_config(self.sim, self.config.planner)
+        state = BodyState(self._mapper(), pipeline, planner, episode.reasoner, search, counts=episode.counts)
+        state.hints = episode.hints
+        explorer = self.explorer_type(self._explorer_setup(self.goal_text, self._truth, state.mapper))
+        return state, explorer
+
+    def _switch_floor(self, floor: Floor) -> None:
+        """The agent arrived on ``floor``: its state and explorer take over (a floor first reached begins its
+        exploration, DRIVE-Nav's start scan)."""
+        self.state, self.explorer = floor.state, floor.explorer
+        if not floor.begun:
+            floor.begun = True
+            floor.explorer.begin(self.loop())
 
     def _category_hints(self, goal_text: str, reasoner: Reasoner) -> CategoryHints | None:
         """The reasoner's hints on the goal's category where fusion or the explorer reads them (None otherwise):
@@ -184,6 +222,9 @@ class ExplorerAgent(Agent):
         super().end_episode()
         self.state = None
         self.explorer = None
+        self.floors = None
+        self._ctx = None
+        self._observation = None
 
     def loop(self) -> Loop:
         """What the approach and the explorer work with this step: this agent, its tuning, the episode."""
@@ -197,7 +238,19 @@ class ExplorerAgent(Agent):
         """This episode's model calls: the reasoner's and the explorer's (VLFM's scorer: kind ``score``)."""
         if self.state is None or self.explorer is None:
             return []
-        return [*self.state.reasoner.calls, *self.explorer.model_calls()]
+        return [*self.state.reasoner.calls, *(call for e in self._explorers() for call in e.model_calls())]
+
+    def _explorers(self) -> list[Explorer]:
+        """Every floor's explorer this episode (the one explorer without floors)."""
+        if self.floors is not None:
+            return self.floors.explorers()
+        return [self.explorer] if self.explorer is not None else []
+
+    def _searches(self) -> list[TargetSearch]:
+        """Every floor's target search this episode."""
+        if self.floors is not None:
+            return [state.search for state in self.floors.states()]
+        return [self.state.search] if self.state is not None else []
 
     @property
     def model_calls(self) -> int:
@@ -220,41 +273,82 @@ class ExplorerAgent(Agent):
     def body_stats(self) -> BodyStats:
         if self.state is None:
             return super().body_stats()
-        return self.state.counts.freeze(*self.state.search.outcome())
+        outcomes = [search.outcome() for search in self._searches()]
+        created, accepted, aside = (sum(o[k] for o in outcomes) for k in range(3))
+        return self.state.counts.freeze(created, accepted, aside)
 
     def explorer_stats(self) -> ExplorerStats | None:
         if self.explorer is None:
             return ExplorerStats(self.explorer_entry.name)
-        return ExplorerStats(self.explorer_entry.name, counter_values(self.explorer.counters()))
+        counters = [counter_values(e.counters()) for e in self._explorers()]
+        return ExplorerStats(self.explorer_entry.name, sum_counters(counters))
 
     # ----------------------------------------------------------------- one step
 
     def decide(self, observation: Observation) -> Action:
         """Perceive (maps, directions, the explorer's reading, grounding), then approach or explore; time each
-        part."""
-        loop = self.loop()
-        state = loop.state
+        part. With floors on, a step on stairs only climbs (the maps are left as they are), and a step toward
+        stairs the floor rule set off for is the floors' (:mod:`drivenav.agent.floors`)."""
         timings: dict[str, float] = {}
         start = time.perf_counter()
+        floors = self.floors
+        if floors is not None and floors.on_stairs(observation):
+            climbed = floors.climb(self.loop(), observation)
+            if climbed is not None:
+                return self._counted(climbed, STAIRS, timings, start)
+        loop = self.loop()
+        state = loop.state
         ctx = self._map(state, observation, timings)
+        self._ctx, self._observation = ctx, observation
         loop.explorer.observe(loop, observation, ctx, timings)
         mark = time.perf_counter()
         state.search.observe(observation, self.trace, ctx.snapshot, loop.explorer.frame_score(), timings)
         approach.track_target(loop)
         timings["grounding"] = _ms_since(mark) - timings.get("fusion", 0.0)
         mark = time.perf_counter()
+        if floors is not None and floors.trip is None and not state.approaching:
+            floors.look(observation)
+            floors.ask(loop, ctx)
+        if floors is not None and floors.trip is not None and not state.approaching:
+            toward = floors.heading_for_stairs(loop, observation, ctx)
+            if toward is not None:
+                timings["policy"] = _ms_since(mark)
+                return self._counted(toward, STAIRS, timings, start)
         action = loop.policy(observation, ctx)
-        state.counts.count_step(action, state.activity(action) or loop.explorer.activity(state.planner.escaping))
+        loop = self.loop()  # the floor rule may have set off for stairs within the explorer's step
+        activity = STAIRS if floors is not None and floors.trip is not None else None
         timings["policy"] = _ms_since(mark)
+        return self._counted(action, activity or self._activity(loop, action), timings, start)
+
+    def _activity(self, loop: Loop, action: Action) -> str:
+        return loop.state.activity(action) or loop.explorer.activity(loop.state.planner.escaping)
+
+    def _counted(self, action: Action, activity: str, timings: dict[str, float], start: float) -> Action:
+        """Count the step under ``activity`` and keep its timings."""
+        assert self.state is not None
+        self.state.counts.count_step(action, activity)
         timings["total"] = _ms_since(start)
         self.step_timings.append(timings)
         return action
+
+    def stop(self, reason: str) -> Action:
+        """STOP, unless the floor rule finds a way to a floor with something left to explore (floors on): then
+        the step sets off for it."""
+        floors, ctx, observation = self.floors, self._ctx, self._observation
+        if reason == NO_FRONTIER and floors is not None and ctx is not None and observation is not None:
+            loop = self.loop()
+            if floors.trip is None and floors.leave(loop, ctx):
+                toward = floors.heading_for_stairs(loop, observation, ctx)
+                if toward is not None:
+                    return toward
+        return super().stop(reason)
 
     def _map(self, state: BodyState, observation: Observation, timings: dict[str, float]) -> StepContext:
         """Update the maps with the frame (and a robot's LiDAR, Sec. V-E) and solve for this step's directions."""
         start = time.perf_counter()
         mapper = state.mapper
-        mapper.update(observation.depth, observation.intrinsics, observation.pose)
+        rise = observation.pose.z - self.floors.floor.level if self.floors is not None else 0.0
+        mapper.update(observation.depth, observation.intrinsics, observation.pose, rise)
         if observation.occupancy is not None and mapper.config.fuse_lidar:
             mapper.fuse_occupancy(observation.occupancy)
         snapshot, frontiers = mapper.snapshot(), mapper.frontiers()

@@ -108,3 +108,28 @@ def counter_values(counters: object) -> dict[str, CounterValue]:
     if not is_dataclass(counters) or isinstance(counters, type):
         raise TypeError(f"explorer counters must be a dataclass instance, got {type(counters).__name__}")
     return dict(asdict(counters))
+
+
+def sum_counters(counters: list[dict[str, CounterValue]]) -> dict[str, CounterValue]:
+    """Counters of several explorers of one episode (one a floor) added up: numbers summed, counts by kind merged
+    by kind and summed; one explorer's counters as they are."""
+    if len(counters) == 1:
+        return counters[0]
+    total: dict[str, CounterValue] = {}
+    for one in counters:
+        for key, value in one.items():
+            total[key] = _add(total.get(key), value)
+    return total
+
+
+def _add(a: CounterValue | None, b: CounterValue) -> CounterValue:
+    if a is None:
+        return b
+    if isinstance(a, dict) and isinstance(b, dict):
+        merged = dict(a)
+        for kind, count in b.items():
+            merged[kind] = merged.get(kind, 0) + count
+        return dict(sorted(merged.items()))
+    if isinstance(a, int | float) and isinstance(b, int | float):
+        return a + b
+    raise TypeError(f"explorer counters of one key must be numbers or counts by kind alike, got {a!r} and {b!r}")

@@ -146,6 +146,40 @@ class TargetSetAside(Event):
 
 
 @dataclass(frozen=True)
+class FloorJudged(Event):
+    """The floor question was asked on floor ``floor`` (docs/floors.md): the reasoner's ``guess`` (``this``,
+    ``other`` or ``unsure``) and its note."""
+
+    floor: int
+    guess: str
+    note: str
+    kind: ClassVar[str] = "floor_judged"
+
+
+@dataclass(frozen=True)
+class FloorSetOff(Event):
+    """The agent set off from floor ``floor`` for stairs (``up`` or down) whose entry is ``entry`` (episode frame),
+    because the floor was explored (``reason`` ``explored``), judged without the target (``judged``) or had its
+    share of the steps (``share``)."""
+
+    floor: int
+    entry: Point
+    up: bool
+    reason: str
+    kind: ClassVar[str] = "floor_set_off"
+
+
+@dataclass(frozen=True)
+class FloorReached(Event):
+    """The agent arrived on floor ``floor`` (``new``: first reached) by stairs from floor ``came_from``."""
+
+    floor: int
+    came_from: int
+    new: bool
+    kind: ClassVar[str] = "floor_reached"
+
+
+@dataclass(frozen=True)
 class StopEvent(Event):
     """The agent called STOP (``reason``: why)."""
 

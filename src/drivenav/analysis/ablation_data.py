@@ -117,6 +117,62 @@ class Paired:
 
 
 @dataclass(frozen=True)
+class GroupEntry:
+    """One method on one floor group of episodes: the per-split columns (:class:`SplitEntry`) and the successes
+    behind its SR (a group can be small: its count says more than a rate)."""
+
+    results: SplitEntry
+    successes: int
+
+    def to_json(self) -> JsonObject:
+        return {**self.results.to_json(), "successes": self.successes}
+
+    @staticmethod
+    def from_json(data: JsonObject) -> GroupEntry:
+        results = SplitEntry.from_json({key: value for key, value in data.items() if key != "successes"})
+        return GroupEntry(results, data["successes"])
+
+
+ONE_FLOOR, SAME_FLOOR, CROSS_FLOOR = "one_floor", "same_floor", "cross_floor"
+FLOOR_GROUPS = {ONE_FLOOR: "one-floor homes", SAME_FLOOR: "same floor", CROSS_FLOOR: "cross floor"}
+"""The floor groups by key, in the report's order, with the names the tables show: episodes in scenes of one storey
+(no ``info["cross_floor"]``), in a home of several storeys with a goal on the start floor (``cross_floor`` false),
+and needing a floor change (``cross_floor`` true)."""
+
+
+@dataclass(frozen=True)
+class Floors:
+    """Each method per floor group (:data:`FLOOR_GROUPS`: groups without a record left out), and each other method
+    against ``reference`` episode by episode within each group (``paired``: groups where the reference was run)."""
+
+    reference: str
+    groups: dict[str, dict[str, GroupEntry]]
+    paired: dict[str, dict[str, Paired]] = field(default_factory=dict)
+
+    def to_json(self) -> JsonObject:
+        return {
+            "reference": self.reference,
+            "groups": {group: {m: e.to_json() for m, e in by.items()} for group, by in self.groups.items()},
+            "paired": {group: {m: p.to_json() for m, p in by.items()} for group, by in self.paired.items()},
+        }
+
+    @staticmethod
+    def from_json(data: JsonObject) -> Floors:
+        groups = {group: _each(by, GroupEntry.from_json) for group, by in data["groups"].items()}
+        paired = {group: _each(by, Paired.from_json) for group, by in data["paired"].items()}
+        return Floors(data["reference"], groups, paired)
+
+    @property
+    def reference_run(self) -> bool:
+        """Whether the reference has a record in some group (else nothing is paired)."""
+        return any(self.reference in by_method for by_method in self.groups.values())
+
+    def size(self, group: str) -> int:
+        """The group's episodes: the most any method has a record of."""
+        return max(entry.results.episodes for entry in self.groups[group].values())
+
+
+@dataclass(frozen=True)
 class ModelCalls:
     """One kind of model call over the runs: how many, how many per episode of the runs that make it, mean
     latency, and calls per episode of each method that makes it (methods call a kind at very different rates:
@@ -248,7 +304,8 @@ class AblationReport:
     the file has only then); with ``drive-nav`` among the methods, each method's paired wins and losses against it
     under ``paired`` (likewise); with methods beyond the paper, each against its base under ``beyond`` and Table
     II's comparison with them under ``table_ii_beyond`` (:mod:`drivenav.analysis.beyond`; keys the file has only
-    then)."""
+    then); with episodes carrying ``info["cross_floor"]`` (benchmark v3), each method per floor group under
+    ``floors`` (:class:`Floors`; likewise)."""
 
     methods: dict[str, MethodEntry]
     table_ii: Comparison
@@ -264,6 +321,7 @@ class AblationReport:
     paired: dict[str, Paired] = field(default_factory=dict)
     beyond: dict[str, PairedEntry] = field(default_factory=dict)
     table_ii_beyond: Comparison | None = None
+    floors: Floors | None = None
 
     def to_json(self) -> JsonObject:
         """The ``ablations.json`` object."""
@@ -287,6 +345,8 @@ class AblationReport:
             data["beyond"] = {name: entry.to_json() for name, entry in self.beyond.items()}
         if self.table_ii_beyond is not None:
             data["table_ii_beyond"] = self.table_ii_beyond.to_json()
+        if self.floors is not None:
+            data["floors"] = self.floors.to_json()
         return data
 
     @staticmethod
@@ -308,6 +368,7 @@ class AblationReport:
                 _each(data.get("paired", {}), Paired.from_json),
                 _each(data.get("beyond", {}), PairedEntry.from_json),
                 Comparison.from_json(data["table_ii_beyond"]) if "table_ii_beyond" in data else None,
+                Floors.from_json(data["floors"]) if "floors" in data else None,
             )
         except (KeyError, TypeError, AttributeError, IndexError) as error:
             expected = "an ablations.json written by 'drivenav bench ablations'"

@@ -9,8 +9,10 @@ from itertools import pairwise
 from pathlib import Path
 
 from drivenav.analysis.ablation_data import (
+    FLOOR_GROUPS,
     AblationReport,
     ComputeTable,
+    Floors,
     Interval,
     MethodEntry,
     ModelCalls,
@@ -57,13 +59,42 @@ def flatten(entry: JsonObject, prefix: str = "") -> JsonObject:
 
 
 def write_csv(report: AblationReport, path: Path) -> None:
-    """One row per method with its ``ablations.json`` fields flattened."""
-    rows = [{"method": name, **flatten(entry.to_json())} for name, entry in report.methods.items()]
+    """One row per method with its ``ablations.json`` fields flattened, then its floor groups' columns."""
+    rows = [
+        {"method": name, **flatten(entry.to_json()), **floor_columns(report.floors, name)}
+        for name, entry in report.methods.items()
+    ]
     fields = list(dict.fromkeys(key for row in rows for key in row))
     with path.open("w", newline="", encoding="utf-8") as handle:
         writer = csv.DictWriter(handle, fieldnames=fields, restval=0)
         writer.writeheader()
         writer.writerows(rows)
+
+
+PAIRED_COLUMNS = ("shared", "wins", "losses")
+"""The fields of a :class:`~drivenav.analysis.ablation_data.Paired` a floor group's CSV columns show (its reference
+is ``floors.reference``)."""
+
+
+def floor_columns(floors: Floors | None, method: str) -> JsonObject:
+    """A method's columns of the floor groups (none without them): ``floors.reference``, then per group its entry
+    (``floors.GROUP.spl`` ...) and its wins and losses against the reference (``floors.GROUP.wins`` ...; where the
+    reference was run). Cells the method has no value for are blank, never the writer's 0: the reference's own
+    wins, a group the method has no record in."""
+    if floors is None:
+        return {}
+    columns: JsonObject = {"floors.reference": floors.reference}
+    for group, by_method in floors.groups.items():
+        entry = by_method.get(method)
+        shape = flatten(next(iter(by_method.values())).to_json())  # the columns the others have
+        cells = dict.fromkeys(shape) if entry is None else flatten(entry.to_json())
+        if group in floors.paired:
+            pair = floors.paired[group].get(method)
+            cells.update(
+                zip(PAIRED_COLUMNS, (None,) * 3 if pair is None else (pair.shared, pair.wins, pair.losses), strict=True)
+            )
+        columns.update((f"floors.{group}.{key}", value) for key, value in cells.items())
+    return columns
 
 
 # ----------------------------------------------------------------------------------------------- markdown
@@ -74,6 +105,7 @@ def format_markdown(report: AblationReport) -> str:
     sections = [
         _header(report),
         *([_splits(report.splits)] if report.splits else []),
+        *([_floors(report.floors)] if report.floors else []),
         _table_i(report.methods, report.paired),
         _table_vi(report.methods),
         _table_v(report.methods),
@@ -129,11 +161,47 @@ def _splits(splits: Splits) -> list[str]:
 def _split_cells(entry: SplitEntry | None) -> str:
     if entry is None:
         return "- | -"
-    return f"{_pct(entry.success_rate, entry.sr_ci95)} | {_pct(entry.spl, entry.spl_ci95)}"
+    return f"{percent(entry.success_rate, entry.sr_ci95)} | {percent(entry.spl, entry.spl_ci95)}"
 
 
 def _split_size(by_method: dict[str, SplitEntry]) -> int:
     return max(entry.episodes for entry in by_method.values())
+
+
+def _floors(floors: Floors) -> list[str]:
+    """SR and SPL of each method per floor group, one row per group and method (cross-floor episodes in rows of
+    their own), with its wins and losses against the reference within the group."""
+    reference = floors.reference
+    lines = [
+        "## Per floor group",
+        "",
+        "Each method on the episodes of each floor group: one-floor homes (scenes of one storey), same floor (a home "
+        "of several storeys, a goal on the start floor) and cross floor (no goal on the start floor: the episode "
+        "needs a floor change). Episodes, successes, errors, SR % and SPL % with 95 % intervals as above, and, "
+        f"episode by episode against `{reference}` within the group, wins (solved here, not by `{reference}`) and "
+        "losses over the episodes both measured.",
+        "",
+        "| floors | method | episodes | successes | errors | SR % | SPL % | "
+        f"wins / losses vs `{reference}` (episodes) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for group, by_method in floors.groups.items():
+        for method, entry in by_method.items():
+            results, pair = entry.results, floors.paired.get(group, {}).get(method)
+            counts = f"{results.episodes} | {entry.successes} | {results.errors}"
+            paired = versus(method, reference, pair)
+            lines.append(f"| {FLOOR_GROUPS[group]} | `{method}` | {counts} | {_split_cells(results)} | {paired} |")
+    sizes = ", ".join(f"{FLOOR_GROUPS[group]} ({floors.size(group)})" for group in floors.groups)
+    missing = "" if floors.reference_run else f" `{reference}` was not run."
+    return [*lines, "", f"Episodes per floor group: {sizes}.{missing}"]
+
+
+def versus(method: str, reference: str, pair: Paired | None) -> str:
+    """A method's paired cell: ``wins / losses (episodes)`` against the reference, ``reference`` for the reference
+    itself, ``-`` where it was not paired."""
+    if pair is not None:
+        return f"{pair.wins} / {pair.losses} ({pair.shared})"
+    return "reference" if method == reference else "-"
 
 
 def _pictures(pictures: Pictures) -> list[str]:
@@ -156,7 +224,8 @@ def _pictures(pictures: Pictures) -> list[str]:
     return lines
 
 
-def _pct(value: float | None, interval: Interval | None) -> str:
+def percent(value: float | None, interval: Interval | None) -> str:
+    """A rate in % with its 95 % interval in brackets (``n/a`` without a measured episode)."""
     if value is None or interval is None:
         return "n/a"
     return f"{100 * value:.1f} [{100 * interval[0]:.1f}, {100 * interval[1]:.1f}]"
@@ -164,7 +233,7 @@ def _pct(value: float | None, interval: Interval | None) -> str:
 
 def _sr_spl(entry: MethodEntry) -> str:
     """SR and SPL with their intervals, then the episodes an exception ended."""
-    sr, spl = _pct(entry.success_rate, entry.sr_ci95), _pct(entry.spl, entry.spl_ci95)
+    sr, spl = percent(entry.success_rate, entry.sr_ci95), percent(entry.spl, entry.spl_ci95)
     return f"{sr} | {spl} | {entry.errors}"
 
 
@@ -194,13 +263,10 @@ def _table_i(methods: Methods, paired: Mapping[str, Paired]) -> list[str]:
     ]
     for name, entry in methods.items():
         steps, revisits = _number(entry.avg_steps, "{:.1f}"), _number(entry.avg_revisits, "{:.3f}")
-        pair = paired.get(name)
-        versus = "reference" if name == PAIRED_REFERENCE else "-"
-        if pair is not None:
-            versus = f"{pair.wins} / {pair.losses} ({pair.shared})"
+        pair = versus(name, PAIRED_REFERENCE, paired.get(name))
         results = papers.get(name, (None,) * len(TABLE_I_BENCHMARKS))
         cells = " | ".join("-" if r is None else f"{r[0]:.1f} / {r[1]:.1f}" for r in results)
-        lines.append(f"| `{name}` | {_sr_spl(entry)} | {steps} | {revisits} | {versus} | {cells} |")
+        lines.append(f"| `{name}` | {_sr_spl(entry)} | {steps} | {revisits} | {pair} | {cells} |")
     return lines
 
 

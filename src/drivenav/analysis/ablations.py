@@ -12,14 +12,20 @@ from __future__ import annotations
 
 import json
 from collections import Counter, defaultdict
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, replace
 from pathlib import Path
-from typing import Protocol
+from typing import Protocol, TypeVar
 
 from drivenav.analysis.ablation_data import (
+    CROSS_FLOOR,
+    FLOOR_GROUPS,
+    ONE_FLOOR,
+    SAME_FLOOR,
     AblationReport,
     ComputeTable,
+    Floors,
+    GroupEntry,
     Interval,
     MethodEntry,
     ModelCalls,
@@ -53,6 +59,13 @@ from drivenav.types import SimConfig
 
 FAILURE_CAUSES = ("false_positive_stop", "missed_target", "timeout", "no_frontier", "target_never_seen")
 RUNS_DIR = "runs"
+FLOOR_INFO = "cross_floor"
+"""The ``info`` key of an episode in a home of several storeys: whether it needs a floor change
+(:func:`drivenav.benchmarks.generate.floor_info`)."""
+
+RunGroups = Mapping[str, Mapping[str, str]]
+"""Per method, the groups of its episodes (episode id -> group name)."""
+_Entry = TypeVar("_Entry")
 
 
 class PictureMaker(Protocol):
@@ -111,7 +124,6 @@ def method_entry(records: list[EpisodeRecord]) -> MethodEntry:
     errors (episodes an exception ended: counted apart, never as navigation failures)."""
     summary = summarize(records)
     measured = [r for r in records if r.success is not None]
-    successes = sum(int(r.success or 0) for r in measured)
     return MethodEntry(
         episodes=summary.episodes,
         errors=summary.errors,
@@ -119,7 +131,7 @@ def method_entry(records: list[EpisodeRecord]) -> MethodEntry:
         spl=summary.spl,
         avg_steps=summary.avg_steps,
         avg_revisits=summary.avg_revisits,
-        sr_ci95=_rounded(wilson_interval(successes, len(measured))) if measured else None,
+        sr_ci95=_rounded(wilson_interval(successes(measured), len(measured))) if measured else None,
         spl_ci95=_rounded(bootstrap_mean_interval(_spls_by_episode(measured))) if measured else None,
         avg_retraced_revisits=summary.avg_retraced_revisits,
         vlm_calls=summary.avg_vlm_calls,
@@ -128,6 +140,11 @@ def method_entry(records: list[EpisodeRecord]) -> MethodEntry:
         missed_target_causes=missed_counts(records),
         decisions=decision_means(records),
     )
+
+
+def successes(records: list[EpisodeRecord]) -> int:
+    """The episodes solved."""
+    return sum(bool(r.success) for r in records)
 
 
 def missed_counts(records: list[EpisodeRecord]) -> dict[str, int]:
@@ -237,26 +254,85 @@ def paired_outcomes(runs: RunRecords, reference: str = PAIRED_REFERENCE) -> dict
     return paired
 
 
-def split_entries(runs: RunRecords, splits: Mapping[str, str]) -> Splits:
-    """Per split (HM3D-OVON's first, then any other by name), each method over its records of the split's
-    episodes (``splits``: episode id -> split); splits without a record are left out."""
-    order = sorted(set(splits.values()), key=lambda name: (SPLITS.index(name) if name in SPLITS else len(SPLITS), name))
-    table: Splits = {}
-    for split in order:
-        by_method = {
-            name: [r for r in records.values() if splits.get(r.episode_id) == split] for name, records in runs.items()
-        }
-        entries = {name: SplitEntry.of(method_entry(found)) for name, found in by_method.items() if found}
-        if entries:
-            table[split] = entries
+def grouped_runs(runs: RunRecords, groups: RunGroups, known: Sequence[str] = ()) -> dict[str, RunRecords]:
+    """The runs cut into groups of episodes (``groups``: per method, its episodes' groups), the ``known`` groups
+    first in their order, then any other by name; a method without a record in a group is left out of it, and a
+    group without any record too. Records keep their order (a mean's rounding depends on it)."""
+    names = {group for name in runs for group in groups.get(name, {}).values()}
+    table: dict[str, RunRecords] = {}
+    for group in sorted(names, key=lambda name: (known.index(name) if name in known else len(known), name)):
+        cut = {name: _in_group(records, groups.get(name, {}), group) for name, records in runs.items()}
+        found = {name: records for name, records in cut.items() if records}
+        if found:
+            table[group] = found
     return table
 
 
+def _in_group(records: dict[str, EpisodeRecord], groups: Mapping[str, str], group: str) -> dict[str, EpisodeRecord]:
+    return {episode_id: r for episode_id, r in records.items() if groups.get(episode_id) == group}
+
+
+def split_entries(runs: RunRecords, splits: Mapping[str, str]) -> Splits:
+    """Per split (HM3D-OVON's first, then any other by name), each method over its records of the split's
+    episodes (``splits``: episode id -> split); splits without a record are left out."""
+    return _per_group(grouped_runs(runs, dict.fromkeys(runs, splits), SPLITS), split_entry)
+
+
+def split_entry(records: list[EpisodeRecord]) -> SplitEntry:
+    """One method's columns of the per-split table over ``records``."""
+    return SplitEntry.of(method_entry(records))
+
+
+def group_entry(records: list[EpisodeRecord]) -> GroupEntry:
+    """One method's columns of the floor groups' table over ``records``: the per-split ones and the successes."""
+    return GroupEntry(split_entry(records), successes(records))
+
+
+def _per_group(
+    table: dict[str, RunRecords], entry: Callable[[list[EpisodeRecord]], _Entry]
+) -> dict[str, dict[str, _Entry]]:
+    """Each group's ``entry`` per method, over the method's records of the group."""
+    return {group: {name: entry(list(records.values())) for name, records in by.items()} for group, by in table.items()}
+
+
+def floor_groups(episodes: Sequence[Episode]) -> dict[str, str]:
+    """Each episode's floor group (:data:`~drivenav.analysis.ablation_data.FLOOR_GROUPS`) by id; none at all where
+    no episode carries ``info["cross_floor"]`` (one-floor benchmarks, v1's and v2's). In a set where some do, an
+    episode without it lies in a scene of one storey."""
+    if not any(isinstance(e.info.get(FLOOR_INFO), bool) for e in episodes):
+        return {}
+    return {e.episode_id: _floor_group(e.info.get(FLOOR_INFO)) for e in episodes}
+
+
+def _floor_group(cross: object) -> str:
+    if not isinstance(cross, bool):
+        return ONE_FLOOR
+    return CROSS_FLOOR if cross else SAME_FLOOR
+
+
+def floor_entries(runs: RunRecords, groups: RunGroups, reference: str = PAIRED_REFERENCE) -> Floors | None:
+    """Each method per floor group (``groups``: per method, its episodes' :func:`floor_groups`) and, within each
+    group, every other method paired with ``reference`` (:func:`paired_outcomes`); None when no record is in a
+    floor group."""
+    table = grouped_runs(runs, groups, tuple(FLOOR_GROUPS))
+    if not table:
+        return None
+    paired = {group: found for group, by in table.items() if (found := paired_outcomes(by, reference))}
+    return Floors(reference, _per_group(table, group_entry), paired)
+
+
 def build_report(
-    dirs: dict[str, Path], runs: RunRecords, first: RunSpec, episodes: int, splits: Mapping[str, str] | None = None
+    dirs: dict[str, Path],
+    runs: RunRecords,
+    first: RunSpec,
+    episodes: int,
+    splits: Mapping[str, str] | None = None,
+    floors: Mapping[str, str] | None = None,
+    floor_reference: str = PAIRED_REFERENCE,
 ) -> AblationReport:
     """The ``ablations.json`` report for the finished runs in ``dirs`` (their records: ``runs``), without pictures;
-    with ``splits`` (episode id -> vocabulary split), each method per split too."""
+    with ``splits`` (episode id -> vocabulary split), each method per split too; with ``floors`` (episode id ->
+    floor group: :func:`floor_groups`), each method per floor group, paired with ``floor_reference``."""
     table_ii_methods = [name for name in TABLE_II_METHODS if name in dirs]
     scenes = world_json(first.env).get("scenes")
     return AblationReport(
@@ -273,6 +349,7 @@ def build_report(
         paired=paired_outcomes(runs),
         beyond=paired_entries(runs),
         table_ii_beyond=beyond_table_ii(runs, TABLE_II_METHODS),
+        floors=floor_entries(runs, dict.fromkeys(runs, floors or {}), floor_reference),
     )
 
 
@@ -283,13 +360,16 @@ def run_ablations(
     executor: Executor | None = None,
     pictures: int = 2,
     draw: PictureMaker | None = None,
+    floor_reference: str = PAIRED_REFERENCE,
 ) -> AblationReport:
     """Run (or resume) every method, then write ``ablations.json``, ``.md`` and ``.csv`` into ``out``; with
     ``draw``, the pictures of ``pictures`` episodes for the Table II methods (else the first methods) too; episodes
-    of vocabulary splits (``info["split"]``) give each method's results per split too."""
+    of vocabulary splits (``info["split"]``) give each method's results per split too, and episodes with
+    ``info["cross_floor"]`` per floor group, paired with ``floor_reference``."""
     dirs = run_methods(episodes, specs, out, executor)
     runs = load_runs(dirs)
-    report = build_report(dirs, runs, specs[0], len(episodes), episode_splits(episodes))
+    splits, floors = episode_splits(episodes), floor_groups(episodes)
+    report = build_report(dirs, runs, specs[0], len(episodes), splits, floors, floor_reference)
     if draw is not None:
         table_ii_first = sorted(dirs, key=lambda name: name not in TABLE_II_METHODS)
         order = [e.episode_id for e in episodes]

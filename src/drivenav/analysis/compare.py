@@ -6,12 +6,13 @@ prints and what ``ablations.json`` holds under ``table_ii``.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
 from drivenav.eval.records import EpisodeRecord
 from drivenav.eval.report import Summary, shown, summarize
-from drivenav.eval.rundir import read_run
+from drivenav.eval.rundir import RunContents, read_run
 from drivenav.jsonstream import JsonObject
 
 TABLE_II_MIN_DISTANCE = 10.0  # metres, start-to-goal geodesic distance (paper Sec. V-C)
@@ -23,7 +24,12 @@ RunRecords = dict[str, dict[str, EpisodeRecord]]
 def load_runs(run_dirs: dict[str, Path]) -> RunRecords:
     """Per method, its finished episode records by episode id, each run checked as a resume checks it
     (:func:`~drivenav.eval.rundir.read_run`)."""
-    return {name: {r.episode_id: r for r in read_run(d).records} for name, d in run_dirs.items()}
+    return records_by_id({name: read_run(d) for name, d in run_dirs.items()})
+
+
+def records_by_id(contents: Mapping[str, RunContents]) -> RunRecords:
+    """Per method, the records of its run (read by :func:`~drivenav.eval.rundir.read_run`) by episode id."""
+    return {name: {r.episode_id: r for r in run.records} for name, run in contents.items()}
 
 
 def shared_ids(runs: RunRecords) -> set[str]:

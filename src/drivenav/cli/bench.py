@@ -11,12 +11,14 @@ from drivenav.cli.common import (
     Commands,
     add_config_options,
     add_execution_options,
+    add_floor_reference,
     add_max_steps,
     add_model_options,
     add_segmenter_options,
     add_world_options,
     episodes,
     executor,
+    floor_reference,
     print_bench,
     run_spec,
 )
@@ -93,6 +95,7 @@ def _add_bench_ablations(sub: Commands) -> None:
     parser.add_argument("--scenes", default=None, help="a --scenes SPEC (default: the benchmark's)")
     add_max_steps(parser)
     parser.add_argument("--pictures", type=int, default=2, help="episodes drawn for the report (0: none)")
+    add_floor_reference(parser, "METHOD", "the method (one of --methods)")
     add_world_options(parser)
     add_execution_options(parser)
     add_model_options(parser)
@@ -230,6 +233,7 @@ def _cmd_bench_ablations(args: argparse.Namespace) -> int:
     from drivenav.viz.run_pictures import render_pictures
 
     methods = parse_methods(args.methods)
+    reference = floor_reference(args, methods, "one of the --methods")
     pool = executor(args)
     if args.pictures < 0:
         raise InputError("command line", "--pictures", "a number of episodes >= 0", args.pictures)
@@ -237,7 +241,7 @@ def _cmd_bench_ablations(args: argparse.Namespace) -> int:
     specs = [run_spec(args, method) for method in methods]
     run_episodes = _benchmark_episodes(args, definition) if chosen_world(args).embedded_episodes else None
     report = run_ablations(
-        run_episodes or episodes(args, specs[0]), specs, args.out, pool, args.pictures, render_pictures
+        run_episodes or episodes(args, specs[0]), specs, args.out, pool, args.pictures, render_pictures, reference
     )
     for name, entry in report.methods.items():
         sr, spl = (shown(value, "{:5.1f} %", 100.0) for value in (entry.success_rate, entry.spl))

@@ -6,10 +6,11 @@ from __future__ import annotations
 
 import argparse
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeAlias
 
+from drivenav.errors import InputError
 from drivenav.eval.options import seed
 from drivenav.jsonstream import JsonObject
 from drivenav.worlds import DEFAULT_WORLD, WORLDS, WorldEntry, chosen_world, usable_worlds
@@ -52,6 +53,28 @@ def add_max_steps(parser: argparse.ArgumentParser) -> None:
 
 def add_run_seed(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=None, help="run seed (default 0; sets run.seed)")
+
+
+def add_floor_reference(parser: argparse.ArgumentParser, metavar: str, what: str) -> None:
+    parser.add_argument(
+        "--floor-reference",
+        default=None,
+        metavar=metavar,
+        help=f"floor groups (episodes with info.cross_floor): {what} the others' wins / losses are counted against, "
+        "e.g. a floors-off variant (default: drive-nav)",
+    )
+
+
+def floor_reference(args: argparse.Namespace, names: Sequence[str], expected: str) -> str:
+    """``--floor-reference``: one of ``names`` where given, else the default reference of the pairings
+    (``drive-nav``, which need not have been run: then nothing is paired)."""
+    from drivenav.analysis.paper_tables import PAIRED_REFERENCE
+
+    if args.floor_reference is None:
+        return PAIRED_REFERENCE
+    if args.floor_reference not in names:
+        raise InputError("command line", "--floor-reference", expected, args.floor_reference)
+    return str(args.floor_reference)
 
 
 def add_config_options(parser: argparse.ArgumentParser) -> None:

@@ -12,12 +12,14 @@ from drivenav.cli.common import (
     Commands,
     add_config_options,
     add_execution_options,
+    add_floor_reference,
     add_max_steps,
     add_model_options,
     add_run_seed,
     add_world_options,
     episodes,
     executor,
+    floor_reference,
     given_options,
     run_spec,
     settings,
@@ -100,6 +102,7 @@ def add_compare(commands: Commands) -> None:
     parser.add_argument("run_dirs", type=path, nargs="+")
     parser.add_argument("--min-distance", type=float, default=10.0, help="Table II: geodesic distance above this")
     parser.add_argument("--json", action="store_true")
+    add_floor_reference(parser, "RUN", "the run (by folder name)")
     parser.set_defaults(handler=_cmd_compare)
 
 
@@ -170,7 +173,7 @@ def _cmd_config_show(args: argparse.Namespace) -> int:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from drivenav.analysis.compare import compare, format_comparison
+    from drivenav.analysis.floor_compare import compare_with_floors, comparison_json, format_compare
 
     if not (math.isfinite(args.min_distance) and args.min_distance >= 0.0):
         raise InputError("command line", "--min-distance", "a distance in metres >= 0", args.min_distance)
@@ -179,10 +182,11 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         if not (run_dir / "episodes.jsonl").is_file():
             raise InputError(run_dir, "RUN_DIR", "a run directory written by 'drivenav eval'")
         dirs[run_dir.name] = run_dir
-    result = compare(dirs, args.min_distance)
+    reference = floor_reference(args, list(dirs), "the name of one of the RUN_DIRs")
+    result, floors = compare_with_floors(dirs, args.min_distance, reference)
     if len(dirs) > 1 and result.shared_episodes == 0:
         raise InputError("command line", "RUN_DIR", "runs over the same episodes (these share none)")
-    print(json.dumps(result.to_json()) if args.json else format_comparison(result))
+    print(json.dumps(comparison_json(result, floors)) if args.json else format_compare(result, floors))
     return 0
 
 

@@ -122,6 +122,14 @@ class Vocabulary:
     def synonyms(self, category: str) -> tuple[str, ...]:
         return self.spec(category).synonyms
 
+    def room_shares(self, category: str) -> dict[str, float]:
+        """The category's room-type priors normalised to shares (empty for an unknown category or one without
+        priors)."""
+        spec = self._by_name.get(category)
+        weights = {room: spec.prior(room) for room in self.room_types} if spec is not None else {}
+        total = sum(weights.values())
+        return {room: w / total for room, w in weights.items() if w > 0.0} if total > 0.0 else {}
+
 
 SEEN_MIN_PRIOR = 3.0
 """A category with at least this weight in some room type counts as common (see :func:`vocabulary_split`)."""

@@ -84,6 +84,13 @@ class RepresentativeViews:
 _Stored = tuple[PackedImage | DeferredImage, PackedImage | None]
 
 
+def frame_view(observation: Observation, label: int = -1) -> View:
+    """The current frame as a view looking where the agent looks (a floor's album, docs/floors.md), its images kept
+    as a representative view keeps them."""
+    pose = observation.pose
+    return View(label, *_stored_images(observation), pose, pose.yaw, 0.0, observation.step)
+
+
 def _stored_images(observation: Observation) -> _Stored:
     """The observation's RGB and instance images as a view keeps them: compressed, or an RGB image the world has not
     rendered yet as its rendering call."""

@@ -50,6 +50,7 @@ from drivenav.grid import GridSpec
 from drivenav.mapping.config import MappingConfig
 from drivenav.mapping.frontiers import component_at, extract_frontiers, nearest_in
 from drivenav.mapping.kernels import cast_rays, project_depth, stamp
+from drivenav.mapping.stairs import NO_POINT, Relief, StairTuning, project_relief
 from drivenav.mapping.types import Frontier, MapSnapshot, Rays
 from drivenav.types import FREE_CELL, OCCUPIED_CELL, UNKNOWN_CELL, CameraIntrinsics, LocalOccupancy, Pose
 
@@ -130,8 +131,9 @@ def ray_fan(
 class OccupancyMapper:
     """Accumulates obstacle and explored maps over an episode; see the module docstring for the model."""
 
-    def __init__(self, config: MappingConfig | None = None) -> None:
+    def __init__(self, config: MappingConfig | None = None, stairs: StairTuning | None = None) -> None:
         self.config = config if config is not None else MappingConfig()
+        self.stairs = stairs  # read stairs from depth too (mapping/stairs.py): a relief and drops layer
         cfg = self.config
         self._disk = disk_offsets(cfg.agent_radius, cfg.resolution)  # the agent's footprint
         self._inflation = disk_offsets(self.inflation_radius, cfg.resolution)
@@ -157,6 +159,8 @@ class OccupancyMapper:
         self._explored: Mask = np.zeros((n, n), dtype=np.bool_)
         self._lidar_obstacle: Mask = np.zeros((n, n), dtype=np.bool_)
         self._lidar_inflated: Mask = np.zeros((n, n), dtype=np.bool_)
+        self._top: NDArray[np.float32] = np.full((n, n) if self.stairs else (0, 0), NO_POINT, dtype=np.float32)
+        self._drops: Mask = np.zeros((n, n) if self.stairs else (0, 0), dtype=np.bool_)
         self._pose = Pose(0.0, 0.0, 0.0)
         self._box: Box | None = None
         self._derived: _Derived | None = None
@@ -182,8 +186,10 @@ class OccupancyMapper:
         """The ray cast of the last depth frame fused (None before any): the cells it saw free."""
         return self._rays
 
-    def update(self, depth: NDArray[np.float32], intrinsics: CameraIntrinsics, pose: Pose) -> None:
-        """Fuse one depth frame taken at ``pose``; bad input is ignored (see :attr:`last_update`)."""
+    def update(self, depth: NDArray[np.float32], intrinsics: CameraIntrinsics, pose: Pose, rise: float = 0.0) -> None:
+        """Fuse one depth frame taken at ``pose``, the agent ``rise`` metres above the map's floor (on the first step
+        of a ramp, with floors on; heights are measured from the floor); bad input is ignored (see
+        :attr:`last_update`)."""
         start = time.perf_counter()
         cfg = self.config
         rows, cols, kx = _sampled_pixels(intrinsics, cfg.pixel_stride)
@@ -200,7 +206,7 @@ class OccupancyMapper:
             np.ascontiguousarray(depth, dtype=np.float32),
             rows,
             cols,
-            np.array([intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy, cfg.camera_height]),
+            np.array([intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy, cfg.camera_height + rise]),
             self._band,
             np.array([pose.x, pose.y, pose.yaw]),
             grid_params,
@@ -209,6 +215,8 @@ class OccupancyMapper:
             self._inflation,
             col_range,
         )
+        if self.stairs is not None:
+            added += self._project_relief(depth, intrinsics, pose, rows, cols, grid_params, cfg.camera_height + rise)
         position = np.array([pose.x, pose.y])
         alphas, ranges = ray_fan(np.arctan(kx), col_range, reach, cfg.resolution)
         cast_rays(position, pose.yaw + alphas, ranges, grid_params, self._explored)
@@ -220,6 +228,40 @@ class OccupancyMapper:
         self._derived = None
         self._frontiers = None
         self._last = UpdateInfo(True, "", _ms_since(start), added, grew)
+
+    def _project_relief(
+        self,
+        depth: NDArray[np.float32],
+        intrinsics: CameraIntrinsics,
+        pose: Pose,
+        rows: NDArray[np.int64],
+        cols: NDArray[np.int64],
+        grid_params: NDArray[np.float64],
+        camera_height: float,
+    ) -> int:
+        """Raise the relief and mark drops from the frame (:mod:`drivenav.mapping.stairs`); new drops are obstacles."""
+        assert self.stairs is not None
+        cfg = self.config
+        return project_relief(
+            np.ascontiguousarray(depth, dtype=np.float32),
+            rows,
+            cols,
+            np.array([intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy, camera_height]),
+            np.array([cfg.min_depth, cfg.max_depth, cfg.clip_epsilon, self.stairs.drop, self.stairs.max_height]),
+            np.array([pose.x, pose.y, pose.yaw]),
+            grid_params,
+            self._top,
+            self._drops,
+            self._obstacle,
+            self._inflated,
+            self._inflation,
+        )
+
+    def relief(self) -> Relief | None:
+        """The stair layers (None for a mapper that does not read stairs)."""
+        if self.stairs is None:
+            return None
+        return Relief(self._grid, self._top, self._drops)
 
     def fuse_occupancy(self, local: LocalOccupancy) -> None:
         """Fuse a LiDAR occupancy window (paper Sec. V-E; module docstring); a bad window is ignored (see
@@ -378,9 +420,10 @@ class OccupancyMapper:
         new_hi = np.where(hi >= shape, hi + pad + 1, shape)
         new_shape = (int(new_hi[0] - new_lo[0]), int(new_hi[1] - new_lo[1]))
         dr, dc = int(-new_lo[0]), int(-new_lo[1])
-        for name in ("_obstacle", "_inflated", "_explored", "_lidar_obstacle", "_lidar_inflated"):
-            old: Mask = getattr(self, name)
-            grown = np.zeros(new_shape, dtype=np.bool_)
+        layers = ["_obstacle", "_inflated", "_explored", "_lidar_obstacle", "_lidar_inflated"]
+        for name in layers + (["_top", "_drops"] if self.stairs is not None else []):
+            old: NDArray[np.generic] = getattr(self, name)
+            grown = np.full(new_shape, NO_POINT if name == "_top" else False, dtype=old.dtype)
             grown[dr : dr + old.shape[0], dc : dc + old.shape[1]] = old
             setattr(self, name, grown)
         origin = (grid.origin[0] - dc * grid.resolution, grid.origin[1] - dr * grid.resolution)

@@ -18,7 +18,7 @@ from dataclasses import replace
 
 from drivenav.analysis.ablation_data import AblationReport, Pictures
 from drivenav.analysis.ablation_report import format_markdown
-from drivenav.analysis.ablations import RUNS_DIR, build_report
+from drivenav.analysis.ablations import RUNS_DIR, build_report, floor_groups
 from drivenav.analysis.paper_tables import TABLE_I, TABLE_II, TABLE_V, TABLE_VI
 from drivenav.errors import InputError
 from drivenav.eval.rundir import inside
@@ -88,4 +88,5 @@ def _built(runs: Sequence[Run]) -> AblationReport | None:
     dirs = {run.name: run.path for run in runs}
     records = {run.name: {r.episode_id: r for r in run.records} for run in runs}
     episodes = len(runs[0].records)
-    return build_report(dirs, records, RunSpec(env, first.config), episodes, runs[0].splits)
+    floors = floor_groups(list(runs[0].episodes.values()))
+    return build_report(dirs, records, RunSpec(env, first.config), episodes, runs[0].splits, floors)

@@ -5,10 +5,11 @@ topics, a ROS 2 bag or the embedded world; a :class:`MotionExecutor` turns one d
 ``cmd_vel`` closed on odometry, Nav2 behaviours, or the embedded world). :class:`drivenav.robot.server.RobotServer`
 serves any pair over the protocol.
 
-Frames. ``pose`` is the robot base in the source's odometry frame (x, y in metres, yaw counter-clockwise);
-``gimbal_yaw`` is the camera's yaw relative to the base (a head camera turned on a gimbal), so the camera looks along
-``pose.yaw + gimbal_yaw``. ``scan`` holds LiDAR returns as (N, 3) float32 points ``(x forward, y left, z up)`` in
-the base frame, ``z`` measured from the floor (the mounting transform is applied by the source).
+Frames. ``pose`` is the robot base in the source's odometry frame (x, y in metres, yaw counter-clockwise, and the
+height z where the odometry gives one, 0 otherwise); ``gimbal_yaw`` is the camera's yaw relative to the base (a head
+camera turned on a gimbal), so the camera looks along ``pose.yaw + gimbal_yaw``. ``scan`` holds LiDAR returns as
+(N, 3) float32 points ``(x forward, y left, z up)`` in the base frame, ``z`` measured from the floor (the mounting
+transform is applied by the source).
 """
 
 from __future__ import annotations

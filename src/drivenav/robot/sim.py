@@ -3,7 +3,8 @@ world in one, with a simulated 2-D LiDAR.
 
 It knows the episodes, so RESET places it at an episode's start and BYE reports the episode's Habitat metrics: the
 same episodes run directly and through the protocol give the same actions and metrics (the parity test). Its
-frames carry the ground-truth instance ids (``semantic``), which only a simulated robot has.
+frames carry the ground-truth instance ids (``semantic``), which only a simulated robot has, and its poses the height
+of the floor or stairs under it (in a building of several storeys), as a 3-D odometry would.
 """
 
 from __future__ import annotations

@@ -61,11 +61,13 @@ from drivenav.semantics.embedding import TextEmbedder, default_embedder
 from drivenav.semantics.geometric import direction_score
 from drivenav.semantics.protocols import (
     EVERYWHERE,
+    FLOOR_KIND,
     HINT_THRESHOLDS,
     HINTS_KIND,
     MAX_SIMILAR_OBJECTS,
     Candidate,
     CategoryHints,
+    FloorJudgement,
     Judgement,
     ModelCall,
     Proposal,
@@ -75,7 +77,7 @@ from drivenav.semantics.protocols import (
     View,
     category_key,
 )
-from drivenav.types import GroundTruth
+from drivenav.types import CategoryVocabulary, GroundTruth
 
 _T = TypeVar("_T")
 
@@ -110,6 +112,11 @@ class EmbeddedReasonerConfig:
     distance_scale: float = 5.0
     similar_objects: int = 4
     room_similarity: float = 0.5
+    floor_rooms: int = 3
+    floor_passages: tuple[str, ...] = ("hallway",)
+    floor_this: float = 0.5
+    floor_other: float = 0.15
+    room_evidence: float = 0.5
 
     def __post_init__(self) -> None:
         if self.min_pixels < 1:
@@ -282,6 +289,39 @@ class EmbeddedReasoner:
         room = rooms[0][1] if rooms and rooms[0][0] >= self.config.room_similarity else EVERYWHERE
         similar = tuple(c for _, c in nearest[: self.config.similar_objects])
         return CategoryHints(similar, threshold, room)
+
+    def judge_floor(self, goal: str, views: Sequence[View]) -> FloorJudgement:
+        """Where the goal is usually found (the vocabulary's room shares: common knowledge of homes) against the
+        rooms the views show (a visible category found mostly, ``room_evidence`` of its share, in one room type
+        shows that room): ``this`` where the rooms shown hold ``floor_this`` of the goal's share, ``other`` where
+        at least ``floor_rooms`` rooms are shown, ``floor_passages`` (hallways) not counted, and they hold at most
+        ``floor_other`` of it (a ground floor of
+        kitchen and living room for a bed), else ``unsure``. It reads only what the views show."""
+        return self._timed(FLOOR_KIND, lambda: self._floor(goal, views))
+
+    def _floor(self, goal: str, views: Sequence[View]) -> FloorJudgement:
+        vocabulary = self._truth.vocabulary if self._truth is not None else None
+        if vocabulary is None:
+            return FloorJudgement("unsure", note="no vocabulary")
+        wanted = vocabulary.room_shares(category_key(goal, self._truth))
+        if not wanted:
+            return FloorJudgement("unsure", note="rooms of the goal unknown")
+        seen = {label for view in views for label, _ in self.visible(view.semantic)}
+        here = {room for label in seen if (room := self._room_of(vocabulary, label)) is not None}
+        share = sum(wanted.get(room, 0.0) for room in here)
+        note = f"{share:.2f} of the goal's rooms among {', '.join(sorted(here)) or 'none'}"
+        if share >= self.config.floor_this:
+            return FloorJudgement("this", note=note)
+        telling = here - set(self.config.floor_passages)  # every floor has its hallways: they tell no floor apart
+        if len(telling) >= self.config.floor_rooms and share <= self.config.floor_other:
+            return FloorJudgement("other", note=note)
+        return FloorJudgement("unsure", note=note)
+
+    def _room_of(self, vocabulary: CategoryVocabulary, category: str) -> str | None:
+        """The room a category shows: the one holding at least ``room_evidence`` of its objects, if any."""
+        shares = vocabulary.room_shares(category)
+        room, share = max(shares.items(), key=lambda item: item[1], default=("", 0.0))
+        return room if share >= self.config.room_evidence else None
 
     def _judge(self, goal: str, frame: VerificationFrame) -> Judgement:
         if frame.semantic is None:

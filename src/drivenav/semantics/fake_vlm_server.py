@@ -1,11 +1,12 @@
 """A small OpenAI-compatible VLM server for tests and GPU-free trials of the reasoning loop (Sec. IV).
 
 It speaks ``GET /v1/models`` and ``POST /v1/chat/completions`` like vLLM, and answers the three DRIVE-Nav
-questions and ApexNav's category question (:mod:`drivenav.semantics.prompts`) without looking at the images: the
-question is recognised by the answer schema its text ends with. Modes:
+questions, ApexNav's category question (:mod:`drivenav.semantics.prompts`) and the floor question
+(:func:`drivenav.semantics.openai_backend.floor_text`) without looking at the images: the question is recognised by
+the answer schema its text ends with. Modes:
 
 - ``ok``: valid JSON: the first direction label mentioned, target not visible, phrase = the goal, "sure"; for a
-  category, :data:`FAKE_SIMILAR` (less the goal), threshold 0.45, any room;
+  category, :data:`FAKE_SIMILAR` (less the goal), threshold 0.45, any room; for a floor, :data:`FAKE_FLOOR`;
 - ``fenced``: the same answer in a Markdown ```json fence after a line of prose;
 - ``garbage``: prose without JSON;
 - ``bad-then-good``: a malformed answer, then a valid one once the conversation holds a repair request;
@@ -31,15 +32,18 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from typing import Any
 
 from drivenav.jsonstream import JsonObject
+from drivenav.semantics.openai_backend import FLOOR_SCHEMA
 from drivenav.semantics.prompts import GOAL_PREFIX, HINTS_SCHEMA, PROPOSE_SCHEMA, SELECT_SCHEMA, VERIFY_SCHEMA
-from drivenav.semantics.protocols import EVERYWHERE
+from drivenav.semantics.protocols import EVERYWHERE, FloorGuess
 
 MODES = ("ok", "fenced", "garbage", "bad-then-good", "error", "flaky", "stall", "empty")
-MALFORMED = '{"direction": "left", "target_visible": "maybe", "phrase": "", "judgement": "probably"}'
+MALFORMED = '{"direction": "left", "target_visible": "maybe", "phrase": "", "judgement": "probably", "floor": "up"}'
 _GOAL = re.compile(re.escape(GOAL_PREFIX) + r'("(?:[^"\\]|\\.)*")')
 _LABEL = re.compile(r"direction (\d+)")
 FAKE_SIMILAR = ("chair", "table", "cabinet")
 """The confusable objects the fake model names for any category."""
+FAKE_FLOOR: FloorGuess = "other"
+"""The fake model's floor answer for any goal and views: the one that makes an agent act (leave the floor)."""
 
 
 def _texts(message: Any) -> str:
@@ -61,6 +65,8 @@ def _question_answer(question: str) -> JsonObject:
         return {"phrase": goal}
     if HINTS_SCHEMA in question:
         return {"similar_objects": [n for n in FAKE_SIMILAR if n != goal], "threshold": 0.45, "room": EVERYWHERE}
+    if FLOOR_SCHEMA in question:
+        return {"floor": FAKE_FLOOR}
     if SELECT_SCHEMA in question:
         labels = list(dict.fromkeys(int(label) for label in _LABEL.findall(question)))
         return {

@@ -17,9 +17,11 @@ import math
 from collections.abc import Sequence
 
 from drivenav.semantics.protocols import (
+    FLOOR_KIND,
     HINTS_KIND,
     Candidate,
     CategoryHints,
+    FloorJudgement,
     ModelCall,
     Proposal,
     Selection,
@@ -82,3 +84,8 @@ class GeometricReasoner:
         """It knows no categories: no confusable objects, the middle threshold, any room."""
         self.calls.append(ModelCall(HINTS_KIND, 0.0, "ok"))
         return CategoryHints.unknown()
+
+    def judge_floor(self, goal: str, views: Sequence[View]) -> FloorJudgement:
+        """It cannot see: unsure, so floors are changed only when one is explored."""
+        self.calls.append(ModelCall(FLOOR_KIND, 0.0, "ok"))
+        return FloorJudgement("unsure")

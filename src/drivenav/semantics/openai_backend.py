@@ -3,7 +3,9 @@
 The paper serves Qwen3-VL-8B with at most 30 images per prompt and asks it three questions (Sec. IV-A c,
 IV-B, IV-C; texts in :mod:`drivenav.semantics.prompts`). Each question is one ``POST {base_url}/chat/completions``
 with a system message and a user message of text and JPEG data-URI images, at temperature 0. ApexNav's category
-question (confusable objects, a threshold, a room) is text only, asked once per category.
+question (confusable objects, a threshold, a room) is text only, asked once per category. The floor question
+(docs/floors.md), ours, shows views of the floor the agent is on and asks whether the target is likely on it, on
+another floor, or either (:func:`floor_text`, :func:`parse_floor`).
 
 Failures never leave the reasoner methods. The transport retries HTTP 429, 5xx and connection failures with
 exponential backoff; other 4xx answers, read timeouts (the server may still be busy with the request) and reply
@@ -11,7 +13,7 @@ bodies without a message are not retried. A reply that does not fit its schema
 (:mod:`drivenav.semantics.answers`) gets one repair request: the same conversation, the bad answer and what was
 wrong with it. When that fails too, or the transport gives up, a deterministic fallback answers: the geometric
 choice for directions, the goal text or an untried synonym for prompts, "uncertain" for verification, no
-knowledge for a category (:meth:`~drivenav.semantics.protocols.CategoryHints.unknown`). Every
+knowledge for a category (:meth:`~drivenav.semantics.protocols.CategoryHints.unknown`), "unsure" for a floor. Every
 question appends a :class:`~drivenav.semantics.protocols.ModelCall` with outcome ``ok``, ``repaired`` or
 ``fallback``.
 """
@@ -39,7 +41,14 @@ from PIL import Image
 
 from drivenav.errors import InputError
 from drivenav.jsonstream import JsonObject
-from drivenav.semantics.answers import AnswerError, parse_hints, parse_proposal, parse_selection, parse_verdict
+from drivenav.semantics.answers import (
+    AnswerError,
+    extract_json_object,
+    parse_hints,
+    parse_proposal,
+    parse_selection,
+    parse_verdict,
+)
 from drivenav.semantics.geometric import GeometricReasoner
 from drivenav.semantics.prompts import (
     HINTS_SCHEMA,
@@ -48,6 +57,8 @@ from drivenav.semantics.prompts import (
     SELECT_SCHEMA,
     SYSTEM_PROMPT,
     VERIFY_SCHEMA,
+    _answer_with,
+    goal_line,
     hints_text,
     propose_text,
     repair_text,
@@ -56,9 +67,12 @@ from drivenav.semantics.prompts import (
     view_caption,
 )
 from drivenav.semantics.protocols import (
+    FLOOR_GUESSES,
+    FLOOR_KIND,
     HINTS_KIND,
     Candidate,
     CategoryHints,
+    FloorJudgement,
     ModelCall,
     Proposal,
     Selection,
@@ -70,12 +84,51 @@ from drivenav.types import GroundTruth
 
 logger = logging.getLogger(__name__)
 
-T = TypeVar("T", Selection, Proposal, Verdict, CategoryHints)
+T = TypeVar("T", Selection, Proposal, Verdict, CategoryHints, FloorJudgement)
+S = TypeVar("S")
 Message = JsonObject
 Captioned = tuple[str, NDArray[np.uint8]]
 
-MAX_TOKENS = {"select_direction": 1024, "propose_prompt": 128, "verify": 128, HINTS_KIND: 256}
+MAX_TOKENS = {"select_direction": 1024, "propose_prompt": 128, "verify": 128, HINTS_KIND: 256, FLOOR_KIND: 128}
 """Answer budgets: a selection carries one short description per direction (up to 30)."""
+
+FLOOR_SCHEMA = '{"floor": "this" | "other" | "unsure"}'
+"""The floor question's answer (:data:`~drivenav.semantics.protocols.FLOOR_GUESSES`)."""
+
+
+def floor_caption(index: int, view: View) -> str:
+    """The caption put before the ``index``-th (from 1) view of the floor shown."""
+    return f"view {index} of this floor (step {view.step})"
+
+
+def floor_text(goal: str, shown: Sequence[View], omitted: int) -> str:
+    """The floor question (docs/floors.md): is the target likely on the floor the ``shown`` views were taken on
+    (captioned by :func:`floor_caption`), on another floor, or either? ``omitted`` counts older views of the floor
+    left out to respect the image limit."""
+    lines = [
+        goal_line(goal),
+        "The robot is searching a building of several floors for the target. The images are camera views of the "
+        'floor it is on now, captioned "view <number> of this floor (step <step>)".',
+    ]
+    if omitted:
+        lines.append(f"({omitted} older views of this floor are not shown: only the latest fit in one request.)")
+    lines += [
+        "Judging from the kinds of rooms and the objects these views show, is the target likely on this floor, on "
+        'another floor, or could it be on either? Answer "this" if it is likely on this floor, "other" if it is '
+        'likely on another floor, and "unsure" if you cannot tell.',
+        _answer_with(FLOOR_SCHEMA),
+    ]
+    return "\n".join(lines)
+
+
+def parse_floor(text: str) -> FloorJudgement:
+    """The floor question: one of "this", "other", "unsure" (case and surrounding spaces ignored)."""
+    value = extract_json_object(text).get("floor")
+    guess = value.strip().lower() if isinstance(value, str) else None
+    for allowed in FLOOR_GUESSES:
+        if guess == allowed:
+            return FloorJudgement(allowed)
+    raise AnswerError(f'"floor" must be one of {json.dumps(list(FLOOR_GUESSES))}, got {json.dumps(value)}')
 
 
 class TransportError(Exception):
@@ -113,8 +166,9 @@ def _phrase_key(phrase: str) -> str:
     return "".join(phrase.lower().replace("-", " ").replace("_", " ").split())
 
 
-def _last(frames: Sequence[VerificationFrame], count: int) -> Sequence[VerificationFrame]:
-    return frames[len(frames) - count :] if count > 0 else ()
+def _last(items: Sequence[S], count: int) -> Sequence[S]:
+    """The last ``count`` items (at most all of them)."""
+    return items[len(items) - count :] if count > 0 else ()
 
 
 def _reply_content(raw: bytes) -> str:
@@ -273,6 +327,22 @@ class OpenAIReasoner:
             lambda text: parse_hints(text, goal),
             HINTS_SCHEMA,
             lambda reason: CategoryHints.unknown(fallback=True),
+        )
+
+    def judge_floor(self, goal: str, views: Sequence[View]) -> FloorJudgement:
+        """The floor question: the latest ``max_images`` views of the floor; fallback: unsure. Without views there
+        is nothing to ask: unsure, with no request."""
+        if not views:
+            self.calls.append(ModelCall(FLOOR_KIND, 0.0, "ok"))
+            return FloorJudgement("unsure", note="no views")
+        shown = _last(views, min(len(views), self.max_images))
+        images = [(floor_caption(i + 1, view), view.rgb) for i, view in enumerate(shown)]
+        return self._ask(
+            FLOOR_KIND,
+            self._messages(floor_text(goal, shown, len(views) - len(shown)), images),
+            parse_floor,
+            FLOOR_SCHEMA,
+            lambda reason: FloorJudgement("unsure", fallback=True, note=f"fallback ({reason})"),
         )
 
     def _messages(self, text: str, images: Sequence[Captioned], system: str = SYSTEM_PROMPT) -> list[Message]:

@@ -143,7 +143,8 @@ class Verdict:
 class ModelCall:
     """Bookkeeping of one model call for the episode record: its kind, latency and outcome.
 
-    ``kind`` is ``select_direction``, ``propose_prompt``, ``verify``, ``category_hints`` or ``score``; ``outcome``
+    ``kind`` is ``select_direction``, ``propose_prompt``, ``verify``, ``category_hints``, ``judge_floor`` or
+    ``score``; ``outcome``
     is ``ok``, ``repaired`` (a malformed answer fixed by one repair request), ``fallback`` (deterministic answer
     after a failure), ``replayed`` or ``cached`` (a category's hints asked earlier in the run, answered from the
     agent's cache without a model).
@@ -188,6 +189,25 @@ class CategoryHints:
         return CategoryHints((), round(sum(HINT_THRESHOLDS) / 2.0, 4), EVERYWHERE, fallback)
 
 
+FLOOR_KIND = "judge_floor"
+"""The :class:`ModelCall` kind of the floor question (:meth:`Reasoner.judge_floor`)."""
+
+FloorGuess = Literal["this", "other", "unsure"]
+"""The floor question's answers: the target is likely on the floor shown, likely on another floor, or either."""
+
+FLOOR_GUESSES: tuple[FloorGuess, ...] = ("this", "other", "unsure")
+
+
+@dataclass(frozen=True)
+class FloorJudgement:
+    """The reasoner's answer to "is the target on this floor?" (docs/floors.md, "The floor rule"); ``fallback``
+    marks the deterministic ``unsure`` of a reasoner that could not answer."""
+
+    guess: FloorGuess
+    fallback: bool = False
+    note: str = ""
+
+
 def category_key(name: str, truth: GroundTruth | None) -> str:
     """The world's category for a name or synonym (ground truth), else the name itself lower-cased and stripped."""
     vocabulary = truth.vocabulary if truth is not None else None
@@ -196,8 +216,8 @@ def category_key(name: str, truth: GroundTruth | None) -> str:
 
 
 class Reasoner(Protocol):
-    """The VLM's three questions (paper Sec. IV-A c, IV-B, IV-C) and ApexNav's category question, behind one
-    interface.
+    """The VLM's three questions (paper Sec. IV-A c, IV-B, IV-C), ApexNav's category question and the floor
+    question, behind one interface.
 
     ``calls`` grows by one :class:`ModelCall` per question asked. Nothing a model returns may raise out of these
     methods: malformed answers are repaired once, then replaced by a deterministic fallback.
@@ -219,6 +239,11 @@ class Reasoner(Protocol):
     def category_hints(self, goal: str) -> CategoryHints:
         """ApexNav's question about the target category (text only, once per category and run: the agent caches
         the answer), :class:`CategoryHints`."""
+        ...
+
+    def judge_floor(self, goal: str, views: Sequence[View]) -> FloorJudgement:
+        """The floor question (docs/floors.md): from views of the floor the agent is on, whether the target is
+        likely on it, :class:`FloorJudgement`."""
         ...
 
 

@@ -1,5 +1,6 @@
 """Record a reasoner's and a scorer's answers and replay them without the model (reproducible runs of Sec. IV's
-VLM questions, of ApexNav's category question and of the VLFM and ApexNav baselines' image-text scores).
+VLM questions, of ApexNav's category question, of the floor question and of the VLFM and ApexNav baselines'
+image-text scores).
 
 :class:`RecordingReasoner` wraps any reasoner, and :class:`RecordingScorer` any image-text scorer, and each appends
 one JSON line per question to a file (both may share one file: one recording of a run holds every kind)::
@@ -10,7 +11,9 @@ The key is the SHA-256 of a canonical JSON of the question: its kind and inputs 
 bearings, turns and travel times rounded to 1e-4, frontier cells; SHA-256, shape and dtype of every image
 array; the description and failed prompts; the verification frames; the scored frame and, where a method brings
 its own text, that text). A score's answer is ``{"score": <float>}``, the float exactly as the scorer returned it;
-a category question's key is its kind and goal alone. :class:`ReplayReasoner` and
+a category question's key is its kind and goal alone; a floor question's is its kind, goal and the SHA-256, shape
+and dtype of each view's image, in order, and its answer one of
+:data:`~drivenav.semantics.protocols.FLOOR_GUESSES`. :class:`ReplayReasoner` and
 :class:`ReplayScorer` answer from such a file, each its own kinds, in recording order when one question was asked
 several times. A question missing from the file raises :class:`ReplayMissError`, naming the question: the replay
 does not match the run.
@@ -34,10 +37,13 @@ from numpy.typing import NDArray
 from drivenav.errors import InputError
 from drivenav.jsonstream import JsonObject
 from drivenav.semantics.protocols import (
+    FLOOR_GUESSES,
+    FLOOR_KIND,
     HINTS_KIND,
     JUDGEMENTS,
     Candidate,
     CategoryHints,
+    FloorJudgement,
     ImageTextScorer,
     ModelCall,
     Proposal,
@@ -50,8 +56,9 @@ from drivenav.semantics.protocols import (
 )
 from drivenav.types import GroundTruth, Observation
 
-Answer = Selection | Proposal | Verdict | CategoryHints | float
-A = TypeVar("A", Selection, Proposal, Verdict, CategoryHints, float)
+Answer = Selection | Proposal | Verdict | CategoryHints | FloorJudgement | float
+A = TypeVar("A", Selection, Proposal, Verdict, CategoryHints, FloorJudgement, float)
+C = TypeVar("C", bound=str)
 
 SCORE = "score"  # the kind of an image-text scorer's question
 
@@ -142,6 +149,11 @@ def hints_request(goal: str) -> Request:
     return Request(HINTS_KIND, goal, {}, "the category question")
 
 
+def floor_request(goal: str, views: Sequence[View]) -> Request:
+    inputs = {"views": [array_digest(view.rgb) for view in views]}
+    return Request(FLOOR_KIND, goal, inputs, f"views of steps {[view.step for view in views]}")
+
+
 def answer_to_json(answer: Answer) -> JsonObject:
     if isinstance(answer, float):
         return {SCORE: answer}
@@ -163,6 +175,8 @@ def answer_to_json(answer: Answer) -> JsonObject:
             "room": answer.room,
             "fallback": answer.fallback,
         }
+    if isinstance(answer, FloorJudgement):
+        return {"guess": answer.guess, "fallback": answer.fallback, "note": answer.note}
     return {"judgement": answer.judgement, "fallback": answer.fallback}
 
 
@@ -184,6 +198,14 @@ def _field(data: JsonObject, name: str, kind: type, expected: str, optional: boo
     if value is _MISSING or not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
         raise AnswerFieldError(name, expected, None if value is _MISSING else value)
     return value
+
+
+def _one_of(data: JsonObject, name: str, allowed: tuple[C, ...]) -> C:
+    """A field that must be one of ``allowed`` (a verdict's judgement, a floor's guess)."""
+    chosen = next((value for value in allowed if value == data.get(name)), None)
+    if chosen is None:
+        raise AnswerFieldError(name, " or ".join(allowed), data.get(name))
+    return chosen
 
 
 def _descriptions(data: JsonObject) -> dict[int, str]:
@@ -225,12 +247,12 @@ def answer_from_json(kind: str, data: Any) -> Answer:
         return Proposal(_field(data, "phrase", str, "a text"), fallback=fallback)
     if kind == HINTS_KIND:
         return _hints(data, fallback)
+    if kind == FLOOR_KIND:
+        return FloorJudgement(_one_of(data, "guess", FLOOR_GUESSES), fallback, _field(data, "note", str, "a text"))
     if kind != "verify":
-        raise AnswerFieldError("kind", f"select_direction, propose_prompt, verify, {HINTS_KIND} or score", kind)
-    judgement = next((j for j in JUDGEMENTS if j == data.get("judgement")), None)
-    if judgement is None:
-        raise AnswerFieldError("judgement", " or ".join(JUDGEMENTS), data.get("judgement"))
-    return Verdict(judgement, fallback=fallback)
+        kinds = f"select_direction, propose_prompt, verify, {HINTS_KIND}, {FLOOR_KIND} or score"
+        raise AnswerFieldError("kind", kinds, kind)
+    return Verdict(_one_of(data, "judgement", JUDGEMENTS), fallback=fallback)
 
 
 def _hints(data: JsonObject, fallback: bool) -> CategoryHints:
@@ -297,6 +319,9 @@ class RecordingReasoner(_Recorder[Reasoner]):
 
     def category_hints(self, goal: str) -> CategoryHints:
         return self._record(hints_request(goal), self.inner.category_hints(goal))
+
+    def judge_floor(self, goal: str, views: Sequence[View]) -> FloorJudgement:
+        return self._record(floor_request(goal, views), self.inner.judge_floor(goal, views))
 
     def _record(self, request: Request, answer: A) -> A:
         _append(self.path, request, answer)
@@ -402,6 +427,9 @@ class ReplayReasoner:
 
     def category_hints(self, goal: str) -> CategoryHints:
         return self._recording.answer(hints_request(goal), CategoryHints, self.calls)
+
+    def judge_floor(self, goal: str, views: Sequence[View]) -> FloorJudgement:
+        return self._recording.answer(floor_request(goal, views), FloorJudgement, self.calls)
 
 
 class ReplayScorer:

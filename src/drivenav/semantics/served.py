@@ -154,6 +154,9 @@ class TableVocabulary:
     def room_types(self) -> tuple[str, ...]:
         return ()
 
+    def room_shares(self, category: str) -> dict[str, float]:
+        return {}
+
 
 def begin_request(request_id: str, episode: str, truth: GroundTruth | None, seed: int) -> Message:
     """BEGIN of ``episode``: the ground truth a stand-in reads (its instance labels and their categories)."""

@@ -173,7 +173,8 @@ def mismatch(robot: RobotInfo, brain: RobotInfo) -> Mismatch | None:
 class Message:
     """One protocol message: the header's fields and the named arrays.
 
-    ``pose`` is in the episode frame and ``odom`` in the robot's own odometry frame (both ``(x, y, yaw)``);
+    ``pose`` is in the episode frame and ``odom`` in the robot's own odometry frame (both ``(x, y, yaw)``, and the
+    height ``z`` where the robot's odometry gives one: ``[x, y, yaw, z]`` on the wire, ``z`` written only when not 0);
     ``stamp`` is the sensor time of an observation, ``sent`` the sender's clock when it was encoded; ``server`` is the
     replying server's id (a reply's; empty in a request, and in a reply of a server that names none).
     """
@@ -239,7 +240,10 @@ def _little_endian() -> bool:
 
 
 def _pose_json(pose: Pose | None) -> list[float] | None:
-    return None if pose is None else [pose.x, pose.y, pose.yaw]
+    """``[x, y, yaw]``, with the height after them only where it is not 0 (a planar pose keeps its bytes)."""
+    if pose is None:
+        return None
+    return [pose.x, pose.y, pose.yaw, pose.z] if pose.z else [pose.x, pose.y, pose.yaw]
 
 
 def decode(frames: Sequence[bytes | memoryview], kinds: Sequence[str], protocol: str = PROTOCOL) -> Message:
@@ -351,11 +355,12 @@ def finite_list(value: JSON, name: str, length: int) -> list[float]:
 
 
 def _pose(header: Mapping[str, JSON], name: str) -> Pose | None:
+    """A pose of 3 numbers ``[x, y, yaw]`` (height 0) or 4 ``[x, y, yaw, z]``."""
     value = header.get(name)
     if value is None:
         return None
-    x, y, yaw = finite_list(value, name, 3)
-    return Pose(x, y, yaw)
+    with_height = isinstance(value, list) and len(value) == 4
+    return Pose(*finite_list(value, name, 4 if with_height else 3))
 
 
 def _gimbal(value: JSON) -> tuple[float, float]:

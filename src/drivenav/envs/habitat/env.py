@@ -3,16 +3,20 @@
 habitat-lab's task, sensors and measures do the work: the agent steps by action name (habitat-lab's integer
 indices follow the config's order), observations are converted by :mod:`.observations`, and the metrics are
 habitat-lab's own ``success``, ``spl``, ``distance_to_goal`` and ``collisions``; path length is the executed
-translation, the start distance habitat-lab's ``distance_to_goal`` at reset. The world frame is Habitat's floor
-plane as drivenav's 2-D map frame (:mod:`drivenav.episode`).
+translation in three dimensions (as habitat-lab's ``SPL`` sums it), the start distance habitat-lab's
+``distance_to_goal`` at reset. The world frame is Habitat's floor plane as drivenav's 2-D map frame
+(:mod:`drivenav.episode`), with Habitat's ``y`` as the pose's height.
 
 The agent's pose is the simulator's agent state relative to the episode start, in float64: exactly what the
 noise-free GPS and compass report, without their float32 rounding (~1e-7 m), which alone can flip a map cell
 or a sight line and make two runs of one episode differ. GPS and compass are still read and checked against it
-every step (:func:`check_gps_compass`), so a changed frame or sign convention stops the episode.
+every step (:func:`check_gps_compass`), so a changed frame or sign convention stops the episode. ObjectNav's GPS is
+2-D, so the height comes from the agent state alone: the pose's height is the agent's height above where the
+simulator placed it at reset (an episode file's start height may lie a little above the floor, as HM3D's do).
 
 For the oracle, ``geodesic`` ground truth comes from the simulator: its geodesic distance to the goals' view
-points and its path finder's step (with or without sliding, as the config's ``allow_sliding`` says).
+points and its path finder's step (with or without sliding, as the config's ``allow_sliding`` says), both in three
+dimensions, so that the oracle climbs and descends stairs.
 """
 
 from __future__ import annotations
@@ -44,7 +48,7 @@ ACTION_NAMES = {
     Action.TURN_RIGHT: "turn_right",
 }
 POSE_CHECK = 1e-3  # metres / radians: GPS and compass against the agent state (float32 sensors read ~1e-6)
-COLLISION_EPSILON = 1e-5  # metres between the intended and the reached end of a step that count as a collision
+COLLISION_EPSILON = 1e-5  # m^2: a step collided when its squared 3-D length falls short of the intended one by more
 
 
 class HabitatEpisode(Protocol):
@@ -90,7 +94,16 @@ class _SimGeodesic:
         finder = self.sim.pathfinder
         reached = np.asarray(finder.try_step(start, end) if self.sliding else finder.try_step_no_sliding(start, end))
         nx, ny = habitat_to_world(list(reached))
-        return Pose(nx, ny, yaw, float(reached[1])), bool(np.linalg.norm(reached - end) > COLLISION_EPSILON)
+        arrived = Pose(nx, ny, yaw, float(reached[1]))
+        return arrived, _collided(pose, arrived, self.step)
+
+
+def _collided(start: Pose, reached: Pose, step: float) -> bool:
+    """habitat-sim's collision rule (``ObjectControls``): a forward step of ``step`` metres collided when the squared
+    3-D distance it moved falls short of the intended one by more than :data:`COLLISION_EPSILON`, so that a step up
+    or down the stairs (longer in 3-D than in plan) is none."""
+    moved = (reached.x - start.x) ** 2 + (reached.y - start.y) ** 2 + (reached.z - start.z) ** 2
+    return moved + COLLISION_EPSILON < step * step
 
 
 class HabitatEnv:
@@ -114,7 +127,7 @@ class HabitatEnv:
         self._normalized = bool(depth_sensor.normalize_depth)
         self._sliding = bool(self._habitat_config.habitat.simulator.habitat_sim_v0.allow_sliding)
         self._steps = 0
-        self._positions: list[tuple[float, float]] = []
+        self._positions: list[tuple[float, float, float]] = []
         self._start_distance = math.nan
         self._start_pose = Pose(0.0, 0.0, 0.0)
         self._semantic = spec.semantic
@@ -135,10 +148,11 @@ class HabitatEnv:
         if found is None:
             raise ValueError(f"episode {episode.episode_id} is not in this Habitat split")
         self._env.current_episode = found
-        self._start_pose = habitat_pose(found.start_position, found.start_rotation)
         observations = self._env.reset()
+        placed = self.world_pose()  # the start's height: where the simulator stands the agent
+        self._start_pose = replace(habitat_pose(found.start_position, found.start_rotation), z=placed.z)
         self._steps = 0
-        self._positions = [self._xy()]
+        self._positions = [self._xyz()]
         self._start_distance = float(self._env.get_metrics()["distance_to_goal"])
         self._goal_ids = np.array([goal.object_id for goal in episode.goals], dtype=np.int64)
         self._target_seen = False
@@ -147,7 +161,7 @@ class HabitatEnv:
     def step(self, action: Action) -> Observation:
         observations = self._env.step(ACTION_NAMES[Action(action)])
         self._steps += 1
-        self._positions.append(self._xy())
+        self._positions.append(self._xyz())
         return self._observe(observations, collided=bool(self._env.sim.previous_step_collided))
 
     def world_pose(self) -> Pose:
@@ -184,9 +198,9 @@ class HabitatEnv:
     def close(self) -> None:
         self._env.close()
 
-    def _xy(self) -> tuple[float, float]:
+    def _xyz(self) -> tuple[float, float, float]:
         pose = self.world_pose()
-        return pose.x, pose.y
+        return pose.x, pose.y, pose.z
 
     def _observe(self, observations: Any, collided: bool) -> Observation:
         observation = to_observation(observations, self._config, self._steps, collided, self._normalized)
@@ -198,7 +212,8 @@ class HabitatEnv:
 
 def check_gps_compass(sensed: Pose, pose: Pose) -> None:
     """GPS and compass must report the pose the simulator holds (they are noise-free in ObjectNav); a
-    disagreement means a frame or sign convention changed, and every map built from it would be wrong."""
+    disagreement means a frame or sign convention changed, and every map built from it would be wrong. Only the
+    plane is checked: ObjectNav's GPS reads no height."""
     if (
         math.hypot(sensed.x - pose.x, sensed.y - pose.y) > POSE_CHECK
         or abs(wrap_angle(sensed.yaw - pose.yaw)) > POSE_CHECK

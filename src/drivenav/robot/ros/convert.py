@@ -1,6 +1,5 @@
-"""ROS 2 messages to arrays and planar poses (paper Sec. V-E): images, camera intrinsics, odometry and point
-clouds, read by attribute so that ``rosbags``' deserialised messages and ``rclpy``'s alike convert, without
-``rclpy`` installed."""
+"""ROS 2 messages to arrays and poses (paper Sec. V-E): images, camera intrinsics, odometry and point clouds, read
+by attribute so that ``rosbags``' deserialised messages and ``rclpy``'s alike convert, without ``rclpy`` installed."""
 
 from __future__ import annotations
 
@@ -85,10 +84,11 @@ def camera_info_to_intrinsics(msg: RosMessage) -> CameraIntrinsics:
 
 
 def odometry_to_pose(msg: RosMessage) -> Pose:
-    """A ``nav_msgs/Odometry``'s planar pose: position x, y and the yaw of its orientation quaternion."""
+    """A ``nav_msgs/Odometry``'s pose: position x, y, the yaw of its orientation quaternion, and the height
+    position z (0 from a planar odometry; a 3-D one, LiDAR-inertial for instance, tells the floors apart)."""
     position, q = msg.pose.pose.position, msg.pose.pose.orientation
     yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
-    return Pose(float(position.x), float(position.y), yaw)
+    return Pose(float(position.x), float(position.y), yaw, float(position.z))
 
 
 def pointcloud2_to_xyz(msg: RosMessage) -> NDArray[np.float32]:

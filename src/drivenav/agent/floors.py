@@ -1,0 +1,427 @@
+"""Floors in the agent body (docs/floors.md, "The body's floors"): one set of maps per floor, the floor known from
+the pose's height, stairs taken when the reasoner judges the target on another floor or a floor has nothing left
+to explore.
+
+**Floors from heights.** The pose's height (``Observation.pose.z``: above the start, as odometry or habitat's agent
+state gives it) places the agent on a *level*: the start's is 0; a height within :attr:`FloorsConfig.level_tolerance`
+of a known level is on it; a height held steady at least :attr:`FloorsConfig.new_level` away from every known level
+is a new one (a half landing, half a storey up, is none). Between levels the agent is on stairs, and stays on the
+floor it left until it arrives: hysteresis, so that no frame taken on a staircase is fused into a floor's map.
+
+**One set of maps per floor.** Each floor has its own :class:`~drivenav.agent.state.BodyState` -- mapper (with its
+stair layers, :mod:`drivenav.mapping.stairs`), directions pipeline, planner, target search and object map -- and
+its own explorer (its memory: representative views, value maps); the reasoner, the grounder, the body's counters and
+the reasoner's hints are the episode's. A floor first reached begins as the episode did (DRIVE-Nav's start scan).
+
+**The floor rule.** A floor is left for another in two cases. (1) *The floor question*: once
+:attr:`FloorsConfig.min_floor_steps` were spent on the floor, and every :attr:`FloorsConfig.ask_every` steps after,
+while a way to a floor neither explored nor judged is known, the reasoner is shown the floor's album (frames spread
+over the stay on it) and asked whether the target is likely on this floor; on ``other`` the agent sets off (once per
+floor). (2) *Exhaustion*: the floor's explorer finds nothing left to explore on it (the ``no_frontier`` STOP of
+every method). Either way the agent takes a way to another floor that it knows (the stairs it came by) or sees
+(:func:`~drivenav.mapping.stairs.find_stairs`: a flight rising from the floor, a stairwell's opening), to a floor not
+yet exhausted -- an unknown floor first, then the nearest -- and STOPs as before when there is none. ASCENT asks its
+floor question only when no near frontier is left and keeps a minimum of steps between floor changes; here the
+minimum is the steps on a floor before it is asked, and exhaustion is the fallback.
+
+**Taking stairs.** The agent drives on its floor's map to the stairs' entry, turns to their heading, and drives
+along it (:meth:`Floors.climb`), its maps frozen, until it stands on a level again; a way on which
+:attr:`FloorsConfig.probe_steps` forward steps change the height by less than half a step, or whose entry takes
+more than :attr:`FloorsConfig.approach_steps` to reach, is dropped; one whose entry the map cannot reach yet is
+tried again later. The stairs it used are remembered both ways (a *portal*).
+
+On a world without floors no height ever changes and no stairs are found: every record is what it was. With
+``agent.floors.enabled`` false the body is the planar one a method was published with.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from drivenav.agent.config import FloorsConfig
+from drivenav.agent.context import Point, StepContext, replan
+from drivenav.agent.trace import FloorJudged, FloorReached, FloorSetOff
+from drivenav.inspection.views import frame_view
+from drivenav.mapping.stairs import StairCandidate, find_stairs
+from drivenav.semantics.protocols import View
+from drivenav.types import Action, Observation
+
+if TYPE_CHECKING:
+    from drivenav.agent.explorer import Explorer
+    from drivenav.agent.loop import Loop
+    from drivenav.agent.state import BodyState
+
+NO_FRONTIER = "no_frontier"
+STAIRS = "stairs"  # the steps-by-activity name of the steps spent going to and on stairs
+
+
+@dataclass
+class Floor:
+    """One floor of the episode: its level (height above the start), its body state and explorer, whether its
+    explorer found nothing left, the step the agent last arrived on it, whether its explorer has begun, its album
+    (frames taken on it, what the floor question shows) and the steps between them (0: not yet thinned), whether
+    the reasoner judged the target on another floor, the step it was last asked, whether it was left by the
+    share rule, and how many ``other`` answers in a row it had."""
+
+    level: float
+    state: BodyState
+    explorer: Explorer
+    exhausted: bool = False
+    arrived: int = 0
+    begun: bool = True
+    album: list[View] = field(default_factory=list)
+    album_every: int = 0
+    judged_other: bool = False
+    asked: int = -1
+    overstayed: bool = False
+    others: int = 0
+
+
+@dataclass(frozen=True)
+class Portal:
+    """Stairs the agent took: from ``floor`` at ``entry`` along ``heading`` they lead to floor ``to``."""
+
+    floor: int
+    entry: Point
+    heading: float
+    to: int
+
+
+@dataclass
+class StairTrip:
+    """Stairs being taken: the way (entry, heading, up or down, the floor it leads to if known), the phase
+    (``approach``: driving to the entry on the map; ``turn``: facing the heading; ``climb``: on the way), its
+    counts, where the last step on it set off, the detour under way (+1 left, -1 right, 0 none) and how many steps
+    toward the entry collided without moving."""
+
+    way: StairCandidate
+    to: int | None
+    phase: str = "approach"
+    steps: int = 0
+    forward: int = 0
+    left_level: bool = False
+    last_height: float = 0.0
+    steady: int = 0
+    last_xy: Point = (math.inf, math.inf)
+    detour: int = 0
+    blocked: int = 0
+
+
+ON_FLOOR = 0.05  # metres from a level's height at which the agent is off the stairs (a tread is 0.15 m or more)
+BLOCKED_STEPS = 3  # steps toward an entry that collided without moving, before the agent sets off from near it
+BLOCKED_NEAR = 1.0  # metres from the entry that count as near it then
+
+NewFloor = Callable[[], tuple["BodyState", "Explorer"]]
+"""Makes a floor's body state and explorer (the body's, for a floor first reached)."""
+SwitchFloor = Callable[[Floor], None]
+"""Makes a floor's state and explorer the body's current ones."""
+
+
+class Floors:
+    """The episode's floors, the current one, and the stairs being taken (module docstring)."""
+
+    def __init__(
+        self, config: FloorsConfig, first: Floor, new_floor: NewFloor, switch: SwitchFloor, budget: int
+    ) -> None:
+        self.config = config
+        self.budget = budget  # the episode's steps
+        self._new_floor = new_floor
+        self._switch = switch
+        self.floors: list[Floor] = [first]
+        self.current = 0
+        self.trip: StairTrip | None = None
+        self.portals: list[Portal] = []
+        self.dropped: list[StairCandidate] = []
+        self.changes = 0
+
+    @property
+    def floor(self) -> Floor:
+        return self.floors[self.current]
+
+    def explorers(self) -> list[Explorer]:
+        return [f.explorer for f in self.floors]
+
+    def states(self) -> list[BodyState]:
+        return [f.state for f in self.floors]
+
+    # ------------------------------------------------------------------------------------------- floor rule
+
+    def look(self, observation: Observation) -> None:
+        """Keep a frame of the floor in its album every ``album_every`` steps on it; past ``album_size`` frames, every
+        other one is let go and the interval doubles: the album spans the whole stay on the floor, evenly."""
+        floor, config = self.floor, self.config
+        every = floor.album_every or config.album_every
+        if (observation.step - floor.arrived) % every != 0:
+            return
+        floor.album = [*floor.album, frame_view(observation)]
+        if len(floor.album) > config.album_size:
+            floor.album, floor.album_every = floor.album[::2], 2 * every
+
+    def ask(self, loop: Loop, ctx: StepContext) -> bool:
+        """Every ``ask_every`` steps once ``min_floor_steps`` were spent on the floor, while a way to a floor neither
+        explored nor judged without the target is known: the share rule (the floor had its share of the steps and a
+        floor not yet visited is in reach), then the floor question (the reasoner judges the target on another
+        floor; once it did, the agent sets off again at each question's turn until it leaves). Either sets off
+        (True)."""
+        floor, config = self.floor, self.config
+        on_floor = loop.step - floor.arrived
+        due = floor.asked < 0 or loop.step - floor.asked >= config.ask_every
+        if on_floor < config.min_floor_steps or not due:
+            return False
+        floor.asked = loop.step
+        ways = [w for w in self._ways(ctx) if self._open(w) and not self._was_dropped(w)]
+        if floor.judged_other:  # judged so before and the way not taken (its entry out of reach then): again
+            return self._set_off(loop, ctx, ways, "judged")
+        unvisited = [w for w in ways if w[1] is None]
+        if unvisited and not floor.overstayed and on_floor >= config.share * (self.budget - floor.arrived):
+            floor.overstayed = True
+            return self._set_off(loop, ctx, unvisited, "share")
+        if not ways or not config.ask:
+            return False
+        judgement = loop.state.reasoner.judge_floor(loop.host.goal_text, floor.album)
+        loop.trace.add(FloorJudged(loop.step, self.current, judgement.guess, judgement.note))
+        floor.others = floor.others + 1 if judgement.guess == "other" else 0
+        if floor.others < config.confirm:
+            return False
+        floor.judged_other = True
+        return self._set_off(loop, ctx, ways, "judged")
+
+    def leave(self, loop: Loop, ctx: StepContext) -> bool:
+        """The current floor has nothing left to explore: set off for the best way to another floor not yet
+        exhausted (True), or say there is none (False: the agent STOPs)."""
+        self.floor.exhausted = True
+        ways = [w for w in self._ways(ctx) if self._worth(w) and not self._was_dropped(w)]
+        return self._set_off(loop, ctx, ways, "explored")
+
+    def _set_off(
+        self, loop: Loop, ctx: StepContext, ways: list[tuple[StairCandidate, int | None]], reason: str
+    ) -> bool:
+        """Set off for the way to an unknown floor first, else the nearest (True); False when there is none."""
+        if not ways:
+            return False
+        here = (ctx.pose.x, ctx.pose.y)
+        way, to = min(ways, key=lambda item: (self._known(item[1]), math.dist(here, item[0].entry)))
+        self.trip = StairTrip(way, to)
+        loop.trace.add(FloorSetOff(loop.step, self.current, way.entry, way.up, reason))
+        loop.state.goal = None
+        loop.state.planner.reset()
+        loop.start_segment()
+        return True
+
+    def _ways(self, ctx: StepContext) -> list[tuple[StairCandidate, int | None]]:
+        """The ways off the current floor with the floor each leads to (None: not known): its portals, then the
+        stairs its maps show that no portal already is."""
+        ways: list[tuple[StairCandidate, int | None]] = [
+            (StairCandidate(p.entry, p.heading, self.floors[p.to].level > self.floor.level), p.to)
+            for p in self.portals
+            if p.floor == self.current
+        ]
+        relief = self.floor.state.mapper.relief()
+        if relief is not None:
+            for seen in find_stairs(relief, ctx.snapshot, self.config.stairs):
+                if not any(math.dist(seen.entry, w.entry) < 1.0 for w, _ in ways):
+                    ways.append((seen, self._next_level(seen.up)))
+        return ways
+
+    def _next_level(self, up: bool) -> int | None:
+        """The known floor next above (or below) the current one, None if none is known."""
+        level = self.floor.level
+        others = [
+            (abs(f.level - level), k)
+            for k, f in enumerate(self.floors)
+            if (f.level > level) == up and k != self.current
+        ]
+        return min(others)[1] if others else None
+
+    def _worth(self, way: tuple[StairCandidate, int | None]) -> bool:
+        return way[1] is None or not self.floors[way[1]].exhausted
+
+    def _open(self, way: tuple[StairCandidate, int | None]) -> bool:
+        """A way worth taking on the reasoner's word: to a floor neither explored nor judged without the target."""
+        return way[1] is None or not (self.floors[way[1]].exhausted or self.floors[way[1]].judged_other)
+
+    def _known(self, to: int | None) -> bool:
+        """Unknown floors first."""
+        return to is not None
+
+    def _was_dropped(self, way: tuple[StairCandidate, int | None]) -> bool:
+        return any(math.dist(way[0].entry, d.entry) < 0.5 for d in self.dropped)
+
+    # ----------------------------------------------------------------------------------------- taking stairs
+
+    def heading_for_stairs(self, loop: Loop, observation: Observation, ctx: StepContext) -> Action | None:
+        """A step toward the stairs' entry on the map (``approach``), then of turning to their heading (``turn``),
+        then the first step along it; None when the way was dropped (the explorer goes on)."""
+        trip = self.trip
+        assert trip is not None
+        trip.steps += 1
+        if trip.steps > self.config.approach_steps:
+            return self._drop(loop)
+        if trip.phase == "approach":
+            action = self._approach(loop, observation, ctx, trip)
+            if action is not None:
+                return action
+        return self._turn(loop, observation, trip)
+
+    def _approach(self, loop: Loop, observation: Observation, ctx: StepContext, trip: StairTrip) -> Action | None:
+        """A planned step toward the way's entry; None once there -- or near it (``BLOCKED_NEAR``) after
+        ``BLOCKED_STEPS`` steps that collided without moving: by a stairwell's edge the map and the world part, and
+        driving along the heading (with its detours) goes on from there."""
+        pose = observation.pose
+        here = (pose.x, pose.y)
+        goal = _navigable_near(ctx, trip.way)
+        if goal is None:
+            return self._drop(loop, remember=False)
+        trip.blocked += observation.collided and math.dist(here, trip.last_xy) < 0.05
+        trip.last_xy = here
+        near = math.dist(here, goal)
+        if near <= self.config.entry_tolerance or (trip.blocked >= BLOCKED_STEPS and near <= BLOCKED_NEAR):
+            trip.phase = "turn"
+            return None
+        state = loop.state
+        state.goal = goal
+        planned = replan(state.pipeline, ctx, goal)
+        action = state.planner.act(planned.goal_path, ctx.pose, observation.collided, planned.free)
+        return action if action is not None else self._drop(loop, remember=False)
+
+    def _turn(self, loop: Loop, observation: Observation, trip: StairTrip) -> Action:
+        error = math.remainder(trip.way.heading - observation.pose.yaw, 2.0 * math.pi)
+        if abs(error) > loop.tuning.turn / 2.0:
+            return Action.TURN_LEFT if error > 0.0 else Action.TURN_RIGHT
+        trip.phase = "climb"
+        trip.steps = 0
+        trip.last_height = observation.pose.z
+        loop.state.planner.reset()
+        return Action.MOVE_FORWARD
+
+    def on_stairs(self, observation: Observation) -> bool:
+        """Whether this step is one of climbing (the trip's ``climb`` phase): the maps are left as they are."""
+        return self.trip is not None and self.trip.phase == "climb"
+
+    def climb(self, loop: Loop, observation: Observation) -> Action | None:
+        """A step along the stairs' heading; None when the agent arrived on a level -- within :data:`ON_FLOOR` of
+        its height, off the last tread (the floors switched, the step goes on there) -- or gave the stairs up (back
+        on the floor it left)."""
+        trip = self.trip
+        assert trip is not None
+        z = observation.pose.z
+        level = self._level_at(z)
+        if trip.left_level and level is not None and abs(z - self.floors[level].level) <= ON_FLOOR:
+            if level == self.current:  # back where it set off, the stairs given up
+                self.trip = None
+                loop.state.planner.reset()
+            else:
+                self._arrive(loop, level, observation)
+            return None
+        if not trip.left_level and abs(z - self.floor.level) > self.config.level_tolerance:
+            trip.left_level = True
+        trip.steady = trip.steady + 1 if abs(z - trip.last_height) < 0.01 else 0
+        trip.last_height = z
+        if trip.left_level and level is None and trip.steady >= 2 and self._new_level(z):
+            self._arrive(loop, self._add_level(z), observation)
+            return None
+        trip.steps += 1
+        moved = abs(z - self.floor.level) >= self.config.stairs.climb / 2.0
+        if not trip.left_level and not moved and trip.forward >= self.config.probe_steps:
+            self._drop(loop)
+            return None
+        if trip.steps > self.config.climb_steps:
+            self._turn_back(trip)
+        return self._along(loop, observation, trip)
+
+    def _turn_back(self, trip: StairTrip) -> None:
+        """Stairs given up between two levels: back the way the agent came, to the floor it left (once; after
+        that it goes on as it can)."""
+        if trip.to == self.current:
+            return
+        way = trip.way
+        back = StairCandidate(way.entry, math.remainder(way.heading + math.pi, 2.0 * math.pi), not way.up)
+        self.dropped.append(way)
+        trip.way, trip.to, trip.steps = back, self.current, 0
+
+    def _along(self, loop: Loop, observation: Observation, trip: StairTrip) -> Action:
+        """Face the stairs' heading and drive: no planner on stairs (its escape from a collision turns away; the
+        world slides the agent along a railing it meets at an angle, so driving on follows the flight). A forward
+        step that collided without moving is followed by one step a turn off the heading, toward the side the
+        depth frame shows more open (:func:`_open_side`), then the heading again."""
+        pose = observation.pose
+        stuck = observation.collided and math.dist((pose.x, pose.y), trip.last_xy) < 0.05
+        if trip.detour == 0 and stuck:
+            trip.detour = _open_side(observation)
+        turn = loop.tuning.turn
+        error = math.remainder(trip.way.heading + trip.detour * turn - pose.yaw, 2.0 * math.pi)
+        if abs(error) > turn / 2.0:
+            return Action.TURN_LEFT if error > 0.0 else Action.TURN_RIGHT
+        trip.detour = 0
+        trip.forward += 1
+        trip.last_xy = (pose.x, pose.y)
+        return Action.MOVE_FORWARD
+
+    def _level_at(self, z: float) -> int | None:
+        near = [
+            (abs(z - f.level), k) for k, f in enumerate(self.floors) if abs(z - f.level) <= self.config.level_tolerance
+        ]
+        return min(near)[1] if near else None
+
+    def _new_level(self, z: float) -> bool:
+        return all(abs(z - f.level) >= self.config.new_level for f in self.floors)
+
+    def _add_level(self, z: float) -> int:
+        state, explorer = self._new_floor()
+        self.floors.append(Floor(z, state, explorer, begun=False))
+        return len(self.floors) - 1
+
+    def _arrive(self, loop: Loop, level: int, observation: Observation) -> None:
+        """On floor ``level``: the portal both ways, the floor's state and explorer take over."""
+        trip = self.trip
+        assert trip is not None
+        here = (observation.pose.x, observation.pose.y)
+        self.portals.append(Portal(self.current, trip.way.entry, trip.way.heading, level))
+        self.portals.append(
+            Portal(level, here, math.remainder(trip.way.heading + math.pi, 2.0 * math.pi), self.current)
+        )
+        self.trip = None
+        loop.trace.add(FloorReached(loop.step, level, self.current, not self.floors[level].begun))
+        self.current = level
+        self.changes += 1
+        floor = self.floor
+        floor.arrived = loop.step
+        floor.exhausted = False
+        self._switch(floor)
+
+    def _drop(self, loop: Loop, remember: bool = True) -> Action | None:
+        """Give the way up and go on exploring the floor (which STOPs again if nothing is left); ``remember``: never
+        take it again (not for an entry the map cannot reach yet: it may later)."""
+        trip = self.trip
+        assert trip is not None
+        if remember:
+            self.dropped.append(trip.way)
+        self.trip = None
+        loop.state.goal = None
+        loop.state.planner.reset()
+        return None
+
+
+def _open_side(observation: Observation) -> int:
+    """+1 (left) or -1 (right): the half of the depth frame's middle rows that sees farther (median depth)."""
+    depth = observation.depth
+    rows, cols = depth.shape
+    band = depth[rows * 3 // 8 : rows * 5 // 8]
+    left, right = (float(np.nanmedian(half)) for half in (band[:, : cols // 2], band[:, cols // 2 :]))
+    return 1 if left >= right else -1
+
+
+def _navigable_near(ctx: StepContext, way: StairCandidate) -> Point | None:
+    """The navigable point nearest the entry back along the way's heading (the entry of a flight seen from the
+    floor lies against its first step, in the obstacles' inflation), within 1.5 m."""
+    back = (-math.cos(way.heading), -math.sin(way.heading))
+    for k in range(31):
+        point = (way.entry[0] + back[0] * 0.05 * k, way.entry[1] + back[1] * 0.05 * k)
+        if ctx.free(*point):
+            return point
+    return None
