@@ -17,7 +17,7 @@ from drivenav.agents import make_agent
 from drivenav.cli import main
 from drivenav.errors import InputError
 from drivenav.mapping.config import MappingConfig, MapTuning
-from drivenav.methods import ALL_METHODS, BEYOND_PAPER, METHOD_NAMES, METHODS
+from drivenav.methods import ALL_METHODS, BEYOND_PAPER, FLOORS_OFF, METHOD_NAMES, METHODS
 from drivenav.settings import (
     Settings,
     agent_names,
@@ -76,7 +76,7 @@ def test_layers_apply_in_order(tmp_path: Path) -> None:
         (["run.seed=1.5"], ["'run.seed'", "an int like 0", "1.5"]),
         (["paper.speed.lam=[1"], ["'paper.speed.lam'", "a YAML value", "'[1'"]),
         (["paper.speed.lam=${nowhere}"], ["'paper.speed.lam'", "an interpolation", "'nowhere' not found"]),
-        (["run.agent=no-such"], ["'run.agent'", "one of apexnav, direction-360", "'no-such'"]),
+        (["run.agent=no-such"], ["'run.agent'", "one of apexnav, apexnav-floors-off, direction-360", "'no-such'"]),
         (["models.reasoner=gpt"], ["'models.reasoner'", "one of embedded, openai", "'gpt'"]),
         (["models.scorer=clip"], ["'models.scorer'", "one of embedded, blip2-itm, siglip", "--scorer", "'clip'"]),
         (["mapping.min_obstacle_height=1.0"], ["'mapping.min_obstacle_height'", "less than sim.agent_height"]),
@@ -146,6 +146,8 @@ BEYOND = {
     "drive-nav-plus-no-check": {rule: on for rule, on in PLUS_RULES.items() if rule != "target_check"},
     "drive-nav-plus-no-settle": {rule: on for rule, on in PLUS_RULES.items() if rule != "settle_steps"},
 }
+FLOORS_OFF_SWITCH = {"floors": {**settings_to_dict(Settings())["agent"]["floors"], "enabled": False}}
+BEYOND.update({f"{name}-floors-off": {**{**EXPECTED, **BEYOND}[name], **FLOORS_OFF_SWITCH} for name in FLOORS_OFF})
 
 
 def _switches(settings: Settings) -> dict[str, object]:
@@ -233,8 +235,9 @@ def test_methods_name_the_papers_tables() -> None:
     assert {name for name, t in tables.items() if "V" in t} == {"directional", "no-weighted-fmm", "no-240"}
     assert all(m.description and (m.tables or m.base) for m in METHODS)
     bases = {m.name: m.base for m in METHODS if not m.tables}
-    rows = {name: "drive-nav-plus" for name in BEYOND if name != "drive-nav-plus"}  # each without one rule
-    assert bases == {"drive-nav-plus": "drive-nav", **rows}
+    rows = {name: "drive-nav-plus" for name in BEYOND if name.startswith("drive-nav-plus-no-")}  # each without a rule
+    off = {f"{name}-floors-off": name for name in FLOORS_OFF}  # each with its floors off
+    assert bases == {"drive-nav-plus": "drive-nav", **rows, **off}
 
 
 def test_first_difference_names_the_key() -> None:

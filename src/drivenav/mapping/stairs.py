@@ -37,6 +37,7 @@ from scipy import ndimage
 
 from drivenav.grid import GridSpec
 from drivenav.jit import jit
+from drivenav.mapping.kernels import stamp
 from drivenav.mapping.types import MapSnapshot
 from drivenav.ranges import LENGTH, POSITIVE_LENGTH, check_ranges
 
@@ -147,7 +148,7 @@ def project_relief(
                     if 0 <= i < n_rows and 0 <= j < n_cols and not drops[i, j]:
                         drops[i, j] = True
                         obstacle[i, j] = True
-                        _stamp(inflated, i, j, disk)
+                        stamp(inflated, i, j, disk)
                         added += 1
             h = cam_h + ky * z
             open_above = above_z >= max_d - eps or (above_z > 0.0 and (above_z - z) * stretch > above_h - h)
@@ -159,15 +160,6 @@ def project_relief(
             if 0 <= i < n_rows and 0 <= j < n_cols and h > top[i, j]:
                 top[i, j] = h
     return added
-
-
-@jit(inline=True)
-def _stamp(mask: Mask, i: int, j: int, disk: I64) -> None:
-    n_rows, n_cols = mask.shape
-    for d in range(disk.shape[0]):
-        ii, jj = i + disk[d, 0], j + disk[d, 1]
-        if 0 <= ii < n_rows and 0 <= jj < n_cols:
-            mask[ii, jj] = True
 
 
 def find_stairs(relief: Relief, snapshot: MapSnapshot, tuning: StairTuning) -> list[StairCandidate]:
