@@ -15,6 +15,9 @@ from drivenav.agent.trace import (
     DetectionEvent,
     DirectionSelected,
     Event,
+    FloorJudged,
+    FloorReached,
+    FloorSetOff,
     InspectionStarted,
     InspectionVoid,
     ScanStarted,
@@ -44,6 +47,9 @@ EXAMPLES: tuple[Event, ...] = (
     TargetSetAside(11, 5, (6.0, 1.0), 40),
     StopEvent(12, "target_reached"),
     InspectionVoid(13, (1, 2)),
+    FloorJudged(14, 0, "other", "0.00 of the goal's rooms among kitchen, living room, dining room"),
+    FloorSetOff(15, 0, (4.5, -2.0), True, "judged"),
+    FloorReached(40, 1, 0, True),
 )
 
 
