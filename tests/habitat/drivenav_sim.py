@@ -183,8 +183,10 @@ class DriveNavSim(Simulator):  # type: ignore[misc]
 
     def semantic_annotations(self) -> Any:
         """habitat-sim's semantic scene, as far as the adapter reads it: objects with ``semantic_id`` and
-        ``category.name()``."""
-        objects = [_SemanticObject(obj.instance_id, _Category(obj.category)) for obj in self.world.scene.objects]
+        ``category.name()``; a building's objects on every storey."""
+        scene = self.world.scene
+        placed = [obj for _, obj in scene.objects()] if isinstance(scene, Building) else scene.objects
+        objects = [_SemanticObject(obj.instance_id, _Category(obj.category)) for obj in placed]
         return SimpleNamespace(objects=objects)
 
     def seed(self, seed: int) -> None:

@@ -2,7 +2,8 @@
 through ``habitat.Env`` on ``DriveNavSim-v0`` (the stand-in with floors) give the same actions, the same success, SPL,
 distance to goal and path length (in three dimensions, as habitat-lab's ``SPL`` sums it), and the same heights at
 every step: ``Observation.pose.z`` (above the start) and ``world_pose().z``. The cross-floor episodes are reached in
-both worlds, so the oracle climbed or descended the stairs through the adapter's geodesic and path finder.
+both worlds, so the oracle climbed or descended the stairs through the adapter's geodesic and path finder. DRIVE-Nav,
+its floors on, runs the storeyed episodes alike in both worlds too, and changes floors through habitat-lab.
 
 Two sets: drivenav's episodes in homes of several storeys (``episodes generate --cross-floor 1``), exported in
 ObjectNav v1's layout (as ``episodes export --format objectnav-v1`` writes it) and read by habitat-lab's own
@@ -97,3 +98,23 @@ def test_hm3d_v1_multi_floor_episodes_run_alike_through_habitat_lab(tmp_path: Pa
         (start, placed), (end, _) = direct[2][0], direct[2][-1]
         assert start == 0.0 and placed == pytest.approx(episode.start_height, abs=0.25)
         assert direct[0].success == 1 and abs(end) >= STOREY  # the fixture's goals lie on the other floor
+
+
+def test_drive_nav_keeps_its_floors_through_habitat_lab(data_dir: Path) -> None:
+    """DRIVE-Nav with the body's floors (on by default) on the same multi-storey episodes under the HM3D v1 preset:
+    the same actions, metrics and heights in both worlds, and through habitat-lab too it takes the stairs: a floor
+    change in some episode, from the pose's height the adapter carries."""
+    spec = spec_of(data_dir, "hm3d-v1")
+    settings = settings_for("drive-nav", spec.benchmark, *OVERRIDES, "sim.max_steps=300")
+    worlds = BothWorlds(spec, settings)
+    climbed = 0
+    try:
+        for episode in spec.episodes():
+            direct, through = _noted(worlds, worlds.embedded, episode), _noted(worlds, worlds.habitat, episode)
+            where = f"drive-nav, episode {episode.episode_id}"
+            assert_same(direct[:2], through[:2], where)
+            assert through[2] == direct[2], where
+            climbed += max(abs(relative) for relative, _ in through[2]) >= STOREY
+    finally:
+        worlds.close()
+    assert climbed >= 1
