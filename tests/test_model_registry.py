@@ -23,16 +23,16 @@ from drivenav.semantics.registry import (
     make_reasoner,
     make_scorer,
     model_requirements,
-    scorer_reads_labels,
+    scorer_requirements,
 )
 from drivenav.types import SEMANTIC
 
 
 def test_the_names_and_their_order_are_the_command_lines() -> None:
-    assert REASONER_BACKENDS.names == ("embedded", "openai", "replay", "geometric")
+    assert REASONER_BACKENDS.names == ("embedded", "openai", "replay", "geometric", "oracle")
     assert GROUNDER_BACKENDS.names == ("embedded", "ground-truth", "sam3", "owlv2", "grounding-dino", "remote")
     assert SEGMENTER_BACKENDS.names == ("filled-box", "mobilesam")
-    assert SCORER_BACKENDS.names == ("embedded", "blip2-itm", "siglip", "replay")
+    assert SCORER_BACKENDS.names == ("embedded", "blip2-itm", "siglip", "replay", "oracle")
 
 
 def test_every_reference_agent_resolves_to_its_class() -> None:
@@ -48,9 +48,9 @@ def test_the_stand_ins_need_ground_truth_labels() -> None:
 
 
 def test_the_scorer_reads_labels_apart_from_the_model_requirements() -> None:
-    """Only the vlfm method scores frames, so its agent adds the scorer's needs; the other methods' stay."""
-    assert scorer_reads_labels(ModelSpec()) and scorer_reads_labels(ModelSpec(scorer="embedded"))
-    assert not any(scorer_reads_labels(ModelSpec(scorer=name)) for name in ("blip2-itm", "siglip", "replay", "x"))
+    """Only the methods that score frames add the scorer's needs; the other methods' stay."""
+    assert scorer_requirements(ModelSpec()) == scorer_requirements(ModelSpec(scorer="embedded")) == {SEMANTIC}
+    assert not any(scorer_requirements(ModelSpec(scorer=name)) for name in ("blip2-itm", "siglip", "replay", "x"))
     assert model_requirements(ModelSpec(reasoner="openai", detector="sam3", scorer="embedded")) == frozenset()
 
 

@@ -2,9 +2,9 @@
 hand-edited value is one :class:`InputError` naming ``config.KEY``.
 
 ``tests/data/run.json`` is the ``run.json`` of a ``bench ablations`` run (drive-nav, seed 3, geometric reasoner), in
-today's tree (rewritten when the body's ``agent.fusion`` and ``agent.stop_in_view``, ApexNav's section and the body's
-``agent.floors`` came); ``tests/data/run-before-explorers.json`` is the same run's as written before explorers had
-settings sections of their own (and before ``RunInfo.config`` was typed).
+today's tree (rewritten when the body's ``agent.fusion`` and ``agent.stop_in_view``, ApexNav's section, the body's
+``agent.floors`` and ``models.detector_regime`` came); ``tests/data/run-before-explorers.json`` is the same run's as
+written before explorers had settings sections of their own (and before ``RunInfo.config`` was typed).
 """
 
 from __future__ import annotations

@@ -21,10 +21,10 @@ from drivenav.semantics.registry import (
     make_reasoner,
     make_scorer,
     model_requirements,
-    scorer_reads_labels,
+    scorer_requirements,
 )
 from drivenav.settings import Settings, explorer_section
-from drivenav.types import SEMANTIC, SimConfig
+from drivenav.types import SimConfig
 
 
 def make_agent(settings: Settings) -> Agent:
@@ -40,8 +40,8 @@ def make_agent(settings: Settings) -> Agent:
     models = settings.models
     requires = model_requirements(models)
     explorer_config = explorer_section(settings, entry.name)
-    if explorer_class(entry).needs_scorer(explorer_config) and scorer_reads_labels(models):
-        requires |= {SEMANTIC}
+    if explorer_class(entry).needs_scorer(explorer_config):
+        requires |= scorer_requirements(models)
     return ExplorerAgent(
         settings.sim,
         settings.agent,

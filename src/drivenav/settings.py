@@ -42,7 +42,7 @@ from drivenav.mapping.config import MapTuning
 from drivenav.methods import PRESETS, agent_names, method_named, preset_names
 from drivenav.paper import DriveNavConfig
 from drivenav.ranges import MAX_GRID_SIDE, Range, SettingError, check_ranges, check_rule
-from drivenav.semantics.model_spec import DTYPES, ModelSpec
+from drivenav.semantics.model_spec import DETECTOR_REGIMES, DTYPES, ModelSpec
 from drivenav.semantics.registry import GROUNDER_BACKENDS, REASONER_BACKENDS, SCORER_BACKENDS, SEGMENTER_BACKENDS
 from drivenav.types import SimConfig
 from drivenav.validation import check_unique_keys, yaml_problem
@@ -145,6 +145,7 @@ class Settings:
             ("models.segmenter", SEGMENTER_BACKENDS.names, "--segmenter"),
             ("models.scorer", SCORER_BACKENDS.names, "--scorer"),
             ("models.dtype", DTYPES, "--dtype"),
+            ("models.detector_regime", DETECTOR_REGIMES, "--detector-regime"),
             ("explorer.name", EXPLORERS.names, "--set explorer.name=NAME"),
         )
         for key, names, option in choices:

@@ -96,6 +96,13 @@ def _add_bench_ablations(sub: Commands) -> None:
     add_max_steps(parser)
     parser.add_argument("--pictures", type=int, default=2, help="episodes drawn for the report (0: none)")
     add_floor_reference(parser, "METHOD", "the method (one of --methods)")
+    parser.add_argument(
+        "--regimes",
+        default=None,
+        help="each method under each perception and reasoning regime (comma-separated, or all: paper, "
+        "exact-detector, strong-detector, weak-detector, oracle-reasoner, exploration-bound; docs/regimes.md) into "
+        "DIR/regimes/, one table in DIR/regimes.md",
+    )
     add_world_options(parser)
     add_execution_options(parser)
     add_model_options(parser)
@@ -233,6 +240,8 @@ def _cmd_bench_ablations(args: argparse.Namespace) -> int:
     from drivenav.viz.run_pictures import render_pictures
 
     methods = parse_methods(args.methods)
+    if args.regimes is not None:
+        return _bench_regimes(args, methods)
     reference = floor_reference(args, methods, "one of the --methods")
     pool = executor(args)
     if args.pictures < 0:
@@ -248,6 +257,37 @@ def _cmd_bench_ablations(args: argparse.Namespace) -> int:
         print(f"{name:<20} SR {sr}  SPL {spl}  errors {entry.errors}")
     print(f"tables: {args.out / 'ablations.md'}  data: {args.out / 'ablations.json'}, {args.out / 'ablations.csv'}")
     print(f"report: {write_report([args.out / RUNS_DIR / m for m in methods], args.out / 'report')}")
+    return 0
+
+
+def _bench_regimes(args: argparse.Namespace, methods: list[str]) -> int:
+    """``bench ablations --regimes``: every method under every regime on the same episodes, then one table
+    (:mod:`drivenav.analysis.regimes`)."""
+    from drivenav.analysis.regimes import (
+        build_regime_report,
+        parse_regimes,
+        regime_args,
+        run_regimes,
+        write_regime_report,
+    )
+    from drivenav.eval.report import shown
+
+    regimes = parse_regimes(args.regimes)
+    pool = executor(args)
+    definition = _benchmark_options(args)
+    specs = {r: [run_spec(regime_args(args, r), method) for method in methods] for r in regimes}
+    first = specs[regimes[0]][0]
+    run_episodes = _benchmark_episodes(args, definition) if chosen_world(args).embedded_episodes else None
+    chosen = run_episodes or episodes(args, first)
+    dirs = run_regimes(chosen, specs, args.out, pool)
+    episode_set = f"benchmark {args.benchmark}, --episodes {args.episodes}, seed {args.seed}, scenes {args.scenes}"
+    report = build_regime_report(dirs, len(chosen), episode_set)
+    for regime, by in report.cells.items():
+        for name, cell in by.items():
+            sr, spl = (shown(value, "{:5.1f} %", 100.0) for value in (cell.entry.success_rate, cell.entry.spl))
+            print(f"{regime:<18} {name:<20} SR {sr}  SPL {spl}  errors {cell.entry.errors}")
+    write_regime_report(report, args.out)
+    print(f"table: {args.out / 'regimes.md'}  data: {args.out / 'regimes.json'}, {args.out / 'regimes.csv'}")
     return 0
 
 

@@ -43,6 +43,7 @@ OPTION_KEYS = {
     "segmenter_model": "models.segmenter_model",
     "compile": "models.compile",
     "detector_shadow_url": "models.detector_shadow_url",
+    "detector_regime": "models.detector_regime",
 }
 """The dedicated options that set a settings key (``--seed`` -> ``run.seed``, ...)."""
 
@@ -99,7 +100,7 @@ def add_config_options(parser: argparse.ArgumentParser) -> None:
 
 
 def add_model_options(parser: argparse.ArgumentParser) -> None:
-    from drivenav.semantics.model_spec import DTYPES, ModelSpec
+    from drivenav.semantics.model_spec import DETECTOR_REGIMES, DTYPES, ModelSpec
     from drivenav.semantics.registry import GROUNDER_BACKENDS, REASONER_BACKENDS, SCORER_BACKENDS
 
     default = ModelSpec()
@@ -108,6 +109,11 @@ def add_model_options(parser: argparse.ArgumentParser) -> None:
     )
     models.add_argument("--reasoner", help=f"one of {', '.join(REASONER_BACKENDS.names)} (default {default.reasoner})")
     models.add_argument("--detector", help=f"one of {', '.join(GROUNDER_BACKENDS.names)} (default {default.detector})")
+    models.add_argument(
+        "--detector-regime",
+        help=f"with --detector embedded, its preset: one of {', '.join(DETECTOR_REGIMES)} (default "
+        f"{default.detector_regime}; docs/regimes.md)",
+    )
     scorers = ", ".join(SCORER_BACKENDS.names)
     models.add_argument(
         "--scorer", help=f"the vlfm method's image-text scorer: one of {scorers} (default {default.scorer})"

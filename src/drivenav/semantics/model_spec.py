@@ -27,7 +27,8 @@ class ModelSpec:
     detector's boxes into masks (``--segmenter``: the filled box, or MobileSAM from its checkpoint file). ``compile``:
     ``torch.compile`` of the models' per-frame modules. ``detector_shadow_url``: a served grounder sent every frame
     the detector grounds, its answer discarded (a served model's cost beside the detector's detections: throughput
-    benchmarks with random weights).
+    benchmarks with random weights). ``detector_regime``: with ``detector`` ``embedded``, which of its presets
+    (:data:`DETECTOR_REGIMES`; docs/regimes.md) it runs: ``paper`` (the default), ``exact``, ``strong``, ``weak``.
     """
 
     reasoner: str = "embedded"
@@ -49,6 +50,7 @@ class ModelSpec:
     segmenter_model: str = ""
     compile: bool = False
     detector_shadow_url: str = ""
+    detector_regime: str = "paper"
 
     def __post_init__(self) -> None:
         check_ranges(self, {"detector_timeout_s": Range(0.0, 86400.0, low_open=True, why="seconds, up to a day")})
@@ -56,3 +58,8 @@ class ModelSpec:
 
 DTYPES = ("auto", "float32", "bfloat16", "float16")
 """The values of ``models.dtype`` (``--dtype``)."""
+
+DETECTOR_REGIMES = ("exact", "strong", "paper", "weak")
+"""The embedded detector's presets (``models.detector_regime``, ``--detector-regime``;
+:func:`drivenav.semantics.embedded_detector.regime_grounder`): the ground-truth grounder, a SAM3-class model, the
+embedded benchmark's own detector, an OWLv2-class model."""

@@ -77,6 +77,8 @@ class Candidate:
     weighted-FMM time to its nearest frontier cell; ``frontier_cells`` how many frontier cells support it (its
     unexplored extent); ``view`` its representative view, if any; ``current`` marks the direction being
     followed (a VLM prompt says "you are heading toward ...").
+    ``frontiers``: where exploring it leads, its frontier waypoints and farthest point (episode frame, at the
+    robot's height); only privileged reasoners read them (the oracle's geodesic choice, docs/regimes.md).
     """
 
     label: int
@@ -86,6 +88,7 @@ class Candidate:
     frontier_cells: int
     view: View | None = None
     current: bool = False  # the direction the robot is following now
+    frontiers: tuple[Pose, ...] = ()
 
 
 @dataclass(frozen=True)

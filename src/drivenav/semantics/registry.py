@@ -48,12 +48,14 @@ class Backend(Generic[Model]):
     ``build`` makes it from a :class:`ModelSpec` (importing its module then). ``reads_labels``: it reads the
     world's ground-truth instance labels (the embedded stand-ins), so agents using it need ``semantic``.
     ``observes``: the images of an observation it reads (what a served grounder's clients send it).
-    ``check`` runs cheap local checks before any episode (a file to read); ``connect`` the costly ones (a server
-    to reach, weights to load), which run after every cheap check so that a typo fails at once.
+    ``reads_geodesic``: it reads the episode's geodesic distance to the goals (the oracle), so agents using it need
+    ``geodesic``. ``check`` runs cheap local checks before any episode (a file to read); ``connect`` the costly ones
+    (a server to reach, weights to load), which run after every cheap check so that a typo fails at once.
     """
 
     build: Callable[[ModelSpec], Model]
     reads_labels: bool = False
+    reads_geodesic: bool = False
     check: Callable[[ModelSpec], None] = _no_check
     connect: Callable[[ModelSpec], None] = _no_check
     observes: tuple[str, ...] = ("rgb",)
@@ -69,6 +71,10 @@ class ModelRegistry(Registry[Backend[Model]]):
     def reads_labels(self, name: str) -> bool:
         """Whether ``name`` reads ground-truth labels (False for an unknown name: it is refused elsewhere)."""
         return name in self.declared and self.get(name).reads_labels
+
+    def reads_geodesic(self, name: str) -> bool:
+        """Whether ``name`` reads the geodesic distance to the goals (False for an unknown name)."""
+        return name in self.declared and self.get(name).reads_geodesic
 
 
 def _is_backend(part: object) -> bool:
@@ -115,10 +121,16 @@ def _geometric_reasoner(spec: ModelSpec) -> Reasoner:
     return GeometricReasoner()
 
 
-def _embedded_grounder(spec: ModelSpec) -> Grounder:
-    from drivenav.semantics.embedded_detector import EmbeddedGrounder
+def _oracle_reasoner(spec: ModelSpec) -> Reasoner:
+    from drivenav.semantics.oracle import OracleReasoner
 
-    return EmbeddedGrounder()
+    return OracleReasoner()
+
+
+def _embedded_grounder(spec: ModelSpec) -> Grounder:
+    from drivenav.semantics.embedded_detector import regime_grounder
+
+    return regime_grounder(spec.detector_regime)
 
 
 def _ground_truth_grounder(spec: ModelSpec) -> Grounder:
@@ -217,12 +229,14 @@ EMBEDDED_REASONER: Backend[Reasoner] = Backend(_embedded_reasoner, reads_labels=
 OPENAI_REASONER: Backend[Reasoner] = Backend(_openai_reasoner, connect=_reach_vlm)
 REPLAY_REASONER: Backend[Reasoner] = Backend(_replay_reasoner, check=_read_recording)
 GEOMETRIC_REASONER: Backend[Reasoner] = Backend(_geometric_reasoner)
+ORACLE_REASONER: Backend[Reasoner] = Backend(_oracle_reasoner, reads_labels=True, reads_geodesic=True)
 
 BUILT_IN_REASONERS = {
     "embedded": "drivenav.semantics.registry:EMBEDDED_REASONER",
     "openai": "drivenav.semantics.registry:OPENAI_REASONER",
     "replay": "drivenav.semantics.registry:REPLAY_REASONER",
     "geometric": "drivenav.semantics.registry:GEOMETRIC_REASONER",
+    "oracle": "drivenav.semantics.registry:ORACLE_REASONER",
 }
 """drivenav's own reasoners (``--reasoner``; also declared in pyproject.toml, group ``drivenav.reasoners``)."""
 
@@ -315,6 +329,12 @@ def _load_scorer_weights(spec: ModelSpec) -> None:
     SCORER_BACKENDS.get(spec.scorer).build(spec)
 
 
+def _oracle_scorer(spec: ModelSpec) -> ImageTextScorer:
+    from drivenav.semantics.oracle import OracleScorer
+
+    return OracleScorer()
+
+
 def _replay_scorer(spec: ModelSpec) -> ImageTextScorer:
     from drivenav.semantics.replay import ReplayScorer
 
@@ -325,12 +345,14 @@ EMBEDDED_SCORER: Backend[ImageTextScorer] = Backend(_embedded_scorer, reads_labe
 BLIP2_ITM_SCORER: Backend[ImageTextScorer] = Backend(_blip2_scorer, connect=_load_scorer_weights)
 SIGLIP_SCORER: Backend[ImageTextScorer] = Backend(_siglip_scorer, connect=_load_scorer_weights)
 REPLAY_SCORER: Backend[ImageTextScorer] = Backend(_replay_scorer, check=_read_recording)
+ORACLE_SCORER: Backend[ImageTextScorer] = Backend(_oracle_scorer, reads_geodesic=True)
 
 BUILT_IN_SCORERS = {
     "embedded": "drivenav.semantics.registry:EMBEDDED_SCORER",
     "blip2-itm": "drivenav.semantics.registry:BLIP2_ITM_SCORER",
     "siglip": "drivenav.semantics.registry:SIGLIP_SCORER",
     "replay": "drivenav.semantics.registry:REPLAY_SCORER",
+    "oracle": "drivenav.semantics.registry:ORACLE_SCORER",
 }
 """drivenav's own scorers (``--scorer``; also declared in pyproject.toml, group ``drivenav.scorers``)."""
 
@@ -341,11 +363,13 @@ DEFAULT_SEGMENTER = "filled-box"
 
 
 def model_requirements(spec: ModelSpec) -> frozenset[str]:
-    """The privileged inputs the chosen models need: the embedded stand-ins read ground-truth labels."""
-    from drivenav.types import SEMANTIC
+    """The privileged inputs the chosen reasoner and grounder need: the embedded stand-ins read ground-truth labels,
+    the oracle the geodesic distance too."""
+    from drivenav.types import GEODESIC, SEMANTIC
 
     reads = REASONER_BACKENDS.reads_labels(spec.reasoner) or GROUNDER_BACKENDS.reads_labels(grounder_model(spec))
-    return frozenset({SEMANTIC}) if reads else frozenset()
+    geodesic = REASONER_BACKENDS.reads_geodesic(spec.reasoner)
+    return frozenset({SEMANTIC} if reads else ()) | frozenset({GEODESIC} if geodesic else ())
 
 
 def grounder_model(spec: ModelSpec) -> str:
@@ -354,10 +378,14 @@ def grounder_model(spec: ModelSpec) -> str:
     return spec.detector_served if spec.detector == "remote" else spec.detector
 
 
-def scorer_reads_labels(spec: ModelSpec) -> bool:
-    """Whether the chosen scorer reads ground-truth labels (the embedded stand-in): an agent that scores frames
-    then needs ``semantic``. Kept apart from :func:`model_requirements`, since only the VLFM method scores."""
-    return SCORER_BACKENDS.reads_labels(spec.scorer)
+def scorer_requirements(spec: ModelSpec) -> frozenset[str]:
+    """The privileged inputs the chosen scorer needs (the embedded stand-in ``semantic``, the oracle ``geodesic``),
+    which an agent that scores frames then asks for. Kept apart from :func:`model_requirements`, since only some
+    methods score."""
+    from drivenav.types import GEODESIC, SEMANTIC
+
+    labels = frozenset({SEMANTIC} if SCORER_BACKENDS.reads_labels(spec.scorer) else ())
+    return labels | frozenset({GEODESIC} if SCORER_BACKENDS.reads_geodesic(spec.scorer) else ())
 
 
 def make_reasoner(spec: ModelSpec) -> Reasoner:
@@ -419,6 +447,14 @@ def _check_segmenter(spec: ModelSpec) -> None:
         raise InputError("command line", "--segmenter", expected, spec.segmenter)
 
 
+def _check_regime(spec: ModelSpec) -> None:
+    """A detector regime other than the default goes with the embedded detector, whose presets they are."""
+    default = ModelSpec().detector_regime
+    if spec.detector_regime != default and spec.detector != "embedded":
+        expected = f"{default} with --detector {spec.detector} (the regimes are presets of the embedded detector)"
+        raise InputError("command line", "--detector-regime", expected, spec.detector_regime)
+
+
 def check_models(spec: ModelSpec, connect: bool = True) -> None:
     """Fail fast, before any episode: unknown names, a missing replay or checkpoint file, an unwritable record
     file, an unreachable VLM or grounder server, missing weights (cheap checks first, the reasoner's, grounder's,
@@ -432,6 +468,7 @@ def check_models(spec: ModelSpec, connect: bool = True) -> None:
     for backend in backends:
         backend.check(spec)
     _check_segmenter(spec)
+    _check_regime(spec)
     if spec.detector_shadow_url:
         _check_shadow(spec, connect=False)
     if spec.vlm_record:

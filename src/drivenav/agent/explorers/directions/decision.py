@@ -25,7 +25,7 @@ from drivenav.grid import wrap_angle
 from drivenav.inspection import turn_toward
 from drivenav.inspection.views import forward_of
 from drivenav.semantics.protocols import Candidate, Selection
-from drivenav.types import Action, Observation
+from drivenav.types import Action, Observation, Pose
 
 
 def decide(d: Directions, loop: Loop, observation: Observation, ctx: StepContext, reason: str) -> Action:
@@ -143,7 +143,14 @@ def _candidate(d: Directions, ctx: StepContext, direction: Direction) -> Candida
         frontier_cells=len(direction.points),
         view=d.views.get(direction.label),
         current=direction.label == d.selected,
+        frontiers=_frontier_poses(direction, ctx.pose.z),
     )
+
+
+def _frontier_poses(direction: Direction, height: float) -> tuple[Pose, ...]:
+    """A direction's frontier waypoints and farthest point as poses at the robot's height (:class:`Candidate`)."""
+    points = [*((float(x), float(y)) for x, y in direction.waypoints), direction.farthest_point]
+    return tuple(Pose(x, y, 0.0, height) for x, y in points)
 
 
 def _chosen_label(selection: Selection, offered: list[Candidate]) -> int:
