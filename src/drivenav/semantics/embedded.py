@@ -92,6 +92,15 @@ def label_areas(semantic: NDArray[np.int32], labels: Mapping[int, str], min_pixe
     return sorted(visible, key=lambda item: (-item[1], item[0]))
 
 
+def label_under_mask(semantic: NDArray[np.int32], mask: NDArray[np.bool_], labels: Mapping[int, str]) -> str | None:
+    """The label of the majority instance under ``mask`` (None for background, an empty mask or an unlabelled id)."""
+    inside = semantic[mask]
+    if inside.size == 0:
+        return None
+    ids, counts = np.unique(inside, return_counts=True)
+    return labels.get(int(ids[int(np.argmax(counts))]))
+
+
 def normalize_phrase(phrase: str) -> str:
     """Lower case, single spaces: how phrases are compared with the failed ones."""
     return " ".join(phrase.lower().split())
@@ -326,11 +335,7 @@ class EmbeddedReasoner:
     def _judge(self, goal: str, frame: VerificationFrame) -> Judgement:
         if frame.semantic is None:
             return "uncertain"
-        inside = frame.semantic[frame.mask]
-        if inside.size == 0:
-            return "not"
-        ids, counts = np.unique(inside, return_counts=True)
-        label = self._labels.get(int(ids[int(np.argmax(counts))]))
+        label = label_under_mask(frame.semantic, frame.mask, self._labels)
         if label is None:
             return "not"
         related = self.relatedness(label, goal)

@@ -27,10 +27,8 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-import numpy as np
-
 from drivenav.instances import instance_areas
-from drivenav.semantics.embedded import EmbeddedReasoner, goal_phrases, normalize_phrase
+from drivenav.semantics.embedded import EmbeddedReasoner, goal_phrases, label_under_mask, normalize_phrase
 from drivenav.semantics.protocols import (
     EVERYWHERE,
     Candidate,
@@ -94,11 +92,7 @@ class OracleReasoner(EmbeddedReasoner):
     def _judge(self, goal: str, frame: VerificationFrame) -> Judgement:
         if frame.semantic is None:
             return "uncertain"
-        inside = frame.semantic[frame.mask]
-        if inside.size == 0:
-            return "not"
-        ids, counts = np.unique(inside, return_counts=True)
-        label = self._labels.get(int(ids[int(np.argmax(counts))]))
+        label = label_under_mask(frame.semantic, frame.mask, self._labels)
         same = label is not None and category_key(label, self._truth) == category_key(goal, self._truth)
         return "sure" if same else "not"
 
