@@ -13,7 +13,16 @@ import pytest
 from tests.test_embedded_reasoner import LABELS, SOFA, TOILET, Box, frame, view
 
 from drivenav.analysis.ablation_data import MethodEntry
-from drivenav.analysis.regimes import REGIMES, Cell, RegimeReport, orderings, parse_regimes, regime_args
+from drivenav.analysis.regimes import (
+    REGIMES,
+    Cell,
+    RegimeReport,
+    decomposition,
+    format_regimes,
+    orderings,
+    parse_regimes,
+    regime_args,
+)
 from drivenav.cli import main
 from drivenav.envs.vocabulary import VOCABULARY
 from drivenav.errors import InputError
@@ -210,6 +219,16 @@ def test_orderings_that_hold_and_those_that_flip() -> None:
     held, flipped = orderings(report)
     assert flipped == ["`a` above `b` in `paper`; below in `oracle-reasoner`"]
     assert held == ["`a` above `c` in every regime", "`b` above `c` in every regime"]
+
+
+def test_the_failures_are_taken_apart_into_exploration_reasoning_and_perception() -> None:
+    rates = {"exploration-bound": 0.8, "exact-detector": 0.7, "paper": 0.75}
+    cells = {r: {"a": Cell(_entry(sr), None)} for r, sr in rates.items()}
+    report = RegimeReport("abc", 10, "test", {r: REGIMES[r] for r in cells}, cells)
+    assert decomposition(report, "a") == pytest.approx((20.0, 10.0, -5.0))
+    assert "| `a` | 20.0 | +10.0 | -5.0 | 75.0 |" in format_regimes(report)
+    del cells["paper"]
+    assert decomposition(report, "a") is None
 
 
 def test_bench_ablations_runs_the_regimes_into_one_table_and_resumes(tmp_path: Path) -> None:

@@ -180,6 +180,7 @@ def format_regimes(report: RegimeReport) -> str:
         "",
         *_pivot(report, "SPL %", lambda e: e.spl),
         "",
+        *_decomposition(report),
         *_orderings(report),
     ]
     return "\n".join(lines) + "\n"
@@ -224,6 +225,42 @@ def _pivot(report: RegimeReport, title: str, value: _Metric) -> list[str]:
         shown = [_shown(value(report.cells[r][method].entry)) if method in report.cells[r] else "-" for r in regimes]
         lines.append(f"| `{method}` | " + " | ".join(shown) + " |")
     return lines
+
+
+DECOMPOSITION = ("exploration-bound", "exact-detector", "paper")
+"""The regimes whose SRs take a method's failures apart: the bound, the embedded reasoner, the embedded detector."""
+
+
+def decomposition(report: RegimeReport, method: str) -> tuple[float, float, float] | None:
+    """What ``method`` loses to exploration (100 % less its SR in ``exploration-bound``), to reasoning (that SR less
+    its SR with the embedded reasoner, ``exact-detector``) and to perception (that less ``paper``'s), in SR points;
+    None unless it ran in all three with measured episodes."""
+    rates = [report.cells.get(r, {}).get(method) for r in DECOMPOSITION]
+    values = [cell.entry.success_rate for cell in rates if cell is not None]
+    if len(values) != len(DECOMPOSITION) or any(v is None for v in values):
+        return None
+    bound, reasoned, perceived = (100.0 * float(v or 0.0) for v in values)
+    return 100.0 - bound, bound - reasoned, reasoned - perceived
+
+
+def _decomposition(report: RegimeReport) -> list[str]:
+    rows = [(m, parts) for m in report.methods() if (parts := decomposition(report, m)) is not None]
+    if not rows:
+        return []
+    lines = [
+        "## Where each method's failures come from (SR points)",
+        "",
+        "To exploration: 100 less the SR of `exploration-bound` (oracle reasoner, exact detector); to reasoning: that "
+        "SR less `exact-detector`'s (the embedded reasoner); to perception: that less `paper`'s (the embedded "
+        "detector). A negative share is a gain (the embedded model beat the oracle's choice on these episodes).",
+        "",
+        "| method | to exploration | to reasoning | to perception | SR in `paper` |",
+        "|---|---|---|---|---|",
+    ]
+    for method, (exploration, reasoning, perception) in rows:
+        paper = 100.0 - exploration - reasoning - perception
+        lines.append(f"| `{method}` | {exploration:.1f} | {reasoning:+.1f} | {perception:+.1f} | {paper:.1f} |")
+    return [*lines, ""]
 
 
 def _shown(value: float | None) -> str:
