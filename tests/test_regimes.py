@@ -245,7 +245,7 @@ def test_bench_ablations_runs_the_regimes_into_one_table_and_resumes(tmp_path: P
     settings = json.loads((run / "run.json").read_text())
     assert "exact" in json.dumps(settings)
     table = (tmp_path / "regimes.md").read_text()
-    assert "| `nearest-frontier` | `exploration-bound` | 1 |" in table
+    assert "| `nearest-frontier` | `exploration-bound` | 1 | " in table
     before = (run / "episodes.jsonl").read_text()
     assert main(argv) == 0  # resumed: nothing run again
     assert (run / "episodes.jsonl").read_text() == before

@@ -195,9 +195,9 @@ def _table(report: RegimeReport) -> list[str]:
     lines = [
         "## Every cell",
         "",
-        "| method | regime | episodes | SR % [95 % CI] | SPL % [95 % CI] | errors "
+        "| method | regime | episodes | SR % [95 % CI] | SPL % [95 % CI] | steps | revisits | errors "
         f"| vs `{REFERENCE}` W / L | {causes} |",
-        "|---|---|---|---|---|---|---|" + "---|" * len(FAILURE_CAUSES),
+        "|---|---|---|---|---|---|---|---|---|" + "---|" * len(FAILURE_CAUSES),
     ]
     for method in report.methods():
         for regime, by in report.cells.items():
@@ -208,7 +208,8 @@ def _table(report: RegimeReport) -> list[str]:
             failures = " | ".join(str(e.failure_causes.get(cause, 0)) for cause in FAILURE_CAUSES)
             lines.append(
                 f"| `{method}` | `{regime}` | {e.episodes} | {percent(e.success_rate, e.sr_ci95)} | "
-                f"{percent(e.spl, e.spl_ci95)} | {e.errors} | {versus(method, REFERENCE, cell.paired)} | {failures} |"
+                f"{percent(e.spl, e.spl_ci95)} | {_number(e.avg_steps, 1)} | {_number(e.avg_revisits, 3)} | "
+                f"{e.errors} | {versus(method, REFERENCE, cell.paired)} | {failures} |"
             )
     return lines
 
@@ -261,6 +262,10 @@ def _decomposition(report: RegimeReport) -> list[str]:
         paper = 100.0 - exploration - reasoning - perception
         lines.append(f"| `{method}` | {exploration:.1f} | {reasoning:+.1f} | {perception:+.1f} | {paper:.1f} |")
     return [*lines, ""]
+
+
+def _number(value: float | None, digits: int) -> str:
+    return "n/a" if value is None else f"{value:.{digits}f}"
 
 
 def _shown(value: float | None) -> str:
