@@ -49,13 +49,15 @@ class Backend(Generic[Model]):
     world's ground-truth instance labels (the embedded stand-ins), so agents using it need ``semantic``.
     ``observes``: the images of an observation it reads (what a served grounder's clients send it).
     ``reads_geodesic``: it reads the episode's geodesic distance to the goals (the oracle), so agents using it need
-    ``geodesic``. ``check`` runs cheap local checks before any episode (a file to read); ``connect`` the costly ones
+    ``geodesic``. ``takes_regime``: a grounder with presets that ``models.detector_regime`` chooses (the embedded
+    detector). ``check`` runs cheap local checks before any episode (a file to read); ``connect`` the costly ones
     (a server to reach, weights to load), which run after every cheap check so that a typo fails at once.
     """
 
     build: Callable[[ModelSpec], Model]
     reads_labels: bool = False
     reads_geodesic: bool = False
+    takes_regime: bool = False
     check: Callable[[ModelSpec], None] = _no_check
     connect: Callable[[ModelSpec], None] = _no_check
     observes: tuple[str, ...] = ("rgb",)
@@ -242,7 +244,9 @@ BUILT_IN_REASONERS = {
 
 REASONER_BACKENDS: ModelRegistry[Reasoner] = ModelRegistry("drivenav.reasoners", BUILT_IN_REASONERS, "--reasoner")
 
-EMBEDDED_GROUNDER: Backend[Grounder] = Backend(_embedded_grounder, reads_labels=True, observes=("depth", "semantic"))
+EMBEDDED_GROUNDER: Backend[Grounder] = Backend(
+    _embedded_grounder, reads_labels=True, takes_regime=True, observes=("depth", "semantic")
+)
 GROUND_TRUTH_GROUNDER: Backend[Grounder] = Backend(_ground_truth_grounder, reads_labels=True, observes=("semantic",))
 SAM3_GROUNDER: Backend[Grounder] = Backend(_sam3_grounder, connect=_load_weights)
 OWLV2_GROUNDER: Backend[Grounder] = Backend(_owlv2_grounder, connect=_load_weights)
@@ -450,7 +454,7 @@ def _check_segmenter(spec: ModelSpec) -> None:
 def _check_regime(spec: ModelSpec) -> None:
     """A detector regime other than the default goes with the embedded detector, whose presets they are."""
     default = ModelSpec().detector_regime
-    if spec.detector_regime != default and spec.detector != "embedded":
+    if spec.detector_regime != default and not GROUNDER_BACKENDS.get(spec.detector).takes_regime:
         expected = f"{default} with --detector {spec.detector} (the regimes are presets of the embedded detector)"
         raise InputError("command line", "--detector-regime", expected, spec.detector_regime)
 
