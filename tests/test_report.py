@@ -144,6 +144,12 @@ def test_a_single_run_has_no_paper_tables_and_no_differences(ablations: Path, tm
 def test_run_names_tell_folders_of_one_name_apart() -> None:
     paths = [Path("a/run"), Path("b/run"), Path("c/x"), Path("c/x")]
     assert run_names(paths) == ["a-run", "b-run", "c-x", "c-x-2"]
+    grid = [Path("out/regimes/paper/runs/drive-nav"), Path("out/regimes/weak-detector/runs/drive-nav")]
+    assert run_names([*grid, Path("out/regimes/paper/runs/vlfm")]) == [
+        "paper-drive-nav",
+        "weak-detector-drive-nav",
+        "vlfm",
+    ]
 
 
 def test_config_differences_name_the_settings_that_are_not_the_same_in_every_run(ablations: Path) -> None:

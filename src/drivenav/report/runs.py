@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from drivenav.analysis.ablation_data import MethodEntry
-from drivenav.analysis.ablations import method_entry
+from drivenav.analysis.ablations import RUNS_DIR, method_entry
 from drivenav.benchmarks.ovon_episodes import episode_splits
 from drivenav.episode import Episode
 from drivenav.eval.records import EpisodeRecord
@@ -63,15 +63,24 @@ def flatten(tree: JsonObject, prefix: str = "") -> JsonObject:
 
 
 def run_names(paths: Sequence[Path]) -> list[str]:
-    """A distinct name per run folder: its name, else ``parent/name``, else with ``-2``, ``-3``... appended."""
+    """A distinct name per run folder: its name, else ``parent-name``, else with ``-2``, ``-3``... appended; the
+    parent of a ``bench ablations`` run is the folder above its ``runs/`` (``DIR/regimes/paper/runs/drive-nav``:
+    ``paper-drive-nav``)."""
     names = [path.name or "run" for path in paths]
-    names = [f"{p.parent.name}-{n}" if names.count(n) > 1 else n for p, n in zip(paths, names, strict=True)]
+    names = [f"{_parent(p)}-{n}" if names.count(n) > 1 else n for p, n in zip(paths, names, strict=True)]
     seen: dict[str, int] = {}
     distinct = []
     for name in names:
         seen[name] = seen.get(name, 0) + 1
         distinct.append(name if seen[name] == 1 else f"{name}-{seen[name]}")
     return distinct
+
+
+def _parent(path: Path) -> str:
+    """The name of the folder that tells runs of one name apart (above ``runs/``, where ``bench ablations`` keeps
+    them)."""
+    parent = path.parent
+    return parent.parent.name if parent.name == RUNS_DIR and parent.parent.name else parent.name
 
 
 def load_run(path: Path, name: str) -> Run:
