@@ -6,8 +6,11 @@ from __future__ import annotations
 import numpy as np
 
 from drivenav.envs.embedded.building import Building, Flight, Staircase, Storey
+from drivenav.envs.embedded.goals import scene_goals
 from drivenav.envs.embedded.scene import Material, ObjectInstance, Room, Scene
+from drivenav.episode import Episode, world_to_habitat, yaw_to_quaternion
 from drivenav.grid import GridSpec
+from drivenav.types import SimConfig
 
 RES = 0.05
 LENGTH, WIDTH = 8.0, 5.0
@@ -33,3 +36,20 @@ def two_floors() -> Building:
     bed = ObjectInstance(2, "bed", (7.2, 0.9), (1.0, 1.2, 0.6))
     storeys = (Storey(floor("test/two", [chair]), 0.0), Storey(floor("test/two", [bed]), STOREY))
     return Building("test/two", storeys, (Staircase(0, (FLIGHT,)),), source="test")
+
+
+def building_episode(
+    building: Building, start: tuple[float, float, float], category: str, episode_id: str = "0"
+) -> Episode:
+    """An episode in ``building`` from world point ``start`` (x, y, height), facing +x, to the objects of
+    ``category`` (their view points for Habitat's default sensor)."""
+    goals = scene_goals(building, SimConfig())
+    return Episode(
+        episode_id=episode_id,
+        scene_id=building.scene_id,
+        start_position=world_to_habitat(*start),
+        start_rotation=yaw_to_quaternion(0.0),
+        object_category=category,
+        goals=tuple(goals.goals[category]),
+        info={"canonical_category": category},
+    )

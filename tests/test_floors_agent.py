@@ -8,15 +8,14 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from tests.floor_scenes import RES, STOREY, two_floors
+from tests.floor_scenes import RES, STOREY, building_episode, two_floors
 
 from drivenav.agent.body import ExplorerAgent
 from drivenav.agents import make_agent
 from drivenav.envs.embedded.building import Building, Storey
 from drivenav.envs.embedded.env import EmbeddedEnv
-from drivenav.envs.embedded.goals import scene_goals
 from drivenav.envs.embedded.scene import Material, ObjectInstance
-from drivenav.episode import Episode, world_to_habitat, yaw_to_quaternion
+from drivenav.episode import Episode
 from drivenav.semantics.protocols import FloorJudgement
 from drivenav.settings import load_settings
 from drivenav.types import Action, Pose, SimConfig
@@ -41,16 +40,7 @@ def walled() -> Building:
 
 
 def episode(building: Building, start: tuple[float, float, float], category: str) -> Episode:
-    goals = scene_goals(building, SIM)
-    return Episode(
-        episode_id=category,
-        scene_id=building.scene_id,
-        start_position=world_to_habitat(*start),
-        start_rotation=yaw_to_quaternion(0.0),
-        object_category=category,
-        goals=tuple(goals.goals[category]),
-        info={"canonical_category": category},
-    )
+    return building_episode(building, start, category, episode_id=category)
 
 
 def wall_cells_in_map(agent: ExplorerAgent, floor: int, wall: Rect, start: Pose) -> int:

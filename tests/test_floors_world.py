@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from tests.floor_scenes import FLIGHT, STOREY, two_floors
+from tests.floor_scenes import FLIGHT, STOREY, building_episode, two_floors
 
 from drivenav.agent.oracle import OracleAgent
 from drivenav.envs.embedded.building import Building, Storey
@@ -16,7 +16,6 @@ from drivenav.envs.embedded.geodesic import GeodesicField, largest_component
 from drivenav.envs.embedded.goals import scene_goals
 from drivenav.envs.embedded.levels import MAX_STEP, LevelField, Levels
 from drivenav.envs.embedded.terrain import terrain_of
-from drivenav.episode import Episode, world_to_habitat, yaw_to_quaternion
 from drivenav.types import GEODESIC, Action, Pose, SimConfig
 
 SIM = SimConfig()
@@ -114,19 +113,6 @@ def test_a_goal_upstairs_is_far_from_the_point_below_it(levels: Levels) -> None:
     assert below > 9.0
 
 
-def _episode(building: Building, start: tuple[float, float, float], category: str) -> Episode:
-    goals = scene_goals(building, SIM)
-    return Episode(
-        episode_id="0",
-        scene_id=building.scene_id,
-        start_position=world_to_habitat(*start),
-        start_rotation=yaw_to_quaternion(0.0),
-        object_category=category,
-        goals=tuple(goals.goals[category]),
-        info={"canonical_category": category},
-    )
-
-
 def test_view_points_lie_on_their_objects_floor() -> None:
     building = two_floors()
     goals = scene_goals(building, SIM)
@@ -138,7 +124,7 @@ def test_view_points_lie_on_their_objects_floor() -> None:
 def test_the_env_reports_heights_and_the_oracle_climbs_to_a_goal_upstairs() -> None:
     building = two_floors()
     env = EmbeddedEnv(lambda _: building, SIM)
-    episode = _episode(building, (1.0, 4.0, 0.0), "bed")
+    episode = building_episode(building, (1.0, 4.0, 0.0), "bed")
     observation = env.reset(episode)
     assert env.world_pose().z == 0.0 and observation.pose.z == 0.0
     oracle = OracleAgent(SIM)
@@ -158,10 +144,10 @@ def test_the_env_reports_heights_and_the_oracle_climbs_to_a_goal_upstairs() -> N
 def test_a_start_upstairs_is_placed_on_the_upper_floor() -> None:
     building = two_floors()
     env = EmbeddedEnv(lambda _: building, SIM)
-    env.reset(_episode(building, (7.0, 4.0, STOREY), "chair"))
+    env.reset(building_episode(building, (7.0, 4.0, STOREY), "chair"))
     assert env.world_pose() == Pose(7.0, 4.0, 0.0, STOREY)
     with pytest.raises(ValueError, match="not navigable"):
-        env.reset(_episode(building, (4.0, 2.5, STOREY), "chair"))  # over the stairwell
+        env.reset(building_episode(building, (4.0, 2.5, STOREY), "chair"))  # over the stairwell
 
 
 def test_the_terrain_of_a_floor_plan_is_the_one_floor_world() -> None:
