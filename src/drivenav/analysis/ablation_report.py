@@ -64,9 +64,15 @@ def write_csv(report: AblationReport, path: Path) -> None:
         {"method": name, **flatten(entry.to_json()), **floor_columns(report.floors, name)}
         for name, entry in report.methods.items()
     ]
+    write_rows(rows, path, missing=0)
+
+
+def write_rows(rows: Sequence[JsonObject], path: Path, missing: object) -> None:
+    """``rows`` as a CSV file: every key of any row a column, in order of first use; ``missing`` where a row lacks
+    one."""
     fields = list(dict.fromkeys(key for row in rows for key in row))
     with path.open("w", newline="", encoding="utf-8") as handle:
-        writer = csv.DictWriter(handle, fieldnames=fields, restval=0)
+        writer = csv.DictWriter(handle, fieldnames=fields, restval=missing)
         writer.writeheader()
         writer.writerows(rows)
 

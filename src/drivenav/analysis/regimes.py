@@ -13,7 +13,6 @@ method's result is the detector's model.
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass
@@ -21,7 +20,7 @@ from itertools import combinations
 from pathlib import Path
 
 from drivenav.analysis.ablation_data import MethodEntry, Paired
-from drivenav.analysis.ablation_report import flatten, percent, versus
+from drivenav.analysis.ablation_report import flatten, percent, versus, write_rows
 from drivenav.analysis.ablations import FAILURE_CAUSES, method_entry, paired_outcomes, run_methods
 from drivenav.analysis.compare import load_runs
 from drivenav.episode import Episode
@@ -152,11 +151,7 @@ def write_regime_report(report: RegimeReport, out: Path) -> None:
         for regime, by in report.cells.items()
         for method, cell in by.items()
     ]
-    fields = list(dict.fromkeys(key for row in rows for key in row))
-    with (out / "regimes.csv").open("w", newline="", encoding="utf-8") as handle:
-        writer = csv.DictWriter(handle, fieldnames=fields, restval="")
-        writer.writeheader()
-        writer.writerows(rows)
+    write_rows(rows, out / "regimes.csv", missing="")
 
 
 def format_regimes(report: RegimeReport) -> str:
