@@ -21,6 +21,7 @@ from drivenav.methods import ALL_METHODS, BEYOND_PAPER, FLOORS_OFF, METHOD_NAMES
 from drivenav.settings import (
     Settings,
     agent_names,
+    explorer_section,
     first_difference,
     load_settings,
     preset_names,
@@ -151,12 +152,14 @@ BEYOND.update({f"{name}-floors-off": {**{**EXPECTED, **BEYOND}[name], **FLOORS_O
 
 
 def _switches(settings: Settings) -> dict[str, object]:
+    """The switches a method may set; the directions explorer's are its defaults where another explorer runs."""
     p = settings.paper
+    directions = explorer_section(settings, "directions")
     return {
         **{k: v for k, v in settings_to_dict(settings)["agent"].items()},
         "explorer": settings.explorer.name,
-        "decision_scan": settings.explorer.directions.decision_scan,  # type: ignore[attr-defined]
-        **{rule: getattr(settings.explorer.directions, rule) for rule in PLUS_RULES},  # type: ignore[attr-defined]
+        "decision_scan": directions.decision_scan,  # type: ignore[attr-defined]
+        **{rule: getattr(directions, rule) for rule in PLUS_RULES},
         "cluster_span_deg": p.directions.cluster_span_deg,
         "weighted": p.speed.weighted,
         "restrict_forward": p.inspection.restrict_forward,

@@ -3,7 +3,9 @@ hand-edited value is one :class:`InputError` naming ``config.KEY``.
 
 ``tests/data/run.json`` is the ``run.json`` of a ``bench ablations`` run (drive-nav, seed 3, geometric reasoner), in
 today's tree (rewritten when the body's ``agent.fusion`` and ``agent.stop_in_view``, ApexNav's section, the body's
-``agent.floors`` and ``models.detector_regime`` came); ``tests/data/run-before-explorers.json`` is the same run's as
+``agent.floors`` and ``models.detector_regime`` came, and when ``explorer`` came to hold the chosen explorer's section
+only; ``tests/data/run-all-explorers.json`` is the same run's from before, with every installed explorer's section,
+a plug-in's ``pocket`` among them); ``tests/data/run-before-explorers.json`` is the same run's as
 written before explorers had settings sections of their own (and before ``RunInfo.config`` was typed).
 """
 

@@ -12,11 +12,12 @@ from typing import Any
 
 import pytest
 
+from drivenav.agent.explorers import EXPLORERS
 from drivenav.cli import main
 from drivenav.errors import InputError
 from drivenav.mapping.value_map import ValueMapConfig
 from drivenav.ranges import MAX_FRAME_SIDE, Range, SettingError
-from drivenav.settings import Settings, load_settings, settings_from_dict, settings_to_dict
+from drivenav.settings import load_settings, settings_from_dict, settings_to_dict
 from drivenav.types import SimConfig
 
 
@@ -29,7 +30,18 @@ def _numeric_leaves(value: object, prefix: str = "") -> Iterator[tuple[str, floa
             yield f"{prefix}{item.name}", child
 
 
-NUMERIC = dict(_numeric_leaves(Settings()))
+def _chosen(key: str) -> list[str]:
+    """The override that chooses the explorer whose section holds ``key`` (none for the other sections): a section
+    is in the tree only while its explorer is chosen."""
+    section, _, rest = key.partition(".")
+    return [f"explorer.name={rest.partition('.')[0]}"] if section == "explorer" else []
+
+
+NUMERIC = {
+    key: value
+    for name in EXPLORERS.built_ins
+    for key, value in _numeric_leaves(load_settings(overrides=[f"explorer.name={name}"]))
+}
 UNBOUNDED = {"run.seed": "any integer >= 0 seeds numpy's generators"}
 
 
@@ -44,7 +56,7 @@ def test_every_numeric_setting_refuses_nan_and_a_value_past_its_range(key: str) 
     huge = "100000000000000000000000" if isinstance(NUMERIC[key], int) else "1e308"
     for value in ("nan", "-1", huge) if key not in UNBOUNDED else ("nan", "-1"):
         with pytest.raises(InputError) as caught:
-            load_settings(overrides=[f"{key}={value}"])
+            load_settings(overrides=[*_chosen(key), f"{key}={value}"])
         message = str(caught.value)
         assert "\n" not in message and f"field '{key}'" in message, message
 
@@ -53,7 +65,7 @@ def test_every_numeric_setting_refuses_nan_and_a_value_past_its_range(key: str) 
 def test_every_default_lies_within_its_range(key: str) -> None:
     """Setting each default again is accepted: the ranges hold the paper's and the project's values."""
     value = NUMERIC[key]
-    assert load_settings(overrides=[f"{key}={value!r}"]) == Settings()
+    assert load_settings(overrides=[*_chosen(key), f"{key}={value!r}"]) == load_settings(overrides=_chosen(key))
 
 
 @pytest.mark.parametrize(
@@ -78,7 +90,7 @@ def test_config_show_and_a_run_refuse_the_same_values(
     out = tmp_path / "run"
     lines = []
     for args in (
-        ["config", "show", "--set", setting],
+        ["config", "show", "--agent", "vlfm", "--set", setting],
         ["eval", "--agent", "vlfm", "--scenes", "procedural:1", "--episodes", "1", "--set", setting, "--out", str(out)],
     ):
         assert main(args) == 2
@@ -93,7 +105,11 @@ def test_config_show_and_a_run_refuse_the_same_values(
 @pytest.mark.parametrize(
     ("overrides", "key", "words"),
     [
-        (["explorer.vlfm.frontier_radius=6"], "explorer.vlfm.frontier_radius", "at most sim.max_depth (5 m)"),
+        (
+            ["explorer.name=vlfm", "explorer.vlfm.frontier_radius=6"],
+            "explorer.vlfm.frontier_radius",
+            "at most sim.max_depth (5 m)",
+        ),
         (["sim.max_depth=150"], "sim.max_depth", "at most half of mapping.max_size (100 m)"),
         (["sim.grid_resolution=0.001"], "mapping.max_size", "at most 16384 cells of sim.grid_resolution"),
         (["mapping.initial_size=300"], "mapping.max_size", "at least initial_size"),
@@ -116,7 +132,7 @@ def test_a_config_built_in_python_is_checked_as_the_command_line_checks_it() -> 
 
 
 def test_a_run_json_with_a_value_out_of_range_is_refused_on_resume() -> None:
-    tree: dict[str, Any] = settings_to_dict(Settings())
+    tree: dict[str, Any] = settings_to_dict(load_settings("vlfm"))
     tree["explorer"]["vlfm"]["decision_threshold"] = 2.0
     with pytest.raises(InputError, match=r"'explorer\.vlfm\.decision_threshold'"):
         settings_from_dict(tree)

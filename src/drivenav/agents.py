@@ -8,14 +8,15 @@ section, the mapper tuning).
 from __future__ import annotations
 
 import importlib
+import logging
 from collections.abc import Callable
-from functools import partial
+from functools import cache, partial
 
 from drivenav.agent.base import Agent
 from drivenav.agent.body import ExplorerAgent, explorer_class
-from drivenav.agent.explorers import explorer_entry
+from drivenav.agent.explorers import EXPLORERS, explorer_entry
 from drivenav.errors import InputError
-from drivenav.methods import REFERENCE_AGENTS, agent_names, method_named
+from drivenav.methods import METHOD_NAMES, REFERENCE_AGENTS, agent_names, method_named
 from drivenav.semantics.registry import (
     make_grounder,
     make_reasoner,
@@ -26,12 +27,15 @@ from drivenav.semantics.registry import (
 from drivenav.settings import Settings, explorer_section
 from drivenav.types import SimConfig
 
+log = logging.getLogger(__name__)
+
 
 def make_agent(settings: Settings) -> Agent:
     """A fresh agent ``settings.run.agent``: the body with the explorer ``settings.explorer.name`` and its section,
     the paper's constants, the body's switches, the mapper tuning and the models of ``settings`` (an explorer that
     scores frames also the image-text scorer). An unknown name is an :class:`InputError` on ``--agent``."""
     name = settings.run.agent
+    warn_shadowed_explorers()
     if name in REFERENCE_AGENTS:
         return reference_agent(name)(settings.sim)
     if method_named(name) is None:
@@ -62,3 +66,19 @@ def reference_agent(name: str) -> Callable[[SimConfig], Agent]:
     module, _, cls = REFERENCE_AGENTS[name].partition(":")
     factory: Callable[[SimConfig], Agent] = getattr(importlib.import_module(module), cls)
     return factory
+
+
+@cache
+def warn_shadowed_explorers() -> None:
+    """One warning line (once per process) for each plug-in explorer whose name is a reference agent's or a
+    method's: ``--agent NAME`` runs drivenav's, as a plug-in that takes a built-in name is ignored
+    (:attr:`~drivenav.plugins.Registry.declared`); the plug-in runs with ``--set explorer.name=NAME``."""
+    for name in sorted({*REFERENCE_AGENTS, *METHOD_NAMES}):
+        if EXPLORERS.is_plugin(name):
+            log.warning(
+                "drivenav: explorer plug-in %s: --agent %s is drivenav's own agent, not this explorer "
+                "(it runs with --set explorer.name=%s)",
+                EXPLORERS.declared[name].entry_point,
+                name,
+                name,
+            )

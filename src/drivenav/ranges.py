@@ -1,8 +1,11 @@
 """The accepted range of every numeric setting, declared by the dataclass that holds it.
 
-Each settings dataclass checks its own numbers in ``__post_init__`` (:func:`check_ranges` with a :class:`Range` per
-field), so that every way a configuration is made -- ``drivenav config show``, a run, ``run.json`` read back, a
-caller building a config in Python -- refuses the same values with the same words: one :class:`SettingError` naming
+An explorer's section (drivenav's own and a plug-in's) declares its fields' ranges in its class, a table
+``RANGES: ClassVar[Mapping[str, Range]] = {"min_goal_distance": LENGTH}``, and the settings loader checks the
+chosen section when it is made (:func:`check_declared`): a number without a declared range must at least be finite.
+The other sections check their own numbers in ``__post_init__`` (:func:`check_ranges` with a :class:`Range` per
+field). Either way, every way a configuration is made -- ``drivenav config show``, a run, ``run.json`` read back,
+a caller building a config in Python -- refuses the same values with the same words: one :class:`SettingError` naming
 the field and the range, which :mod:`drivenav.settings` turns into a one-line input error on the dotted key.
 
 The bounds follow from what a setting measures, not from tuning: a confidence lies in [0, 1]; an angle within a
@@ -14,6 +17,7 @@ machine cannot hold) or a run that does not end.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -91,6 +95,8 @@ COUNT = Range(1, MAX_STEPS, integer=True)
 """A number of steps, turns, frames or images, at least one."""
 HALF_TURN = Range(0.0, 180.0)
 """Degrees, at most half a circle."""
+FINITE = Range()
+"""Any finite number: what a numeric field of an explorer's section without a declared range accepts."""
 
 
 class SettingError(ValueError):
@@ -122,3 +128,17 @@ def check_rule(config: object, name: str, holds: bool, expected: str) -> None:
         for part in name.split("."):
             value = getattr(value, part)
         raise SettingError(type(config), name, expected, value)
+
+
+def check_declared(config: object) -> None:
+    """Raise :class:`SettingError` for the first field of the dataclass ``config`` (and of the dataclasses in it)
+    outside the range its class's ``RANGES`` table declares (field name -> :class:`Range`), or, without one, a float
+    that is not finite. A table naming no field of the class is an ``AttributeError``."""
+    declared: Mapping[str, Range] = getattr(type(config), "RANGES", {})
+    check_ranges(config, declared)
+    for item in dataclasses.fields(config):  # type: ignore[arg-type]
+        value = getattr(config, item.name)
+        if dataclasses.is_dataclass(value) and not isinstance(value, type):
+            check_declared(value)
+        elif item.name not in declared and isinstance(value, float) and not FINITE.holds(value):
+            raise SettingError(type(config), item.name, FINITE.text, value)

@@ -14,10 +14,16 @@ them in radians through properties). The step budget is ``sim.max_steps`` (one v
 height, agent radius and grid resolution follow from ``sim`` (:meth:`~drivenav.mapping.config.MappingConfig.from_sim`),
 so the mapper always matches the sensor.
 
-``explorer`` holds ``explorer.name`` (the exploration method, :mod:`drivenav.agent.explorers`) and one section per
-registered explorer (``explorer.directions``, ``explorer.greedy``, ``explorer.vlfm``, ``explorer.apexnav`` and any
-plug-in's), each its entry's config class with the source's constants as defaults. The tree's type is made once per
-process from the registered explorers (:func:`explorer_settings_type`).
+``explorer`` holds ``explorer.name`` (the exploration method, :mod:`drivenav.agent.explorers`) and the section of
+the chosen explorer only (``explorer.directions`` for ``drive-nav``; ``explorer.<key>``, its key from its name by
+:func:`~drivenav.agent.explorers.settings_key`), plus the section of any other explorer whose keys the ``--agent``
+method's overrides set: its entry's config class with the source's constants as defaults, its declared ranges
+checked (:func:`~drivenav.ranges.check_declared`). The section's type is made when an explorer is chosen
+(:func:`explorer_settings_type`), so an installed plug-in is imported and configured only when it is chosen, and
+anything its code raises then is its one line (:meth:`~drivenav.plugins.Registry.broken`). The explorer is found
+before the layers are merged (the last layer that sets ``explorer.name``); a layer setting a key of another
+explorer's section is refused in one line. A tree read back (``run.json``, :func:`settings_from_dict`) drops the
+sections of other explorers: a run made when every installed explorer had a section reads as one made now.
 """
 
 from __future__ import annotations
@@ -28,20 +34,21 @@ from dataclasses import dataclass, field
 from functools import cache
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import yaml
 from omegaconf import DictConfig, ListConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from drivenav.agent.config import AgentConfig
-from drivenav.agent.explorers import DEFAULT_EXPLORER, EXPLORERS, explorer_entry
-from drivenav.errors import InputError
+from drivenav.agent.explorers import DEFAULT_EXPLORER, EXPLORERS, explorer_entry, explorer_key, section_keys
+from drivenav.errors import InputError, one_line
 from drivenav.jsonstream import JsonObject
 from drivenav.mapping.config import MapTuning
 from drivenav.methods import PRESETS, agent_names, method_named, preset_names
 from drivenav.paper import DriveNavConfig
-from drivenav.ranges import MAX_GRID_SIDE, Range, SettingError, check_ranges, check_rule
+from drivenav.plugins import Declared
+from drivenav.ranges import MAX_GRID_SIDE, Range, SettingError, check_declared, check_ranges, check_rule
 from drivenav.semantics.model_spec import DETECTOR_REGIMES, DTYPES, ModelSpec
 from drivenav.semantics.registry import GROUNDER_BACKENDS, REASONER_BACKENDS, SCORER_BACKENDS, SEGMENTER_BACKENDS
 from drivenav.types import SimConfig
@@ -71,33 +78,74 @@ class RunSettings:
 @dataclass(frozen=True)
 class ExplorerSettings:
     """The exploration method an agent runs (``explorer.name``) and, in the type :func:`explorer_settings_type`
-    makes, one section per registered explorer."""
+    makes for it, the sections of :attr:`explorers` (the chosen one first)."""
 
+    explorers: ClassVar[tuple[str, ...]] = ()
     name: str = DEFAULT_EXPLORER
 
-    def __reduce__(self) -> tuple[Any, tuple[str, dict[str, object]]]:
+    def __reduce__(self) -> tuple[Any, tuple[tuple[str, ...], str, dict[str, object]]]:
         """Rebuilt in another process (worker processes, Ray), where the type is made anew."""
         sections = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "name"}
-        return _explorer_settings, (self.name, sections)
+        return _explorer_settings, (self.explorers, self.name, sections)
 
 
 @cache
-def explorer_settings_type() -> type[ExplorerSettings]:
-    """:class:`ExplorerSettings` with a section per registered explorer (made once per process): each its entry's
-    config class with its defaults. A plug-in explorer whose entry cannot be loaded gets no section (nothing is said
-    until it is chosen: then it is one :class:`~drivenav.errors.InputError` line)."""
-    sections: list[tuple[str, type, Any]] = [
-        (name, entry.config, field(default_factory=entry.config)) for name, entry in EXPLORERS.usable().items()
-    ]
-    made = dataclasses.make_dataclass("ExplorerSettings", sections, bases=(ExplorerSettings,), frozen=True)
+def explorer_settings_type(explorers: tuple[str, ...] = (DEFAULT_EXPLORER,)) -> type[ExplorerSettings]:
+    """:class:`ExplorerSettings` with the section of each of ``explorers`` (made once per process for them): its
+    entry's config class with its defaults, under its key (:func:`~drivenav.agent.explorers.explorer_key`). An
+    explorer that cannot serve as a section is one :class:`~drivenav.errors.InputError` line
+    (:func:`section_class`)."""
+    sections: list[tuple[str, type, Any]] = []
+    for name in explorers:
+        config = section_class(name)
+        sections.append((explorer_key(name), config, field(default_factory=config)))
+    made = dataclasses.make_dataclass(
+        "ExplorerSettings",
+        sections,
+        bases=(ExplorerSettings,),
+        frozen=True,
+        namespace={"explorers": explorers},
+    )
     made.__module__ = __name__
     return made
 
 
-def _explorer_settings(name: str = DEFAULT_EXPLORER, sections: Mapping[str, object] | None = None) -> ExplorerSettings:
-    """The ``explorer`` section of the tree: ``name`` and every registered explorer's section (defaults for those
-    not given)."""
-    return explorer_settings_type()(name=name, **(sections or {}))
+def section_class(name: str) -> type:
+    """The config class of the explorer ``name``, checked to serve as its settings section: a dataclass whose
+    defaults make a section that OmegaConf can hold, within their declared ranges. A plug-in that cannot is one
+    :class:`~drivenav.errors.InputError` line naming it and its entry point; whatever its code raises here
+    (``SystemExit`` and ``KeyboardInterrupt`` included) is that line, never the command's end."""
+    entry = explorer_entry(name)
+    config = entry.config
+    if not (isinstance(config, type) and dataclasses.is_dataclass(config)):
+        raise EXPLORERS.broken(name, f"a config {config!r} that is not a dataclass")
+    try:
+        defaults = config()
+        OmegaConf.structured(defaults)
+        check_declared(defaults)
+    except BaseException as error:  # the plug-in's own code: configuring it must not end the command
+        raise EXPLORERS.broken(name, f"its config's defaults: {one_line(error)}") from None
+    return config
+
+
+def _explorer_settings(
+    explorers: tuple[str, ...] = (DEFAULT_EXPLORER,),
+    name: str | None = None,
+    sections: Mapping[str, object] | None = None,
+) -> ExplorerSettings:
+    """The ``explorer`` section of the tree: ``name`` (the first of ``explorers`` unless given) and the section of
+    each of ``explorers`` (defaults for those not given)."""
+    return explorer_settings_type(explorers)(name=name or explorers[0], **(sections or {}))
+
+
+def explorers_of(name: str, agent: str) -> tuple[str, ...]:
+    """The explorers whose sections a tree holds: the chosen one (``name``), then each other explorer whose keys the
+    overrides of the method ``agent`` set (none for drivenav's methods today)."""
+    keys = section_keys()
+    method = method_named(agent)
+    named = (override.split("=", 1)[0].split(".") for override in (method.overrides if method else ()))
+    others = (keys[parts[1]] for parts in named if len(parts) > 2 and parts[0] == "explorer" and parts[1] in keys)
+    return tuple(dict.fromkeys((name, *others)))
 
 
 @dataclass(frozen=True)
@@ -157,20 +205,25 @@ class Settings:
         """The rules each explorer's entry states between its section and the rest of the tree (VLFM's frontier
         radius within the sensor's reach), keyed ``explorer.<name>.<key>``."""
         rules = []
-        for name in EXPLORERS.names:
-            section = getattr(self.explorer, name, None)
-            if section is None:
-                continue
-            entry = explorer_entry(name)
-            rules += [(f"explorer.{name}.{key}", holds, why) for key, holds, why in entry.rules(section, self.sim)]
+        for name in self.explorer.explorers:
+            key = explorer_key(name)
+            section = getattr(self.explorer, key)
+            try:  # the plug-in's own code: a rule that raises is its one line
+                rules += [
+                    (f"explorer.{key}.{k}", bool(h), str(w))
+                    for k, h, w in explorer_entry(name).rules(section, self.sim)
+                ]
+            except BaseException as error:
+                raise EXPLORERS.broken(name, f"its rules: {one_line(error)}") from None
         return rules
 
 
 def explorer_section(settings: Settings, name: str) -> object:
-    """The settings section of the explorer ``name`` (its entry's defaults when the tree has none: a plug-in
-    that could not be loaded when the tree's type was made)."""
-    section = getattr(settings.explorer, name, None) if name != "name" else None
-    return section if section is not None else explorer_entry(name).config()
+    """The settings section of the explorer ``name`` (its entry's defaults when the tree holds none: an explorer
+    other than the chosen one)."""
+    if name in settings.explorer.explorers:
+        return getattr(settings.explorer, explorer_key(name))
+    return explorer_entry(name).config()
 
 
 def load_settings(
@@ -182,16 +235,74 @@ def load_settings(
 ) -> Settings:
     """Defaults, then the method preset of ``agent``, then ``configs``, then ``options`` (dotted key -> value, from
     dedicated command-line options), then ``overrides`` (see module docstring)."""
-    tree = _writable(OmegaConf.structured(Settings))
-    if agent is not None:
-        tree = _merge(tree, _method_layer(agent), "--agent")
-    for config in configs:
-        tree = _merge(tree, _config_layer(config), config)
-    for key, value in (options or {}).items():
-        tree = _merge(tree, _option_layer(key, value), "command line")
-    for override in overrides:
-        tree = _merge(tree, _override_layer(override), "--set")
-    return _resolve(tree)
+    layers = [] if agent is None else [(_method_layer(agent), "--agent")]
+    layers += [(_config_layer(config), config) for config in configs]
+    layers += [(_option_layer(key, value), "command line") for key, value in (options or {}).items()]
+    layers += [(_override_layer(override), "--set") for override in overrides]
+    return _settings_of(layers)
+
+
+def _settings_of(layers: Sequence[tuple[DictConfig, str]]) -> Settings:
+    """The defaults with each of ``layers`` (a layer and its source, for the error lines) merged over them in
+    order, the explorer's sections those of the explorer the last layer naming one chooses."""
+    name = _last_given(layers, "explorer", "name", DEFAULT_EXPLORER)
+    explorers = explorers_of(_chosen(name), _last_given(layers, "run", "agent", RunSettings.agent))
+    defaults = _defaults(explorers)
+    tree = defaults
+    for layer, source in layers:
+        _refuse_other_sections(layer, explorers, source)
+        tree = _merge(tree, layer, source, defaults)
+    return _resolve(tree, explorers)
+
+
+def _last_given(layers: Sequence[tuple[DictConfig, str]], section: str, key: str, default: str) -> str:
+    """The value the last of ``layers`` that sets ``section.key`` gives it (``default`` when none does), as text:
+    which explorer and method the tree is made for, before any layer is merged."""
+    found = default
+    for layer, _ in layers:
+        node = layer.get(section) if section in layer else None
+        value = node.get(key) if isinstance(node, DictConfig) and key in node else None
+        if value is not None and not isinstance(value, DictConfig | ListConfig):
+            found = str(value)
+    return found
+
+
+def _chosen(name: str) -> str:
+    """``name`` when it is a declared explorer, else the one line that says which are."""
+    if name not in EXPLORERS.names:
+        expected = f"one of {', '.join(EXPLORERS.names)} (the --set explorer.name=NAME option)"
+        raise InputError("settings", "explorer.name", expected, name)
+    return name
+
+
+def _defaults(explorers: tuple[str, ...]) -> DictConfig:
+    """The defaults' tree with the sections of ``explorers``: what each layer is merged over, and what names the
+    keys and types a layer may give."""
+    return _writable(OmegaConf.structured(_default_settings(explorers)))
+
+
+def _default_settings(explorers: tuple[str, ...]) -> Settings:
+    """The defaults with the sections of ``explorers``."""
+    return Settings(explorer=_explorer_settings(explorers))
+
+
+def _refuse_other_sections(layer: DictConfig, explorers: tuple[str, ...], source: str) -> None:
+    """One :class:`InputError` line for a key of ``layer`` in the section of a declared explorer the tree does not
+    hold (``--set explorer.vlfm.keep_radius=...`` while ``directions`` is chosen): that explorer is not configured,
+    so its keys are not known."""
+    node = layer.get("explorer") if "explorer" in layer else None
+    if not isinstance(node, DictConfig):
+        return
+    held = {explorer_key(name) for name in explorers}
+    keys = section_keys()
+    for key in map(str, node.keys()):
+        if key != "name" and key not in held and key in keys:
+            other = keys[key]
+            expected = (
+                f"a key of explorer.{explorer_key(explorers[0])}, the chosen explorer's section (explorer.{key} is "
+                f"read only when {other} is chosen: --set explorer.name={other})"
+            )
+            raise InputError(source, f"explorer.{key}", expected)
 
 
 def _writable(tree: DictConfig) -> DictConfig:
@@ -205,35 +316,42 @@ def _writable(tree: DictConfig) -> DictConfig:
     return tree
 
 
-def _resolve(tree: DictConfig) -> Settings:
+def _resolve(tree: DictConfig, explorers: tuple[str, ...]) -> Settings:
     """The typed tree, with ``${...}`` interpolations resolved (one that names no key is an :class:`InputError`),
     each section's values checked as it is made (a value outside its range is an :class:`InputError` on its
-    dotted key)."""
+    dotted key; the explorers' sections by their declared ranges, :func:`~drivenav.ranges.check_declared`).
+    Anything else a plug-in explorer's section raises as it is made (its ``__post_init__``) is that plug-in's one
+    line."""
     try:
         settings = OmegaConf.to_object(tree)
+        assert isinstance(settings, Settings)
+        for name in explorers:
+            check_declared(getattr(settings.explorer, explorer_key(name)))
     except OmegaConfBaseException as error:
         key = str(getattr(error, "full_key", None) or "<settings>")
         expected = "an interpolation ${...} naming another key that holds a value of this field's type"
         raise InputError("settings", key, expected, str(error).splitlines()[0]) from None
     except SettingError as error:
-        section = _SECTIONS.get(error.owner, "")
+        section = dict(_sections(_default_settings(explorers))).get(error.owner, "")
         key = f"{section}.{error.name}" if section else error.name
         raise InputError("settings", key, error.expected, error.value) from None
-    assert isinstance(settings, Settings)
+    except InputError:
+        raise
+    except BaseException as error:  # a plug-in's section: its own code raised (caught whatever it is)
+        plugin = next((name for name in explorers if EXPLORERS.is_plugin(name)), None)
+        if plugin is None:
+            raise
+        raise EXPLORERS.broken(plugin, f"its section: {one_line(error)}") from None
     return settings
 
 
 def _sections(config: object, prefix: str = "") -> Iterator[tuple[type, str]]:
-    """Each section's dataclass and its dotted key in the tree (``ValueMapConfig`` -> ``agent.vlfm``)."""
+    """Each section's dataclass and its dotted key in the tree (``VlfmConfig`` -> ``explorer.vlfm``)."""
     for item in dataclasses.fields(config):  # type: ignore[arg-type]
         value = getattr(config, item.name)
         if dataclasses.is_dataclass(value):
             yield type(value), f"{prefix}{item.name}"
             yield from _sections(value, f"{prefix}{item.name}.")
-
-
-_SECTIONS: dict[type, str] = dict(_sections(Settings()))
-"""Where each section's dataclass sits in the tree, to name a key its own check refuses."""
 
 
 def _method_layer(agent: str) -> DictConfig:
@@ -308,19 +426,19 @@ def _override_layer(override: str) -> DictConfig:
         raise InputError("--set", key.strip(), "a YAML value (a number, true/false, a string)", value) from None
 
 
-def _merge(tree: DictConfig, layer: DictConfig, source: str) -> DictConfig:
-    """``layer`` over ``tree``, or an :class:`InputError` naming the first key of ``layer`` that does not fit."""
+def _merge(tree: DictConfig, layer: DictConfig, source: str, defaults: DictConfig) -> DictConfig:
+    """``layer`` over ``tree``, or an :class:`InputError` naming the first key of ``layer`` that does not fit (what
+    fits: the keys and types of ``defaults``)."""
     try:
         merged = OmegaConf.merge(tree, layer)
     except OmegaConfBaseException as error:
-        raise _as_input_error(error, layer, source) from None
+        raise _as_input_error(error, layer, source, defaults) from None
     assert isinstance(merged, DictConfig)
     return merged
 
 
-def _as_input_error(error: OmegaConfBaseException, layer: DictConfig, source: str) -> InputError:
-    """What is allowed comes from the defaults' tree (the same keys and types at every layer)."""
-    tree: DictConfig = OmegaConf.structured(Settings)
+def _as_input_error(error: OmegaConfBaseException, layer: DictConfig, source: str, tree: DictConfig) -> InputError:
+    """What is allowed comes from the defaults' tree ``tree`` (the same keys and types at every layer)."""
     key = str(getattr(error, "full_key", None) or _misfit(tree, layer) or "")
     if not key:
         return InputError(
@@ -367,16 +485,49 @@ def settings_to_dict(settings: Settings) -> JsonObject:
     return dataclasses.asdict(settings)
 
 
-def settings_from_dict(tree: JsonObject) -> Settings:
+def settings_from_dict(tree: JsonObject, provider: Declared | None = None) -> Settings:
     """The settings a tree of :func:`settings_to_dict` holds (a run's ``run.json``), checked as :func:`load_settings`
     checks its layers: the tree merged over the defaults, each section checking its values. A wrong key, type or
-    value is one :class:`~drivenav.errors.InputError` on the source ``settings`` naming the dotted key."""
+    value is one :class:`~drivenav.errors.InputError` on the source ``settings`` naming the dotted key. The
+    sections of explorers other than the chosen one are dropped (:func:`held_sections_only`: a run of an older
+    drivenav recorded every installed explorer's); a chosen explorer that is not installed is one line naming its
+    entry point and ``provider``, the package that provided it (:func:`missing_explorer`)."""
+    tree = _before_explorers(tree)
+    explorer = tree.get("explorer")
+    if isinstance(explorer, dict) and isinstance(explorer.get("name"), str):
+        name = explorer["name"]
+        if name not in EXPLORERS.names:
+            raise missing_explorer(name, provider)
+        tree = held_sections_only(tree)
     try:
-        layer = OmegaConf.create(_before_explorers(tree))
+        layer = OmegaConf.create(tree)
     except (OmegaConfBaseException, ValueError) as error:
         expected = "settings as 'drivenav config show' prints them"
         raise InputError("settings", "<settings>", expected, str(error)) from None
-    return _resolve(_merge(_writable(OmegaConf.structured(Settings)), layer, "settings"))
+    return _settings_of([(layer, "settings")])
+
+
+def held_sections_only(tree: JsonObject) -> JsonObject:
+    """``tree`` (of :func:`settings_to_dict`, its ``explorer.name`` a declared explorer) without the sections of
+    the explorers a tree made now would not hold (:func:`explorers_of`); any other tree as it is."""
+    explorer, run = tree.get("explorer"), tree.get("run")
+    if not isinstance(explorer, dict) or explorer.get("name") not in EXPLORERS.names:
+        return tree
+    agent = run.get("agent") if isinstance(run, dict) else None
+    explorers = explorers_of(str(explorer["name"]), agent if isinstance(agent, str) else RunSettings.agent)
+    keys = {"name", *(explorer_key(name) for name in explorers)}
+    return {**tree, "explorer": {key: value for key, value in explorer.items() if key in keys}}
+
+
+def missing_explorer(name: str, provider: Declared | None = None) -> InputError:
+    """The one line for a run whose explorer ``name`` is not installed: the entry point and the package to install
+    (``provider``, as ``run.json`` records a plug-in's; unknown for a run of an older drivenav)."""
+    if provider is None:
+        install = f"a package providing entry point drivenav.explorers: {name}"
+    else:
+        point = f"{provider.name} = {provider.value!r}"
+        install = f"the package {provider.source}, which provides entry point drivenav.explorers: {point}"
+    return InputError("settings", "explorer.name", f"an installed explorer (install {install})", name)
 
 
 _LEGACY_AGENT_KEYS = {  # the agent's keys before explorers had sections of their own -> where they went

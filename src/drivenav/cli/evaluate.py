@@ -128,9 +128,10 @@ def add_doctor(commands: Commands) -> None:
 
 def _cmd_eval(args: argparse.Namespace) -> int:
     from drivenav.eval.report import format_table
-    from drivenav.eval.rundir import EPISODES_FILE, SUMMARY_FILE, make_directory
+    from drivenav.eval.rundir import EPISODES_FILE, SUMMARY_FILE, make_directory, refuse_missing_explorer
     from drivenav.eval.runner import evaluate
 
+    refuse_missing_explorer(args.out)  # a resume of a plug-in's run once it is uninstalled: what to install
     pool = executor(args)
     spec = run_spec(args, args.agent, connect=not args.share_detector)  # an unknown agent or setting fails first
     if args.share_detector:

@@ -6,6 +6,12 @@ On disk, ``config`` is one JSON tree: the world's recipe under ``config.env`` (`
 it back rebuilds :class:`~drivenav.settings.Settings` through the same checks as ``--config``, so a hand-edited
 ``run.json`` with a wrong key, type or value is one :class:`~drivenav.errors.InputError` naming ``config.KEY``.
 The world stays JSON: each world's recipe has its own fields, and only its name and scenes are ever read back.
+
+A run of a plug-in explorer records beside ``config`` which entry point and distribution provided it
+(``explorer_plugin``: ``name``, ``value``, ``distribution``), so that once the plug-in is uninstalled the run is refused
+in one line naming what to install (:func:`~drivenav.settings.missing_explorer`). The sections of explorers other
+than the chosen one, which a ``run.json`` of an older drivenav holds, are dropped on reading and left out of the
+resume's comparison (:func:`~drivenav.settings.held_sections_only`).
 """
 
 from __future__ import annotations
@@ -17,9 +23,11 @@ from pathlib import Path
 from drivenav.envs.base import EnvSpec
 from drivenav.errors import InputError
 from drivenav.jsonstream import DOCUMENT, JsonObject
-from drivenav.settings import Settings, first_difference, settings_from_dict, settings_to_dict
+from drivenav.plugins import Declared
+from drivenav.settings import Settings, first_difference, held_sections_only, settings_from_dict, settings_to_dict
 
 WORLD_KEY = "env"  # the key of the world's recipe in run.json's config
+PLUGIN_KEY = "explorer_plugin"  # the key of a plug-in explorer's entry point in run.json
 
 
 def world_json(env: EnvSpec) -> JsonObject:
@@ -31,8 +39,9 @@ def world_json(env: EnvSpec) -> JsonObject:
 
 @dataclass(frozen=True)
 class RunInfo:
-    """``run.json``: the run's settings and world, the sha256 of its episodes, the drivenav version, and the git
-    commit of the checkout and whether its tree was dirty (None outside git)."""
+    """``run.json``: the run's settings and world, the sha256 of its episodes, the drivenav version, the git
+    commit of the checkout and whether its tree was dirty (None outside git), and the entry point of its explorer
+    when a plug-in provided it (None for drivenav's own)."""
 
     config: Settings
     world: JsonObject
@@ -40,6 +49,7 @@ class RunInfo:
     version: str
     git_commit: str | None
     git_dirty: bool | None
+    explorer_plugin: Declared | None = None
 
     def config_json(self) -> JsonObject:
         """``run.json``'s ``config`` tree: the world under ``env`` beside the settings' sections."""
@@ -47,14 +57,18 @@ class RunInfo:
         return tree
 
     def to_json(self) -> JsonObject:
-        """The ``run.json`` object."""
-        return {
+        """The ``run.json`` object (``explorer_plugin`` only for a plug-in's run)."""
+        tree: JsonObject = {
             "config": self.config_json(),
             "episodes_sha256": self.episodes_sha256,
             "version": self.version,
             "git_commit": self.git_commit,
             "git_dirty": self.git_dirty,
         }
+        plugin = self.explorer_plugin
+        if plugin is not None:
+            tree[PLUGIN_KEY] = {"name": plugin.name, "value": plugin.value, "distribution": plugin.source}
+        return tree
 
     @staticmethod
     def from_json(data: object, source: str | Path) -> RunInfo:
@@ -65,8 +79,9 @@ class RunInfo:
         config = _object(data, "config", source)
         world = _object(config, WORLD_KEY, source, "config.")
         tree = {key: value for key, value in config.items() if key != WORLD_KEY}
+        plugin = explorer_plugin(data, source)
         try:
-            settings = settings_from_dict(tree)
+            settings = settings_from_dict(tree, plugin)
         except InputError as error:
             raise InputError(source, f"config.{error.field}", error.expected, error.got) from None
         return RunInfo(
@@ -76,6 +91,7 @@ class RunInfo:
             _text(data, "version", source),
             _optional_text(data, "git_commit", source),
             _optional_flag(data, "git_dirty", source),
+            plugin,
         )
 
     def check_resume(self, previous: JsonObject, source: str | Path) -> None:
@@ -84,13 +100,24 @@ class RunInfo:
         compared as written, so that a key one of them lacks (a ``run.json`` of another drivenav version) is a
         difference rather than a default."""
         RunInfo.from_json(previous, source)
-        key = first_difference(previous["config"], self.config_json())
+        key = first_difference(held_sections_only(previous["config"]), self.config_json())
         if key is not None:
             raise InputError(
                 source, f"config.{key}", "the settings this run directory was started with, to resume it", "others"
             )
         if previous["episodes_sha256"] != self.episodes_sha256:
             raise InputError(source, "episodes", "the episodes this run directory was started with, to resume it")
+
+
+def explorer_plugin(data: JsonObject, source: str | Path) -> Declared | None:
+    """The entry point ``run.json`` (``data``) records for its plug-in explorer (None: drivenav's own, or a run of an
+    older drivenav); a record not as drivenav writes it is one :class:`InputError`."""
+    record = data.get(PLUGIN_KEY)
+    if record is None:
+        return None
+    plugin = _object(data, PLUGIN_KEY, source)
+    fields = [_text(plugin, key, source, f"{PLUGIN_KEY}.") for key in ("name", "value", "distribution")]
+    return Declared(*fields)
 
 
 def _object(data: JsonObject, key: str, source: str | Path, prefix: str = "") -> JsonObject:
@@ -100,10 +127,10 @@ def _object(data: JsonObject, key: str, source: str | Path, prefix: str = "") ->
     return value
 
 
-def _text(data: JsonObject, key: str, source: str | Path) -> str:
+def _text(data: JsonObject, key: str, source: str | Path, prefix: str = "") -> str:
     value = data.get(key)
     if not isinstance(value, str):
-        raise InputError(source, key, "a string as drivenav writes it", value)
+        raise InputError(source, f"{prefix}{key}", "a string as drivenav writes it", value)
     return value
 
 

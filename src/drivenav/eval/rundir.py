@@ -2,13 +2,14 @@
 
 ``DIR/.lock`` is held (``flock``) by the one process writing the directory: a second evaluation into it is
 refused at once, and a lock left by a dead process is free again (the kernel drops it with the process).
-``DIR/run.json`` records the resolved settings, the episodes' sha256, the package version, and the git commit
-and whether its tree was dirty; resuming with other settings or other episodes is refused, naming the first
-differing key (or ``episodes``), and so is resuming records without their ``run.json``. On resume the writer cuts a
-torn last line off ``episodes.jsonl`` (readers never write) and refuses a second record of an episode or a record of
-an episode outside the run, naming its line. An episode lost to a server the run depends on
-(:func:`lost_to_a_server`: the served grounder or the robot stopped answering, or restarted, while a request of it
-waited) is recorded as an error, but is no result of its agent's: a resume takes its record out and runs it again.
+``DIR/run.json`` records the resolved settings, the episodes' sha256, the package version, the git commit and
+whether its tree was dirty, and a plug-in explorer's entry point and distribution; resuming with other settings or
+other episodes is refused, naming the first differing key (or ``episodes``), and so is resuming records without
+their ``run.json``. On resume the writer cuts a torn last line off ``episodes.jsonl`` (readers never write) and
+refuses a second record of an episode or a record of an episode outside the run, naming its line. An episode lost to
+a server the run depends on (:func:`lost_to_a_server`: the served grounder or the robot stopped answering, or
+restarted, while a request of it waited) is recorded as an error, but is no result of its agent's: a resume takes
+its record out and runs it again.
 ``DIR/traces/`` holds one trace per episode under a bounded name that no two ids share (:func:`trace_path`); the
 record names it, and a trace that cannot be written never costs the record.
 
@@ -34,6 +35,7 @@ from functools import partial
 from pathlib import Path
 from typing import IO, Any
 
+from drivenav.agent.explorers import EXPLORERS
 from drivenav.envs.base import EnvSpec
 from drivenav.episode import Episode
 from drivenav.errors import InputError, RunStoppedError, one_line
@@ -41,10 +43,10 @@ from drivenav.eval.episodes import episode_texts, load_episodes, save_episodes
 from drivenav.eval.provenance import package_version, source_state
 from drivenav.eval.records import EpisodeRecord, cut_torn_tail, read_records
 from drivenav.eval.report import Summary
-from drivenav.eval.run_info import RunInfo, world_json
+from drivenav.eval.run_info import RunInfo, explorer_plugin, world_json
 from drivenav.eval.trace import EpisodeTrace
 from drivenav.jsonstream import JsonObject
-from drivenav.settings import Settings
+from drivenav.settings import Settings, missing_explorer
 
 EPISODES_FILE = "episodes.jsonl"
 SUMMARY_FILE = "summary.json"
@@ -243,7 +245,27 @@ JOIN_ON_ERROR_S = 2.0  # how long a run that stops on an error waits for its set
 
 def _run_info(world: EnvSpec, settings: Settings, episodes: Sequence[Episode]) -> RunInfo:
     commit, dirty = source_state()
-    return RunInfo(settings, world_json(world), episodes_sha256(episodes), package_version(), commit, dirty)
+    name = settings.explorer.name
+    plugin = EXPLORERS.declared[name] if EXPLORERS.is_plugin(name) else None
+    return RunInfo(settings, world_json(world), episodes_sha256(episodes), package_version(), commit, dirty, plugin)
+
+
+def refuse_missing_explorer(out: Path) -> None:
+    """One :class:`InputError` line when ``out`` holds a run whose explorer is not installed (a plug-in since
+    uninstalled), naming the entry point and the package to install: what a resume of it says before its
+    ``--agent`` is read. Anything else about ``run.json`` is left to the resume's own checks."""
+    path = out / RUN_FILE
+    if inside(out, RUN_FILE) is None or not path.is_file():
+        return
+    try:
+        data = _read_json(path)
+        name = data["config"]["explorer"]["name"]
+        plugin = explorer_plugin(data, path)
+    except (InputError, KeyError, TypeError):
+        return
+    if isinstance(name, str) and name not in EXPLORERS.names:
+        error = missing_explorer(name, plugin)
+        raise InputError(path, f"config.{error.field}", error.expected, error.got)
 
 
 def _write_run_file(out: Path, world: EnvSpec, settings: Settings, episodes: Sequence[Episode]) -> None:

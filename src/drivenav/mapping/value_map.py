@@ -39,14 +39,16 @@ vectorised passes over the cells of one disk of ``max_depth`` radius.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from drivenav.grid import GridSpec
 from drivenav.mapping.types import Rays
-from drivenav.ranges import LENGTH, Range, check_ranges
+from drivenav.ranges import LENGTH, Range, check_declared
 from drivenav.types import CameraIntrinsics, Pose
 
 FloatMap = NDArray[np.float64]
@@ -70,15 +72,16 @@ class ValueMapConfig:
     # ... if a frontier point lies within this many metres of it (closest_point_within_threshold(..., 0.5))
     keep_margin: float = 0.01  # itm_policy.py BaseITMPolicy._get_best_frontier: keep it while value + 0.01 > last
 
+    RANGES: ClassVar[Mapping[str, Range]] = {
+        "min_confidence": Range(0.0, 1.0, high_open=True, why="a confidence, below the optical axis's 1"),
+        "decision_threshold": Range(0.0, 1.0, why="a confidence"),
+        "frontier_radius": LENGTH,
+        "keep_radius": LENGTH,
+        "keep_margin": Range(0.0, 2.0, why="a difference of two scores in [-1, 1]"),
+    }
+
     def __post_init__(self) -> None:
-        ranges = {
-            "min_confidence": Range(0.0, 1.0, high_open=True, why="a confidence, below the optical axis's 1"),
-            "decision_threshold": Range(0.0, 1.0, why="a confidence"),
-            "frontier_radius": LENGTH,
-            "keep_radius": LENGTH,
-            "keep_margin": Range(0.0, 2.0, why="a difference of two scores in [-1, 1]"),
-        }
-        check_ranges(self, ranges)
+        check_declared(self)
 
 
 @dataclass(frozen=True)

@@ -9,10 +9,22 @@ them with their sources and says where our world differs.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import ClassVar
 
 from drivenav.agent.config import ExplorerEntry
-from drivenav.ranges import COUNT, HALF_TURN, LENGTH, MAX_FACTOR, POSITIVE_LENGTH, UNIT, Range, check_ranges, check_rule
+from drivenav.ranges import (
+    COUNT,
+    HALF_TURN,
+    LENGTH,
+    MAX_FACTOR,
+    POSITIVE_LENGTH,
+    UNIT,
+    Range,
+    check_declared,
+    check_rule,
+)
 
 
 @dataclass(frozen=True)
@@ -44,28 +56,29 @@ class ApexnavConfig:
     held_replans: int = 14  # ... or held this many decisions without the robot moving, is made dormant
     moved: float = 0.05  # callActionPlanner: less than 0.05 m of translation is no motion
 
+    RANGES: ClassVar[Mapping[str, Range]] = {
+        "min_confidence": Range(0.0, 1.0, high_open=True, why="a confidence, below the optical axis's 1"),
+        "decision_threshold": UNIT,
+        "score_half_width": POSITIVE_LENGTH,
+        "piece_radius": POSITIVE_LENGTH,
+        "value_tie": UNIT,
+        "sigma_threshold": UNIT,
+        "ratio_threshold": Range(1.0, MAX_FACTOR, why="max / mean of the scores"),
+        "max_to_mean_percentage": UNIT,
+        "tsp_scale": Range(0.0, MAX_FACTOR, low_open=True, why="integer cost units per metre"),
+        "tsp_unreachable": Range(0.0, 1e9, low_open=True, why="metres"),
+        "tsp_diagonal": Range(0.0, 1e9, low_open=True, why="metres"),
+        "tsp_solutions": COUNT,
+        "dormant_fov_deg": HALF_TURN,
+        "dormant_range": POSITIVE_LENGTH,
+        "frontier_changed": Range(0.0, 1.0, low_open=True, why="a share of the frontier's cells"),
+        "reached_radius": POSITIVE_LENGTH,
+        "held_replans": COUNT,
+        "moved": LENGTH,
+    }
+
     def __post_init__(self) -> None:
-        ranges = {
-            "min_confidence": Range(0.0, 1.0, high_open=True, why="a confidence, below the optical axis's 1"),
-            "decision_threshold": UNIT,
-            "score_half_width": POSITIVE_LENGTH,
-            "piece_radius": POSITIVE_LENGTH,
-            "value_tie": UNIT,
-            "sigma_threshold": UNIT,
-            "ratio_threshold": Range(1.0, MAX_FACTOR, why="max / mean of the scores"),
-            "max_to_mean_percentage": UNIT,
-            "tsp_scale": Range(0.0, MAX_FACTOR, low_open=True, why="integer cost units per metre"),
-            "tsp_unreachable": Range(0.0, 1e9, low_open=True, why="metres"),
-            "tsp_diagonal": Range(0.0, 1e9, low_open=True, why="metres"),
-            "tsp_solutions": COUNT,
-            "dormant_fov_deg": HALF_TURN,
-            "dormant_range": POSITIVE_LENGTH,
-            "frontier_changed": Range(0.0, 1.0, low_open=True, why="a share of the frontier's cells"),
-            "reached_radius": POSITIVE_LENGTH,
-            "held_replans": COUNT,
-            "moved": LENGTH,
-        }
-        check_ranges(self, ranges)
+        check_declared(self)
         for name in ("prompt", "prompt_anywhere"):
             check_rule(self, name, "{target}" in getattr(self, name), "a text naming {target}")
 

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import ClassVar
 
 from drivenav.agent.config import ExplorerEntry
-from drivenav.ranges import STEPS, UNIT, check_ranges
+from drivenav.ranges import STEPS, UNIT, Range, check_declared
 
 
 @dataclass(frozen=True)
@@ -24,8 +26,10 @@ class DirectionsConfig:
     settle_steps: int = 0  # steps a direction is tracked before it may start an inspection event (0: the paper's)
     target_check: float = 0.0  # image-text score of a new view at which it is judged at once (0: no check)
 
+    RANGES: ClassVar[Mapping[str, Range]] = {"reidentify_steps": STEPS, "settle_steps": STEPS, "target_check": UNIT}
+
     def __post_init__(self) -> None:
-        check_ranges(self, {"reidentify_steps": STEPS, "settle_steps": STEPS, "target_check": UNIT})
+        check_declared(self)
 
 
 EXPLORER = ExplorerEntry(

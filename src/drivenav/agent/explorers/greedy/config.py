@@ -3,10 +3,12 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import ClassVar
 
 from drivenav.agent.config import ExplorerEntry
-from drivenav.ranges import LENGTH, check_ranges
+from drivenav.ranges import LENGTH, Range, check_declared
 
 
 @dataclass(frozen=True)
@@ -15,8 +17,10 @@ class GreedyConfig:
 
     min_goal_distance: float = 1.0  # metres: frontier points nearer than this are not goals (all are if none is)
 
+    RANGES: ClassVar[Mapping[str, Range]] = {"min_goal_distance": LENGTH}
+
     def __post_init__(self) -> None:
-        check_ranges(self, {"min_goal_distance": LENGTH})
+        check_declared(self)
 
 
 EXPLORER = ExplorerEntry(

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 from drivenav.agent.config import ExplorerEntry, Rule
 from drivenav.mapping.value_map import ValueMapConfig
-from drivenav.ranges import LENGTH, check_ranges
+from drivenav.ranges import LENGTH, Range
 from drivenav.types import SimConfig
 
 
@@ -18,9 +19,7 @@ class VlfmConfig(ValueMapConfig):
 
     min_goal_distance: float = 1.0  # metres: a new choice considers frontier points at least this far (all if none)
 
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        check_ranges(self, {"min_goal_distance": LENGTH})
+    RANGES: ClassVar[Mapping[str, Range]] = {**ValueMapConfig.RANGES, "min_goal_distance": LENGTH}
 
 
 def within_reach(config: Any, sim: SimConfig) -> tuple[Rule, ...]:
