@@ -46,8 +46,8 @@ ablations: $(VENV)/.kernels
 	$(VENV)/bin/drivenav bench ablations --out $(ABLATIONS_OUT) --workers $(WORKERS) $(ABLATIONS_ARGS)
 
 lint: $(VENV)/.dev-installed
-	$(VENV)/bin/ruff check src tests
-	$(VENV)/bin/ruff format --check src tests
+	$(VENV)/bin/ruff check src tests examples
+	$(VENV)/bin/ruff format --check src tests examples
 	$(VENV)/bin/mypy
 
 # Both environments install side by side (mostly downloads), then lint, the Habitat suite and the main suite.

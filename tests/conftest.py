@@ -69,12 +69,14 @@ def run_cli(*args: str, timeout: float = 600.0) -> subprocess.CompletedProcess[s
 def registries() -> dict[str, Registry[Any]]:
     """Every entry-point registry of drivenav, by group."""
     from drivenav.agent.explorers import EXPLORERS
+    from drivenav.methods import METHOD_ROWS
     from drivenav.robot.registry import MOTIONS, SOURCES
     from drivenav.semantics.registry import GROUNDER_BACKENDS, REASONER_BACKENDS, SCORER_BACKENDS, SEGMENTER_BACKENDS
     from drivenav.worlds import WORLDS
 
     found: list[Registry[Any]] = [
-        EXPLORERS, WORLDS, REASONER_BACKENDS, GROUNDER_BACKENDS, SEGMENTER_BACKENDS, SCORER_BACKENDS, SOURCES, MOTIONS
+        EXPLORERS, WORLDS, REASONER_BACKENDS, GROUNDER_BACKENDS, SEGMENTER_BACKENDS, SCORER_BACKENDS, SOURCES, MOTIONS,
+        METHOD_ROWS,
     ]  # fmt: skip
     return {registry.group: registry for registry in found}
 

@@ -84,8 +84,8 @@ def test_each_explorer_writes_its_own_counters(method: str) -> None:
 
 
 def test_a_plugin_explorer_is_a_method_with_its_own_section_and_counters(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The example plug-in package's farthest-frontier explorer (tests/plugin_package), declared by its entry point:
-    an ``--agent`` name, its settings section ``explorer.farthest``, its counters in the record."""
+    """The example plug-in package's farthest-frontier explorer (examples/drivenav-example), declared by its entry
+    point: an ``--agent`` name, its settings section ``explorer.farthest``, its counters in the record."""
     plug_in(monkeypatch, ("drivenav.explorers", "farthest", "drivenav_example.config:EXPLORER", "drivenav-example"))
     settings = load_settings("farthest", overrides=["explorer.farthest.max_travel_time=30"])
     assert settings.explorer.name == "farthest" and not settings.agent.enrich

@@ -1,4 +1,4 @@
-"""Plug-ins as another package ships them: the example package ``tests/plugin_package`` (``drivenav-example``: the
+"""Plug-ins as another package ships them: the example package ``examples/drivenav-example`` (``drivenav-example``: the
 ``farthest`` explorer, the ``embedded-noisy`` world, the ``frames`` sensor source and the ``printed`` motion executor,
 each one entry point in its pyproject.toml) and a broken package beside it (an explorer whose module is missing, a
 world that is not a world entry), built and installed next to drivenav's wheel in a fresh venv (offline, from the
@@ -56,9 +56,8 @@ def drivenav(tmp_path_factory: pytest.TempPathFactory) -> Path:
     ``drivenav`` command."""
     root = tmp_path_factory.mktemp("plugins")
     example = root / "example"
-    shutil.copytree(
-        REPO / "tests" / "plugin_package", example, ignore=shutil.ignore_patterns("__pycache__", "*.egg-info", "build")
-    )
+    ignored = shutil.ignore_patterns("__pycache__", "*.egg-info", "build")
+    shutil.copytree(REPO / "examples" / "drivenav-example", example, ignore=ignored)
     python = fresh_venv(root, example, _write(root / "broken", BROKEN))
     return python.parent / "drivenav"
 

@@ -150,7 +150,8 @@ def test_a_broken_robot_part_is_one_line(args: list[str], name: str, capsys: pyt
 def test_a_robot_part_from_another_package_brings_its_options(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """The example package's parts (tests/plugin_package: ``--source frames --frames DIR``, ``--motion printed``)."""
+    """The example package's parts (examples/drivenav-example: ``--source frames --frames DIR``, ``--motion
+    printed``)."""
     plug_in(
         monkeypatch,
         ("drivenav.robot_sources", "frames", "drivenav_example.robot:FRAMES", "drivenav-example"),

@@ -1,5 +1,5 @@
 """A new world is a module or two and one entry point: the embedded world seen through a noisy depth camera (the
-example plug-in package's, ``tests/plugin_package``), run end to end through ``drivenav eval``.
+example plug-in package's, ``examples/drivenav-example``), run end to end through ``drivenav eval``.
 
 What a new world touches (docs/extending.md):
 

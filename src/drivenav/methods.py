@@ -6,17 +6,26 @@ Each method is an explorer (``explorer.name``, :mod:`drivenav.agent.explorers`) 
 ``agent.verify``) and constants. The explorer's entry may set body switches of its own first (VLFM and the greedy
 baseline turn enrichment and verification off); the method's overrides come after. ``drive-nav`` is the defaults
 themselves. "Full Directional Reasoning Pipeline" (Tables V, VI) is DRIVE-Nav without prompt enrichment and
-cross-frame verification. An explorer that another package registers (entry-point group ``drivenav.explorers``)
-is a method of its own name.
+cross-frame verification.
+
+Other packages bring methods too: an entry point of group ``drivenav.methods`` names a :class:`Method` or a tuple of
+them (a plug-in explorer's rows and ablation variants, e.g. ``farthest-near = "my_pkg.methods:ROWS"``), and an
+explorer another package registers (group ``drivenav.explorers``) is a method of its own name unless one of those
+rows takes it. A plug-in method whose name a built-in method or reference agent has is ignored with one warning; an
+entry that cannot be loaded is refused with its one line when its entry-point name is chosen.
 """
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 from importlib import resources
-from typing import Literal
+from typing import Literal, TypeAlias
 
-from drivenav.plugins import plugins_of
+from drivenav.errors import InputError
+from drivenav.plugins import Registry, plugins_of
+
+log = logging.getLogger(__name__)
 
 PaperTable = Literal["I", "II", "V", "VI"]
 """I: comparison with the state of the art (SR / SPL per benchmark); II: analytical comparison; V: directional
@@ -173,22 +182,6 @@ built from the simulator's set-up alone, imported when a run uses it, so the com
 loading agent code). A new reference agent is its module and one line here."""
 
 
-def method_named(name: str) -> Method | None:
-    """The method called ``name`` (an ``--agent`` name), or None for a reference agent or an unknown name."""
-    return next((m for m in METHODS if m.name == name), None) or _plugin_methods().get(name)
-
-
-def _plugin_methods() -> dict[str, Method]:
-    """The explorers other packages register (by entry-point name, nothing imported), each a method of its own
-    name; a name that a method or reference agent already has stays theirs."""
-    taken = {*METHOD_NAMES, *REFERENCE_AGENTS}
-    return {
-        p.name: Method(p.name, (), f"the {p.name} explorer of {p.source}", explorer=p.name, plugin=True)
-        for p in plugins_of("drivenav.explorers")
-        if p.name not in taken
-    }
-
-
 ALL_METHODS = tuple(method.name for method in METHODS if method.tables)
 """The methods of the paper's tables, in the order ``bench ablations`` runs them by default."""
 
@@ -201,9 +194,107 @@ METHOD_NAMES = (*ALL_METHODS, *BEYOND_PAPER)
 PRESETS = "data/configs"  # the --config presets shipped with drivenav, under the package
 
 
+Rows: TypeAlias = "Method | tuple[Method, ...]"
+"""What an entry point of group ``drivenav.methods`` names: one method, or several (a plug-in's rows)."""
+
+
+def _are_rows(part: object) -> bool:
+    """Whether ``part`` is a :class:`Method` or a non-empty tuple of them."""
+    if isinstance(part, tuple):
+        return bool(part) and all(isinstance(method, Method) for method in part)
+    return isinstance(part, Method)
+
+
+BUILT_IN_METHODS = {"drivenav": "drivenav.methods:METHODS"}
+"""drivenav's own methods as one entry (also declared in pyproject.toml): :data:`METHODS`."""
+
+METHOD_ROWS: Registry[Rows] = Registry(
+    "drivenav.methods", BUILT_IN_METHODS, _are_rows, "method (drivenav.methods.Method) or tuple of methods", "--agent"
+)
+"""Every entry of methods: drivenav's own (:data:`METHODS`), then other packages' by entry-point name."""
+
+_WARNED: set[tuple[str, str]] = set()
+"""The (entry point, method) clashes already warned about: one warning per process."""
+
+
+def _rows_of(part: Rows) -> tuple[Method, ...]:
+    return part if isinstance(part, tuple) else (part,)
+
+
+def _plugin_rows() -> dict[str, Method]:
+    """The methods other packages declare (group ``drivenav.methods``) by name, their entries loaded in entry-point
+    order: a name taken by a built-in method, a reference agent or an earlier entry is ignored with one warning, an
+    entry that cannot be loaded is left out here (:func:`method_named` refuses it when its name is chosen)."""
+    taken = {*METHOD_NAMES, *REFERENCE_AGENTS}
+    rows: dict[str, Method] = {}
+    for entry in METHOD_ROWS.names:
+        if not METHOD_ROWS.is_plugin(entry):
+            continue
+        try:
+            part = METHOD_ROWS.get(entry)
+        except InputError as error:
+            log.debug("drivenav: %s", error)
+            continue
+        for method in _rows_of(part):
+            if method.name in taken or method.name in rows:
+                _warn_taken(entry, method.name)
+                continue
+            rows[method.name] = method
+    return rows
+
+
+def _warn_taken(entry: str, name: str) -> None:
+    if (entry, name) in _WARNED:
+        return
+    _WARNED.add((entry, name))
+    point = METHOD_ROWS.declared[entry].entry_point
+    log.warning("drivenav: method %s of method plug-in %s is ignored: the name is taken", name, point)
+
+
+def _broken_entries(rows: dict[str, Method]) -> list[str]:
+    """The plug-in entries of methods that cannot be loaded, by entry-point name (chosen by that name, each is
+    refused with its one line); an entry whose name one of ``rows`` has is not one."""
+    broken = []
+    for entry in METHOD_ROWS.names:
+        if METHOD_ROWS.is_plugin(entry) and entry not in rows:
+            try:
+                METHOD_ROWS.get(entry)
+            except InputError:
+                broken.append(entry)
+    return broken
+
+
+def _plugin_explorer_methods(taken: set[str]) -> dict[str, Method]:
+    """The explorers other packages register (by entry-point name, nothing imported), each a method of its own
+    name; a name in ``taken`` (a method, reference agent or plug-in row) stays theirs."""
+    return {
+        p.name: Method(p.name, (), f"the {p.name} explorer of {p.source}", explorer=p.name, plugin=True)
+        for p in plugins_of("drivenav.explorers")
+        if p.name not in taken
+    }
+
+
+def plugin_methods() -> dict[str, Method]:
+    """Every method other packages bring, by name: their rows (group ``drivenav.methods``), then their explorers'
+    own methods."""
+    rows = _plugin_rows()
+    return {**rows, **_plugin_explorer_methods({*METHOD_NAMES, *REFERENCE_AGENTS, *rows})}
+
+
+def method_named(name: str) -> Method | None:
+    """The method called ``name`` (an ``--agent`` name), or None for a reference agent or an unknown name; the name of
+    a plug-in entry of methods that cannot be loaded is its one :class:`InputError` line."""
+    found = next((m for m in METHODS if m.name == name), None) or plugin_methods().get(name)
+    if found is None and METHOD_ROWS.is_plugin(name) and name not in REFERENCE_AGENTS:
+        METHOD_ROWS.get(name)  # a broken entry: its one line (a loaded one holds no method of its entry's name)
+    return found
+
+
 def agent_names() -> list[str]:
-    """Every ``--agent`` name: the methods of the paper's tables, the reference agents and plug-in explorers."""
-    return sorted([*REFERENCE_AGENTS, *METHOD_NAMES, *_plugin_methods()])
+    """Every ``--agent`` name: the methods of the paper's tables, the reference agents, the methods other packages
+    bring, and the names of plug-in entries of methods that cannot be loaded (chosen, each is refused in one line)."""
+    plugins = plugin_methods()
+    return sorted({*REFERENCE_AGENTS, *METHOD_NAMES, *plugins, *_broken_entries(plugins)})
 
 
 def preset_names() -> list[str]:

@@ -47,6 +47,7 @@ GROUPS = (
     "drivenav.scorers",
     "drivenav.robot_sources",
     "drivenav.robot_motions",
+    "drivenav.methods",
 )
 """Every entry-point group drivenav reads, one per kind of part."""
 

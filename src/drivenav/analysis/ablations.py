@@ -54,7 +54,7 @@ from drivenav.eval.rundir import EPISODES_COPY, trace_path
 from drivenav.eval.runner import RunSpec, evaluate
 from drivenav.eval.timings import runtime_table, traced_steps
 from drivenav.eval.trace import EpisodeTrace
-from drivenav.methods import agent_names
+from drivenav.methods import agent_names, method_named
 from drivenav.types import SimConfig
 
 FAILURE_CAUSES = ("false_positive_stop", "missed_target", "timeout", "no_frontier", "target_never_seen")
@@ -78,12 +78,14 @@ class PictureMaker(Protocol):
 
 
 def parse_methods(text: str) -> list[str]:
-    """Agent names from ``--methods a,b,...`` (duplicates dropped, order kept)."""
+    """Agent names from ``--methods a,b,...`` (duplicates dropped, order kept); a plug-in's entry of methods that
+    cannot be loaded is its one line here, before any run."""
     methods = list(dict.fromkeys(name.strip() for name in text.split(",") if name.strip()))
     known = agent_names()
     for name in methods or [text]:
         if name not in known:
             raise InputError("command line", "--methods", f"comma-separated agent names ({', '.join(known)})", name)
+        method_named(name)
     return methods
 
 

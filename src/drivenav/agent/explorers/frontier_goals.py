@@ -1,7 +1,11 @@
-"""Driving to a chosen frontier point, as the frontier-choosing explorers do (the greedy baseline, VLFM): the
+"""Driving to a chosen frontier point, as the frontier-choosing explorers do (the greedy baseline, VLFM, ApexNav): the
 planner's step along the weighted-FMM path to the frontier point, goals the planner could not reach skipped for a
 while, and a new segment (revisit metric, Sec. V-C) when the explorer switches to a different frontier, not when
-its frontier recedes."""
+its frontier recedes.
+
+An explorer's step with it: :meth:`FrontierGoals.open_paths` (STOP ``no_frontier`` when none is left), the goal
+kept (:meth:`~FrontierGoals.kept_goal`) or a new one chosen by the method's own rule among
+:meth:`~FrontierGoals.far_enough` and set by :meth:`~FrontierGoals.new_goal`, then :meth:`~FrontierGoals.drive`."""
 
 from __future__ import annotations
 
@@ -66,6 +70,16 @@ class FrontierGoals:
         self.skipped += 1
         state.goal = None
         return turn_toward(ctx.pose.yaw, chosen.bearing, loop.tuning.turn) or Action.TURN_LEFT
+
+    def new_goal(self, loop: Loop, ctx: StepContext, chosen: FrontierPath, fresh_planner: bool = False) -> bool:
+        """``chosen`` is the explorer's new goal: on another frontier than the one headed for so far, a segment
+        starts and the planner forgets its escape plan and stuck history (:meth:`switch_frontier`); True then.
+        ``fresh_planner``: the planner forgets them at every new goal, even on the same frontier (the greedy
+        baseline's rule)."""
+        switched = self.switch_frontier(loop, ctx, chosen.frontier_id)
+        if switched or fresh_planner:
+            loop.state.planner.reset()
+        return switched
 
     def switch_frontier(self, loop: Loop, ctx: StepContext, frontier_id: int) -> bool:
         """A new goal starts a segment unless it lies on the frontier headed for so far (the same frontier, receded

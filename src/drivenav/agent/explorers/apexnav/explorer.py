@@ -57,10 +57,10 @@ from drivenav.agent.explorers.apexnav.frontiers import (
 )
 from drivenav.agent.explorers.apexnav.tsp import cost_matrix, open_tour
 from drivenav.agent.explorers.frontier_goals import FrontierGoals
+from drivenav.agent.explorers.full_scan import FullScan
 from drivenav.agent.loop import Loop
-from drivenav.agent.trace import ScanStarted
 from drivenav.directions.types import FrontierPath
-from drivenav.inspection import full_scan_turns, signed_offset
+from drivenav.inspection import signed_offset
 from drivenav.mapping.types import Frontier, MapSnapshot
 from drivenav.mapping.value_map import ValueMap, ValueMapConfig
 from drivenav.semantics.protocols import EVERYWHERE, CategoryHints, ImageTextScorer, ModelCall, ScorePrompt
@@ -102,8 +102,7 @@ class ApexnavExplorer(Explorer):
         self.value_map = ValueMap(mapper.grid, mapper.config.max_depth, rule)
         self.resolution = mapper.config.resolution
         self.goals = FrontierGoals(0.0)
-        self.scan_turns = full_scan_turns(setup.tuning.turn)
-        self.scanning = True
+        self.scan = FullScan.ahead(setup.tuning)
         self.score: float | None = None
         self.dormant = FrontierCells([])  # the cells of the dormant frontiers
         self.before: FrontierCells | None = None  # the frontiers at the last decision (None: decide afresh)
@@ -115,7 +114,7 @@ class ApexnavExplorer(Explorer):
         self.tsp_solves = self.dormant_marked = self.settled = 0
 
     def begin(self, loop: Loop) -> None:
-        loop.trace.add(ScanStarted(0, self.scan_turns))
+        self.scan.begin(loop)
 
     def observe(self, loop: Loop, observation: Observation, ctx: StepContext, timings: dict[str, float]) -> None:
         """Score the frame with ApexNav's text, then fuse the score into the cells the frame saw free (the scorer and
@@ -133,11 +132,9 @@ class ApexnavExplorer(Explorer):
 
     def act(self, loop: Loop, observation: Observation, ctx: StepContext) -> Action:
         """The start turn, then the next step toward the chosen frontier (module docstring)."""
-        if self.scanning:
-            if self.scan_turns > 0:
-                self.scan_turns -= 1
-                return Action.TURN_LEFT
-            self._follow(loop)
+        turn = self.scan.act(loop)
+        if turn is not None:
+            return turn
         cells = FrontierCells.of(ctx.frontiers, self.resolution)
         dormant = self._dormancy(ctx, cells)
         index = {f.frontier_id: i for i, f in enumerate(ctx.frontiers)}
@@ -156,8 +153,7 @@ class ApexnavExplorer(Explorer):
             chosen = self._decide(loop, ctx, live) if live else self._nearest(paths, "dormant")
             self.before = cells
             self.heading = cells.pick([index[chosen.frontier_id]])
-            if self.goals.switch_frontier(loop, ctx, chosen.frontier_id):
-                loop.state.planner.reset()
+            self.goals.new_goal(loop, ctx, chosen)
         self._watch(ctx, chosen, cells.pick([index[chosen.frontier_id]]))
         action = self.goals.drive(loop, observation, ctx, chosen)
         if loop.state.goal is None:  # the planner could not reach it: decide afresh next step
@@ -165,13 +161,11 @@ class ApexnavExplorer(Explorer):
         return action
 
     def resume(self, loop: Loop) -> None:
-        self._follow(loop)
+        self.scan.end(loop)
         self.before = None
 
     def activity(self, escaping: bool) -> str:
-        if self.scanning:
-            return "start_scan"
-        return "escape" if escaping else "follow"
+        return self.scan.activity(escaping)
 
     def counters(self) -> ApexnavCounters:
         decisions = dict(sorted(self.decisions.items()))
@@ -184,11 +178,6 @@ class ApexnavExplorer(Explorer):
         return self.score
 
     # ----------------------------------------------------------------- decisions
-
-    def _follow(self, loop: Loop) -> None:
-        """The start turn is over (or cut short by an approach): decide from now on."""
-        self.scanning = False
-        loop.explore()
 
     def _kept(self, cells: FrontierCells, index: dict[int, int], goals: list[FrontierPath]) -> FrontierPath | None:
         """The frontier headed for, while the frontiers are those of the last decision and it is among ``goals``."""

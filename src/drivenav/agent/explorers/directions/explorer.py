@@ -32,9 +32,10 @@ from drivenav.agent.explorers.directions import enrich, follow, scan, sweep
 from drivenav.agent.explorers.directions.config import DirectionsConfig
 from drivenav.agent.explorers.directions.memory import DirectionCounters, Directions, Phase
 from drivenav.agent.explorers.directions.relabel import carry_over
+from drivenav.agent.explorers.full_scan import FullScan
 from drivenav.agent.loop import Loop
-from drivenav.agent.trace import ScanStarted, ViewCaptured
-from drivenav.inspection import RepresentativeViews, full_scan_turns
+from drivenav.agent.trace import ViewCaptured
+from drivenav.inspection import RepresentativeViews
 from drivenav.semantics.protocols import ImageTextScorer, ModelCall
 from drivenav.types import Action, Observation
 
@@ -52,7 +53,7 @@ MODES: dict[Phase, Mode] = {
 def begin_directions(setup: ExplorerSetup, config: DirectionsConfig) -> Directions:
     """An episode's empty directions memory, its start scan ahead (twelve 30 deg turns)."""
     views = RepresentativeViews(setup.tuning.paper.inspection.view_tolerance)
-    return Directions(config, views, full_scan_turns(setup.tuning.turn))
+    return Directions(config, views, FullScan.ahead(setup.tuning))
 
 
 class DirectionsExplorer(Explorer):
@@ -72,7 +73,7 @@ class DirectionsExplorer(Explorer):
         return isinstance(config, DirectionsConfig) and config.target_check > 0.0
 
     def begin(self, loop: Loop) -> None:
-        loop.trace.add(ScanStarted(0, self.memory.scan_turns))
+        self.memory.scan.begin(loop)
 
     def observe(self, loop: Loop, observation: Observation, ctx: StepContext, timings: dict[str, float]) -> None:
         """Carry each direction's state over its relabelling, then record representative views (timed together as

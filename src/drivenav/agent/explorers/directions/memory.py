@@ -11,6 +11,7 @@ from dataclasses import dataclass, field, replace
 from enum import Enum
 
 from drivenav.agent.explorers.directions.config import DirectionsConfig
+from drivenav.agent.explorers.full_scan import FullScan
 from drivenav.agent.loop import Loop
 from drivenav.directions import Direction
 from drivenav.inspection import RepresentativeViews
@@ -60,24 +61,24 @@ class DirectionCounters:
 class Directions:
     """One episode's directions, views and decision state.
 
-    ``scan_turns`` are the start scan's turns left; ``inspected`` holds the labels an inspection event or decision
-    has already covered, ``blacklist`` the directions that could not be followed (label -> step until which they are
-    left out), ``selected`` the direction followed and ``followed`` that direction as of the previous step;
-    ``previous`` holds the previous step's directions and ``gone`` the retired ones with the step they went (Sec.
-    IV-A b). ``event_heading`` is the heading when the current inspection event began (Sec. IV-A c) and
-    ``event_labels`` the directions that started it. ``turning_back`` says whether the last decision's options lay
-    behind the robot only (a dead end), ``returning`` whether the followed direction was chosen so and is followed
-    toward its nearest frontier (``return_aware``). ``descriptions`` and ``enriched`` are the reasoner's words on each
-    direction and the directions enrichment has run on (Sec. IV-B); ``judged`` the steps of the views the reasoner
-    has been shown. ``born`` holds the step since which each live or recently retired direction has been tracked
-    (:func:`settled`). With ``target_check``, ``view_scores`` holds the image-text score of each view's frame (by
-    step) and ``checked`` the directions a promising view has started a decision for. ``counts`` are the episode's
-    counters.
+    ``scan`` is the full scan under way or last made (the start scan, or a decision's with ``decision_scan``);
+    ``inspected`` holds the labels an inspection event or decision has already covered, ``blacklist`` the directions
+    that could not be followed (label -> step until which they are left out), ``selected`` the direction followed and
+    ``followed`` that direction as of the previous step; ``previous`` holds the previous step's directions and ``gone``
+    the retired ones with the step they went (Sec. IV-A b). ``event_heading`` is the heading when the current inspection
+    event began (Sec. IV-A c) and ``event_labels`` the directions that started it. ``turning_back`` says whether the
+    last decision's options lay behind the robot only (a dead end), ``returning`` whether the followed direction was
+    chosen so and is followed toward its nearest frontier (``return_aware``). ``descriptions`` and ``enriched`` are the
+    reasoner's words on each direction and the directions enrichment has run on (Sec. IV-B); ``judged`` the steps of the
+    views the reasoner has been shown. ``born`` holds the step since which each live or recently retired direction has
+    been tracked (:func:`settled`). With ``target_check``, ``view_scores`` holds the image-text score of each view's
+    frame (by step) and ``checked`` the directions a promising view has started a decision for. ``counts`` are the
+    episode's counters.
     """
 
     config: DirectionsConfig
     views: RepresentativeViews
-    scan_turns: int
+    scan: FullScan
     phase: Phase = Phase.SCAN
     pending_yaws: list[float] = field(default_factory=list)
     inspected: set[int] = field(default_factory=set)

@@ -1,5 +1,6 @@
-"""The start scan (paper Sec. IV overview): a 360 deg turn in place that records a representative view of every
-direction, then a reasoner decision among them all. ``direction-360`` and ``frontier`` scan like this at every
+"""The start scan (paper Sec. IV overview): a 360 deg turn in place
+(:class:`~drivenav.agent.explorers.full_scan.FullScan`) that records a representative view of every direction, then
+a reasoner decision among them all. ``direction-360`` and ``frontier`` scan like this at every
 decision point (``decision_scan``; Table II)."""
 
 from __future__ import annotations
@@ -8,21 +9,18 @@ from drivenav.agent.context import StepContext
 from drivenav.agent.explorers.directions.decision import decide
 from drivenav.agent.explorers.directions.memory import Directions, Phase
 from drivenav.agent.loop import Loop
-from drivenav.agent.trace import ScanStarted
-from drivenav.inspection import full_scan_turns
 from drivenav.types import Action, Observation
 
 
 def act(d: Directions, loop: Loop, observation: Observation, ctx: StepContext) -> Action:
     """Turn left until the scan's turns are done, then decide."""
-    if d.scan_turns > 0:
-        d.scan_turns -= 1
-        return Action.TURN_LEFT
+    turn = d.scan.turn()
+    if turn is not None:
+        return turn
     return decide(d, loop, observation, ctx, "scan")
 
 
 def start(d: Directions, loop: Loop) -> None:
     """Begin a full scan at a decision point (``decision_scan``)."""
     d.enter(loop, Phase.SCAN)
-    d.scan_turns = full_scan_turns(loop.tuning.turn)
-    loop.trace.add(ScanStarted(loop.step, d.scan_turns))
+    d.scan.restart(loop)

@@ -24,7 +24,6 @@ from drivenav.agent.explorers.directions.memory import Phase
 from drivenav.agent.explorers.frontier_goals import FrontierGoals
 from drivenav.agent.explorers.greedy.config import GreedyConfig
 from drivenav.agent.loop import Loop
-from drivenav.agent.trace import ScanStarted
 from drivenav.directions.types import FrontierPath
 from drivenav.types import Action, Observation
 
@@ -48,7 +47,7 @@ class GreedyExplorer(Explorer):
         self.goals = FrontierGoals(setup.config.min_goal_distance)
 
     def begin(self, loop: Loop) -> None:
-        loop.trace.add(ScanStarted(0, self.opening.scan_turns))
+        self.opening.scan.begin(loop)
 
     def act(self, loop: Loop, observation: Observation, ctx: StepContext) -> Action:
         """The opening's scan and decision, then the next step toward the nearest frontier point; STOP when no
@@ -76,6 +75,5 @@ class GreedyExplorer(Explorer):
     def _new_goal(self, loop: Loop, ctx: StepContext, paths: list[FrontierPath]) -> FrontierPath:
         """The nearest frontier point at least ``min_goal_distance`` away (the nearest of all if none is)."""
         chosen = min(self.goals.far_enough(paths), key=lambda p: p.travel_time)
-        self.goals.switch_frontier(loop, ctx, chosen.frontier_id)
-        loop.state.planner.reset()
+        self.goals.new_goal(loop, ctx, chosen, fresh_planner=True)
         return chosen

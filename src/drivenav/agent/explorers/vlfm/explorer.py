@@ -32,11 +32,10 @@ from dataclasses import dataclass, field
 from drivenav.agent.context import Point, StepContext
 from drivenav.agent.explorer import Explorer, ExplorerSetup
 from drivenav.agent.explorers.frontier_goals import FrontierGoals
+from drivenav.agent.explorers.full_scan import FullScan
 from drivenav.agent.explorers.vlfm.config import VlfmConfig
 from drivenav.agent.loop import Loop
-from drivenav.agent.trace import ScanStarted
 from drivenav.directions.types import FrontierPath
-from drivenav.inspection import full_scan_turns
 from drivenav.mapping.types import Frontier
 from drivenav.mapping.value_map import ValueMap, ValueMapConfig
 from drivenav.semantics.protocols import ImageTextScorer, ModelCall
@@ -85,13 +84,12 @@ class VlfmExplorer(Explorer):
         self.value_map = ValueMap(mapper.grid, mapper.config.max_depth, setup.config)
         self.memory = ValueMemory()
         self.goals = FrontierGoals(setup.config.min_goal_distance)
-        self.scan_turns = full_scan_turns(setup.tuning.turn)
-        self.scanning = True
+        self.scan = FullScan.ahead(setup.tuning)
         self.new_choices = 0
         self.fallbacks = 0
 
     def begin(self, loop: Loop) -> None:
-        loop.trace.add(ScanStarted(0, self.scan_turns))
+        self.scan.begin(loop)
 
     def observe(self, loop: Loop, observation: Observation, ctx: StepContext, timings: dict[str, float]) -> None:
         """Score the frame against the goal, then spread the score over the value map (on the mapper's grid, which
@@ -107,11 +105,9 @@ class VlfmExplorer(Explorer):
     def act(self, loop: Loop, observation: Observation, ctx: StepContext) -> Action:
         """The initial turn in place, then the next step toward the frontier of highest value; STOP when no frontier
         is left."""
-        if self.scanning:
-            if self.scan_turns > 0:
-                self.scan_turns -= 1
-                return Action.TURN_LEFT
-            self._follow(loop)
+        turn = self.scan.act(loop)
+        if turn is not None:
+            return turn
         paths = self.goals.open_paths(loop, ctx)
         if not paths:
             return loop.stop("no_frontier")
@@ -122,23 +118,16 @@ class VlfmExplorer(Explorer):
         return action
 
     def resume(self, loop: Loop) -> None:
-        self._follow(loop)
+        self.scan.end(loop)
 
     def activity(self, escaping: bool) -> str:
-        if self.scanning:
-            return "start_scan"
-        return "escape" if escaping else "follow"
+        return self.scan.activity(escaping)
 
     def counters(self) -> VlfmCounters:
         return VlfmCounters(self.new_choices, self.fallbacks, self.goals.skipped)
 
     def model_calls(self) -> list[ModelCall]:
         return list(self.scorer.calls)
-
-    def _follow(self, loop: Loop) -> None:
-        """The initial turn is over (or cut short by an approach): choose frontiers from now on."""
-        self.scanning = False
-        loop.explore()
 
     def _choose(self, loop: Loop, ctx: StepContext, paths: list[FrontierPath]) -> FrontierPath:
         """VLFM's choice among ``paths`` (module docstring), remembered; a new frontier starts a segment."""
@@ -153,8 +142,7 @@ class VlfmExplorer(Explorer):
             self.new_choices += 1
             self.fallbacks += all((here, point, top_two) in memory.history for _, point, _ in fresh)
             path, point, value = fresh[best_acyclic(fresh, memory, here, top_two)]
-            if self.goals.switch_frontier(loop, ctx, path.frontier_id):
-                loop.state.planner.reset()
+            self.goals.new_goal(loop, ctx, path)
         else:
             path, point, value = ranked[index]
         memory.history.add((here, point, top_two))

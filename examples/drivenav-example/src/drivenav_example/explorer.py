@@ -1,4 +1,5 @@
-"""The farthest-frontier explorer: after a turn in place (a full scan), it heads for the frontier point with the
+"""The farthest-frontier explorer: after a turn in place (the start scan,
+:class:`~drivenav.agent.explorers.full_scan.FullScan`), it heads for the frontier point with the
 largest weighted-FMM travel time (no farther than ``max_travel_time``) and keeps it until it is explored or cannot be
 reached, driving there as drivenav's greedy baseline does
 (:class:`~drivenav.agent.explorers.frontier_goals.FrontierGoals`). The target search, the approach and STOP are the
@@ -11,10 +12,9 @@ from dataclasses import dataclass
 from drivenav.agent.context import StepContext
 from drivenav.agent.explorer import Explorer, ExplorerSetup
 from drivenav.agent.explorers.frontier_goals import FrontierGoals
+from drivenav.agent.explorers.full_scan import FullScan
 from drivenav.agent.loop import Loop
-from drivenav.agent.trace import ScanStarted
 from drivenav.directions.types import FrontierPath
-from drivenav.inspection import full_scan_turns
 from drivenav.types import Action, Observation
 from drivenav_example.config import FarthestConfig
 
@@ -35,28 +35,27 @@ class FarthestExplorer(Explorer):
             raise TypeError(f"the farthest explorer takes a FarthestConfig, not {type(setup.config).__name__}")
         self.max_travel_time = setup.config.max_travel_time
         self.goals = FrontierGoals(min_goal_distance=1.0)
-        self.scan_turns = full_scan_turns(setup.tuning.turn)
-        self.scanning = True
+        self.scan = FullScan.ahead(setup.tuning)
         self.chosen = 0
 
     def begin(self, loop: Loop) -> None:
-        loop.trace.add(ScanStarted(0, self.scan_turns))
+        self.scan.begin(loop)
 
     def act(self, loop: Loop, observation: Observation, ctx: StepContext) -> Action:
-        self.scanning = self.scan_turns > 0
-        if self.scanning:
-            self.scan_turns -= 1
-            return Action.TURN_LEFT
+        turn = self.scan.act(loop)
+        if turn is not None:
+            return turn
         paths = self.goals.open_paths(loop, ctx)
         if not paths:
             return loop.stop("no_frontier")
         chosen = self.goals.kept_goal(loop, paths) or self._new_goal(loop, ctx, paths)
         return self.goals.drive(loop, observation, ctx, chosen)
 
+    def resume(self, loop: Loop) -> None:
+        self.scan.end(loop)
+
     def activity(self, escaping: bool) -> str:
-        if self.scanning:
-            return "start_scan"
-        return "escape" if escaping else "follow"
+        return self.scan.activity(escaping)
 
     def counters(self) -> FarthestCounters:
         return FarthestCounters(self.chosen, self.goals.skipped)
@@ -65,7 +64,6 @@ class FarthestExplorer(Explorer):
         """The farthest frontier point within ``max_travel_time`` (the nearest of all if none is)."""
         within = [p for p in self.goals.far_enough(paths) if p.travel_time <= self.max_travel_time]
         chosen = max(within, key=lambda p: p.travel_time) if within else min(paths, key=lambda p: p.travel_time)
-        self.goals.switch_frontier(loop, ctx, chosen.frontier_id)
-        loop.state.planner.reset()
+        self.goals.new_goal(loop, ctx, chosen)
         self.chosen += 1
         return chosen
