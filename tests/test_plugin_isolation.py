@@ -183,6 +183,9 @@ def test_clashing_options_refuse_their_plugin_alone(tmp_path: Path, capsys: pyte
 def test_built_in_commands_work_beside_hostile_plugins(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["config", "show", "--agent", "drive-nav"]) == 0
     assert "explorer:" in capsys.readouterr().out
+    assert main(["doctor"]) == 0
+    assert main(["doctor", "--env", "exit-build"]) == 0  # its options fit; doctor builds no world
+    assert main(["doctor", "--env", "clash-scenes"]) == 0  # doctor has no world options to clash with
     assert main([*EVAL, "--episodes", "1", "--out", str(tmp_path / "run")]) == 0
     assert [r["stop_reason"] for r in _records(tmp_path / "run")] != ["error"]
 
@@ -270,7 +273,7 @@ def test_an_exit_or_interrupt_at_import_is_one_line_and_breaks_nothing_else(tmp_
     dist.mkdir()
     (dist / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {PACKAGE}\nVersion: 0.1\n", encoding="utf-8")
     (dist / "entry_points.txt").write_text(ENTRY_POINTS, encoding="utf-8")
-    for args in (["--help"], ["eval", "--help"], ["config", "show", "--agent", "drive-nav"]):
+    for args in (["--help"], ["eval", "--help"], ["config", "show", "--agent", "drive-nav"], ["doctor"]):
         done = _drivenav(packages, *args)
         assert done.returncode == 0, (args, done.stderr)
     run = tmp_path / "run"
@@ -278,6 +281,8 @@ def test_an_exit_or_interrupt_at_import_is_one_line_and_breaks_nothing_else(tmp_
         done = _drivenav(packages, *EVAL, "--episodes", "1", "--out", str(run), option, name)
         assert done.returncode == 2, done.stderr
         assert why in _one_line(done.stderr, name) and "that can be loaded" in done.stderr
+    done = _drivenav(packages, "doctor", "--env", "exit-import")
+    assert done.returncode == 2 and "SystemExit: 5" in _one_line(done.stderr, "exit-import")
     done = _drivenav(packages, *EVAL, "--episodes", "1", "--out", str(run))
     assert done.returncode == 0, done.stderr
     assert len(_records(run)) == 1

@@ -88,10 +88,10 @@ def plugins_of(group: str) -> list[Declared]:
 
 
 _STOPPED_BY_SIGNAL = False
-"""Whether this process received a stop signal (Ctrl-C, SIGTERM) through :func:`stop`."""
+"""Whether this process received a stop signal (Ctrl-C, SIGTERM) through :func:`_stop`."""
 
 
-def stop(signum: int, frame: FrameType | None) -> None:
+def _stop(signum: int, frame: FrameType | None) -> None:
     """The handler of a stop signal (Ctrl-C, SIGTERM): marks the stop as real, then raises ``KeyboardInterrupt``."""
     global _STOPPED_BY_SIGNAL
     _STOPPED_BY_SIGNAL = True
@@ -103,8 +103,8 @@ def handle_stop_signals() -> None:
     plug-in's own ``KeyboardInterrupt`` is then its failure, never a stop (the command line's handlers)."""
     global _STOPPED_BY_SIGNAL
     _STOPPED_BY_SIGNAL = False
-    signal.signal(signal.SIGINT, stop)
-    signal.signal(signal.SIGTERM, stop)
+    signal.signal(signal.SIGINT, _stop)
+    signal.signal(signal.SIGTERM, _stop)
 
 
 @contextmanager
@@ -117,7 +117,7 @@ def stop_signals_marked() -> Iterator[None]:
     if signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
         yield
         return
-    previous = signal.signal(signal.SIGINT, stop)
+    previous = signal.signal(signal.SIGINT, _stop)
     try:
         yield
     finally:
