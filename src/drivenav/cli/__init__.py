@@ -25,6 +25,7 @@ from drivenav.cli.report import add_report
 from drivenav.cli.robot import SERVING, add_robot
 from drivenav.cli.serve import add_serve
 from drivenav.errors import InputError, RunStoppedError, WorkerDiedError
+from drivenav.plugins import handle_stop_signals
 from drivenav.threads import limit_blas_threads
 
 limit_blas_threads()  # before numpy loads: nothing above imports it, the command handlers do
@@ -54,15 +55,6 @@ def build_parser() -> argparse.ArgumentParser:
     for add in COMMANDS:
         add(commands)
     return parser
-
-
-def _interrupt_on_sigterm() -> None:
-    """SIGTERM (a scheduler's or ``kill``'s stop) behaves like Ctrl-C: finished episodes stay saved."""
-
-    def interrupt(signum: int, frame: object) -> None:
-        raise KeyboardInterrupt
-
-    signal.signal(signal.SIGTERM, interrupt)
 
 
 def _shown_path(error: OSError) -> str:
@@ -99,11 +91,11 @@ def _reader_gone() -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one command; the exit status: 0 done, 1 a run stopped or a check failed, 2 bad input, 130 interrupted,
     141 the output's reader went away."""
+    handle_stop_signals()  # SIGTERM behaves like Ctrl-C (finished episodes stay saved); a plug-in's own is no stop
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
     handler: Handler = args.handler
-    _interrupt_on_sigterm()
     try:
         status = handler(args)
         sys.stdout.flush()  # a closed pipe is found here, not in the interpreter's exit

@@ -103,11 +103,11 @@ def _add_bench_ablations(sub: Commands) -> None:
         "exact-detector, strong-detector, weak-detector, oracle-reasoner, exploration-bound; docs/regimes.md) into "
         "DIR/regimes/, one table in DIR/regimes.md",
     )
-    add_world_options(parser)
     add_execution_options(parser)
     add_model_options(parser)
     add_config_options(parser)
     parser.set_defaults(handler=_cmd_bench_ablations)
+    add_world_options(parser)  # last: a plug-in world's options are checked against every other option
 
 
 def _add_bench_grounder(sub: Commands) -> None:

@@ -13,7 +13,8 @@ from typing import TYPE_CHECKING, TypeAlias
 from drivenav.errors import InputError
 from drivenav.eval.options import seed
 from drivenav.jsonstream import JsonObject
-from drivenav.worlds import DEFAULT_WORLD, WORLDS, WorldEntry, chosen_world, usable_worlds
+from drivenav.plugins import add_options_of
+from drivenav.worlds import DEFAULT_WORLD, WORLDS, WorldEntry, chosen_world, offered_worlds, usable_worlds
 
 if TYPE_CHECKING:
     from drivenav.episode import Episode
@@ -178,15 +179,15 @@ def add_execution_options(parser: argparse.ArgumentParser) -> None:
 
 def add_world_options(parser: argparse.ArgumentParser) -> None:
     """``--env`` and every world's own options, in one group titled with the worlds' documentation (a plug-in world
-    that cannot be loaded is still a choice, refused with its one line when chosen)."""
+    that cannot be loaded, or whose options do not fit the command, is still a choice, refused with its one line when
+    chosen). Called once the command's other options are in: a plug-in's options are checked against them all."""
     worlds = usable_worlds()
     docs = "; ".join(f"--env {world.name}: {world.docs}" for world in worlds if world.docs)
     names = [world.summary for world in worlds]
     group = parser.add_argument_group(f"world ({docs})")
     summary = f"{', '.join(names[:-1])} or {names[-1]}" if len(names) > 1 else names[0]
     group.add_argument("--env", default=DEFAULT_WORLD, choices=WORLDS.names, help=summary)
-    for world in worlds:
-        world.add_options(group)
+    add_options_of(parser, group, WORLDS, {world.name: world.add_options for world in worlds})
 
 
 def executor(args: argparse.Namespace) -> Executor:
@@ -211,16 +212,18 @@ def settings(args: argparse.Namespace, agent: str | None) -> Settings:
             given[key] = str(Path(str(given[key])).resolve())
     if "run.seed" in given:
         seed(int(str(given["run.seed"])))
-    presets = chosen_world(args).presets(args)
+    world = chosen_world(args)
+    with WORLDS.guard(world.name, "presets"):
+        presets = world.presets(args)
     configs = [*presets, *(c for c in args.config if c not in presets)]
-    prefixes = tuple(world.set_prefix for world in usable_worlds() if world.set_prefix)
+    prefixes = tuple(world.set_prefix for world in offered_worlds(args) if world.set_prefix)
     overrides = [o for o in args.overrides if not (prefixes and o.startswith(prefixes))]
     return load_settings(agent, configs=configs, overrides=overrides, options=given)
 
 
 def check_world_options(args: argparse.Namespace, world: WorldEntry) -> None:
     """A world's own options only with that world (before any model loads)."""
-    for other in usable_worlds():
+    for other in offered_worlds(args):
         if other is not world:
             other.refuse_options(args)
 
@@ -235,17 +238,25 @@ def run_spec(args: argparse.Namespace, agent: str, connect: bool = True) -> RunS
     check_world_options(args, world)
     resolved = settings(args, agent)
     check_models(resolved.models, connect)
-    return RunSpec(world.build(args, resolved), resolved)
+    with WORLDS.guard(world.name, "build"):
+        env = world.build(args, resolved)
+    return RunSpec(env, resolved)
 
 
 def episodes(args: argparse.Namespace, spec: RunSpec) -> list[Episode]:
     """The run's episodes, from its world's source (generated, a file, a Habitat split)."""
-    return chosen_world(args).episodes(args, spec)
+    world = chosen_world(args)
+    with WORLDS.guard(world.name, "episodes"):
+        found = world.episodes(args, spec)
+    return found
 
 
 def world_label(args: argparse.Namespace) -> str:
     """What a run's table is titled with: the scenes, the benchmark and split, the robot."""
-    return chosen_world(args).label(args)
+    world = chosen_world(args)
+    with WORLDS.guard(world.name, "label"):
+        label = world.label(args)
+    return label
 
 
 def print_bench(result: JsonObject, as_json: bool) -> int:

@@ -43,7 +43,6 @@ def add_eval(commands: Commands) -> None:
         required=True,
         help="embedded: a number of episodes to generate, or an episodes file; habitat: N (the split's first) or all",
     )
-    add_world_options(parser)
     add_run_seed(parser)
     parser.add_argument("--out", required=True, type=path, help="run directory (rerun to resume)")
     add_max_steps(parser)
@@ -57,6 +56,7 @@ def add_eval(commands: Commands) -> None:
     add_model_options(parser)
     add_config_options(parser)
     parser.set_defaults(handler=_cmd_eval)
+    add_world_options(parser)  # last: a plug-in world's options are checked against every other option
 
 
 def add_run(commands: Commands) -> None:

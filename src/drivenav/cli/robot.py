@@ -19,11 +19,11 @@ def add_robot(commands: Commands) -> None:
     serve = sub.add_parser("serve", help="serve this robot's sensors and motion (ROS 2 topics or a ROS 2 bag)")
     serve.add_argument("--bind", default="tcp://127.0.0.1:5555", help="endpoint (default tcp://127.0.0.1:5555)")
     serve.add_argument("--keys", type=path, default=None, help="CURVE keys (required off loopback)")
-    add_part_options(serve)
     serve.add_argument("--lidar", action="store_true", help="send LiDAR occupancy in the camera's field of view")
     serve.add_argument("--jpeg", action="store_true", help="RGB as JPEG (default raw)")
     add_config_options(serve)
     serve.set_defaults(handler=_cmd_robot_serve)
+    add_part_options(serve)  # last: a plug-in part's options are checked against every other option
     sim = sub.add_parser("serve-sim", help="the embedded world served as a robot, with metrics per episode")
     sim.add_argument("--scenes", default="procedural", help="a --scenes SPEC")
     sim.add_argument("--episodes", required=True, type=path, help="the episodes file the brain will run")

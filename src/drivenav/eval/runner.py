@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import logging
 import zlib
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -35,6 +35,7 @@ from drivenav.eval.report import Summary, summarize
 from drivenav.eval.rundir import RunDirectory, lost_to_a_server
 from drivenav.eval.timings import to_columns
 from drivenav.eval.trace import EpisodeError, EpisodeTrace
+from drivenav.plugins import is_part_failure, plugin_in_traceback, stop_signals_marked
 from drivenav.semantics.model_spec import ModelSpec
 from drivenav.settings import Settings
 from drivenav.types import SEMANTIC, Action, Observation
@@ -135,12 +136,15 @@ def _drive(env: Env, agent: Agent, episode: Episode, run_seed: int, max_steps: i
 
 
 def run_episode(
-    env: Env, agent: Agent, episode: Episode, run_seed: int, max_steps: int
+    env: Env, agent: Agent, episode: Episode, run_seed: int, max_steps: int, parts: Mapping[str, str] | None = None
 ) -> tuple[EpisodeRecord, EpisodeTrace]:
     """Run one episode to STOP or the step budget; returns its record and its trace.
 
     An exception from the agent, its models or the world ends this episode with ``stop_reason`` ``"error"``
-    and the traceback in the trace; it never escapes (a user error, :class:`InputError`, stops the run).
+    and the traceback in the trace; it never escapes (a user error, :class:`InputError`, stops the run). So do a
+    ``SystemExit`` and a ``KeyboardInterrupt`` that no stop signal raised (a plug-in's own); a real Ctrl-C stops the
+    run (:func:`~drivenav.plugins.is_part_failure`). The record names the plug-in whose code raised it, if any (one
+    of ``parts``, the run's parts by entry-point group, where given: :func:`run_parts`).
     """
     path = _Trajectory()
     error: EpisodeError | None = None
@@ -149,14 +153,18 @@ def run_episode(
         called_stop = _drive(env, agent, episode, run_seed, max_steps, path)
     except (InputError, RunStoppedError):
         raise  # e.g. a replay that does not match the run, a robot gone: the run stops with its message
-    except Exception as exc:
-        error = EpisodeError.of(exc)
+    except BaseException as exc:
+        if not is_part_failure(exc):
+            raise
+        error = episode_error(exc, parts)
     measures = EpisodeMeasures()  # a failed reset measured nothing
     if path.positions:
         try:
             measures = checked_measures(env.measures())
-        except Exception as exc:  # a world gone with its measures (a robot's link), or out of range: the first is kept
-            error = error or EpisodeError.of(exc)
+        except BaseException as exc:  # a world gone with its measures (a robot's link), or out of range: the first
+            if not is_part_failure(exc):
+                raise
+            error = error or episode_error(exc, parts)
     if error is not None:
         stop_reason = ERROR
     elif called_stop:
@@ -165,6 +173,32 @@ def run_episode(
         stop_reason = "timeout"
     record = _record(episode, agent, path, measures, stop_reason, error)
     return record, _trace(episode, agent, path, error)
+
+
+def episode_error(exc: BaseException, parts: Mapping[str, str] | None = None) -> EpisodeError:
+    """The error that ended an episode: its type, its message naming the plug-in (of ``parts`` where given) whose
+    code raised it, if any, and its traceback."""
+    error = EpisodeError.of(exc)
+    return replace(error, message=described(exc, error.message, parts))
+
+
+def described(exc: BaseException, message: str, parts: Mapping[str, str] | None = None) -> str:
+    """``message`` about ``exc``, followed by the plug-in (of ``parts`` where given) whose code raised it, if any."""
+    plugin = plugin_in_traceback(exc, parts)
+    return " ".join(part for part in (message, f"(raised by {plugin})" if plugin else "") if part)
+
+
+def run_parts(spec: RunSpec) -> dict[str, str]:
+    """The parts a run uses, by entry-point group: its world, explorer and models."""
+    models = spec.settings.models
+    return {
+        "drivenav.worlds": spec.env.name,
+        "drivenav.explorers": spec.settings.explorer.name,
+        "drivenav.reasoners": models.reasoner,
+        "drivenav.grounders": models.detector,
+        "drivenav.segmenters": models.segmenter,
+        "drivenav.scorers": models.scorer,
+    }
 
 
 def _record(
@@ -245,12 +279,15 @@ class _Worker:
         """One episode; then the agent releases its episode state before the next scene loads. An exception there
         never replaces the episode's result: it is logged (the next episode's reset starts the agent anew)."""
         try:
-            return run_episode(self.env, self.agent, episode, self.spec.seed, self.spec.max_steps)
+            return run_episode(self.env, self.agent, episode, self.spec.seed, self.spec.max_steps, run_parts(self.spec))
         finally:
             try:
                 self.agent.end_episode()
-            except Exception as exc:
-                log.warning("episode %r: the agent failed to end it: %s", episode.episode_id, one_line(exc))
+            except BaseException as exc:
+                if not is_part_failure(exc):
+                    raise
+                why = described(exc, one_line(exc), run_parts(self.spec))
+                log.warning("episode %r: the agent failed to end it: %s", episode.episode_id, why)
 
 
 _WORKER: _Worker | None = None
@@ -279,9 +316,12 @@ def preflight(spec: RunSpec, executor: Executor, episodes: int) -> None:
         worker = _worker_for(spec)
     except InputError:
         raise
-    except Exception as exc:
+    except BaseException as exc:
+        if not is_part_failure(exc):
+            raise
         raise RunStoppedError(
-            f"the {spec.env.name} world or the {spec.agent} agent cannot start: {one_line(exc)}"
+            f"the {spec.env.name} world or the {spec.agent} agent cannot start: "
+            f"{described(exc, one_line(exc), run_parts(spec))}"
         ) from exc
     check_world_supports(spec, worker.agent)
     if not _in_process(executor, episodes):
@@ -321,9 +361,22 @@ def evaluate(
     The run directory is locked for the run (a second evaluation into it is refused) and must have been
     started with the same settings and episodes (else an :class:`InputError` names the first difference).
     A progress bar goes to standard error. ``served``: the models the workers use instead of the spec's (its
-    detector served to them all, ``eval --share-detector``); the run directory records the spec's.
+    detector served to them all, ``eval --share-detector``); the run directory records the spec's. Ctrl-C stops the
+    run (a plug-in's own ``KeyboardInterrupt`` ends only its episode: :func:`~drivenav.plugins.stop_signals_marked`).
     """
-    executor = executor or Executor()
+    with stop_signals_marked():
+        return _evaluate(episodes, spec, out, executor or Executor(), show_progress, served)
+
+
+def _evaluate(
+    episodes: Sequence[Episode],
+    spec: RunSpec,
+    out: Path,
+    executor: Executor,
+    show_progress: bool,
+    served: ModelSpec | None,
+) -> Summary:
+    """:func:`evaluate`, its stop signals marked."""
     recorded = spec
     if served is not None:
         spec = replace(spec, settings=replace(spec.settings, models=served))

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any, Generic, TypeVar
 
 from drivenav.errors import InputError, one_line
 from drivenav.eval.options import path
-from drivenav.plugins import OptionAdder, Registry, no_options, refuse_options
+from drivenav.plugins import OptionAdder, Registry, add_options_of, no_options, refuse_options
 
 if TYPE_CHECKING:
     from drivenav.robot.parts import MotionExecutor, SensorSource
@@ -144,8 +144,9 @@ DEFAULT_MOTION = "cmd-vel"
 
 
 def add_part_options(parser: argparse.ArgumentParser) -> None:
-    """``--source`` and ``--motion``, each with its parts' own options (a plug-in that cannot be loaded is still a
-    choice, refused with its one line when chosen)."""
+    """``--source`` and ``--motion``, each with its parts' own options (a plug-in that cannot be loaded, or whose
+    options do not fit the command, is still a choice, refused with its one line when chosen). Called once the
+    command's other options are in: a plug-in's options are checked against them all."""
     _add_choice(parser, SOURCES, DEFAULT_SOURCE, "sensors")
     _add_choice(parser, MOTIONS, DEFAULT_MOTION, "motion")
 
@@ -155,8 +156,7 @@ def _add_choice(parser: argparse.ArgumentParser, registry: Registry[Entry], defa
     group = parser.add_argument_group(f"robot {what} ({registry.option})")
     shown = "; ".join(f"{name}: {entry.summary}" for name, entry in entries.items())
     group.add_argument(registry.option, default=default, choices=registry.names, help=f"{shown} (default {default})")
-    for entry in entries.values():
-        entry.add_options(group)
+    add_options_of(parser, group, registry, {name: entry.add_options for name, entry in entries.items()})
 
 
 def robot_parts(args: argparse.Namespace, sim: SimConfig) -> tuple[SensorSource, MotionExecutor]:
@@ -164,13 +164,17 @@ def robot_parts(args: argparse.Namespace, sim: SimConfig) -> tuple[SensorSource,
     built in that order once the other parts' own options are refused."""
     source = _chosen(SOURCES, args.source, args)
     motion = _chosen(MOTIONS, args.motion, args)
-    return source.build(args, sim), motion.build(args, sim)
+    with SOURCES.guard(source.name, "build"):
+        sensors = source.build(args, sim)
+    with MOTIONS.guard(motion.name, "build"):
+        executor = motion.build(args, sim)
+    return sensors, executor
 
 
 def _chosen(registry: Registry[Entry], name: str, args: argparse.Namespace) -> Entry:
     """The part ``name`` of ``registry``; another part's own option in ``args`` is one line."""
-    chosen = registry.get(name)
-    for other in registry.usable().values():
+    chosen = registry.chosen(args, name)
+    for other in registry.offered(args).values():
         if other is not chosen:
             refuse_options(args, other.own_options, f"only with {registry.option} {other.name}")
     return chosen

@@ -17,7 +17,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
-from typing import TYPE_CHECKING, Generic, TypeVar
+from typing import TYPE_CHECKING, Any, Generic, TypeVar
 
 from drivenav.errors import InputError
 from drivenav.plugins import Registry
@@ -442,7 +442,8 @@ def _check_record_path(path: Path) -> None:
 def _check_segmenter(spec: ModelSpec) -> None:
     """A segmenter other than the default goes with a box detector (a served one: the server's business)."""
     if spec.detector in BOX_DETECTORS:
-        SEGMENTER_BACKENDS.get(spec.segmenter).check(spec)
+        with SEGMENTER_BACKENDS.guard(spec.segmenter, "check"):
+            SEGMENTER_BACKENDS.get(spec.segmenter).check(spec)
     elif spec.segmenter != DEFAULT_SEGMENTER and spec.detector != "remote":
         expected = (
             f"{DEFAULT_SEGMENTER} with --detector {spec.detector}, which makes its own masks (a box segmenter serves "
@@ -464,13 +465,15 @@ def check_models(spec: ModelSpec, connect: bool = True) -> None:
     file, an unreachable VLM or grounder server, missing weights (cheap checks first, the reasoner's, grounder's,
     segmenter's and scorer's). ``connect=False`` runs the cheap checks only (a shared detector is loaded by its own
     server process)."""
-    backends = (
-        REASONER_BACKENDS.get(spec.reasoner),
-        GROUNDER_BACKENDS.get(spec.detector),
-        SCORER_BACKENDS.get(spec.scorer),
+    roles: tuple[tuple[ModelRegistry[Any], str], ...] = (
+        (REASONER_BACKENDS, spec.reasoner),
+        (GROUNDER_BACKENDS, spec.detector),
+        (SCORER_BACKENDS, spec.scorer),
     )
-    for backend in backends:
-        backend.check(spec)
+    backends = [(registry, name, registry.get(name)) for registry, name in roles]
+    for registry, name, backend in backends:
+        with registry.guard(name, "check"):
+            backend.check(spec)
     _check_segmenter(spec)
     _check_regime(spec)
     if spec.detector_shadow_url:
@@ -479,8 +482,9 @@ def check_models(spec: ModelSpec, connect: bool = True) -> None:
         _check_record_path(Path(spec.vlm_record))
     if not connect:
         return
-    for backend in backends:
-        backend.connect(spec)
+    for registry, name, backend in backends:
+        with registry.guard(name, "connect"):
+            backend.connect(spec)
     if spec.detector_shadow_url:
         _check_shadow(spec, connect=True)
 

@@ -47,10 +47,16 @@ def usable_worlds() -> list[WorldEntry]:
     return list(WORLDS.usable().values())
 
 
+def offered_worlds(args: argparse.Namespace) -> list[WorldEntry]:
+    """Every world that loads and whose options the command line parsed into ``args`` took (a plug-in world whose
+    options clash is left out: its options are none of the command's)."""
+    return list(WORLDS.offered(args).values())
+
+
 def chosen_world(args: argparse.Namespace) -> WorldEntry:
-    """The world of a command's ``--env`` (commands without one run on the default world); a broken plug-in is one
-    :class:`~drivenav.errors.InputError` line."""
-    return WORLDS.get(getattr(args, "env", DEFAULT_WORLD))
+    """The world of a command's ``--env`` (commands without one run on the default world); a broken plug-in, or one
+    whose options the command refused, is one :class:`~drivenav.errors.InputError` line."""
+    return WORLDS.chosen(args, getattr(args, "env", DEFAULT_WORLD))
 
 
 def world_named(name: str) -> WorldEntry:
@@ -64,7 +70,9 @@ def recorded_world(record: JsonObject, source: str | Path) -> tuple[WorldEntry, 
     if not isinstance(name, str) or name not in WORLDS.names:
         raise InputError(source, "config.env.name", f"a run in {' or '.join(WORLDS.names)}", name)
     entry = WORLDS.get(name)
-    return entry, entry.rebuild(record, source)
+    with WORLDS.guard(name, "rebuild"):
+        spec = entry.rebuild(record, source)
+    return entry, spec
 
 
 __all__ = [
@@ -73,6 +81,7 @@ __all__ = [
     "WORLDS",
     "WorldEntry",
     "chosen_world",
+    "offered_worlds",
     "recorded_world",
     "usable_worlds",
     "world_named",
