@@ -580,3 +580,17 @@ def _difference(a: object, b: object, prefix: str) -> str | None:
 
 
 _ABSENT = object()  # a key missing from one tree (unequal to every value, None included)
+
+
+def section_defaults(key: str) -> JsonObject | None:
+    """The default section ``explorer.<key>`` of the installed explorer holding settings key ``key`` (None when no
+    installed explorer holds it, or its section cannot be made): what a run that does not hold that section would
+    have held, for readers comparing runs of several explorers."""
+    name = section_keys().get(key)
+    if name is None:
+        return None
+    try:
+        defaults: JsonObject = dataclasses.asdict(section_class(name)())
+    except InputError:
+        return None
+    return defaults

@@ -8,8 +8,9 @@ it back rebuilds :class:`~drivenav.settings.Settings` through the same checks as
 The world stays JSON: each world's recipe has its own fields, and only its name and scenes are ever read back.
 
 A run of a plug-in explorer records beside ``config`` which entry point and distribution provided it
-(``explorer_plugin``: ``name``, ``value``, ``distribution``), so that once the plug-in is uninstalled the run is refused
-in one line naming what to install (:func:`~drivenav.settings.missing_explorer`). The sections of explorers other
+(``explorer_plugin``: ``name``, ``value``, ``distribution``), so that once the plug-in is uninstalled a resume of the run
+is refused in one line naming what to install (:func:`~drivenav.settings.missing_explorer`), while its readers (a
+report, ``compare``, pictures) still read it, its settings tree kept as recorded. The sections of explorers other
 than the chosen one, which a ``run.json`` of an older drivenav holds, are dropped on reading and left out of the
 resume's comparison (:func:`~drivenav.settings.held_sections_only`).
 """
@@ -24,7 +25,8 @@ from drivenav.envs.base import EnvSpec
 from drivenav.errors import InputError
 from drivenav.jsonstream import DOCUMENT, JsonObject
 from drivenav.plugins import Declared
-from drivenav.settings import Settings, first_difference, held_sections_only, settings_from_dict, settings_to_dict
+from drivenav.agent.explorers import DEFAULT_EXPLORER, EXPLORERS
+from drivenav.settings import RunSettings, Settings, first_difference, held_sections_only, settings_from_dict, settings_to_dict
 
 WORLD_KEY = "env"  # the key of the world's recipe in run.json's config
 PLUGIN_KEY = "explorer_plugin"  # the key of a plug-in explorer's entry point in run.json
@@ -50,10 +52,13 @@ class RunInfo:
     git_commit: str | None
     git_dirty: bool | None
     explorer_plugin: Declared | None = None
+    recorded: JsonObject | None = None
 
     def config_json(self) -> JsonObject:
-        """``run.json``'s ``config`` tree: the world under ``env`` beside the settings' sections."""
-        tree: JsonObject = json.loads(json.dumps({WORLD_KEY: self.world, **settings_to_dict(self.config)}))
+        """``run.json``'s ``config`` tree: the world under ``env`` beside the settings' sections (as recorded, for a
+        run read back whose explorer is not installed)."""
+        sections = settings_to_dict(self.config) if self.recorded is None else self.recorded
+        tree: JsonObject = json.loads(json.dumps({WORLD_KEY: self.world, **sections}))
         return tree
 
     def to_json(self) -> JsonObject:
@@ -71,17 +76,20 @@ class RunInfo:
         return tree
 
     @staticmethod
-    def from_json(data: object, source: str | Path) -> RunInfo:
+    def from_json(data: object, source: str | Path, reading: bool = False) -> RunInfo:
         """A ``run.json`` read back, its settings rebuilt and checked; anything else is one :class:`InputError`
-        naming the field (``config.sim.max_steps``, ``episodes_sha256``)."""
+        naming the field (``config.sim.max_steps``, ``episodes_sha256``). A run whose explorer is not installed is
+        refused (:func:`~drivenav.settings.missing_explorer`) unless only ``reading`` it (a report, ``compare``, a
+        picture): then its tree is kept as recorded (``recorded``) and ``config`` holds the rest of its settings."""
         if not isinstance(data, dict):
             raise InputError(source, DOCUMENT, "a JSON object", type(data).__name__)
         config = _object(data, "config", source)
         world = _object(config, WORLD_KEY, source, "config.")
         tree = {key: value for key, value in config.items() if key != WORLD_KEY}
         plugin = explorer_plugin(data, source)
+        recorded = _uninstalled_explorer_tree(tree) if reading else None
         try:
-            settings = settings_from_dict(tree, plugin)
+            settings = settings_from_dict(tree if recorded is None else _without_explorer(tree), plugin)
         except InputError as error:
             raise InputError(source, f"config.{error.field}", error.expected, error.got) from None
         return RunInfo(
@@ -92,6 +100,7 @@ class RunInfo:
             _optional_text(data, "git_commit", source),
             _optional_flag(data, "git_dirty", source),
             plugin,
+            recorded,
         )
 
     def check_resume(self, previous: JsonObject, source: str | Path) -> None:
@@ -107,6 +116,20 @@ class RunInfo:
             )
         if previous["episodes_sha256"] != self.episodes_sha256:
             raise InputError(source, "episodes", "the episodes this run directory was started with, to resume it")
+
+
+def _uninstalled_explorer_tree(tree: JsonObject) -> JsonObject | None:
+    """``tree`` (run.json's settings) when its chosen explorer is not installed, else None."""
+    explorer = tree.get("explorer")
+    name = explorer.get("name") if isinstance(explorer, dict) else None
+    return tree if isinstance(name, str) and name not in EXPLORERS.names else None
+
+
+def _without_explorer(tree: JsonObject) -> JsonObject:
+    """``tree`` with the default explorer and agent in place of an uninstalled plug-in's (its other sections kept)."""
+    run = tree.get("run")
+    run_section = {**run, "agent": RunSettings.agent} if isinstance(run, dict) else run
+    return {**tree, "explorer": {"name": DEFAULT_EXPLORER}, "run": run_section}
 
 
 def explorer_plugin(data: JsonObject, source: str | Path) -> Declared | None:

@@ -145,7 +145,7 @@ def read_run(out: Path) -> RunContents:
     if results is None:
         raise InputError(out, "RUN", "a run directory (episodes.jsonl written by 'drivenav eval')", "no episodes.jsonl")
     info_file = run_file(out, RUN_FILE)
-    info = None if info_file is None else RunInfo.from_json(_read_json(info_file), info_file)
+    info = None if info_file is None else RunInfo.from_json(_read_json(info_file), info_file, reading=True)
     copy = run_file(out, EPISODES_COPY)
     episodes = None
     if copy is not None:

@@ -22,6 +22,7 @@ from drivenav.eval.records import EpisodeRecord
 from drivenav.eval.run_info import RunInfo
 from drivenav.eval.rundir import file_name, read_run, trace_path
 from drivenav.jsonstream import JsonObject
+from drivenav.settings import section_defaults
 
 
 @dataclass(frozen=True)
@@ -104,7 +105,22 @@ def episode_order(record: EpisodeRecord) -> tuple[int, int, str, str]:
 
 
 def config_differences(runs: Sequence[Run]) -> list[str]:
-    """The dotted config keys whose values are not the same in every run (a key some runs lack differs)."""
+    """The dotted config keys whose values are not the same in every run (a key some runs lack differs). A run
+    records its own explorer's section only: another explorer's key it lacks is that explorer's default, as the
+    earlier runs recorded it (:func:`~drivenav.settings.section_defaults`)."""
     configs = [run.config() for run in runs]
     keys = sorted({key for config in configs for key in config})
-    return [key for key in keys if len({json.dumps(config.get(key), sort_keys=True) for config in configs}) > 1]
+    defaults = _explorer_defaults(keys)
+    values = [[json.dumps(config.get(key, defaults.get(key)), sort_keys=True) for config in configs] for key in keys]
+    return [key for key, shown in zip(keys, values, strict=True) if len(set(shown)) > 1]
+
+
+def _explorer_defaults(keys: Sequence[str]) -> JsonObject:
+    """The installed explorers' default values of the dotted ``explorer.<key>.<field>`` keys among ``keys``."""
+    sections = {key.split(".")[1] for key in keys if key.startswith("explorer.") and key.count(".") >= 2}
+    found: JsonObject = {}
+    for section in sorted(sections):
+        defaults = section_defaults(section)
+        if defaults is not None:
+            found.update(flatten(defaults, f"explorer.{section}."))
+    return found
