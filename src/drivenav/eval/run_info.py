@@ -8,9 +8,9 @@ it back rebuilds :class:`~drivenav.settings.Settings` through the same checks as
 The world stays JSON: each world's recipe has its own fields, and only its name and scenes are ever read back.
 
 A run of a plug-in explorer records beside ``config`` which entry point and distribution provided it
-(``explorer_plugin``: ``name``, ``value``, ``distribution``), so that once the plug-in is uninstalled a resume of the run
-is refused in one line naming what to install (:func:`~drivenav.settings.missing_explorer`), while its readers (a
-report, ``compare``, pictures) still read it, its settings tree kept as recorded. The sections of explorers other
+(``explorer_plugin``: ``name``, ``value``, ``distribution``), so that once the plug-in is uninstalled a resume of the
+run is refused in one line naming what to install (:func:`~drivenav.settings.missing_explorer`), while its readers
+(a report, ``compare``, pictures) still read it, its settings tree kept as recorded. The sections of explorers other
 than the chosen one, which a ``run.json`` of an older drivenav holds, are dropped on reading and left out of the
 resume's comparison (:func:`~drivenav.settings.held_sections_only`).
 """
@@ -21,12 +21,19 @@ import json
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from drivenav.agent.explorers import DEFAULT_EXPLORER, EXPLORERS
 from drivenav.envs.base import EnvSpec
 from drivenav.errors import InputError
 from drivenav.jsonstream import DOCUMENT, JsonObject
 from drivenav.plugins import Declared
-from drivenav.agent.explorers import DEFAULT_EXPLORER, EXPLORERS
-from drivenav.settings import RunSettings, Settings, first_difference, held_sections_only, settings_from_dict, settings_to_dict
+from drivenav.settings import (
+    RunSettings,
+    Settings,
+    first_difference,
+    held_sections_only,
+    settings_from_dict,
+    settings_to_dict,
+)
 
 WORLD_KEY = "env"  # the key of the world's recipe in run.json's config
 PLUGIN_KEY = "explorer_plugin"  # the key of a plug-in explorer's entry point in run.json
