@@ -139,6 +139,7 @@ def method_entry(records: list[EpisodeRecord]) -> MethodEntry:
         failure_causes=failure_counts(records),
         missed_target_causes=missed_counts(records),
         decisions=decision_means(records),
+        explorers=tuple(sorted({r.explorer.name for r in records if r.explorer is not None})),
     )
 
 

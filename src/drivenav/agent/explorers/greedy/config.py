@@ -5,7 +5,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from drivenav.agent.config import ExplorerEntry
+from drivenav.agent.config import CounterSpec, ExplorerEntry
+from drivenav.agent.explorers.directions.config import ACTIVITIES, DECISIONS
 from drivenav.ranges import LENGTH, check_ranges
 
 
@@ -25,4 +26,6 @@ EXPLORER = ExplorerEntry(
     "drivenav.agent.explorers.greedy.explorer:GreedyExplorer",
     "the nearest frontier point by weighted-FMM travel time, kept until explored (no views, no reasoner)",
     ("agent.enrich=false", "agent.verify=false"),
+    counters=(DECISIONS, CounterSpec("goals_skipped", "goals skipped", column=False)),
+    activities=ACTIVITIES,
 )
