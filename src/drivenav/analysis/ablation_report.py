@@ -371,8 +371,8 @@ def _number(value: float | None, template: str) -> str:
 
 
 def _explorers(methods: Methods) -> list[str]:
-    """The explorers that made the methods' runs."""
-    return [name for entry in methods.values() for name in entry.explorers]
+    """The plug-in explorers that made the methods' runs."""
+    return [name for entry in methods.values() for name in entry.plugins]
 
 
 def _decisions(methods: Methods) -> list[str]:
