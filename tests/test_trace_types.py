@@ -20,6 +20,7 @@ from drivenav.agent.trace import (
     FloorSetOff,
     InspectionStarted,
     InspectionVoid,
+    OpaqueEvent,
     ScanStarted,
     StopEvent,
     TargetAccepted,
@@ -79,9 +80,18 @@ def test_a_field_added_with_a_default_may_be_missing() -> None:
         event_from_dict(data)  # a field without a default is required
 
 
-def test_an_unknown_kind_names_the_field_and_the_known_kinds() -> None:
-    with pytest.raises(InputError, match=r"t\.json: field 'events\[3\]\.kind'.*direction_selected.*'teleport'"):
-        event_from_dict({"kind": "teleport", "step": 1}, "t.json", "events[3]")
+def test_an_unknown_kind_is_kept_as_opaque_data() -> None:
+    """A kind of no class here (a plug-in's, read without it) is kept as saved and written back as it was."""
+    data = {"kind": "teleport", "step": 1, "to": [1.0, {"room": "hall"}]}
+    event = event_from_dict(data, "t.json", "events[3]")
+    assert isinstance(event, OpaqueEvent) and event.name == "teleport" and event.to_dict() == data
+
+
+def test_a_kind_that_is_no_text_or_an_unknown_one_without_a_step_is_named() -> None:
+    with pytest.raises(InputError, match=r"t\.json: field 'events\[3\]\.kind'"):
+        event_from_dict({"kind": 4, "step": 1}, "t.json", "events[3]")
+    with pytest.raises(InputError, match=r"t\.json: field 'events\[3\]\.step'"):
+        event_from_dict({"kind": "teleport", "step": "one"}, "t.json", "events[3]")
 
 
 @pytest.mark.parametrize(
@@ -166,12 +176,12 @@ def test_an_unknown_version_is_one_clear_error(version: object) -> None:
         EpisodeTrace.from_json(data, "trace.json")
 
 
-def test_an_unknown_event_kind_in_a_file_names_its_index() -> None:
+def test_an_unknown_event_kind_in_a_file_is_kept_and_written_back() -> None:
     data = _json(_trace().to_json())
     assert isinstance(data, dict)
     data["events"][2] = {"kind": "teleport", "step": 3}
-    with pytest.raises(InputError, match=r"field 'events\[2\]\.kind'"):
-        EpisodeTrace.from_json(data, "trace.json")
+    trace = EpisodeTrace.from_json(data, "trace.json")
+    assert isinstance(trace.events[2], OpaqueEvent) and _json(trace.to_json()) == data
 
 
 @pytest.mark.parametrize(

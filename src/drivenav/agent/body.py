@@ -24,10 +24,10 @@ import time
 from collections.abc import Callable
 
 from drivenav.agent import approach
-from drivenav.agent.base import Agent, BodyStats, ExplorerStats, ModelStats
+from drivenav.agent.base import Agent, BodyStats, CounterValue, ExplorerStats, ModelStats
 from drivenav.agent.config import AgentConfig, ExplorerEntry
 from drivenav.agent.context import StepContext, perceive
-from drivenav.agent.explorer import Explorer, ExplorerSetup, counter_values, sum_counters
+from drivenav.agent.explorer import Explorer, ExplorerContractError, ExplorerSetup, counter_values, sum_counters
 from drivenav.agent.explorers import DEFAULT_EXPLORER, explorer_entry
 from drivenav.agent.floors import NO_FRONTIER, STAIRS, Floor, Floors
 from drivenav.agent.fused_search import FusedTargetSearch
@@ -35,6 +35,7 @@ from drivenav.agent.loop import Loop, Tuning
 from drivenav.agent.planner import LocalPlanner
 from drivenav.agent.state import BodyState
 from drivenav.agent.target import SearchConfig, TargetSearch
+from drivenav.agent.trace import Event, event_name, event_problem, is_builtin
 from drivenav.directions import DirectionPipeline
 from drivenav.errors import InputError
 from drivenav.mapping.config import MappingConfig, MapTuning
@@ -111,12 +112,14 @@ class ExplorerAgent(Agent):
         self._truth: GroundTruth | None = None
         self._ctx: StepContext | None = None  # this step's perception (a floor change sets off from it)
         self._observation: Observation | None = None
+        self._events_checked = 0  # the trace's events checked so far this episode (:meth:`_check_explorer`)
 
     # ----------------------------------------------------------------- episode set-up
 
     def reset(self, goal_text: str, seed: int, truth: GroundTruth | None = None) -> None:
         super().reset(goal_text, seed, truth)
         self._truth = truth
+        self._events_checked = 0
         self.state = self._begin(goal_text, seed, truth)
         self.explorer = self.explorer_type(self._explorer_setup(goal_text, truth, self.state.mapper))
         self.explorer.begin(self.loop())
@@ -278,10 +281,46 @@ class ExplorerAgent(Agent):
         return self.state.counts.freeze(created, accepted, aside)
 
     def explorer_stats(self) -> ExplorerStats | None:
+        """The explorer's name and counters; counters that break the contract (the step that met them ended the
+        episode in an error, :meth:`_check_explorer`) are left out, so that the record is always readable."""
         if self.explorer is None:
             return ExplorerStats(self.explorer_entry.name)
-        counters = [counter_values(e.counters()) for e in self._explorers()]
-        return ExplorerStats(self.explorer_entry.name, sum_counters(counters))
+        try:
+            counters = self._counters()
+        except ExplorerContractError:
+            return ExplorerStats(self.explorer_entry.name)
+        return ExplorerStats(self.explorer_entry.name, counters)
+
+    def _counters(self) -> dict[str, CounterValue]:
+        """Every floor's explorer's counters, checked and summed; a violation is an :class:`ExplorerContractError`."""
+        try:
+            return sum_counters([counter_values(e.counters()) for e in self._explorers()])
+        except (ValueError, TypeError) as error:
+            raise ExplorerContractError(self.explorer_entry.name, str(error)) from None
+
+    def _check_explorer(self, action: object) -> None:
+        """What the explorer handed the body this step, checked where it receives it: the action is an
+        :class:`~drivenav.types.Action`, the counters fit the record, the trace events of plug-in kinds added since
+        the last check can be saved (one that cannot is dropped from the trace, so that the trace is written). A
+        violation is an :class:`ExplorerContractError`: the episode ends in an error naming the explorer."""
+        name = self.explorer_entry.name
+        if not isinstance(action, Action):
+            raise ExplorerContractError(name, f"act() returned {action!r}, not an Action member")
+        self._counters()
+        events = self.trace.events
+        new = range(self._events_checked, len(events))
+        bad = [
+            (index, problem)
+            for index in new
+            if not is_builtin(events[index]) and (problem := event_problem(events[index]))
+        ]
+        if bad:
+            first = events[bad[0][0]]
+            kind = event_name(first) if isinstance(first, Event) else type(first).__name__
+            for index, _ in reversed(bad):
+                del events[index]
+            raise ExplorerContractError(name, f"trace event {kind!r} at step {self.step}: {bad[0][1]}")
+        self._events_checked = len(events)
 
     # ----------------------------------------------------------------- one step
 
@@ -324,8 +363,9 @@ class ExplorerAgent(Agent):
         return loop.state.activity(action) or loop.explorer.activity(loop.state.planner.escaping)
 
     def _counted(self, action: Action, activity: str, timings: dict[str, float], start: float) -> Action:
-        """Count the step under ``activity`` and keep its timings."""
+        """Check what the explorer handed the body, count the step under ``activity`` and keep its timings."""
         assert self.state is not None
+        self._check_explorer(action)
         self.state.counts.count_step(action, activity)
         timings["total"] = _ms_since(start)
         self.step_timings.append(timings)

@@ -177,6 +177,78 @@ def no_rules(config: Any, sim: SimConfig) -> tuple[Rule, ...]:
     return ()
 
 
+COUNT_KINDS = ("count", "by_kind", "metres", "seconds", "number")
+"""What a counter holds: a count, counts by kind (``{kind: count}``), metres, seconds, or another number."""
+AGGREGATES = ("mean", "sum")
+"""How a run aggregates a counter over its episodes (those an exception did not end): the mean per episode, or the
+sum."""
+MARKERS = ("circle", "square", "cross", "triangle", "diamond")
+"""The marker shapes a trace event can be drawn with."""
+RGB = tuple[int, int, int]
+
+
+def _formats_number(template: str) -> bool:
+    """Whether ``template`` formats one number (``"{:.2f}"``)."""
+    try:
+        template.format(1.5)
+    except (ValueError, KeyError, IndexError, TypeError, AttributeError):
+        return False
+    return True
+
+
+@dataclass(frozen=True)
+class CounterSpec:
+    """One counter an explorer keeps (a field of its :meth:`~drivenav.agent.explorer.Explorer.counters`) and how the
+    report shows it: ``kind`` (:data:`COUNT_KINDS`), ``aggregate`` (:data:`AGGREGATES`), the decisions table's
+    column ``title`` (the name when empty) and value ``format``; for counts by kind, the ``kinds`` shown as columns
+    of their own (each titled by its kind; none: only the total). ``column`` false keeps the counter in the records
+    and the episode pages but out of the table."""
+
+    name: str
+    title: str = ""
+    kind: str = "count"
+    aggregate: str = "mean"
+    format: str = "{:.2f}"
+    kinds: tuple[str, ...] = ()
+    column: bool = True
+
+    def __post_init__(self) -> None:
+        check_rule(self, "kind", self.kind in COUNT_KINDS, f"one of {', '.join(COUNT_KINDS)}")
+        check_rule(self, "aggregate", self.aggregate in AGGREGATES, f"one of {', '.join(AGGREGATES)}")
+        check_rule(self, "kinds", not self.kinds or self.kind == "by_kind", "empty for a counter not by kind")
+        check_rule(self, "format", _formats_number(self.format), "a format of one number, e.g. '{:.2f}'")
+
+    @property
+    def heading(self) -> str:
+        """The column's title."""
+        return self.title or self.name
+
+
+@dataclass(frozen=True)
+class EventSpec:
+    """One trace event kind an explorer writes (:class:`~drivenav.agent.trace.Event` subclass of that ``kind``) and
+    how pictures draw it: its ``fields`` (shown on the episode page, in this order; all when empty), the ``marker``
+    (:data:`MARKERS`) and its ``color``, drawn where the agent was at the event's step or, with ``at``, at the
+    episode-frame point in that field; ``label`` names it in the legend (the kind when empty)."""
+
+    kind: str
+    fields: tuple[str, ...] = ()
+    marker: str = "circle"
+    color: RGB = (0, 150, 160)
+    label: str = ""
+    at: str = ""
+
+    def __post_init__(self) -> None:
+        check_rule(self, "marker", self.marker in MARKERS, f"one of {', '.join(MARKERS)}")
+        valid = len(self.color) == 3 and all(isinstance(c, int) and 0 <= c <= 255 for c in self.color)
+        check_rule(self, "color", valid, "three integers in [0, 255] (red, green, blue)")
+
+    @property
+    def legend(self) -> str:
+        """The event's name in a picture's legend."""
+        return self.label or self.kind
+
+
 @dataclass(frozen=True)
 class ExplorerEntry:
     """An exploration method's registration (the object an entry point of group ``drivenav.explorers`` names).
@@ -188,6 +260,11 @@ class ExplorerEntry:
     ``rules`` the rules its section must keep with the rest of the settings (given the section and ``sim``; the
     section's own ranges are checked by its dataclass, :mod:`drivenav.ranges`). A plug-in explorer is also an
     ``--agent`` name: its own method, ``explorer.name=<name>`` plus ``body``.
+
+    What it records is declared too, for the report and the pictures: ``counters`` (:class:`CounterSpec`, in the
+    decisions table's order; a counter left undeclared is shown under its own name), ``activities`` (the names its
+    :meth:`~drivenav.agent.explorer.Explorer.activity` gives, for the steps table) and ``events`` (:class:`EventSpec`:
+    the trace events of its own kinds; an undeclared one is drawn as a plain marker with its kind).
     """
 
     name: str
@@ -196,3 +273,14 @@ class ExplorerEntry:
     description: str
     body: tuple[str, ...] = ()
     rules: Callable[[Any, SimConfig], tuple[Rule, ...]] = no_rules
+    counters: tuple[CounterSpec, ...] = ()
+    activities: tuple[str, ...] = ()
+    events: tuple[EventSpec, ...] = ()
+
+    def counter(self, name: str) -> CounterSpec | None:
+        """The declaration of counter ``name`` (None when undeclared)."""
+        return next((spec for spec in self.counters if spec.name == name), None)
+
+    def event(self, kind: str) -> EventSpec | None:
+        """The declaration of the event kind ``kind`` (None when undeclared)."""
+        return next((spec for spec in self.events if spec.kind == kind), None)

@@ -13,11 +13,14 @@ An explorer is registered by an :class:`~drivenav.agent.config.ExplorerEntry` un
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
-from dataclasses import asdict, dataclass, is_dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, fields, is_dataclass
 from typing import TYPE_CHECKING, ClassVar
 
 from drivenav.agent.base import CounterValue
+from drivenav.agent.trace import MAX_INTEGER
 from drivenav.types import Action, GroundTruth, Observation
 
 if TYPE_CHECKING:
@@ -88,7 +91,9 @@ class Explorer(ABC):
         recovering from a collision)."""
 
     def counters(self) -> object:
-        """The explorer's counters of the episode (a dataclass of numbers and counts by kind), for its record."""
+        """The explorer's counters of the episode, for its record: None, or a dataclass instance whose fields are
+        each a number (int or float, finite, >= 0 and below 2**53) or counts by kind (``{kind: int}``, likewise);
+        the body checks them every step (:func:`counter_values`), and a violation ends the episode in an error."""
         return None
 
     def model_calls(self) -> list[ModelCall]:
@@ -101,13 +106,51 @@ class Explorer(ABC):
         return None
 
 
+class ExplorerContractError(Exception):
+    """An explorer handed the body what its contract does not allow (counters out of the record's range, an action
+    that is no :class:`~drivenav.types.Action`, a trace event that cannot be saved): the episode ends in an
+    ``error`` record naming the explorer and what was wrong."""
+
+    def __init__(self, explorer: str, problem: str) -> None:
+        super().__init__(f"explorer {explorer!r} broke its contract: {problem}")
+
+
 def counter_values(counters: object) -> dict[str, CounterValue]:
-    """An explorer's :meth:`~Explorer.counters` as the record's mapping (dataclass fields in order)."""
+    """An explorer's :meth:`~Explorer.counters` as the record's mapping (dataclass fields in order); counters the
+    record cannot hold are a :class:`ValueError` saying which and why."""
     if counters is None:
         return {}
     if not is_dataclass(counters) or isinstance(counters, type):
-        raise TypeError(f"explorer counters must be a dataclass instance, got {type(counters).__name__}")
-    return dict(asdict(counters))
+        raise ValueError(f"counters() returned a {type(counters).__name__}, not a dataclass instance (or None)")
+    values = {item.name: getattr(counters, item.name) for item in fields(counters)}
+    for name, value in values.items():
+        if not _is_counter(value):
+            raise ValueError(f"counter {name} is {_shown(value)}; expected {COUNTER_CONTRACT}")
+    return {name: dict(value) if isinstance(value, Mapping) else value for name, value in values.items()}
+
+
+COUNTER_CONTRACT = f"a number or counts by kind ({{kind: integer}}), each finite, >= 0 and below {MAX_INTEGER}"
+
+
+def _is_counter(value: object) -> bool:
+    """A number, or counts by kind (string keys, integer counts), each finite, >= 0 and below 2**53."""
+    if isinstance(value, Mapping):
+        return all(isinstance(k, str) and isinstance(v, int) and _in_range(v) for k, v in value.items())
+    return isinstance(value, (int, float)) and _in_range(value)
+
+
+def _in_range(number: int | float) -> bool:
+    if isinstance(number, bool):
+        return False
+    return (isinstance(number, int) or math.isfinite(number)) and 0 <= number < MAX_INTEGER
+
+
+def _shown(value: object) -> str:
+    """A value in an error's line: short (an integer too long for ``repr`` by its size)."""
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) >= MAX_INTEGER:
+        return f"an integer of {abs(value).bit_length()} bits"
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def sum_counters(counters: list[dict[str, CounterValue]]) -> dict[str, CounterValue]:

@@ -5,11 +5,18 @@ registers itself under its kind when it is defined (:data:`EVENT_TYPES`), so tha
 the right dataclass from a saved trace and readers dispatch on the event's type, never on its kind string.
 ``to_dict`` gives the JSON form (no images): the kind, the step, then the fields in declaration order.
 
+A plug-in explorer's events are classes of its own kinds. A reader without the plug-in (or one whose saved fields do
+not fit its class) keeps such an event as an :class:`OpaqueEvent`, its JSON as it was, and never fails the trace on
+it; only drivenav's own kinds (:func:`is_builtin`) are read strictly. :func:`json_problem` says what makes an
+event's JSON form unsafe to save (the body checks every plug-in event when it receives it).
+
 This module stays pure (no files): reading and writing trace files is the evaluator's (``drivenav.eval.trace``).
 """
 
 from __future__ import annotations
 
+import json
+import math
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import MISSING, asdict, dataclass, field, fields
 from functools import cache
@@ -32,9 +39,12 @@ class Event:
     step: int
     kind: ClassVar[str] = "event"
 
-    def __init_subclass__(cls, **kwargs: object) -> None:
-        """Register the new event class under its own ``kind`` (one class per kind: a clash is a bug)."""
+    def __init_subclass__(cls, register: bool = True, **kwargs: object) -> None:
+        """Register the new event class under its own ``kind`` (one class per kind: a clash is a bug); ``register``
+        false for :class:`OpaqueEvent`, which stands for kinds of no class."""
         super().__init_subclass__(**kwargs)
+        if not register:
+            return
         if "kind" not in cls.__dict__:
             raise TypeError(f"event class {cls.__name__} must name its own kind")
         if cls.kind in EVENT_TYPES:
@@ -187,6 +197,80 @@ class StopEvent(Event):
     kind: ClassVar[str] = "stop"
 
 
+@dataclass(frozen=True)
+class OpaqueEvent(Event, register=False):
+    """An event of a kind this reader has no class for (a plug-in's, read without the plug-in): its ``name`` (the
+    saved kind) and its other fields as saved (``data``, JSON values); written back as it was read."""
+
+    name: str
+    data: Mapping[str, object] = field(default_factory=dict)
+    kind: ClassVar[str] = "opaque"
+
+    def to_dict(self) -> JsonObject:
+        return {"kind": self.name, "step": self.step, **self.data}
+
+
+def event_name(event: Event) -> str:
+    """The kind an event is saved under (an opaque event's own)."""
+    return event.name if isinstance(event, OpaqueEvent) else event.kind
+
+
+def event_fields(event: Event) -> dict[str, object]:
+    """An event's saved fields but its kind and step, in order."""
+    data = event.to_dict()
+    return {key: value for key, value in data.items() if key not in ("kind", "step")}
+
+
+def is_builtin(event: Event | type[Event]) -> bool:
+    """Whether an event's class is one of drivenav's own (not a plug-in's, not opaque)."""
+    cls = event if isinstance(event, type) else type(event)
+    return cls is not OpaqueEvent and cls.__module__.split(".")[0] == "drivenav"
+
+
+MAX_EVENT_CHARS = 65536
+"""The most characters one event's JSON form may take (a plug-in event larger than this is refused)."""
+MAX_INTEGER = 2**53
+"""Integers in a record or a trace stay below this: every JSON reader reads them exactly."""
+
+
+def json_problem(value: object, where: str = "") -> str:
+    """What makes ``value`` no safe JSON value ("" when it is one): only strings, booleans, null, integers below
+    :data:`MAX_INTEGER` in size, finite floats, lists (or tuples) and objects with string keys."""
+    if value is None or isinstance(value, (str, bool)):
+        return ""
+    if isinstance(value, int):
+        return "" if abs(value) < MAX_INTEGER else f"{where or 'value'} is an integer of {abs(value).bit_length()} bits"
+    if isinstance(value, float):
+        return "" if math.isfinite(value) else f"{where or 'value'} is {value}"
+    if isinstance(value, (list, tuple)):
+        return next((p for k, item in enumerate(value) if (p := json_problem(item, f"{where}[{k}]"))), "")
+    if isinstance(value, Mapping):
+        for key, item in value.items():
+            if not isinstance(key, str):
+                return f"{where or 'value'} has the key {key!r}, not a string"
+            problem = json_problem(item, f"{where}.{key}" if where else key)
+            if problem:
+                return problem
+        return ""
+    return f"{where or 'value'} is a {type(value).__name__}, no JSON value"
+
+
+def event_problem(event: object) -> str:
+    """What makes an event unfit for the trace ("" when it fits): no :class:`Event`, a field that is no safe JSON
+    value (:func:`json_problem`), or a JSON form over :data:`MAX_EVENT_CHARS` characters."""
+    if not isinstance(event, Event):
+        return f"a {type(event).__name__} is no trace Event"
+    try:
+        data = event.to_dict()
+    except Exception as error:  # a field asdict cannot copy
+        return f"its fields cannot be read ({type(error).__name__}: {error})"
+    problem = json_problem(data)
+    if problem:
+        return problem
+    size = len(json.dumps(data))
+    return f"its JSON form is {size} characters (at most {MAX_EVENT_CHARS})" if size > MAX_EVENT_CHARS else ""
+
+
 def of_type(events: Iterable[Event], kind: type[EventT]) -> list[EventT]:
     """The events of one type, in order."""
     return [event for event in events if isinstance(event, kind)]
@@ -211,14 +295,34 @@ class Trace:
 def event_from_dict(data: Mapping[str, object], source: str | Path = "trace", where: str = "event") -> Event:
     """The event whose JSON form (:meth:`Event.to_dict`) is ``data``: the class its ``kind`` names, JSON lists
     back to tuples. A field with a default may be missing (traces written before it existed); keys the class does
-    not have are ignored. An unknown kind or a missing or mistyped field is an :class:`InputError` naming ``source``
-    and ``where`` (e.g. ``events[3]``)."""
+    not have are ignored. A kind of no class here, or a plug-in's whose fields do not fit its class, is an
+    :class:`OpaqueEvent`. A kind that is no string, a step that is no integer, or a missing or mistyped field of
+    drivenav's own kinds is an :class:`InputError` naming ``source`` and ``where`` (e.g. ``events[3]``)."""
     kind = data.get("kind")
-    cls = EVENT_TYPES.get(kind) if isinstance(kind, str) else None
-    if cls is None:
-        raise InputError(
-            source, f"{where}.kind", f"an event kind drivenav knows ({', '.join(sorted(EVENT_TYPES))})", kind
-        )
+    if not isinstance(kind, str):
+        raise InputError(source, f"{where}.kind", "an event kind (a string)", kind)
+    cls = EVENT_TYPES.get(kind)
+    if cls is not None and is_builtin(cls):
+        return _event(cls, data, source, where)
+    if cls is not None:
+        try:
+            return _event(cls, data, source, where)
+        except Exception:  # a plug-in's class that does not take its own saved fields: kept as saved
+            pass
+    return _opaque(kind, data, source, where)
+
+
+def _opaque(kind: str, data: Mapping[str, object], source: str | Path, where: str) -> OpaqueEvent:
+    """An event of a kind without a class, kept as saved (its step must be an integer)."""
+    step = data.get("step")
+    if isinstance(step, bool) or not isinstance(step, int):
+        raise InputError(source, f"{where}.step", "an integer", step)
+    return OpaqueEvent(step, kind, {key: value for key, value in data.items() if key not in ("kind", "step")})
+
+
+def _event(cls: type[Event], data: Mapping[str, object], source: str | Path, where: str) -> Event:
+    """The event of class ``cls`` whose JSON form is ``data``."""
+    kind = cls.kind
     values: dict[str, object] = {}
     for name, (convert, required) in _fields_of(cls.kind).items():
         if name not in data:

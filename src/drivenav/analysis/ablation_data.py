@@ -37,8 +37,9 @@ def _each(values: JsonObject, read: Callable[[JsonObject], _Record]) -> dict[str
 class MethodEntry:
     """One method's aggregate over its episodes: SR and SPL with 95 % intervals (None without a measured episode),
     steps, revisits, reasoner calls, failures by cause, missed targets by cause, and per-episode means of the
-    decision counters (``decisions.REASON``, ``steps.ACTIVITY``). ``errors`` counts the episodes an exception
-    ended, never navigation failures."""
+    decision counters (``decisions.REASON``, ``steps.ACTIVITY``) and the plug-in explorers whose counters these
+    are (``plugins``: their declarations title their columns; drivenav's own are always known). ``errors`` counts
+    the episodes an exception ended, never navigation failures."""
 
     episodes: int
     errors: int
@@ -54,15 +55,23 @@ class MethodEntry:
     failure_causes: dict[str, int]
     missed_target_causes: dict[str, int] = field(default_factory=dict)
     decisions: dict[str, float] = field(default_factory=dict)
+    plugins: tuple[str, ...] = ()
 
     def to_json(self) -> JsonObject:
+        """The entry's keys; ``plugins`` only where there are some, as one text (``a,b``: a CSV cell), so that the
+        files of drivenav's own methods keep their keys."""
         data = asdict(self)
         data.update(sr_ci95=_interval_json(self.sr_ci95), spl_ci95=_interval_json(self.spl_ci95))
+        plugins = data.pop("plugins")
+        if plugins:
+            data["plugins"] = ",".join(plugins)
         return data
 
     @staticmethod
     def from_json(data: JsonObject) -> MethodEntry:
         values = {**data, "sr_ci95": _interval(data["sr_ci95"]), "spl_ci95": _interval(data["spl_ci95"])}
+        plugins = data.get("plugins", "")
+        values["plugins"] = tuple(plugins.split(",")) if plugins else ()
         return MethodEntry(**values)
 
 

@@ -24,6 +24,7 @@ from drivenav.analysis.ablation_data import (
 )
 from drivenav.analysis.beyond_report import beyond_section
 from drivenav.analysis.compare import Comparison
+from drivenav.analysis.counter_columns import decision_columns, step_columns
 from drivenav.analysis.paper_tables import (
     PAIRED_REFERENCE,
     TABLE_I,
@@ -369,33 +370,14 @@ def _number(value: float | None, template: str) -> str:
     return "-" if value is None else template.format(value)
 
 
-TRIGGERS = ("scan", "inspection", "vanished", "stuck")
-"""DRIVE-Nav's kinds of decision (its explorer's and the greedy's ``decisions`` counter): what triggered it."""
-MODES = ("semantic", "geometric")
-"""ApexNav's kinds of decision: the mode it decided in."""
-DECISION_KINDS = tuple(tuple(f"decisions.{kind}" for kind in family) for family in (TRIGGERS, MODES))
-"""The kinds of ``decisions`` each explorer family counts. Counters are written sparsely (a kind that never
-happened is left out of a record), so a family is kept when any of its kinds is."""
-
-DECISION_COLUMNS = (
-    ("decisions", "decisions"),
-    *((f"decisions.{kind}", kind) for kind in TRIGGERS),
-    ("dead_end_decisions", "dead end"),
-    ("inspection_events", "inspection events"),
-    ("labels_created", "labels created"),
-    ("labels_merged", "merged"),
-    ("labels_removed", "removed"),
-    ("labels_reidentified", "re-identified"),
-    ("followed_through_relabel", "followed through relabel"),
-    ("selected_lost", "followed lost"),
-    *((f"decisions.{kind}", kind) for kind in MODES),
-    ("tsp_solves", "TSPs"),
-    ("dormant_frontiers", "dormant"),
-)
-STEP_COLUMNS = ("start_scan", "scan", "sweep", "follow", "escape", "approach", "enrich")
+def _explorers(methods: Methods) -> list[str]:
+    """The plug-in explorers that made the methods' runs."""
+    return [name for entry in methods.values() for name in entry.plugins]
 
 
 def _decisions(methods: Methods) -> list[str]:
+    """The explorers' counters, per-episode means (:mod:`drivenav.analysis.counter_columns`)."""
+    columns = decision_columns([entry.decisions for entry in methods.values()], _explorers(methods))
     lines = [
         "## Decisions and direction labels per episode",
         "",
@@ -405,37 +387,30 @@ def _decisions(methods: Methods) -> list[str]:
         "ApexNav's decisions by mode (semantic: a TSP over the high-value frontiers when three or more, geometric: "
         "the nearest) and the frontiers it made dormant. `-`: the method's explorer keeps no such counter.",
         "",
-        "| method | reasoner calls (median / mean) | " + " | ".join(name for _, name in DECISION_COLUMNS) + " |",
-        "|---|---|" + "---|" * len(DECISION_COLUMNS),
+        "| method | reasoner calls (median / mean) | " + " | ".join(column.title for column in columns) + " |",
+        "|---|---|" + "---|" * len(columns),
     ]
     for name, entry in methods.items():
         calls = f"{_number(entry.median_vlm_calls, '{:g}')} / {_number(entry.vlm_calls, '{:.1f}')}"
-        cells = " | ".join(_counter(entry.decisions, key) for key, _ in DECISION_COLUMNS)
+        cells = " | ".join(column.cell(entry.decisions, entry.episodes - entry.errors) for column in columns)
         lines.append(f"| `{name}` | {calls} | {cells} |")
     return lines
 
 
-def _counter(means: dict[str, float], key: str) -> str:
-    """A counter's mean; ``-`` where the explorer keeps no such counter: none of its name, or, for a kind of
-    decision, none of that kind's family (:data:`DECISION_KINDS`: ApexNav has modes, not triggers)."""
-    family = next((kinds for kinds in DECISION_KINDS if key in kinds), (key.split(".")[0],))
-    kept = any(name in means for name in family)
-    return f"{means.get(key, 0.0):.2f}" if kept else "-"
-
-
 def _steps(methods: Methods) -> list[str]:
+    activities = step_columns([entry.decisions for entry in methods.values()], _explorers(methods))
     lines = [
         "## Where the steps go",
         "",
         "Mean steps per episode by activity (`escape`: the local planner's collision recovery) and turn "
         "reversals (a left turn right after a right one or the reverse).",
         "",
-        "| method | steps | " + " | ".join(STEP_COLUMNS) + " | turn reversals |",
-        "|---|---|" + "---|" * (len(STEP_COLUMNS) + 1),
+        "| method | steps | " + " | ".join(activities) + " | turn reversals |",
+        "|---|---|" + "---|" * (len(activities) + 1),
     ]
     for name, entry in methods.items():
         means = entry.decisions
-        cells = " | ".join(f"{means.get(f'steps.{key}', 0.0):.1f}" for key in STEP_COLUMNS)
+        cells = " | ".join(f"{means.get(f'steps.{key}', 0.0):.1f}" for key in activities)
         steps = _number(entry.avg_steps, "{:.1f}")
         lines.append(f"| `{name}` | {steps} | {cells} | {means.get('turn_reversals', 0.0):.1f} |")
     return lines

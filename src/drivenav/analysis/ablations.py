@@ -17,6 +17,7 @@ from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Protocol, TypeVar
 
+from drivenav.agent.explorers import BUILT_IN_EXPLORERS
 from drivenav.analysis.ablation_data import (
     CROSS_FLOOR,
     FLOOR_GROUPS,
@@ -141,6 +142,7 @@ def method_entry(records: list[EpisodeRecord]) -> MethodEntry:
         failure_causes=failure_counts(records),
         missed_target_causes=missed_counts(records),
         decisions=decision_means(records),
+        plugins=tuple(sorted({r.explorer.name for r in records if r.explorer} - set(BUILT_IN_EXPLORERS))),
     )
 
 

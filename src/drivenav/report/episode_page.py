@@ -10,11 +10,14 @@ the trace and the record (copied into the site) and to the same episode in the o
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from drivenav.agent.base import CounterValue
+from drivenav.agent.explorers import BUILT_IN_EXPLORERS
 from drivenav.agent.trace import (
     DetectionEvent,
     DirectionSelected,
@@ -23,8 +26,10 @@ from drivenav.agent.trace import (
     TargetRejected,
     TargetSetAside,
     VerificationEvent,
+    event_fields,
     of_type,
 )
+from drivenav.analysis.counter_columns import explorer_entries
 from drivenav.episode import Episode
 from drivenav.eval.records import EpisodeRecord, missed_cause
 from drivenav.eval.report import shown
@@ -33,6 +38,7 @@ from drivenav.report.config import ReportConfig
 from drivenav.report.html import Cell, element, esc, link, page, table, void
 from drivenav.report.pictures import SUFFIXES
 from drivenav.report.timing_plot import timing_svg
+from drivenav.viz.plugin_events import declared_events, foreign_events, spec_of
 from drivenav.viz.saved_trace import SavedTrace
 from drivenav.viz.thumbnails import capture_step
 
@@ -228,6 +234,66 @@ def _enrichment(record: EpisodeRecord, events: Sequence[Event]) -> str:
     return heading + element("p", esc(text + "."))
 
 
+def _builtin_explorer(record: EpisodeRecord) -> bool:
+    """Whether the episode's explorer is one of drivenav's own (or the agent has none)."""
+    return record.explorer is None or record.explorer.name in BUILT_IN_EXPLORERS
+
+
+def _counter_value(value: CounterValue) -> str:
+    if isinstance(value, dict):
+        return ", ".join(f"{kind} {count}" for kind, count in value.items()) or "-"
+    return f"{value:g}"
+
+
+def _explorer_counters(record: EpisodeRecord) -> str:
+    """A plug-in explorer's counters, titled as its entry declares them (by their names where it does not)."""
+    explorer = record.explorer
+    assert explorer is not None
+    heading = element("h2", esc(f"Counters of the {explorer.name} explorer"), {"id": "counters"})
+    if not explorer.counters:
+        return heading + element("p", "None.")
+    entries = {entry.name: entry for entry in explorer_entries([explorer.name])}
+    entry = entries.get(explorer.name)
+    facts = []
+    for name, value in explorer.counters.items():
+        spec = entry.counter(name) if entry is not None else None
+        facts.append((spec.heading if spec is not None else name, _counter_value(value)))
+    items = "".join(element("dt", esc(name)) + element("dd", esc(value)) for name, value in facts)
+    return heading + element("dl", items, {"class": "facts"})
+
+
+def _explorer_events(record: EpisodeRecord, events: Sequence[Event], limit: int) -> str:
+    """The events of kinds drivenav has no section for (a plug-in's), each with its declared fields (all where it
+    declares none)."""
+    found = foreign_events(tuple(events))
+    specs = declared_events(record)
+    rows: Rows = (
+        [str(e.step), spec_of(e, specs).legend, _event_fields(e, spec_of(e, specs).fields)] for e in found[:limit]
+    )
+    header = ["step", "event", "fields"]
+    return _section("explorer-events", f"Explorer events ({len(found)})", header, rows, len(found), limit)
+
+
+def _event_fields(event: Event, names: Sequence[str]) -> str:
+    values = event_fields(event)
+    shown_names = [name for name in names if name in values] if names else list(values)
+    return "; ".join(f"{name}: {json.dumps(values[name])}" for name in shown_names) or "-"
+
+
+def _explorer(view: EpisodeView, events: Sequence[Event], limit: int) -> str:
+    """The explorer's sections: DRIVE-Nav's direction decisions for drivenav's own explorers (or where there are
+    some); a plug-in's counters; the events of kinds drivenav has no section for, where there are some."""
+    record = view.record
+    html = ""
+    if _builtin_explorer(record) or of_type(events, DirectionSelected):
+        html += _decisions(view, events, limit)
+    if not _builtin_explorer(record):
+        html += _explorer_counters(record)
+    if foreign_events(tuple(events)):
+        html += _explorer_events(record, events, limit)
+    return html
+
+
 def _links(view: EpisodeView) -> str:
     files = [link(view.record_file, "the record (JSON)")]
     if view.trace_file is not None:
@@ -255,7 +321,7 @@ def episode_html(view: EpisodeView, config: ReportConfig) -> str:
     body = element("h1", esc(title)) + back + _facts(record, view.episode)
     if view.note:
         body += element("p", esc(view.note), {"class": "note"})
-    body += _media(view) + _decisions(view, events, config.rows_per_table)
+    body += _media(view) + _explorer(view, events, config.rows_per_table)
     body += _detections(events, config.rows_per_table) + _verification(events, config.rows_per_table)
     body += _enrichment(record, events)
     timings = timing_svg({} if view.trace is None else view.trace.step_ms, config)

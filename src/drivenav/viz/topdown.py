@@ -37,6 +37,7 @@ from drivenav.episode import Episode
 from drivenav.eval.records import EpisodeRecord
 from drivenav.eval.report import shown
 from drivenav.types import Pose
+from drivenav.viz import plugin_events
 from drivenav.viz.directions import label_color
 from drivenav.viz.floors import Floor, floor_changes, floors_of, move_floors, pose_floors
 from drivenav.viz.saved_trace import SavedTrace
@@ -478,9 +479,15 @@ FLOOR_ENTRIES = (
 )
 
 
-def add_legend(image: Image.Image, success: bool, omit: frozenset[str] = frozenset()) -> Image.Image:
-    """The picture with a legend panel on its right (without the entries named in ``omit``: what was not drawn)."""
-    entries = [entry for entry in _legend_entries(success) if entry[0] not in omit]
+def add_legend(
+    image: Image.Image,
+    success: bool,
+    omit: frozenset[str] = frozenset(),
+    extra: Sequence[tuple[str, Marker]] = (),
+) -> Image.Image:
+    """The picture with a legend panel on its right (without the entries named in ``omit``: what was not drawn;
+    with the ``extra`` entries of a plug-in's events)."""
+    entries = [entry for entry in _legend_entries(success) if entry[0] not in omit] + list(extra)
     height = max(image.height, HEADER + 26 * (len(entries) + 1))
     panel = Image.new("RGB", (image.width + LEGEND_WIDTH, height), (255, 255, 255))
     panel.paste(image, (0, 0))
@@ -505,11 +512,16 @@ def title(episode: Episode, record: EpisodeRecord | None) -> str:
 
 
 def draw_trace(
-    draws: Sequence[Draw], canvas: Canvas, trace: SavedTrace, floors: NDArray[np.int64], success: bool
+    draws: Sequence[Draw],
+    canvas: Canvas,
+    trace: SavedTrace,
+    floors: NDArray[np.int64],
+    success: bool,
+    specs: plugin_events.Specs | None = None,
 ) -> None:
     """A whole trace on the floors' maps (``draws``: per floor, its map; ``floors``: per pose, its floor): on each
-    floor its part of the path, where the path leaves and enters it, the events at its poses, the start and the end
-    when they are on it."""
+    floor its part of the path, where the path leaves and enters it, the events at its poses (a plug-in's as
+    ``specs`` declare them, :mod:`~drivenav.viz.plugin_events`), the start and the end when they are on it."""
     moves = move_floors(floors)
     for index, draw in enumerate(draws):
         draw_trajectory(draw, canvas, trace, moves == index)
@@ -518,6 +530,12 @@ def draw_trace(
     for kind in DRAW_ORDER:
         for event in trace.of_type(kind):
             draw_event(draws[floors[trace.index(event.step)]], canvas, trace, event)
+    for event in plugin_events.foreign_events(trace.events):
+        spec = plugin_events.spec_of(event, specs or {})
+        px, py = canvas.to_pixel(*plugin_events.place(event, spec, trace))
+        draw = draws[floors[trace.index(event.step)]]
+        plugin_events.mark(draw, px, py, spec)
+        draw.text((px + 9, py - 9), spec.legend, fill=darker(spec.color, 0.7), font=SMALL_FONT)
     draw_pose(draws[floors[0]], canvas, trace.xy(0), trace.start.yaw, START_COLOR)
     last = trace.pose(len(trace) - 1)
     draw_pose(draws[floors[-1]], canvas, (last.x, last.y), last.yaw, SUCCESS_COLOR if success else FAILURE_COLOR)
@@ -547,7 +565,8 @@ def draw_episode(
     draws = [ImageDraw.Draw(image) for image in maps]
     on = pose_floors(world, trace)
     success = bool(record and record.success)
-    draw_trace(draws, canvas, trace, on, success)
+    specs = plugin_events.declared_events(record)
+    draw_trace(draws, canvas, trace, on, success, specs)
     headings = [floor_heading(f, episode, f.index == on[0]) for f in floors] if several else [title(episode, record)]
     for draw, heading in zip(draws, headings, strict=True):
         draw.text((6, 7), heading, fill=(0, 0, 0), font=FONT)
@@ -559,7 +578,8 @@ def draw_episode(
     goal_ids = {goal.object_id for goal in episode.goals}
     if not any(obj.instance_id in goal_ids for floor in floors for obj in floor.plan.objects):
         omit.add(GOAL_ENTRY)  # e.g. a Habitat run drawn on a blank floor: goals show as view points only
-    return add_legend(image, success, frozenset(omit))
+    extra = plugin_events.legend(plugin_events.foreign_events(trace.events), specs)
+    return add_legend(image, success, frozenset(omit), extra)
 
 
 def _heading_strip(text: str, width: int) -> Image.Image:

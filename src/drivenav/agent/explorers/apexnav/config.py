@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import ClassVar
 
-from drivenav.agent.config import ExplorerEntry
+from drivenav.agent.config import CounterSpec, ExplorerEntry
 from drivenav.ranges import (
     COUNT,
     HALF_TURN,
@@ -25,6 +25,9 @@ from drivenav.ranges import (
     check_declared,
     check_rule,
 )
+
+MODES = ("semantic", "geometric")
+"""ApexNav's kinds of decision (its ``decisions`` counter): the mode it decided in."""
 
 
 @dataclass(frozen=True)
@@ -95,6 +98,14 @@ EXPLORER = ExplorerEntry(
         "agent.stop_in_view=false",
         "agent.stop_distance=0.7",
     ),
+    counters=(
+        CounterSpec("decisions", kind="by_kind", kinds=MODES),
+        CounterSpec("tsp_solves", "TSPs"),
+        CounterSpec("dormant_frontiers", "dormant"),
+        CounterSpec("settled", column=False),
+        CounterSpec("goals_skipped", "goals skipped", column=False),
+    ),
+    activities=("start_scan", "follow", "escape"),
 )
 """ApexNav's exploration (``apexnav``, ``explorer.name=apexnav``; :mod:`~drivenav.agent.explorers.apexnav.explorer`)
 and the body switches its method sets: no prompt enrichment or cross-frame verification, target-centric fusion

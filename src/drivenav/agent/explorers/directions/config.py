@@ -6,7 +6,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import ClassVar
 
-from drivenav.agent.config import ExplorerEntry
+from drivenav.agent.config import CounterSpec, ExplorerEntry
 from drivenav.ranges import STEPS, UNIT, Range, check_declared
 
 
@@ -32,9 +32,35 @@ class DirectionsConfig:
         check_declared(self)
 
 
+TRIGGERS = ("scan", "inspection", "vanished", "stuck")
+"""What triggered a decision (the ``decisions`` counter's kinds): the start scan (and every decision of the 360 deg
+scanning methods), an inspection event, the followed direction gone, the planner stuck."""
+
+DECISIONS = CounterSpec("decisions", kind="by_kind", kinds=TRIGGERS)
+"""Reasoner decisions by trigger (its greedy baseline counts its frontier choices alike)."""
+COUNTERS = (
+    DECISIONS,
+    CounterSpec("dead_end_decisions", "dead end"),
+    CounterSpec("inspection_events", "inspection events"),
+    CounterSpec("labels_created", "labels created"),
+    CounterSpec("labels_merged", "merged"),
+    CounterSpec("labels_removed", "removed"),
+    CounterSpec("labels_reidentified", "re-identified"),
+    CounterSpec("followed_through_relabel", "followed through relabel"),
+    CounterSpec("selected_lost", "followed lost"),
+    CounterSpec("void_events", "void events", column=False),
+    CounterSpec("forced_choices", "forced choices", column=False),
+)
+"""DRIVE-Nav's counters (:class:`~drivenav.agent.explorers.directions.memory.DirectionCounters`), in the decisions
+table's order."""
+ACTIVITIES = ("start_scan", "scan", "sweep", "follow", "enrich", "escape")
+"""The modes its steps are counted under (``escape``: collision recovery while following)."""
+
 EXPLORER = ExplorerEntry(
     "directions",
     DirectionsConfig,
     "drivenav.agent.explorers.directions.explorer:DirectionsExplorer",
     "DRIVE-Nav: persistent directions, inspection events, one reasoner decision among the forward directions",
+    counters=COUNTERS,
+    activities=ACTIVITIES,
 )

@@ -7,7 +7,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import ClassVar
 
-from drivenav.agent.config import ExplorerEntry
+from drivenav.agent.config import CounterSpec, ExplorerEntry
+from drivenav.agent.explorers.directions.config import ACTIVITIES, DECISIONS
 from drivenav.ranges import LENGTH, Range, check_declared
 
 
@@ -29,4 +30,6 @@ EXPLORER = ExplorerEntry(
     "drivenav.agent.explorers.greedy.explorer:GreedyExplorer",
     "the nearest frontier point by weighted-FMM travel time, kept until explored (no views, no reasoner)",
     ("agent.enrich=false", "agent.verify=false"),
+    counters=(DECISIONS, CounterSpec("goals_skipped", "goals skipped", column=False)),
+    activities=ACTIVITIES,
 )

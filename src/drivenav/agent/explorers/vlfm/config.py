@@ -6,7 +6,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-from drivenav.agent.config import ExplorerEntry, Rule
+from drivenav.agent.config import CounterSpec, ExplorerEntry, Rule
 from drivenav.mapping.value_map import ValueMapConfig
 from drivenav.ranges import LENGTH, Range
 from drivenav.types import SimConfig
@@ -36,4 +36,10 @@ EXPLORER = ExplorerEntry(
     "VLFM: value map from image-text scores, highest-value frontier",
     ("agent.enrich=false", "agent.verify=false"),
     within_reach,
+    counters=(
+        CounterSpec("new_choices", "new choices", column=False),
+        CounterSpec("acyclic_fallbacks", "acyclic fallbacks", column=False),
+        CounterSpec("goals_skipped", "goals skipped", column=False),
+    ),
+    activities=("start_scan", "follow", "escape"),
 )
