@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from drivenav.agent.base import ModelStats
+from drivenav.agent.base import ModelCounters
 from drivenav.analysis.ablation_data import AblationReport, Runtime
 from drivenav.analysis.ablation_report import format_markdown, ordering_differences
 from drivenav.analysis.ablations import method_entry, model_call_latency, split_entries
@@ -237,7 +237,7 @@ def test_split_entries_are_each_methods_results_on_each_splits_episodes() -> Non
 
 def test_model_calls_are_given_per_method_beside_their_pooled_rate() -> None:
     def record(k: int, method: str, scores: int) -> EpisodeRecord:
-        stats = ModelStats({"score": scores} if scores else {}, {"score": 2.0 * scores} if scores else {})
+        stats = ModelCounters({"score": scores} if scores else {}, {"score": 2.0 * scores} if scores else {})
         return EpisodeRecord(str(k), "s", "chair", method, 10, 0, "timeout", "", stats=stats)
 
     runs = {

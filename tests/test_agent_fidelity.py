@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 
 from agent_scenes import episode_for, t_junction
-from drivenav.agent.base import ExplorerStats
+from drivenav.agent.base import ExplorerCounters
 from drivenav.agent.body import ExplorerAgent
 from drivenav.agent.context import StepContext
-from drivenav.agent.explorers.directions.decision import candidates
-from drivenav.agent.explorers.directions.explorer import DirectionsExplorer
-from drivenav.agent.explorers.directions.memory import Directions
-from drivenav.agent.explorers.directions.relabel import carry_over
+from drivenav.agent.explorers.drive_nav.decision import candidates
+from drivenav.agent.explorers.drive_nav.explorer import DirectionsExplorer
+from drivenav.agent.explorers.drive_nav.memory import Directions
+from drivenav.agent.explorers.drive_nav.relabel import carry_over
 from drivenav.agent.target import SearchConfig, TargetSearch
 from drivenav.agent.trace import DirectionSelected, InspectionStarted, Trace, of_type
 from drivenav.agents import make_agent
@@ -101,7 +101,7 @@ def _state(agent: ExplorerAgent) -> Directions:
 
 
 def _offered(agent: ExplorerAgent, ctx: StepContext, reason: str) -> list[int]:
-    return [c.label for c in candidates(_state(agent), agent.loop(), ctx, reason)]
+    return [c.label for c in candidates(_state(agent), agent.handles(), ctx, reason)]
 
 
 AROUND = {0: 0.0, 1: 90.0, 2: 120.0, 3: 150.0, 4: 180.0, 5: -100.0, 6: -130.0}
@@ -131,10 +131,10 @@ def test_360_methods_decide_among_every_direction(name: str) -> None:
 def test_a_merged_followed_direction_is_still_followed_without_a_decision() -> None:
     agent, ctx = _agent_at("drive-nav", {0: 10.0, 1: 40.0}, 0.0)
     _state(agent).selected, _state(agent).inspected = 0, {0, 1}
-    carry_over(_state(agent), agent.loop(), ctx)
+    carry_over(_state(agent), agent.handles(), ctx)
     merged = Direction(2, math.radians(25.0), (0, 1), (), np.zeros((1, 2)), np.zeros((1, 2)), (3.0, 1.0))
     result = DirectionResult((merged,), {}, (), tracking=TrackingUpdate(merged={2: (0, 1)}))
-    carry_over(_state(agent), agent.loop(), StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
+    carry_over(_state(agent), agent.handles(), StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
     episode = _state(agent)
     assert episode.selected == 2 and 2 in episode.inspected and episode.views.has_view(2)
     stats = _state(agent).counts
@@ -144,13 +144,13 @@ def test_a_merged_followed_direction_is_still_followed_without_a_decision() -> N
 def test_a_direction_back_at_a_removed_ones_place_keeps_its_inspected_state() -> None:
     agent, ctx = _agent_at("drive-nav", {0: 10.0, 1: 90.0}, 0.0)
     _state(agent).inspected = {0, 1}
-    carry_over(_state(agent), agent.loop(), ctx)
+    carry_over(_state(agent), agent.handles(), ctx)
     gone = DirectionResult((ctx.directions[0],), {}, (), tracking=TrackingUpdate(removed=(1,)))
-    carry_over(_state(agent), agent.loop(), StepContext(ctx.pose, None, [], gone, None))  # type: ignore[arg-type]
+    carry_over(_state(agent), agent.handles(), StepContext(ctx.pose, None, [], gone, None))  # type: ignore[arg-type]
     again = _direction(1, 90.0)
     back = Direction(5, again.bearing, (1,), (), again.waypoints, again.points, again.farthest_point)
     result = DirectionResult((ctx.directions[0], back), {}, (), tracking=TrackingUpdate(created=(5,)))
-    carry_over(_state(agent), agent.loop(), StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
+    carry_over(_state(agent), agent.handles(), StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
     assert 5 in _state(agent).inspected
     assert _state(agent).counts.labels_reidentified == 1
 
@@ -215,7 +215,7 @@ def test_missed_targets_are_broken_down_by_what_the_agent_did() -> None:
 
 def test_records_carry_the_explorer_counters_and_read_older_schemas() -> None:
     counters = {"inspection_events": 3, "labels_created": 7, "decisions": {"scan": 1, "inspection": 2}}
-    record = replace(_missed(target_candidates=1), explorer=ExplorerStats("directions", counters))
+    record = replace(_missed(target_candidates=1), explorer=ExplorerCounters("directions", counters))
     data = record.to_json()
     assert data["schema_version"] == 5 and data["target_candidates"] == 1  # the body's counters flat ...
     assert data["explorer"] == {"name": "directions", "counters": counters}  # ... the explorer's under its name
@@ -223,12 +223,12 @@ def test_records_carry_the_explorer_counters_and_read_older_schemas() -> None:
     schema_4 = {k: v for k, v in data.items() if k != "explorer"} | {"schema_version": 4, "inspection_events": 3}
     schema_4 |= {"labels_created": 7, "decisions_by_reason": {"scan": 1, "inspection": 2}, "labels_merged": 0}
     old = EpisodeRecord.from_json(schema_4)  # the flat DRIVE-Nav counters become the method's explorer's
-    assert old.explorer == ExplorerStats("directions", {**counters, "labels_merged": 0}) and old.body == record.body
+    assert old.explorer == ExplorerCounters("directions", {**counters, "labels_merged": 0}) and old.body == record.body
     greedy = EpisodeRecord.from_json({**schema_4, "agent": "nearest-frontier"})
     assert greedy.explorer is not None and greedy.explorer.name == "greedy"
     assert EpisodeRecord.from_json({**schema_4, "agent": "oracle"}).explorer is None
     bare = {k: v for k, v in schema_4.items() if k not in ("inspection_events", "labels_created", "retraced_m")}
-    assert EpisodeRecord.from_json({**bare, "schema_version": 2}).explorer == ExplorerStats(
+    assert EpisodeRecord.from_json({**bare, "schema_version": 2}).explorer == ExplorerCounters(
         "directions", {"decisions": {"scan": 1, "inspection": 2}, "labels_merged": 0}
     )
     before_traces = {k: v for k, v in schema_4.items() if k != "trace"}
@@ -282,7 +282,7 @@ def test_an_episode_record_accounts_for_every_step_and_decision() -> None:
 def test_a_split_off_branch_is_new_but_a_flickering_one_is_not() -> None:
     agent, ctx = _agent_at("drive-nav", {0: 10.0, 1: 40.0}, 0.0)
     _state(agent).inspected = {0, 1}
-    carry_over(_state(agent), agent.loop(), ctx)
+    carry_over(_state(agent), agent.handles(), ctx)
     merged = Direction(
         2,
         math.radians(25.0),
@@ -293,12 +293,12 @@ def test_a_split_off_branch_is_new_but_a_flickering_one_is_not() -> None:
         (3.0, 1.0),
     )
     result = DirectionResult((merged,), {}, (), tracking=TrackingUpdate(merged={2: (0, 1)}))
-    carry_over(_state(agent), agent.loop(), StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
+    carry_over(_state(agent), agent.handles(), StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
     flicker = Direction(3, math.radians(40.0), (1,), (), ctx.directions[1].waypoints, np.zeros((1, 2)), (3.0, 2.0))
     result = DirectionResult((merged, flicker), {}, (), tracking=TrackingUpdate(created=(3,)))
-    carry_over(_state(agent), agent.loop(), StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
+    carry_over(_state(agent), agent.handles(), StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
     assert 3 in _state(agent).inspected  # label 1 again, split off the merge a step later
     branch = _direction(4, -60.0)  # a branch at a place no retired direction held
     result = DirectionResult((merged, flicker, branch), {}, (), tracking=TrackingUpdate(created=(4,)))
-    carry_over(_state(agent), agent.loop(), StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
+    carry_over(_state(agent), agent.handles(), StepContext(ctx.pose, None, [], result, None))  # type: ignore[arg-type]
     assert 4 not in _state(agent).inspected and _state(agent).counts.labels_reidentified == 1

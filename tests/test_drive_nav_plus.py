@@ -10,14 +10,14 @@ import numpy as np
 import pytest
 
 from agent_scenes import episode_for, t_junction
-from drivenav.agent.base import ExplorerStats
+from drivenav.agent.base import ExplorerCounters
 from drivenav.agent.body import ExplorerAgent
 from drivenav.agent.context import StepContext
-from drivenav.agent.explorers.directions import decision, sweep
-from drivenav.agent.explorers.directions.decision import candidates
-from drivenav.agent.explorers.directions.explorer import DirectionsExplorer
-from drivenav.agent.explorers.directions.memory import Directions, Phase, settled
-from drivenav.agent.explorers.directions.relabel import carry_over, relabel
+from drivenav.agent.explorers.drive_nav import decision, sweep
+from drivenav.agent.explorers.drive_nav.decision import candidates
+from drivenav.agent.explorers.drive_nav.explorer import DirectionsExplorer
+from drivenav.agent.explorers.drive_nav.memory import Directions, Phase, settled
+from drivenav.agent.explorers.drive_nav.relabel import carry_over, relabel
 from drivenav.agent.trace import DirectionSelected, InspectionVoid, of_type
 from drivenav.agents import make_agent
 from drivenav.analysis.beyond import PairedEntry, beyond_table_ii, paired_entries
@@ -75,10 +75,10 @@ def _after_a_sweep(name: str, monkeypatch: pytest.MonkeyPatch) -> tuple[Explorer
     agent, memory, ctx = _agent(name, {0: 10.0, 1: 90.0})
     memory.phase, memory.pending_yaws, memory.selected, memory.event_labels = Phase.SWEEP, [], 0, (9,)
     decided: list[str] = []
-    monkeypatch.setattr(sweep, "decide", lambda d, loop, obs, ctx, reason: decided.append(reason) or Action.STOP)
-    loop = agent.loop()
-    monkeypatch.setattr(loop, "policy", lambda obs, ctx: Action.MOVE_FORWARD)
-    return agent, memory, decided, sweep.act(memory, loop, _observation(), ctx)
+    monkeypatch.setattr(sweep, "decide", lambda d, handles, obs, ctx, reason: decided.append(reason) or Action.STOP)
+    handles = agent.handles()
+    monkeypatch.setattr(handles, "policy", lambda obs, ctx: Action.MOVE_FORWARD)
+    return agent, memory, decided, sweep.act(memory, handles, _observation(), ctx)
 
 
 def test_a_void_inspection_event_goes_back_to_following_without_a_decision(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -99,12 +99,12 @@ def test_an_event_is_void_only_when_its_directions_are_gone_the_followed_one_is_
     memory.selected = 0
     for labels, selected, void in (((9,), 0, True), ((1, 9), 0, False), ((9,), 7, False)):
         memory.event_labels, memory.selected = labels, selected
-        assert sweep.void(memory, agent.loop(), ctx) is void
+        assert sweep.void(memory, agent.handles(), ctx) is void
     memory.event_labels, memory.selected = (9,), 0
     memory.views._views = {1: _view(1, 5), 2: _view(2, 6)}  # direction 2 lies behind the event's heading
-    assert sweep.void(memory, agent.loop(), ctx) is False  # the sweep captured a view of direction 1: judge it
+    assert sweep.void(memory, agent.handles(), ctx) is False  # the sweep captured a view of direction 1: judge it
     memory.judged = {5}
-    assert sweep.void(memory, agent.loop(), ctx) is True  # seen before; direction 2's view is not offered
+    assert sweep.void(memory, agent.handles(), ctx) is True  # seen before; direction 2's view is not offered
 
 
 def test_a_single_direction_whose_view_the_reasoner_judged_is_followed_without_asking() -> None:
@@ -121,8 +121,8 @@ def test_a_single_direction_whose_view_the_reasoner_judged_is_followed_without_a
 def _tracked(agent: ExplorerAgent, memory: Directions, ctx: StepContext, step: int) -> bool:
     """Step ``step`` of following direction 0 with direction 1 in sight: whether an inspection event starts."""
     agent.step = step
-    carry_over(memory, agent.loop(), ctx)
-    return sweep.inspection_event(memory, agent.loop(), ctx)
+    carry_over(memory, agent.handles(), ctx)
+    return sweep.inspection_event(memory, agent.handles(), ctx)
 
 
 @pytest.mark.parametrize(("name", "first_event"), [("drive-nav-plus", 3), ("drive-nav", 0)])
@@ -145,7 +145,7 @@ def test_a_direction_seen_in_passing_while_it_settled_is_still_asked_about_witho
     _, judged, ctx = _agent("drive-nav-plus", {0: 10.0, 1: 60.0})
     judged.views._views, judged.judged, judged.born = {0: _view(0, 0), 1: _view(1, 11)}, {11}, {0: 0, 1: 0}
     judged.selected, judged.inspected = 0, {0}
-    assert not sweep.inspection_event(judged, agent.loop(), ctx)  # the reasoner has seen that view
+    assert not sweep.inspection_event(judged, agent.handles(), ctx)  # the reasoner has seen that view
 
 
 @pytest.mark.parametrize(("name", "score", "judged", "checked", "due"), [
@@ -162,7 +162,7 @@ def test_a_promising_unjudged_forward_view_is_judged_at_once_once(
     agent, memory, ctx = _agent(name, {0: 10.0, 1: 60.0, 2: 170.0})
     memory.views._views = {0: _view(0, 0), 1: _view(1, 11), 2: _view(2, 12)}  # 2 lies behind: never
     memory.view_scores, memory.judged, memory.checked = {0: 0.0, 11: score, 12: 0.9}, {0} | judged, checked
-    assert sweep.promising_views(memory, agent.loop(), ctx) == due
+    assert sweep.promising_views(memory, agent.handles(), ctx) == due
 
 
 def test_only_a_method_with_the_target_check_loads_the_image_text_scorer() -> None:
@@ -210,7 +210,7 @@ def test_turning_back_follows_the_nearest_frontier_only_when_return_aware(
     agent, memory, _ = _agent(name, {})
     direction, ctx = _two_piece_direction()
     memory.turning_back = turning_back
-    decision.select(memory, agent.loop(), ctx, direction, "vanished", [0], False)
+    decision.select(memory, agent.handles(), ctx, direction, "vanished", [0], False)
     assert memory.returning is (name == "drive-nav-plus" and turning_back)
     assert agent.state is not None and agent.state.goal == goal == decision.goal_point(memory, ctx, direction)
     [event] = of_type(agent.trace.events, DirectionSelected)
@@ -223,9 +223,9 @@ def test_a_decision_with_nothing_ahead_is_turning_back() -> None:
     for bearings, behind in (({0: 170.0, 1: 30.0}, False), ({0: 170.0}, True)):
         directions = tuple(_direction(label, b) for label, b in sorted(bearings.items()))
         ctx = StepContext(ctx.pose, None, [], DirectionResult(directions, {}, ()), None)  # type: ignore[arg-type]
-        candidates(memory, agent.loop(), ctx, "vanished")
+        candidates(memory, agent.handles(), ctx, "vanished")
         assert memory.turning_back is behind
-    candidates(memory, agent.loop(), ctx, "scan")  # the start scan offers all around: no turning back
+    candidates(memory, agent.handles(), ctx, "scan")  # the start scan offers all around: no turning back
     assert memory.turning_back is False
 
 
@@ -233,7 +233,7 @@ def test_a_decision_with_nothing_ahead_is_turning_back() -> None:
 
 
 def _record(method: str, episode: int, success: int, spl: float, decisions: int) -> EpisodeRecord:
-    explorer = ExplorerStats("directions", {"decisions": {"inspection": decisions}})
+    explorer = ExplorerCounters("directions", {"decisions": {"inspection": decisions}})
     return EpisodeRecord(
         str(episode), "s", "chair", method, 100, 0, "stop", "", success=success, spl=spl, geodesic_distance=12.0,
         explorer=explorer,

@@ -35,7 +35,7 @@ def test_each_method_is_an_explorer_with_body_switches(method: str, explorer: st
     settings = load_settings(method)
     assert settings.explorer.name == explorer
     agent = make_agent(settings)
-    assert agent.explorer_stats() is not None and agent.explorer_stats().name == explorer  # type: ignore[union-attr]
+    assert agent.explorer_counters() is not None and agent.explorer_counters().name == explorer  # type: ignore[union-attr]
     assert type(explorer_section(settings, explorer)) is EXPLORERS.get(explorer).config
     assert settings_from_dict(settings_to_dict(settings)) == settings  # every section round-trips through run.json
 

@@ -39,7 +39,7 @@ FLOORS: tuple[str, ...] = (
     "settings", "agents",
     "envs",
     "eval", "benchmarks", "analysis", "worlds", "robot", "viz", "report",
-    "brain", "doctor", "cli",
+    "brain", "doctor", "demo", "cli",
 )  # fmt: skip
 """Every part of the package, lowest first: a part imports only parts listed before it."""
 

@@ -46,7 +46,7 @@ def test_a_broken_plugin_is_one_line_and_never_breaks_the_built_ins(monkeypatch:
         ("broken", "no_such_module_anywhere:EXPLORER", "broken-pkg"),
         ("wrongtype", "math:pi", "odd-pkg"),
         ("vlfm", "their_pkg:EXPLORER", "clash-pkg"),
-        ("directions", "drivenav.agent.explorers.directions.config:EXPLORER", "drivenav"),
+        ("directions", "drivenav.agent.explorers.drive_nav.config:EXPLORER", "drivenav"),
         ("alias", "drivenav.agent.explorers.greedy.config:EXPLORER", "alias-pkg"),
     )
     monkeypatch.setattr(plugins, "entry_points", lambda group: points)

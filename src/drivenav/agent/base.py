@@ -15,7 +15,7 @@ from drivenav.types import Action, GroundTruth, Observation, SimConfig
 
 
 @dataclass(frozen=True)
-class ModelStats:
+class ModelCounters:
     """What an episode cost in model calls and what the semantic loop did (Sec. IV-B, IV-C; Table VII)."""
 
     vlm_calls_by_kind: dict[str, int] = field(default_factory=dict)
@@ -31,7 +31,7 @@ CounterValue = int | float | dict[str, int]
 
 
 @dataclass(frozen=True)
-class BodyStats:
+class BodyCounters:
     """What the body did in an episode, for every exploration method: steps by activity (``start_scan``, ``scan``,
     ``sweep``, ``follow``, ``enrich``, ``approach``, ``escape`` for collision recovery, ``stop``: the explorer names
     its own activities, the body adds ``approach``, ``escape`` and ``stop``) and turn reversals (a left turn right
@@ -46,7 +46,7 @@ class BodyStats:
 
 
 @dataclass(frozen=True)
-class ExplorerStats:
+class ExplorerCounters:
     """The exploration method's own counters in an episode: its explorer's name (``explorer.name``) and the counters
     it keeps (:meth:`~drivenav.agent.explorer.Explorer.counters`, e.g. DRIVE-Nav's labels, inspection events and
     decisions by trigger)."""
@@ -98,15 +98,15 @@ class Agent(ABC):
         """Reasoning-model (VLM) calls made this episode."""
         return 0
 
-    def episode_stats(self) -> ModelStats:
+    def episode_stats(self) -> ModelCounters:
         """Model calls by kind, enrichment and verification of this episode (none for model-free agents)."""
-        return ModelStats()
+        return ModelCounters()
 
-    def body_stats(self) -> BodyStats:
+    def body_counters(self) -> BodyCounters:
         """Steps by activity and target detections of this episode (none for agents without the body)."""
-        return BodyStats()
+        return BodyCounters()
 
-    def explorer_stats(self) -> ExplorerStats | None:
+    def explorer_counters(self) -> ExplorerCounters | None:
         """The exploration method's name and counters of this episode (None for agents without an explorer)."""
         return None
 

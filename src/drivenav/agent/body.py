@@ -24,14 +24,14 @@ import time
 from collections.abc import Callable
 
 from drivenav.agent import approach
-from drivenav.agent.base import Agent, BodyStats, CounterValue, ExplorerStats, ModelStats
+from drivenav.agent.base import Agent, BodyCounters, CounterValue, ExplorerCounters, ModelCounters
 from drivenav.agent.config import AgentConfig, ExplorerEntry
 from drivenav.agent.context import StepContext, perceive
 from drivenav.agent.explorer import Explorer, ExplorerContractError, ExplorerSetup, counter_values, sum_counters
 from drivenav.agent.explorers import DEFAULT_EXPLORER, explorer_entry
 from drivenav.agent.floors import NO_FRONTIER, STAIRS, Floor, Floors
 from drivenav.agent.fused_search import FusedTargetSearch
-from drivenav.agent.loop import Loop, Tuning
+from drivenav.agent.handles import StepHandles, Tuning
 from drivenav.agent.planner import LocalPlanner
 from drivenav.agent.state import BodyState
 from drivenav.agent.target import SearchConfig, TargetSearch
@@ -122,7 +122,7 @@ class ExplorerAgent(Agent):
         self._events_checked = 0
         self.state = self._begin(goal_text, seed, truth)
         self.explorer = self.explorer_type(self._explorer_setup(goal_text, truth, self.state.mapper))
-        self.explorer.begin(self.loop())
+        self.explorer.begin(self.handles())
         floors = self.config.floors
         first = Floor(0.0, self.state, self.explorer)
         self.floors = (
@@ -172,7 +172,7 @@ class ExplorerAgent(Agent):
         self.state, self.explorer = floor.state, floor.explorer
         if not floor.begun:
             floor.begun = True
-            floor.explorer.begin(self.loop())
+            floor.explorer.begin(self.handles())
 
     def _category_hints(self, goal_text: str, reasoner: Reasoner) -> CategoryHints | None:
         """The reasoner's hints on the goal's category where fusion or the explorer reads them (None otherwise):
@@ -229,11 +229,11 @@ class ExplorerAgent(Agent):
         self._ctx = None
         self._observation = None
 
-    def loop(self) -> Loop:
+    def handles(self) -> StepHandles:
         """What the approach and the explorer work with this step: this agent, its tuning, the episode."""
         if self.state is None or self.explorer is None:
             raise RuntimeError(f"{self.name}: no episode is running (reset the agent first)")
-        return Loop(self, self.tuning, self.state, self.explorer, approach.act)
+        return StepHandles(self, self.tuning, self.state, self.explorer, approach.act)
 
     # ----------------------------------------------------------------- what the episode cost and did
 
@@ -259,12 +259,12 @@ class ExplorerAgent(Agent):
     def model_calls(self) -> int:
         return len(self._calls())
 
-    def episode_stats(self) -> ModelStats:
+    def episode_stats(self) -> ModelCounters:
         if self.state is None:
             return super().episode_stats()
         calls, search = self._calls(), self.state.search
         kinds = sorted({c.kind for c in calls})
-        return ModelStats(
+        return ModelCounters(
             vlm_calls_by_kind={k: sum(c.kind == k for c in calls) for k in kinds},
             vlm_latency_ms={k: round(sum(c.latency_ms for c in calls if c.kind == k), 2) for k in kinds},
             vlm_fallbacks=sum(c.outcome == "fallback" for c in calls),
@@ -273,23 +273,23 @@ class ExplorerAgent(Agent):
             phrase=search.phrase,
         )
 
-    def body_stats(self) -> BodyStats:
+    def body_counters(self) -> BodyCounters:
         if self.state is None:
-            return super().body_stats()
+            return super().body_counters()
         outcomes = [search.outcome() for search in self._searches()]
         created, accepted, aside = (sum(o[k] for o in outcomes) for k in range(3))
         return self.state.counts.freeze(created, accepted, aside)
 
-    def explorer_stats(self) -> ExplorerStats | None:
+    def explorer_counters(self) -> ExplorerCounters | None:
         """The explorer's name and counters; counters that break the contract (the step that met them ended the
         episode in an error, :meth:`_check_explorer`) are left out, so that the record is always readable."""
         if self.explorer is None:
-            return ExplorerStats(self.explorer_entry.name)
+            return ExplorerCounters(self.explorer_entry.name)
         try:
             counters = self._counters()
         except ExplorerContractError:
-            return ExplorerStats(self.explorer_entry.name)
-        return ExplorerStats(self.explorer_entry.name, counters)
+            return ExplorerCounters(self.explorer_entry.name)
+        return ExplorerCounters(self.explorer_entry.name, counters)
 
     def _counters(self) -> dict[str, CounterValue]:
         """Every floor's explorer's counters, checked and summed; a violation is an :class:`ExplorerContractError`."""
@@ -332,35 +332,35 @@ class ExplorerAgent(Agent):
         start = time.perf_counter()
         floors = self.floors
         if floors is not None and floors.on_stairs(observation):
-            climbed = floors.climb(self.loop(), observation)
+            climbed = floors.climb(self.handles(), observation)
             if climbed is not None:
                 return self._counted(climbed, STAIRS, timings, start)
-        loop = self.loop()
-        state = loop.state
+        handles = self.handles()
+        state = handles.state
         ctx = self._map(state, observation, timings)
         self._ctx, self._observation = ctx, observation
-        loop.explorer.observe(loop, observation, ctx, timings)
+        handles.explorer.observe(handles, observation, ctx, timings)
         mark = time.perf_counter()
-        state.search.observe(observation, self.trace, ctx.snapshot, loop.explorer.frame_score(), timings)
-        approach.track_target(loop)
+        state.search.observe(observation, self.trace, ctx.snapshot, handles.explorer.frame_score(), timings)
+        approach.track_target(handles)
         timings["grounding"] = _ms_since(mark) - timings.get("fusion", 0.0)
         mark = time.perf_counter()
         if floors is not None and floors.trip is None and not state.approaching:
             floors.look(observation)
-            floors.ask(loop, ctx)
+            floors.ask(handles, ctx)
         if floors is not None and floors.trip is not None and not state.approaching:
-            toward = floors.heading_for_stairs(loop, observation, ctx)
+            toward = floors.heading_for_stairs(handles, observation, ctx)
             if toward is not None:
                 timings["policy"] = _ms_since(mark)
                 return self._counted(toward, STAIRS, timings, start)
-        action = loop.policy(observation, ctx)
-        loop = self.loop()  # the floor rule may have set off for stairs within the explorer's step
+        action = handles.policy(observation, ctx)
+        handles = self.handles()  # the floor rule may have set off for stairs within the explorer's step
         activity = STAIRS if floors is not None and floors.trip is not None else None
         timings["policy"] = _ms_since(mark)
-        return self._counted(action, activity or self._activity(loop, action), timings, start)
+        return self._counted(action, activity or self._activity(handles, action), timings, start)
 
-    def _activity(self, loop: Loop, action: Action) -> str:
-        return loop.state.activity(action) or loop.explorer.activity(loop.state.planner.escaping)
+    def _activity(self, handles: StepHandles, action: Action) -> str:
+        return handles.state.activity(action) or handles.explorer.activity(handles.state.planner.escaping)
 
     def _counted(self, action: Action, activity: str, timings: dict[str, float], start: float) -> Action:
         """Check what the explorer handed the body, count the step under ``activity`` and keep its timings."""
@@ -376,9 +376,9 @@ class ExplorerAgent(Agent):
         the step sets off for it."""
         floors, ctx, observation = self.floors, self._ctx, self._observation
         if reason == NO_FRONTIER and floors is not None and ctx is not None and observation is not None:
-            loop = self.loop()
-            if floors.trip is None and floors.leave(loop, ctx):
-                toward = floors.heading_for_stairs(loop, observation, ctx)
+            handles = self.handles()
+            if floors.trip is None and floors.leave(handles, ctx):
+                toward = floors.heading_for_stairs(handles, observation, ctx)
                 if toward is not None:
                     return toward
         return super().stop(reason)

@@ -25,7 +25,7 @@ from drivenav.types import Action, GroundTruth, Observation
 
 if TYPE_CHECKING:
     from drivenav.agent.context import StepContext
-    from drivenav.agent.loop import Loop, Tuning
+    from drivenav.agent.handles import StepHandles, Tuning
     from drivenav.mapping.occupancy import OccupancyMapper
     from drivenav.semantics.protocols import CategoryHints, ImageTextScorer, ModelCall
 
@@ -66,21 +66,23 @@ class Explorer(ABC):
     def __init__(self, setup: ExplorerSetup) -> None:
         """The episode's exploration begins: empty memory, made from ``setup`` (its section is ``setup.config``)."""
 
-    def begin(self, loop: Loop) -> None:
+    def begin(self, handles: StepHandles) -> None:
         """The episode starts (after the body's reset): record the explorer's first events (none by default)."""
         return None
 
-    def observe(self, loop: Loop, observation: Observation, ctx: StepContext, timings: dict[str, float]) -> None:
+    def observe(
+        self, handles: StepHandles, observation: Observation, ctx: StepContext, timings: dict[str, float]
+    ) -> None:
         """What the explorer reads of this step's frame and solve, before the target search and the policy (its
         parts timed into ``timings``, in ms); nothing by default."""
         return None
 
     @abstractmethod
-    def act(self, loop: Loop, observation: Observation, ctx: StepContext) -> Action:
+    def act(self, handles: StepHandles, observation: Observation, ctx: StepContext) -> Action:
         """The next action toward where to explore, when the approach does not act (STOP through
-        :meth:`~drivenav.agent.loop.Loop.stop` when nothing is left to explore)."""
+        :meth:`~drivenav.agent.handles.StepHandles.stop` when nothing is left to explore)."""
 
-    def resume(self, loop: Loop) -> None:
+    def resume(self, handles: StepHandles) -> None:
         """The approach gave its target up: exploring goes on from where the explorer left off (nothing to do by
         default)."""
         return None

@@ -53,7 +53,7 @@ from drivenav.types import Action, Observation
 
 if TYPE_CHECKING:
     from drivenav.agent.explorer import Explorer
-    from drivenav.agent.loop import Loop
+    from drivenav.agent.handles import StepHandles
     from drivenav.agent.state import BodyState
 
 NO_FRONTIER = "no_frontier"
@@ -162,44 +162,44 @@ class Floors:
         if len(floor.album) > config.album_size:
             floor.album, floor.album_every = floor.album[::2], 2 * every
 
-    def ask(self, loop: Loop, ctx: StepContext) -> bool:
+    def ask(self, handles: StepHandles, ctx: StepContext) -> bool:
         """Every ``ask_every`` steps once ``min_floor_steps`` were spent on the floor, while a way to a floor neither
         explored nor judged without the target is known: the share rule (the floor had its share of the steps and a
         floor not yet visited is in reach), then the floor question (the reasoner judges the target on another
         floor; once it did, the agent sets off again at each question's turn until it leaves). Either sets off
         (True)."""
         floor, config = self.floor, self.config
-        on_floor = loop.step - floor.arrived
-        due = floor.asked < 0 or loop.step - floor.asked >= config.ask_every
+        on_floor = handles.step - floor.arrived
+        due = floor.asked < 0 or handles.step - floor.asked >= config.ask_every
         if on_floor < config.min_floor_steps or not due:
             return False
-        floor.asked = loop.step
+        floor.asked = handles.step
         ways = [w for w in self._ways(ctx) if self._open(w) and not self._was_dropped(w)]
         if floor.judged_other:  # judged so before and the way not taken (its entry out of reach then): again
-            return self._set_off(loop, ctx, ways, "judged")
+            return self._set_off(handles, ctx, ways, "judged")
         unvisited = [w for w in ways if w[1] is None]
         if unvisited and not floor.overstayed and on_floor >= config.share * (self.budget - floor.arrived):
             floor.overstayed = True
-            return self._set_off(loop, ctx, unvisited, "share")
+            return self._set_off(handles, ctx, unvisited, "share")
         if not ways or not config.ask:
             return False
-        judgement = loop.state.reasoner.judge_floor(loop.host.goal_text, floor.album)
-        loop.trace.add(FloorJudged(loop.step, self.current, judgement.guess, judgement.note))
+        judgement = handles.state.reasoner.judge_floor(handles.host.goal_text, floor.album)
+        handles.trace.add(FloorJudged(handles.step, self.current, judgement.guess, judgement.note))
         floor.others = floor.others + 1 if judgement.guess == "other" else 0
         if floor.others < config.confirm:
             return False
         floor.judged_other = True
-        return self._set_off(loop, ctx, ways, "judged")
+        return self._set_off(handles, ctx, ways, "judged")
 
-    def leave(self, loop: Loop, ctx: StepContext) -> bool:
+    def leave(self, handles: StepHandles, ctx: StepContext) -> bool:
         """The current floor has nothing left to explore: set off for the best way to another floor not yet
         exhausted (True), or say there is none (False: the agent STOPs)."""
         self.floor.exhausted = True
         ways = [w for w in self._ways(ctx) if self._worth(w) and not self._was_dropped(w)]
-        return self._set_off(loop, ctx, ways, "explored")
+        return self._set_off(handles, ctx, ways, "explored")
 
     def _set_off(
-        self, loop: Loop, ctx: StepContext, ways: list[tuple[StairCandidate, int | None]], reason: str
+        self, handles: StepHandles, ctx: StepContext, ways: list[tuple[StairCandidate, int | None]], reason: str
     ) -> bool:
         """Set off for the way to an unknown floor first, else the nearest (True); False when there is none."""
         if not ways:
@@ -207,10 +207,10 @@ class Floors:
         here = (ctx.pose.x, ctx.pose.y)
         way, to = min(ways, key=lambda item: (self._known(item[1]), math.dist(here, item[0].entry)))
         self.trip = StairTrip(way, to)
-        loop.trace.add(FloorSetOff(loop.step, self.current, way.entry, way.up, reason))
-        loop.state.goal = None
-        loop.state.planner.reset()
-        loop.start_segment()
+        handles.trace.add(FloorSetOff(handles.step, self.current, way.entry, way.up, reason))
+        handles.state.goal = None
+        handles.state.planner.reset()
+        handles.start_segment()
         return True
 
     def _ways(self, ctx: StepContext) -> list[tuple[StairCandidate, int | None]]:
@@ -254,21 +254,23 @@ class Floors:
 
     # ----------------------------------------------------------------------------------------- taking stairs
 
-    def heading_for_stairs(self, loop: Loop, observation: Observation, ctx: StepContext) -> Action | None:
+    def heading_for_stairs(self, handles: StepHandles, observation: Observation, ctx: StepContext) -> Action | None:
         """A step toward the stairs' entry on the map (``approach``), then of turning to their heading (``turn``),
         then the first step along it; None when the way was dropped (the explorer goes on)."""
         trip = self.trip
         assert trip is not None
         trip.steps += 1
         if trip.steps > self.config.approach_steps:
-            return self._drop(loop)
+            return self._drop(handles)
         if trip.phase == "approach":
-            action = self._approach(loop, observation, ctx, trip)
+            action = self._approach(handles, observation, ctx, trip)
             if action is not None:
                 return action
-        return self._turn(loop, observation, trip)
+        return self._turn(handles, observation, trip)
 
-    def _approach(self, loop: Loop, observation: Observation, ctx: StepContext, trip: StairTrip) -> Action | None:
+    def _approach(
+        self, handles: StepHandles, observation: Observation, ctx: StepContext, trip: StairTrip
+    ) -> Action | None:
         """A planned step toward the way's entry; None once there -- or near it (``BLOCKED_NEAR``) after
         ``BLOCKED_STEPS`` steps that collided without moving: by a stairwell's edge the map and the world part, and
         driving along the heading (with its detours) goes on from there."""
@@ -276,34 +278,34 @@ class Floors:
         here = (pose.x, pose.y)
         goal = _navigable_near(ctx, trip.way)
         if goal is None:
-            return self._drop(loop, remember=False)
+            return self._drop(handles, remember=False)
         trip.blocked += observation.collided and math.dist(here, trip.last_xy) < 0.05
         trip.last_xy = here
         near = math.dist(here, goal)
         if near <= self.config.entry_tolerance or (trip.blocked >= BLOCKED_STEPS and near <= BLOCKED_NEAR):
             trip.phase = "turn"
             return None
-        state = loop.state
+        state = handles.state
         state.goal = goal
         planned = replan(state.pipeline, ctx, goal)
         action = state.planner.act(planned.goal_path, ctx.pose, observation.collided, planned.free)
-        return action if action is not None else self._drop(loop, remember=False)
+        return action if action is not None else self._drop(handles, remember=False)
 
-    def _turn(self, loop: Loop, observation: Observation, trip: StairTrip) -> Action:
+    def _turn(self, handles: StepHandles, observation: Observation, trip: StairTrip) -> Action:
         error = math.remainder(trip.way.heading - observation.pose.yaw, 2.0 * math.pi)
-        if abs(error) > loop.tuning.turn / 2.0:
+        if abs(error) > handles.tuning.turn / 2.0:
             return Action.TURN_LEFT if error > 0.0 else Action.TURN_RIGHT
         trip.phase = "climb"
         trip.steps = 0
         trip.last_height = observation.pose.z
-        loop.state.planner.reset()
+        handles.state.planner.reset()
         return Action.MOVE_FORWARD
 
     def on_stairs(self, observation: Observation) -> bool:
         """Whether this step is one of climbing (the trip's ``climb`` phase): the maps are left as they are."""
         return self.trip is not None and self.trip.phase == "climb"
 
-    def climb(self, loop: Loop, observation: Observation) -> Action | None:
+    def climb(self, handles: StepHandles, observation: Observation) -> Action | None:
         """A step along the stairs' heading; None when the agent arrived on a level -- within :data:`ON_FLOOR` of
         its height, off the last tread (the floors switched, the step goes on there) -- or gave the stairs up (back
         on the floor it left)."""
@@ -314,25 +316,25 @@ class Floors:
         if trip.left_level and level is not None and abs(z - self.floors[level].level) <= ON_FLOOR:
             if level == self.current:  # back where it set off, the stairs given up
                 self.trip = None
-                loop.state.planner.reset()
+                handles.state.planner.reset()
             else:
-                self._arrive(loop, level, observation)
+                self._arrive(handles, level, observation)
             return None
         if not trip.left_level and abs(z - self.floor.level) > self.config.level_tolerance:
             trip.left_level = True
         trip.steady = trip.steady + 1 if abs(z - trip.last_height) < 0.01 else 0
         trip.last_height = z
         if trip.left_level and level is None and trip.steady >= 2 and self._new_level(z):
-            self._arrive(loop, self._add_level(z), observation)
+            self._arrive(handles, self._add_level(z), observation)
             return None
         trip.steps += 1
         moved = abs(z - self.floor.level) >= self.config.stairs.climb / 2.0
         if not trip.left_level and not moved and trip.forward >= self.config.probe_steps:
-            self._drop(loop)
+            self._drop(handles)
             return None
         if trip.steps > self.config.climb_steps:
             self._turn_back(trip)
-        return self._along(loop, observation, trip)
+        return self._along(handles, observation, trip)
 
     def _turn_back(self, trip: StairTrip) -> None:
         """Stairs given up between two levels: back the way the agent came, to the floor it left (once; after
@@ -344,7 +346,7 @@ class Floors:
         self.dropped.append(way)
         trip.way, trip.to, trip.steps = back, self.current, 0
 
-    def _along(self, loop: Loop, observation: Observation, trip: StairTrip) -> Action:
+    def _along(self, handles: StepHandles, observation: Observation, trip: StairTrip) -> Action:
         """Face the stairs' heading and drive: no planner on stairs (its escape from a collision turns away; the
         world slides the agent along a railing it meets at an angle, so driving on follows the flight). A forward
         step that collided without moving is followed by one step a turn off the heading, toward the side the
@@ -353,7 +355,7 @@ class Floors:
         stuck = observation.collided and math.dist((pose.x, pose.y), trip.last_xy) < 0.05
         if trip.detour == 0 and stuck:
             trip.detour = _open_side(observation)
-        turn = loop.tuning.turn
+        turn = handles.tuning.turn
         error = math.remainder(trip.way.heading + trip.detour * turn - pose.yaw, 2.0 * math.pi)
         if abs(error) > turn / 2.0:
             return Action.TURN_LEFT if error > 0.0 else Action.TURN_RIGHT
@@ -376,7 +378,7 @@ class Floors:
         self.floors.append(Floor(z, state, explorer, begun=False))
         return len(self.floors) - 1
 
-    def _arrive(self, loop: Loop, level: int, observation: Observation) -> None:
+    def _arrive(self, handles: StepHandles, level: int, observation: Observation) -> None:
         """On floor ``level``: the portal both ways, the floor's state and explorer take over."""
         trip = self.trip
         assert trip is not None
@@ -386,15 +388,15 @@ class Floors:
             Portal(level, here, math.remainder(trip.way.heading + math.pi, 2.0 * math.pi), self.current)
         )
         self.trip = None
-        loop.trace.add(FloorReached(loop.step, level, self.current, not self.floors[level].begun))
+        handles.trace.add(FloorReached(handles.step, level, self.current, not self.floors[level].begun))
         self.current = level
         self.changes += 1
         floor = self.floor
-        floor.arrived = loop.step
+        floor.arrived = handles.step
         floor.exhausted = False
         self._switch(floor)
 
-    def _drop(self, loop: Loop, remember: bool = True) -> Action | None:
+    def _drop(self, handles: StepHandles, remember: bool = True) -> Action | None:
         """Give the way up and go on exploring the floor (which STOPs again if nothing is left); ``remember``: never
         take it again (not for an entry the map cannot reach yet: it may later)."""
         trip = self.trip
@@ -402,8 +404,8 @@ class Floors:
         if remember:
             self.dropped.append(trip.way)
         self.trip = None
-        loop.state.goal = None
-        loop.state.planner.reset()
+        handles.state.goal = None
+        handles.state.planner.reset()
         return None
 
 

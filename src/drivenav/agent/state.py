@@ -13,8 +13,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from drivenav.agent.context import Point
-from drivenav.agent.counts import BodyCounts
 from drivenav.agent.planner import LocalPlanner
+from drivenav.agent.tally import BodyTally
 from drivenav.agent.target import TargetSearch
 from drivenav.directions import DirectionPipeline
 from drivenav.mapping.occupancy import OccupancyMapper
@@ -42,7 +42,7 @@ class BodyState:
     target: int | None = None
     approaching: bool = False
     detour_steps: int = 0
-    counts: BodyCounts = field(default_factory=BodyCounts)
+    counts: BodyTally = field(default_factory=BodyTally)
     hints: CategoryHints | None = None
 
     def activity(self, action: Action) -> str | None:

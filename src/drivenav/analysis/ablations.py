@@ -158,8 +158,8 @@ def missed_counts(records: list[EpisodeRecord]) -> dict[str, int]:
 
 
 def decision_means(records: list[EpisodeRecord]) -> dict[str, float]:
-    """Per-episode means of the body's counters (:class:`~drivenav.agent.base.BodyStats`) and the explorer's
-    (:class:`~drivenav.agent.base.ExplorerStats`); counts by kind under ``NAME.KIND`` with their sum under ``NAME``
+    """Per-episode means of the body's counters (:class:`~drivenav.agent.base.BodyCounters`) and the explorer's
+    (:class:`~drivenav.agent.base.ExplorerCounters`); counts by kind under ``NAME.KIND`` with their sum under ``NAME``
     (``decisions.scan``, ``decisions``), and steps by activity under ``steps.ACTIVITY``."""
     started = [r for r in records if not r.is_error]
     totals: defaultdict[str, float] = defaultdict(float)

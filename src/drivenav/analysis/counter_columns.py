@@ -14,7 +14,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, fields
 
-from drivenav.agent.base import BodyStats
+from drivenav.agent.base import BodyCounters
 from drivenav.agent.config import CounterSpec, ExplorerEntry
 from drivenav.agent.explorers import BUILT_IN_EXPLORERS, explorer_entry
 from drivenav.errors import InputError
@@ -25,7 +25,7 @@ STEP_COLUMNS = ("start_scan", "scan", "sweep", "follow", "escape", "approach", "
 BODY_ACTIVITIES = ("approach", "escape", "stop", "stairs")
 """The activities the body names itself (``stop`` and ``stairs`` are not shown)."""
 STEPS = "steps."
-BODY_KEYS = frozenset(item.name for item in fields(BodyStats))
+BODY_KEYS = frozenset(item.name for item in fields(BodyCounters))
 """The body's counters among a method's means (:func:`drivenav.analysis.ablations.decision_means`)."""
 
 

@@ -3,10 +3,10 @@
 Every key of the results contract (``episode_id``, ``scene_id``, ``object_category``, ``success``, ``spl``, ``steps``,
 ``path_length``, ``geodesic_distance``, ``distance_to_goal``, ``revisits``, ``collisions``, ``stop_reason``,
 ``vlm_calls``) keeps its name. The world's measures may be ``None`` (a robot has no ground truth: they are
-``null``, never 0). The agent's model statistics (:class:`~drivenav.agent.base.ModelStats`) and the body's counters
-(:class:`~drivenav.agent.base.BodyStats`: steps by activity, turn reversals, target detections) are written flat,
+``null``, never 0). The agent's model statistics (:class:`~drivenav.agent.base.ModelCounters`) and the body's counters
+(:class:`~drivenav.agent.base.BodyCounters`: steps by activity, turn reversals, target detections) are written flat,
 beside the other keys; the exploration method's counters under ``explorer`` (``{"name": ..., "counters": {...}}``,
-:class:`~drivenav.agent.base.ExplorerStats`; ``null`` for an agent without an explorer); ``retraced_revisits`` and
+:class:`~drivenav.agent.base.ExplorerCounters`; ``null`` for an agent without an explorer); ``retraced_revisits`` and
 ``retraced_m`` are the segmentation-free revisit count (:func:`drivenav.metrics.retraced`); ``trace`` names the
 episode's trace file in the run directory ("" when it could not be written). ``schema_version`` 1 is the untyped
 record written before it existed, 2 the record before the decision counters, 3 the record before ``trace``, 4 the
@@ -24,7 +24,7 @@ import math
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
-from drivenav.agent.base import BodyStats, CounterValue, ExplorerStats, ModelStats
+from drivenav.agent.base import BodyCounters, CounterValue, ExplorerCounters, ModelCounters
 from drivenav.envs.base import EpisodeMeasures
 from drivenav.errors import InputError
 from drivenav.jsonstream import JsonObject
@@ -73,9 +73,9 @@ class EpisodeRecord:
     vlm_calls: int = 0
     error: str = ""
     privileged: tuple[str, ...] = ()
-    stats: ModelStats = field(default_factory=ModelStats)
-    body: BodyStats = field(default_factory=BodyStats)
-    explorer: ExplorerStats | None = None
+    stats: ModelCounters = field(default_factory=ModelCounters)
+    body: BodyCounters = field(default_factory=BodyCounters)
+    explorer: ExplorerCounters | None = None
     trace: str = ""
     schema_version: int = SCHEMA_VERSION
 
@@ -98,8 +98,8 @@ class EpisodeRecord:
         :class:`InputError` naming the field."""
         if not isinstance(data, dict):
             raise InputError(source, "record", "a JSON object", type(data).__name__)
-        stats = ModelStats(**_typed(ModelStats, data, source))
-        body = BodyStats(**_typed(BodyStats, data, source))
+        stats = ModelCounters(**_typed(ModelCounters, data, source))
+        body = BodyCounters(**_typed(BodyCounters, data, source))
         explorer = _explorer(data, source)
         data = {**data, "privileged": data.get("privileged", [])}
         values = _typed(EpisodeRecord, data, source, skip=frozenset({"stats", "body", "explorer"}))
@@ -112,7 +112,7 @@ class EpisodeRecord:
             raise InputError(source, "record", "the keys of an episode record", str(error)) from None
 
 
-def _explorer(data: JsonObject, source: str | Path) -> ExplorerStats | None:
+def _explorer(data: JsonObject, source: str | Path) -> ExplorerCounters | None:
     """The record's explorer and its counters; a record before schema 5 had its DRIVE-Nav counters flat, and its
     explorer is its method's (none for a reference agent)."""
     if "explorer" in data:
@@ -127,7 +127,7 @@ def _explorer(data: JsonObject, source: str | Path) -> ExplorerStats | None:
     return _explorer_object({"name": method.explorer if method else "directions", "counters": legacy}, source)
 
 
-def _explorer_object(value: object, source: str | Path) -> ExplorerStats | None:
+def _explorer_object(value: object, source: str | Path) -> ExplorerCounters | None:
     """``{"name": str, "counters": {name: number or {kind: count}}}``, or null."""
     if value is None:
         return None
@@ -138,7 +138,7 @@ def _explorer_object(value: object, source: str | Path) -> ExplorerStats | None:
         expected = f"a mapping of counter names to numbers or to {{kind: count}}, each {NON_NEGATIVE}"
         raise InputError(source, "record.explorer.counters", expected, counters)
     typed: dict[str, CounterValue] = dict(counters)
-    return ExplorerStats(value["name"], typed)
+    return ExplorerCounters(value["name"], typed)
 
 
 def _is_counter(name: str, value: object) -> bool:

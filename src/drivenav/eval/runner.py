@@ -24,7 +24,7 @@ from tqdm import tqdm
 from tqdm.contrib.logging import logging_redirect_tqdm
 
 from drivenav import metrics
-from drivenav.agent.base import Agent, BodyStats, ModelStats
+from drivenav.agent.base import Agent, BodyCounters, ModelCounters
 from drivenav.agents import make_agent
 from drivenav.envs.base import Env, EnvSpec, EpisodeMeasures
 from drivenav.episode import Episode
@@ -236,8 +236,8 @@ def _record(
         failure_cause=failure_cause(measures.success, stop_reason, measures.target_seen),
         privileged=tuple(sorted(agent.requires)),
         stats=stats,
-        body=agent.body_stats() if path.positions else BodyStats(),
-        explorer=agent.explorer_stats(),
+        body=agent.body_counters() if path.positions else BodyCounters(),
+        explorer=agent.explorer_counters(),
     )
 
 
@@ -260,10 +260,10 @@ def _trace(episode: Episode, agent: Agent, path: _Trajectory, error: EpisodeErro
     )
 
 
-def _model_use(agent: Agent, started: bool) -> tuple[int, ModelStats]:
+def _model_use(agent: Agent, started: bool) -> tuple[int, ModelCounters]:
     """The episode's model calls and statistics (none for an episode that failed before the agent started)."""
     if not started:
-        return 0, ModelStats()
+        return 0, ModelCounters()
     return agent.model_calls, agent.episode_stats()
 
 

@@ -13,7 +13,7 @@ from drivenav.agent.context import StepContext
 from drivenav.agent.explorer import Explorer, ExplorerSetup
 from drivenav.agent.explorers.frontier_goals import FrontierGoals
 from drivenav.agent.explorers.full_scan import FullScan
-from drivenav.agent.loop import Loop
+from drivenav.agent.handles import StepHandles
 from drivenav.directions.types import FrontierPath
 from drivenav.types import Action, Observation
 from drivenav_example.config import FarthestConfig
@@ -38,21 +38,21 @@ class FarthestExplorer(Explorer):
         self.scan = FullScan.ahead(setup.tuning)
         self.chosen = 0
 
-    def begin(self, loop: Loop) -> None:
-        self.scan.begin(loop)
+    def begin(self, handles: StepHandles) -> None:
+        self.scan.begin(handles)
 
-    def act(self, loop: Loop, observation: Observation, ctx: StepContext) -> Action:
-        turn = self.scan.act(loop)
+    def act(self, handles: StepHandles, observation: Observation, ctx: StepContext) -> Action:
+        turn = self.scan.act(handles)
         if turn is not None:
             return turn
-        paths = self.goals.open_paths(loop, ctx)
+        paths = self.goals.open_paths(handles, ctx)
         if not paths:
-            return loop.stop("no_frontier")
-        chosen = self.goals.kept_goal(loop, paths) or self._new_goal(loop, ctx, paths)
-        return self.goals.drive(loop, observation, ctx, chosen)
+            return handles.stop("no_frontier")
+        chosen = self.goals.kept_goal(handles, paths) or self._new_goal(handles, ctx, paths)
+        return self.goals.drive(handles, observation, ctx, chosen)
 
-    def resume(self, loop: Loop) -> None:
-        self.scan.end(loop)
+    def resume(self, handles: StepHandles) -> None:
+        self.scan.end(handles)
 
     def activity(self, escaping: bool) -> str:
         return self.scan.activity(escaping)
@@ -60,10 +60,10 @@ class FarthestExplorer(Explorer):
     def counters(self) -> FarthestCounters:
         return FarthestCounters(self.chosen, self.goals.skipped)
 
-    def _new_goal(self, loop: Loop, ctx: StepContext, paths: list[FrontierPath]) -> FrontierPath:
+    def _new_goal(self, handles: StepHandles, ctx: StepContext, paths: list[FrontierPath]) -> FrontierPath:
         """The farthest frontier point within ``max_travel_time`` (the nearest of all if none is)."""
         within = [p for p in self.goals.far_enough(paths) if p.travel_time <= self.max_travel_time]
         chosen = max(within, key=lambda p: p.travel_time) if within else min(paths, key=lambda p: p.travel_time)
-        self.goals.new_goal(loop, ctx, chosen)
+        self.goals.new_goal(handles, ctx, chosen)
         self.chosen += 1
         return chosen

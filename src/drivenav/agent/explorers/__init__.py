@@ -27,7 +27,7 @@ from drivenav.plugins import Registry
 DEFAULT_EXPLORER = "directions"
 
 BUILT_IN_EXPLORERS = {
-    "directions": "drivenav.agent.explorers.directions.config:EXPLORER",
+    "directions": "drivenav.agent.explorers.drive_nav.config:EXPLORER",
     "greedy": "drivenav.agent.explorers.greedy.config:EXPLORER",
     "vlfm": "drivenav.agent.explorers.vlfm.config:EXPLORER",
     "apexnav": "drivenav.agent.explorers.apexnav.config:EXPLORER",

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from drivenav.agent.loop import Loop, Tuning
+from drivenav.agent.handles import StepHandles, Tuning
 from drivenav.agent.trace import ScanStarted
 from drivenav.inspection import full_scan_turns
 from drivenav.types import Action
@@ -33,15 +33,15 @@ class FullScan:
         """A scan not started yet: as many turns of ``tuning.turn`` as make 360 deg (twelve of 30 deg)."""
         return cls(full_scan_turns(tuning.turn))
 
-    def begin(self, loop: Loop) -> None:
+    def begin(self, handles: StepHandles) -> None:
         """The episode's start scan is announced in the trace (a ``scan`` event at step 0), from the explorer's
         ``begin``."""
-        loop.trace.add(ScanStarted(0, self.turns))
+        handles.trace.add(ScanStarted(0, self.turns))
 
-    def restart(self, loop: Loop) -> None:
+    def restart(self, handles: StepHandles) -> None:
         """A new full scan from this step (``direction-360``'s scan at a decision), announced in the trace."""
-        self.turns, self.over = full_scan_turns(loop.tuning.turn), False
-        loop.trace.add(ScanStarted(loop.step, self.turns))
+        self.turns, self.over = full_scan_turns(handles.tuning.turn), False
+        handles.trace.add(ScanStarted(handles.step, self.turns))
 
     def turn(self) -> Action | None:
         """The scan's next turn (``TURN_LEFT``), or None once every turn is made."""
@@ -50,21 +50,21 @@ class FullScan:
         self.turns -= 1
         return Action.TURN_LEFT
 
-    def act(self, loop: Loop) -> Action | None:
+    def act(self, handles: StepHandles) -> Action | None:
         """The scan's next turn, or None when the scan is over (the step after its last turn ends it): the
         explorer's own exploring acts then."""
         if self.over:
             return None
         action = self.turn()
         if action is None:
-            self.end(loop)
+            self.end(handles)
         return action
 
-    def end(self, loop: Loop) -> None:
+    def end(self, handles: StepHandles) -> None:
         """The scan is over, done or cut short (an explorer's ``resume``: the approach took over mid-scan and gave its
         target up): the explorer acts from now on."""
         self.over = True
-        loop.explore()
+        handles.explore()
 
     def activity(self, escaping: bool) -> str:
         """The steps-by-activity name of an explorer that scans and then follows goals: ``start_scan`` during the

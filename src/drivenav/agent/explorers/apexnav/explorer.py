@@ -58,7 +58,7 @@ from drivenav.agent.explorers.apexnav.frontiers import (
 from drivenav.agent.explorers.apexnav.tsp import cost_matrix, open_tour
 from drivenav.agent.explorers.frontier_goals import FrontierGoals
 from drivenav.agent.explorers.full_scan import FullScan
-from drivenav.agent.loop import Loop
+from drivenav.agent.handles import StepHandles
 from drivenav.directions.types import FrontierPath
 from drivenav.inspection import signed_offset
 from drivenav.mapping.types import Frontier, MapSnapshot
@@ -113,55 +113,57 @@ class ApexnavExplorer(Explorer):
         self.decisions: Counter[str] = Counter()
         self.tsp_solves = self.dormant_marked = self.settled = 0
 
-    def begin(self, loop: Loop) -> None:
-        self.scan.begin(loop)
+    def begin(self, handles: StepHandles) -> None:
+        self.scan.begin(handles)
 
-    def observe(self, loop: Loop, observation: Observation, ctx: StepContext, timings: dict[str, float]) -> None:
+    def observe(
+        self, handles: StepHandles, observation: Observation, ctx: StepContext, timings: dict[str, float]
+    ) -> None:
         """Score the frame with ApexNav's text, then fuse the score into the cells the frame saw free (the scorer and
         the map update timed apart)."""
         start = time.perf_counter()
-        self.score = self.scorer.score(loop.host.goal_text, observation, self.prompt)
+        self.score = self.scorer.score(handles.host.goal_text, observation, self.prompt)
         timings["scorer"] = _ms_since(start)
         mark = time.perf_counter()
-        mapper = loop.state.mapper
+        mapper = handles.state.mapper
         self.value_map.follow(mapper.grid)
         rays = mapper.last_rays
         if rays is not None and rays.pose == observation.pose:
             self.value_map.update_rays(self.score, rays, observation.intrinsics)
         timings["value_map"] = _ms_since(mark)
 
-    def act(self, loop: Loop, observation: Observation, ctx: StepContext) -> Action:
+    def act(self, handles: StepHandles, observation: Observation, ctx: StepContext) -> Action:
         """The start turn, then the next step toward the chosen frontier (module docstring)."""
-        turn = self.scan.act(loop)
+        turn = self.scan.act(handles)
         if turn is not None:
             return turn
         cells = FrontierCells.of(ctx.frontiers, self.resolution)
         dormant = self._dormancy(ctx, cells)
         index = {f.frontier_id: i for i, f in enumerate(ctx.frontiers)}
-        paths = self.goals.open_paths(loop, ctx)
+        paths = self.goals.open_paths(handles, ctx)
         live = [p for p in paths if not dormant[index[p.frontier_id]]]
         if not live:
-            if loop.state.search.settle(loop.trace):
+            if handles.state.search.settle(handles.trace):
                 self.settled += 1
-                approach.track_target(loop)
-                if loop.state.approaching:
-                    return loop.policy(observation, ctx)
+                approach.track_target(handles)
+                if handles.state.approaching:
+                    return handles.policy(observation, ctx)
             if not paths:
-                return loop.stop("no_frontier")
+                return handles.stop("no_frontier")
         chosen = self._kept(cells, index, live or paths)
         if chosen is None:
-            chosen = self._decide(loop, ctx, live) if live else self._nearest(paths, "dormant")
+            chosen = self._decide(handles, ctx, live) if live else self._nearest(paths, "dormant")
             self.before = cells
             self.heading = cells.pick([index[chosen.frontier_id]])
-            self.goals.new_goal(loop, ctx, chosen)
+            self.goals.new_goal(handles, ctx, chosen)
         self._watch(ctx, chosen, cells.pick([index[chosen.frontier_id]]))
-        action = self.goals.drive(loop, observation, ctx, chosen)
-        if loop.state.goal is None:  # the planner could not reach it: decide afresh next step
+        action = self.goals.drive(handles, observation, ctx, chosen)
+        if handles.state.goal is None:  # the planner could not reach it: decide afresh next step
             self.before = None
         return action
 
-    def resume(self, loop: Loop) -> None:
-        self.scan.end(loop)
+    def resume(self, handles: StepHandles) -> None:
+        self.scan.end(handles)
         self.before = None
 
     def activity(self, escaping: bool) -> str:
@@ -190,7 +192,7 @@ class ApexnavExplorer(Explorer):
         heading = cells.matches(self.heading, self.config.frontier_changed)[:, 0]
         return next((p for p in goals if heading[index[p.frontier_id]]), None)
 
-    def _decide(self, loop: Loop, ctx: StepContext, live: list[FrontierPath]) -> FrontierPath:
+    def _decide(self, handles: StepHandles, ctx: StepContext, live: list[FrontierPath]) -> FrontierPath:
         """Semantic or geometric mode by the scores' statistic (module docstring)."""
         config = self.config
         by_id = {f.frontier_id: f for f in ctx.frontiers}
@@ -201,7 +203,7 @@ class ApexnavExplorer(Explorer):
         kept = set(high_value(scores, statistic, config.ratio_threshold, config.max_to_mean_percentage))
         ranked = [i for i in sorted(range(len(live)), key=functools.cmp_to_key(self._order(live, scores))) if i in kept]
         self.decisions["semantic"] += 1
-        return live[ranked[self._tour(loop, [live[i] for i in ranked])]]
+        return live[ranked[self._tour(handles, [live[i] for i in ranked])]]
 
     def _scores(self, frontiers: list[Frontier], snapshot: MapSnapshot) -> NDArray[np.float64]:
         """Each frontier's score (its best piece's); a frontier's pieces are split once and kept while it lasts."""
@@ -223,13 +225,13 @@ class ApexnavExplorer(Explorer):
         """ApexNav's frontier order: higher value first, values within ``value_tie`` equal, then shorter path."""
         return functools.partial(_compare, live, scores.tolist(), self.config.value_tie)
 
-    def _tour(self, loop: Loop, ranked: list[FrontierPath]) -> int:
+    def _tour(self, handles: StepHandles, ranked: list[FrontierPath]) -> int:
         """The index in ``ranked`` of the first frontier of the open ATSP tour over them."""
         config = self.config
         targets = [p.target for p in ranked]
         between = np.full((len(ranked), len(ranked)), np.inf)
         if len(ranked) > 2:  # two frontiers need no lengths between them (tsp.open_tour)
-            between[:-1] = loop.state.pipeline.travel_times(targets[:-1], targets)
+            between[:-1] = handles.state.pipeline.travel_times(targets[:-1], targets)
             self.tsp_solves += 1
         from_robot = np.array([p.travel_time for p in ranked])
         matrix = cost_matrix(from_robot, between, config.tsp_unreachable, config.tsp_diagonal)

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 from drivenav.agent.config import CounterSpec, ExplorerEntry
-from drivenav.agent.explorers.directions.config import ACTIVITIES, DECISIONS
+from drivenav.agent.explorers.drive_nav.config import ACTIVITIES, DECISIONS
 from drivenav.ranges import LENGTH, Range, check_declared
 
 

@@ -8,7 +8,7 @@ metric, Sec. V-C) starts when it switches to a different frontier, not when its 
 
 It opens like DRIVE-Nav: the 360 deg start scan, then one reasoner decision among the directions (with no views)
 whose first step it takes, and whose frontier point is its first goal (DRIVE-Nav's modes,
-:mod:`drivenav.agent.explorers.directions`, on a memory of its own). The target approach and the stops are the
+:mod:`drivenav.agent.explorers.drive_nav`, on a memory of its own). The target approach and the stops are the
 body's.
 """
 
@@ -18,12 +18,12 @@ from dataclasses import dataclass, field
 
 from drivenav.agent.context import StepContext
 from drivenav.agent.explorer import Explorer, ExplorerSetup
-from drivenav.agent.explorers.directions.config import DirectionsConfig
-from drivenav.agent.explorers.directions.explorer import MODES, begin_directions
-from drivenav.agent.explorers.directions.memory import Phase
+from drivenav.agent.explorers.drive_nav.config import DirectionsConfig
+from drivenav.agent.explorers.drive_nav.explorer import MODES, begin_directions
+from drivenav.agent.explorers.drive_nav.memory import Phase
 from drivenav.agent.explorers.frontier_goals import FrontierGoals
 from drivenav.agent.explorers.greedy.config import GreedyConfig
-from drivenav.agent.loop import Loop
+from drivenav.agent.handles import StepHandles
 from drivenav.directions.types import FrontierPath
 from drivenav.types import Action, Observation
 
@@ -46,24 +46,24 @@ class GreedyExplorer(Explorer):
         self.opening = begin_directions(setup, DirectionsConfig())
         self.goals = FrontierGoals(setup.config.min_goal_distance)
 
-    def begin(self, loop: Loop) -> None:
-        self.opening.scan.begin(loop)
+    def begin(self, handles: StepHandles) -> None:
+        self.opening.scan.begin(handles)
 
-    def act(self, loop: Loop, observation: Observation, ctx: StepContext) -> Action:
+    def act(self, handles: StepHandles, observation: Observation, ctx: StepContext) -> Action:
         """The opening's scan and decision, then the next step toward the nearest frontier point; STOP when no
         frontier is left to go to."""
         if self.opening.phase is not Phase.FOLLOW:
-            return MODES[self.opening.phase](self.opening, loop, observation, ctx)
-        paths = self.goals.open_paths(loop, ctx)
+            return MODES[self.opening.phase](self.opening, handles, observation, ctx)
+        paths = self.goals.open_paths(handles, ctx)
         if not paths:
-            return loop.stop("no_frontier")
-        chosen = self.goals.kept_goal(loop, paths)
+            return handles.stop("no_frontier")
+        chosen = self.goals.kept_goal(handles, paths)
         if chosen is None:
-            chosen = self._new_goal(loop, ctx, paths)
-        return self.goals.drive(loop, observation, ctx, chosen)
+            chosen = self._new_goal(handles, ctx, paths)
+        return self.goals.drive(handles, observation, ctx, chosen)
 
-    def resume(self, loop: Loop) -> None:
-        self.opening.enter(loop, Phase.FOLLOW)
+    def resume(self, handles: StepHandles) -> None:
+        self.opening.enter(handles, Phase.FOLLOW)
 
     def activity(self, escaping: bool) -> str:
         return self.opening.activity(escaping)
@@ -72,8 +72,8 @@ class GreedyExplorer(Explorer):
         decisions = dict(sorted(self.opening.counts.decisions.items()))
         return GreedyCounters(decisions, self.goals.skipped)
 
-    def _new_goal(self, loop: Loop, ctx: StepContext, paths: list[FrontierPath]) -> FrontierPath:
+    def _new_goal(self, handles: StepHandles, ctx: StepContext, paths: list[FrontierPath]) -> FrontierPath:
         """The nearest frontier point at least ``min_goal_distance`` away (the nearest of all if none is)."""
         chosen = min(self.goals.far_enough(paths), key=lambda p: p.travel_time)
-        self.goals.new_goal(loop, ctx, chosen, fresh_planner=True)
+        self.goals.new_goal(handles, ctx, chosen, fresh_planner=True)
         return chosen

@@ -34,7 +34,7 @@ from drivenav.agent.explorer import Explorer, ExplorerSetup
 from drivenav.agent.explorers.frontier_goals import FrontierGoals
 from drivenav.agent.explorers.full_scan import FullScan
 from drivenav.agent.explorers.vlfm.config import VlfmConfig
-from drivenav.agent.loop import Loop
+from drivenav.agent.handles import StepHandles
 from drivenav.directions.types import FrontierPath
 from drivenav.mapping.types import Frontier
 from drivenav.mapping.value_map import ValueMap, ValueMapConfig
@@ -88,37 +88,39 @@ class VlfmExplorer(Explorer):
         self.new_choices = 0
         self.fallbacks = 0
 
-    def begin(self, loop: Loop) -> None:
-        self.scan.begin(loop)
+    def begin(self, handles: StepHandles) -> None:
+        self.scan.begin(handles)
 
-    def observe(self, loop: Loop, observation: Observation, ctx: StepContext, timings: dict[str, float]) -> None:
+    def observe(
+        self, handles: StepHandles, observation: Observation, ctx: StepContext, timings: dict[str, float]
+    ) -> None:
         """Score the frame against the goal, then spread the score over the value map (on the mapper's grid, which
         may have grown this step); the scorer and the map update are timed apart."""
         start = time.perf_counter()
-        score = self.scorer.score(loop.host.goal_text, observation)
+        score = self.scorer.score(handles.host.goal_text, observation)
         timings["scorer"] = _ms_since(start)
         mark = time.perf_counter()
-        self.value_map.follow(loop.state.mapper.grid)
+        self.value_map.follow(handles.state.mapper.grid)
         self.value_map.update(score, observation.pose, observation.depth, observation.intrinsics)
         timings["value_map"] = _ms_since(mark)
 
-    def act(self, loop: Loop, observation: Observation, ctx: StepContext) -> Action:
+    def act(self, handles: StepHandles, observation: Observation, ctx: StepContext) -> Action:
         """The initial turn in place, then the next step toward the frontier of highest value; STOP when no frontier
         is left."""
-        turn = self.scan.act(loop)
+        turn = self.scan.act(handles)
         if turn is not None:
             return turn
-        paths = self.goals.open_paths(loop, ctx)
+        paths = self.goals.open_paths(handles, ctx)
         if not paths:
-            return loop.stop("no_frontier")
-        chosen = self._choose(loop, ctx, paths)
-        action = self.goals.drive(loop, observation, ctx, chosen)
-        if loop.state.goal is None:  # the planner could not reach it: choose afresh next step
+            return handles.stop("no_frontier")
+        chosen = self._choose(handles, ctx, paths)
+        action = self.goals.drive(handles, observation, ctx, chosen)
+        if handles.state.goal is None:  # the planner could not reach it: choose afresh next step
             self.memory.point = None
         return action
 
-    def resume(self, loop: Loop) -> None:
-        self.scan.end(loop)
+    def resume(self, handles: StepHandles) -> None:
+        self.scan.end(handles)
 
     def activity(self, escaping: bool) -> str:
         return self.scan.activity(escaping)
@@ -129,7 +131,7 @@ class VlfmExplorer(Explorer):
     def model_calls(self) -> list[ModelCall]:
         return list(self.scorer.calls)
 
-    def _choose(self, loop: Loop, ctx: StepContext, paths: list[FrontierPath]) -> FrontierPath:
+    def _choose(self, handles: StepHandles, ctx: StepContext, paths: list[FrontierPath]) -> FrontierPath:
         """VLFM's choice among ``paths`` (module docstring), remembered; a new frontier starts a segment."""
         memory, config = self.memory, self.config
         ranked = rank(self.value_map, ctx.frontiers, paths)
@@ -142,7 +144,7 @@ class VlfmExplorer(Explorer):
             self.new_choices += 1
             self.fallbacks += all((here, point, top_two) in memory.history for _, point, _ in fresh)
             path, point, value = fresh[best_acyclic(fresh, memory, here, top_two)]
-            self.goals.new_goal(loop, ctx, path)
+            self.goals.new_goal(handles, ctx, path)
         else:
             path, point, value = ranked[index]
         memory.history.add((here, point, top_two))

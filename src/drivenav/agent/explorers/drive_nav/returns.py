@@ -6,7 +6,7 @@ out a dead end the options left lie behind the robot, and a direction seen from 
 frontier behind it within 45 deg: its nearest frontier is typically 1-3 m away, its farthest point 10-20 m back
 over the path already driven. Driving to the farthest point passes the near remainder by, and a later return
 comes back for it (docs/ablations-v2/revisits.md). :func:`nearest_target` is where a direction chosen with nothing
-left ahead is followed instead (:func:`~drivenav.agent.explorers.directions.decision.goal_point`).
+left ahead is followed instead (:func:`~drivenav.agent.explorers.drive_nav.decision.goal_point`).
 """
 
 from __future__ import annotations

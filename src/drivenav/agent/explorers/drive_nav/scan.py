@@ -6,21 +6,21 @@ decision point (``decision_scan``; Table II)."""
 from __future__ import annotations
 
 from drivenav.agent.context import StepContext
-from drivenav.agent.explorers.directions.decision import decide
-from drivenav.agent.explorers.directions.memory import Directions, Phase
-from drivenav.agent.loop import Loop
+from drivenav.agent.explorers.drive_nav.decision import decide
+from drivenav.agent.explorers.drive_nav.memory import Directions, Phase
+from drivenav.agent.handles import StepHandles
 from drivenav.types import Action, Observation
 
 
-def act(d: Directions, loop: Loop, observation: Observation, ctx: StepContext) -> Action:
+def act(d: Directions, handles: StepHandles, observation: Observation, ctx: StepContext) -> Action:
     """Turn left until the scan's turns are done, then decide."""
     turn = d.scan.turn()
     if turn is not None:
         return turn
-    return decide(d, loop, observation, ctx, "scan")
+    return decide(d, handles, observation, ctx, "scan")
 
 
-def start(d: Directions, loop: Loop) -> None:
+def start(d: Directions, handles: StepHandles) -> None:
     """Begin a full scan at a decision point (``decision_scan``)."""
-    d.enter(loop, Phase.SCAN)
-    d.scan.restart(loop)
+    d.enter(handles, Phase.SCAN)
+    d.scan.restart(handles)

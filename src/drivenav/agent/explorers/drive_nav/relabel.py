@@ -10,13 +10,13 @@ over its frontiers.
 from __future__ import annotations
 
 from drivenav.agent.context import StepContext
-from drivenav.agent.explorers.directions.memory import Directions
-from drivenav.agent.loop import Loop
+from drivenav.agent.explorers.drive_nav.memory import Directions
+from drivenav.agent.handles import StepHandles
 from drivenav.directions import Direction
 from drivenav.directions.tracking import waypoints_coincide
 
 
-def carry_over(d: Directions, loop: Loop, ctx: StepContext) -> None:
+def carry_over(d: Directions, handles: StepHandles, ctx: StepContext) -> None:
     """Count this step's label changes and carry inspected state, views and the followed direction over them."""
     update, counts = ctx.result.tracking, d.counts
     counts.labels_created += len(update.created)
@@ -25,14 +25,14 @@ def carry_over(d: Directions, loop: Loop, ctx: StepContext) -> None:
     for child, parents in update.merged.items():
         relabel(d, child, parents, ctx.directions[child].bearing)
     retired = [label for parents in update.merged.values() for label in parents]
-    _remember_retired(d, loop, (*update.removed, *retired))
+    _remember_retired(d, handles, (*update.removed, *retired))
     for label in update.created:
-        _reidentify(d, loop, ctx.directions[label])
+        _reidentify(d, handles, ctx.directions[label])
     if d.selected is not None and d.selected not in ctx.directions:
-        _follow_successor(d, loop, ctx)
+        _follow_successor(d, handles, ctx)
     d.followed = ctx.directions.get(d.selected) if d.selected is not None else None
     d.previous = ctx.directions
-    _note_births(d, loop, ctx)
+    _note_births(d, handles, ctx)
 
 
 def relabel(d: Directions, label: int, parents: tuple[int, ...], bearing: float) -> None:
@@ -46,27 +46,27 @@ def relabel(d: Directions, label: int, parents: tuple[int, ...], bearing: float)
     d.views.inherit(label, parents, bearing)
 
 
-def _note_births(d: Directions, loop: Loop, ctx: StepContext) -> None:
+def _note_births(d: Directions, handles: StepHandles, ctx: StepContext) -> None:
     """A direction seen for the first time is tracked from this step; labels neither live nor remembered as retired
     are forgotten."""
     for label in ctx.directions:
-        d.born.setdefault(label, loop.step)
+        d.born.setdefault(label, handles.step)
     d.born = {label: step for label, step in d.born.items() if label in ctx.directions or label in d.gone}
 
 
-def _remember_retired(d: Directions, loop: Loop, removed: tuple[int, ...]) -> None:
+def _remember_retired(d: Directions, handles: StepHandles, removed: tuple[int, ...]) -> None:
     """Keep the directions retired within ``reidentify_steps``, with this step's newly retired ones."""
-    horizon = loop.step - d.config.reidentify_steps
+    horizon = handles.step - d.config.reidentify_steps
     d.gone = {label: gone for label, gone in d.gone.items() if gone[1] >= horizon}
-    d.gone.update({label: (d.previous[label], loop.step) for label in removed if label in d.previous})
+    d.gone.update({label: (d.previous[label], handles.step) for label in removed if label in d.previous})
 
 
-def _reidentify(d: Directions, loop: Loop, direction: Direction) -> None:
+def _reidentify(d: Directions, handles: StepHandles, direction: Direction) -> None:
     """A fresh label at the place of a direction whose label was retired earlier (removed, or merged into
     another) is that direction again, no newly revealed one: it keeps its inspected state and view. (Without
     this, a cluster flickering between one and two directions started an inspection event at every split.) A
     branch splitting off a live direction is new: the T of a corridor reveals its exits that way."""
-    tolerance = loop.tuning.paper.directions.merge_tolerance
+    tolerance = handles.tuning.paper.directions.merge_tolerance
     former = tuple(
         label
         for label, (gone, _) in d.gone.items()
@@ -77,9 +77,9 @@ def _reidentify(d: Directions, loop: Loop, direction: Direction) -> None:
         relabel(d, direction.label, former, direction.bearing)
 
 
-def _follow_successor(d: Directions, loop: Loop, ctx: StepContext) -> None:
+def _follow_successor(d: Directions, handles: StepHandles, ctx: StepContext) -> None:
     """The followed direction lost its label: follow its successor, or nothing (a decision follows)."""
-    successor = _successor(d, loop, ctx)
+    successor = _successor(d, handles, ctx)
     if successor is None:
         d.counts.selected_lost += 1
         d.selected = None
@@ -90,7 +90,7 @@ def _follow_successor(d: Directions, loop: Loop, ctx: StepContext) -> None:
     d.selected = successor.label
 
 
-def _successor(d: Directions, loop: Loop, ctx: StepContext) -> Direction | None:
+def _successor(d: Directions, handles: StepHandles, ctx: StepContext) -> Direction | None:
     """The direction that took over the followed one's frontiers under a fresh label, if any."""
     update = ctx.result.tracking
     merged = [child for child, parents in update.merged.items() if d.selected in parents]
@@ -98,7 +98,7 @@ def _successor(d: Directions, loop: Loop, ctx: StepContext) -> Direction | None:
         return ctx.directions[merged[0]]
     if d.followed is None:
         return None
-    tolerance = loop.tuning.paper.directions.merge_tolerance
+    tolerance = handles.tuning.paper.directions.merge_tolerance
     fresh = [ctx.directions[label] for label in update.created]
     same = [x for x in fresh if waypoints_coincide(x.waypoints, d.followed.waypoints, tolerance)]
     return same[0] if same else None

@@ -2,7 +2,7 @@
 
 :class:`Phase` names the explorer's modes (Sec. IV overview): the start scan, the inspection sweep, following a
 direction and prompt enrichment; the body's approach is the fifth. :class:`Directions` is the explorer's memory,
-which the mode modules (:mod:`~drivenav.agent.explorers.directions.scan` and its siblings) share.
+which the mode modules (:mod:`~drivenav.agent.explorers.drive_nav.scan` and its siblings) share.
 """
 
 from __future__ import annotations
@@ -10,9 +10,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from enum import Enum
 
-from drivenav.agent.explorers.directions.config import DirectionsConfig
+from drivenav.agent.explorers.drive_nav.config import DirectionsConfig
 from drivenav.agent.explorers.full_scan import FullScan
-from drivenav.agent.loop import Loop
+from drivenav.agent.handles import StepHandles
 from drivenav.directions import Direction
 from drivenav.inspection import RepresentativeViews
 from drivenav.semantics.protocols import View
@@ -100,10 +100,10 @@ class Directions:
     checked: set[int] = field(default_factory=set)
     counts: DirectionCounters = field(default_factory=DirectionCounters)
 
-    def enter(self, loop: Loop, phase: Phase) -> None:
+    def enter(self, handles: StepHandles, phase: Phase) -> None:
         """Switch to ``phase``: the explorer acts from now on (an approach under way gives way to it)."""
         self.phase = phase
-        loop.explore()
+        handles.explore()
 
     def activity(self, escaping: bool) -> str:
         """The steps-by-activity name of the current mode: ``start_scan`` for the scan before the first decision,

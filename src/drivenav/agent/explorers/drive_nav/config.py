@@ -51,7 +51,7 @@ COUNTERS = (
     CounterSpec("void_events", "void events", column=False),
     CounterSpec("forced_choices", "forced choices", column=False),
 )
-"""DRIVE-Nav's counters (:class:`~drivenav.agent.explorers.directions.memory.DirectionCounters`), in the decisions
+"""DRIVE-Nav's counters (:class:`~drivenav.agent.explorers.drive_nav.memory.DirectionCounters`), in the decisions
 table's order."""
 ACTIVITIES = ("start_scan", "scan", "sweep", "follow", "enrich", "escape")
 """The modes its steps are counted under (``escape``: collision recovery while following)."""
@@ -59,7 +59,7 @@ ACTIVITIES = ("start_scan", "scan", "sweep", "follow", "enrich", "escape")
 EXPLORER = ExplorerEntry(
     "directions",
     DirectionsConfig,
-    "drivenav.agent.explorers.directions.explorer:DirectionsExplorer",
+    "drivenav.agent.explorers.drive_nav.explorer:DirectionsExplorer",
     "DRIVE-Nav: persistent directions, inspection events, one reasoner decision among the forward directions",
     counters=COUNTERS,
     activities=ACTIVITIES,

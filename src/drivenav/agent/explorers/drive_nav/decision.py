@@ -16,9 +16,9 @@ from __future__ import annotations
 import math
 
 from drivenav.agent.context import StepContext, replan
-from drivenav.agent.explorers.directions.memory import Directions, Phase, settled, unjudged
-from drivenav.agent.explorers.directions.returns import nearest_target
-from drivenav.agent.loop import Loop
+from drivenav.agent.explorers.drive_nav.memory import Directions, Phase, settled, unjudged
+from drivenav.agent.explorers.drive_nav.returns import nearest_target
+from drivenav.agent.handles import StepHandles
 from drivenav.agent.trace import DirectionSelected
 from drivenav.directions import Direction
 from drivenav.grid import wrap_angle
@@ -28,31 +28,31 @@ from drivenav.semantics.protocols import Candidate, Selection
 from drivenav.types import Action, Observation, Pose
 
 
-def decide(d: Directions, loop: Loop, observation: Observation, ctx: StepContext, reason: str) -> Action:
+def decide(d: Directions, handles: StepHandles, observation: Observation, ctx: StepContext, reason: str) -> Action:
     """Ask the reasoner for the next direction, then take the first step toward it (or start enrichment)."""
-    state = loop.state
-    d.inspected.update(label for label in ctx.directions if settled(d, loop.step, label))
-    offered = candidates(d, loop, ctx, reason)
+    state = handles.state
+    d.inspected.update(label for label in ctx.directions if settled(d, handles.step, label))
+    offered = candidates(d, handles, ctx, reason)
     if not offered:
-        return loop.stop("no_frontier")
+        return handles.stop("no_frontier")
     if forced(d, offered):
         d.counts.forced_choices += 1
         direction = ctx.directions[offered[0].label]
-        select(d, loop, ctx, direction, reason, [direction.label], False)
-        return _first_step(d, loop, observation, ctx, direction)
+        select(d, handles, ctx, direction, reason, [direction.label], False)
+        return _first_step(d, handles, observation, ctx, direction)
     d.counts.decisions[reason] = d.counts.decisions.get(reason, 0) + 1
-    selection = state.reasoner.select_direction(loop.host.goal_text, offered)
+    selection = state.reasoner.select_direction(handles.host.goal_text, offered)
     d.judged.update(c.view.step for c in offered if c.view is not None)
     d.descriptions.update(selection.descriptions)
     label = _chosen_label(selection, offered)
     direction = ctx.directions[label]
-    select(d, loop, ctx, direction, reason, [c.label for c in offered], selection.fallback)
-    wants_enrichment = loop.tuning.config.enrich and label not in d.enriched and state.search.current() is None
+    select(d, handles, ctx, direction, reason, [c.label for c in offered], selection.fallback)
+    wants_enrichment = handles.tuning.config.enrich and label not in d.enriched and state.search.current() is None
     if label == selection.target_label and wants_enrichment:
         d.enrich_label = label
-        d.enter(loop, Phase.ENRICH)
-        return loop.policy(observation, ctx)
-    return _first_step(d, loop, observation, ctx, direction)
+        d.enter(handles, Phase.ENRICH)
+        return handles.policy(observation, ctx)
+    return _first_step(d, handles, observation, ctx, direction)
 
 
 def forced(d: Directions, offered: list[Candidate]) -> bool:
@@ -63,16 +63,16 @@ def forced(d: Directions, offered: list[Candidate]) -> bool:
     return not unjudged(d, offered[0].view)
 
 
-def candidates(d: Directions, loop: Loop, ctx: StepContext, reason: str) -> list[Candidate]:
+def candidates(d: Directions, handles: StepHandles, ctx: StepContext, reason: str) -> list[Candidate]:
     """The still-relevant directions a decision offers (module docstring; docs/agent.md)."""
-    usable = [x for x in ctx.result.directions if d.blacklist.get(x.label, -1) < loop.step]
+    usable = [x for x in ctx.result.directions if d.blacklist.get(x.label, -1) < handles.step]
     if not usable:
         d.blacklist.clear()
         usable = list(ctx.result.directions)
     d.turning_back = False
-    if _forward_only(d, loop, reason):
+    if _forward_only(d, handles, reason):
         heading = d.event_heading if reason == "inspection" else ctx.pose.yaw
-        forward = forward_of(usable, heading, loop.tuning.paper.inspection.forward_range)
+        forward = forward_of(usable, heading, handles.tuning.paper.inspection.forward_range)
         if not forward:
             d.counts.dead_end_decisions += 1
         d.turning_back = not forward
@@ -83,7 +83,7 @@ def candidates(d: Directions, loop: Loop, ctx: StepContext, reason: str) -> list
 
 def select(
     d: Directions,
-    loop: Loop,
+    handles: StepHandles,
     ctx: StepContext,
     direction: Direction,
     reason: str,
@@ -92,14 +92,14 @@ def select(
 ) -> None:
     """Follow ``direction``; choosing a different direction starts a new segment (revisit metric, Sec. V-C)."""
     if direction.label != d.selected:
-        loop.state.planner.reset()
-        loop.start_segment()
+        handles.state.planner.reset()
+        handles.start_segment()
     d.selected = direction.label
     d.returning = d.config.return_aware and d.turning_back
     goal = goal_point(d, ctx, direction)
-    loop.state.goal = goal
-    event = DirectionSelected(loop.step, direction.label, direction.bearing, goal, tuple(offered), reason, fallback)
-    loop.trace.add(event)
+    handles.state.goal = goal
+    event = DirectionSelected(handles.step, direction.label, direction.bearing, goal, tuple(offered), reason, fallback)
+    handles.trace.add(event)
 
 
 def goal_point(d: Directions, ctx: StepContext, direction: Direction) -> tuple[float, float]:
@@ -113,22 +113,24 @@ def goal_point(d: Directions, ctx: StepContext, direction: Direction) -> tuple[f
     return direction.farthest_point
 
 
-def _first_step(d: Directions, loop: Loop, observation: Observation, ctx: StepContext, direction: Direction) -> Action:
+def _first_step(
+    d: Directions, handles: StepHandles, observation: Observation, ctx: StepContext, direction: Direction
+) -> Action:
     """Re-plan toward the direction's goal point (:func:`goal_point`) and take the first step of following it; turn
     toward its bearing when the planner has no step."""
-    state = loop.state
+    state = handles.state
     ctx = replan(state.pipeline, ctx, goal_point(d, ctx, direction))
-    d.enter(loop, Phase.FOLLOW)
+    d.enter(handles, Phase.FOLLOW)
     action = state.planner.act(ctx.path_along(direction), ctx.pose, observation.collided, ctx.free)
     if action is not None:
         return action
-    return turn_toward(ctx.pose.yaw, direction.bearing, loop.tuning.turn) or Action.TURN_LEFT
+    return turn_toward(ctx.pose.yaw, direction.bearing, handles.tuning.turn) or Action.TURN_LEFT
 
 
-def _forward_only(d: Directions, loop: Loop, reason: str) -> bool:
+def _forward_only(d: Directions, handles: StepHandles, reason: str) -> bool:
     """Whether a decision is restricted to the forward 240 deg: every one after the start scan, unless the
     method scans 360 deg at each decision or is the "w/o 240 deg" ablation (Sec. IV-A c, Table V)."""
-    inspection = loop.tuning.paper.inspection
+    inspection = handles.tuning.paper.inspection
     return reason != "scan" and inspection.restrict_forward and not d.config.decision_scan
 
 

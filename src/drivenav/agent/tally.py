@@ -1,4 +1,4 @@
-"""The body's counters while an episode runs, frozen into :class:`~drivenav.agent.base.BodyStats` for its record:
+"""The body's counters while an episode runs, frozen into :class:`~drivenav.agent.base.BodyCounters` for its record:
 steps by activity and turn reversals (oscillation). An explorer keeps its own counters
 (:meth:`~drivenav.agent.explorer.Explorer.counters`)."""
 
@@ -7,15 +7,15 @@ from __future__ import annotations
 from collections import Counter
 from dataclasses import dataclass, field
 
-from drivenav.agent.base import BodyStats
+from drivenav.agent.base import BodyCounters
 from drivenav.types import Action
 
 TURNS = (Action.TURN_LEFT, Action.TURN_RIGHT)
 
 
 @dataclass
-class BodyCounts:
-    """The episode's :class:`~drivenav.agent.base.BodyStats`, while it runs."""
+class BodyTally:
+    """The episode's :class:`~drivenav.agent.base.BodyCounters`, while it runs."""
 
     steps: Counter[str] = field(default_factory=Counter)
     turn_reversals: int = 0
@@ -28,9 +28,9 @@ class BodyCounts:
             self.turn_reversals += 1
         self.last_turn = action
 
-    def freeze(self, candidates: int, accepted: int, set_aside: int) -> BodyStats:
+    def freeze(self, candidates: int, accepted: int, set_aside: int) -> BodyCounters:
         """The counters with the target search's outcome (Sec. IV-C), for the episode's record."""
-        return BodyStats(
+        return BodyCounters(
             steps_by_activity=dict(sorted(self.steps.items())),
             turn_reversals=self.turn_reversals,
             target_candidates=candidates,

@@ -1,10 +1,11 @@
 """One step of the decision loop (paper Sec. IV overview): the body's approach first, else the explorer.
 
-A :class:`Loop` is what the body's approach and an explorer's modes work with: the agent it acts for (step, trace,
-STOP, segments), the agent's fixed :class:`Tuning`, the running :class:`~drivenav.agent.state.BodyState`, the
-episode's explorer and the body's approach. :meth:`Loop.policy` approaches the target while the approach is on;
-otherwise, or when the approach gave its target up this step, the explorer acts. A mode that switches mode within a
-step (an inspection event, a decision that sees the target) hands the step on through :meth:`Loop.policy`.
+:class:`StepHandles` are one step's handles, what the body's approach and an explorer's modes work with: the agent
+they act for (step, trace, STOP, segments), the agent's fixed :class:`Tuning`, the running
+:class:`~drivenav.agent.state.BodyState`, the episode's explorer and the body's approach.
+:meth:`StepHandles.policy` approaches the target while the approach is on; otherwise, or when the approach gave its
+target up this step, the explorer acts. A mode that switches mode within a step (an inspection event, a decision
+that sees the target) hands the step on through :meth:`StepHandles.policy`.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from drivenav.types import Action, Observation, SimConfig
 if TYPE_CHECKING:
     from drivenav.agent.explorer import Explorer
 
-Approach = Callable[["Loop", Observation, StepContext], Action | None]
+Approach = Callable[["StepHandles", Observation, StepContext], Action | None]
 """The approach's step: ``None`` when it gave its target up, and the step goes on with the explorer."""
 
 
@@ -44,8 +45,8 @@ class Tuning:
 
 
 @dataclass
-class Loop:
-    """One step of the decision loop: the agent, its tuning, the episode's body state and explorer, the approach."""
+class StepHandles:
+    """One step's handles: the agent, its tuning, the episode's body state and explorer, the approach."""
 
     host: Agent
     tuning: Tuning

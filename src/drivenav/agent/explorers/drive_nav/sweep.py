@@ -15,10 +15,10 @@ was seen empty during the turn -- asks the reasoner nothing: it would be offered
 from __future__ import annotations
 
 from drivenav.agent.context import StepContext
-from drivenav.agent.explorers.directions.decision import decide
-from drivenav.agent.explorers.directions.memory import Directions, Phase, settled, unjudged
-from drivenav.agent.explorers.directions.scan import start as start_scan
-from drivenav.agent.loop import Loop
+from drivenav.agent.explorers.drive_nav.decision import decide
+from drivenav.agent.explorers.drive_nav.memory import Directions, Phase, settled, unjudged
+from drivenav.agent.explorers.drive_nav.scan import start as start_scan
+from drivenav.agent.handles import StepHandles
 from drivenav.agent.trace import InspectionStarted, InspectionVoid
 from drivenav.directions import Direction
 from drivenav.inspection import needs_inspection, plan_sweep, turn_toward
@@ -26,54 +26,54 @@ from drivenav.inspection.views import forward_of, inspectable
 from drivenav.types import Action, Observation
 
 
-def act(d: Directions, loop: Loop, observation: Observation, ctx: StepContext) -> Action:
+def act(d: Directions, handles: StepHandles, observation: Observation, ctx: StepContext) -> Action:
     """Turn toward the next yaw of the sweep; once every yaw is faced, decide (or, for a void event, follow on)."""
-    action = _continue_sweep(d, loop, ctx.pose.yaw)
+    action = _continue_sweep(d, handles, ctx.pose.yaw)
     if action is not None:
         return action
-    if d.config.skip_void_events and void(d, loop, ctx):
+    if d.config.skip_void_events and void(d, handles, ctx):
         d.counts.void_events += 1
-        loop.trace.add(InspectionVoid(loop.step, d.event_labels))
-        d.enter(loop, Phase.FOLLOW)
-        return loop.policy(observation, ctx)
-    return decide(d, loop, observation, ctx, "inspection")
+        handles.trace.add(InspectionVoid(handles.step, d.event_labels))
+        d.enter(handles, Phase.FOLLOW)
+        return handles.policy(observation, ctx)
+    return decide(d, handles, observation, ctx, "inspection")
 
 
-def void(d: Directions, loop: Loop, ctx: StepContext) -> bool:
+def void(d: Directions, handles: StepHandles, ctx: StepContext) -> bool:
     """Whether the event just swept is void: none of the directions that started it is tracked any more, the
     direction followed before it still is, and the sweep left the reasoner nothing new to judge -- every forward
     direction's view is one it has seen (a view captured during the sweep may show the target)."""
     if d.selected not in ctx.directions or any(label in ctx.directions for label in d.event_labels):
         return False
-    forward = forward_of(ctx.result.directions, d.event_heading, loop.tuning.paper.inspection.forward_range)
+    forward = forward_of(ctx.result.directions, d.event_heading, handles.tuning.paper.inspection.forward_range)
     return not any(unjudged(d, d.views.get(x.label)) for x in forward)
 
 
-def inspection_event(d: Directions, loop: Loop, ctx: StepContext) -> bool:
+def inspection_event(d: Directions, handles: StepHandles, ctx: StepContext) -> bool:
     """Start an inspection event if new forward directions lack views (with ``settle_steps``: new settled forward
     directions the reasoner has not judged); True if it starts."""
     fresh = [
         direction
-        for direction in _due(d, loop, ctx)
-        if direction.label not in d.inspected and settled(d, loop.step, direction.label)
+        for direction in _due(d, handles, ctx)
+        if direction.label not in d.inspected and settled(d, handles.step, direction.label)
     ]
     if not fresh:
         return False
-    d.inspected.update(label for label in ctx.directions if settled(d, loop.step, label))
+    d.inspected.update(label for label in ctx.directions if settled(d, handles.step, label))
     d.event_heading = ctx.pose.yaw
     d.event_labels = tuple(direction.label for direction in fresh)
     d.counts.inspection_events += 1
     if d.config.decision_scan:
-        start_scan(d, loop)
+        start_scan(d, handles)
         return True
     unseen = [direction.bearing for direction in fresh if not d.views.has_view(direction.label)]
-    d.pending_yaws = plan_sweep(ctx.pose.yaw, unseen, loop.tuning.turn)
-    loop.trace.add(InspectionStarted(loop.step, tuple(x.label for x in fresh), tuple(d.pending_yaws)))
-    d.enter(loop, Phase.SWEEP)
+    d.pending_yaws = plan_sweep(ctx.pose.yaw, unseen, handles.tuning.turn)
+    handles.trace.add(InspectionStarted(handles.step, tuple(x.label for x in fresh), tuple(d.pending_yaws)))
+    d.enter(handles, Phase.SWEEP)
     return True
 
 
-def _due(d: Directions, loop: Loop, ctx: StepContext) -> list[Direction]:
+def _due(d: Directions, handles: StepHandles, ctx: StepContext) -> list[Direction]:
     """The forward directions that call for an event (Sec. IV-A c): those lacking a view. A direction that must first
     settle (``settle_steps``, beyond the paper) may have been seen in passing while it settled: it is still due while
     the reasoner has not judged its view -- a new exit is never passed by unasked."""
@@ -82,12 +82,12 @@ def _due(d: Directions, loop: Loop, ctx: StepContext) -> list[Direction]:
         ctx.result.directions,
         d.views,
         ctx.pose.yaw,
-        loop.tuning.paper.inspection,
+        handles.tuning.paper.inspection,
         lambda x: settling and unjudged(d, d.views.get(x.label)),
     )
 
 
-def promising_views(d: Directions, loop: Loop, ctx: StepContext) -> list[int]:
+def promising_views(d: Directions, handles: StepHandles, ctx: StepContext) -> list[int]:
     """With ``target_check`` (ours, beyond the paper): whether a forward direction has a view the reasoner has not
     judged whose frame the image-text scorer rated at least ``target_check``. Such a view may show the target, and
     the reasoner's answer whether it does is what steers the robot to it and starts prompt enrichment (Sec. IV-B);
@@ -96,18 +96,18 @@ def promising_views(d: Directions, loop: Loop, ctx: StepContext) -> list[int]:
     threshold = d.config.target_check
     if threshold <= 0.0:
         return []
-    ahead = inspectable(ctx.result.directions, ctx.pose.yaw, loop.tuning.paper.inspection)
+    ahead = inspectable(ctx.result.directions, ctx.pose.yaw, handles.tuning.paper.inspection)
     views = [(x.label, d.views.get(x.label)) for x in ahead if x.label not in d.checked]
     return [
         label for label, v in views if v is not None and unjudged(d, v) and d.view_scores.get(v.step, 0.0) >= threshold
     ]
 
 
-def _continue_sweep(d: Directions, loop: Loop, yaw: float) -> Action | None:
+def _continue_sweep(d: Directions, handles: StepHandles, yaw: float) -> Action | None:
     """The turn toward the first yaw not yet faced, or None when the sweep is done."""
     pending = d.pending_yaws
     while pending:
-        action = turn_toward(yaw, pending[0], loop.tuning.turn)
+        action = turn_toward(yaw, pending[0], handles.tuning.turn)
         if action is not None:
             return action
         pending.pop(0)
