@@ -83,3 +83,20 @@ def test_the_docs_example_runs_two_episodes(agent: str, tmp_path: Path) -> None:
     ]
     chosen = sum(record["explorer"]["counters"]["goals_chosen"] for record in records)
     assert chosen >= 1 and len(goals) == chosen  # the explorer's own event, one per goal chosen
+
+
+@pytest.mark.usefixtures("largest")
+def test_the_docs_example_is_shown_as_it_declares_and_its_ranges_are_checked(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "largest"
+    args = ["eval", "--agent", "largest", "--scenes", "procedural:1", "--episodes", "1", "--max-steps", "40"]
+    assert main([*args, "--out", str(out)]) == 0
+    assert main(["report", str(out), "--out", str(tmp_path / "site")]) == 0
+    page = next((tmp_path / "site" / "runs" / "largest" / "episodes").glob("*.html")).read_text(encoding="utf-8")
+    assert "Counters of the largest explorer" in page and "skipped" in page  # its counters, by their declared titles
+    assert "Explorer events" in page and "frontier_id" in page  # its own event, with the declared fields
+    capsys.readouterr()
+    assert main(["config", "show", "--agent", "largest", "--set", "explorer.largest.max_travel_time=-5"]) == 2
+    error = capsys.readouterr().err.strip()
+    assert len(error.splitlines()) == 1 and "explorer.largest.max_travel_time" in error, error
