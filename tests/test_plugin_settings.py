@@ -23,7 +23,14 @@ from drivenav.envs.embedded.env import EmbeddedSpec
 from drivenav.errors import InputError
 from drivenav.eval.run_info import RunInfo, world_json
 from drivenav.plugins import Declared
-from drivenav.settings import explorer_section, load_settings, settings_from_dict, settings_to_dict, settings_to_yaml
+from drivenav.settings import (
+    explorer_section,
+    load_settings,
+    section_defaults,
+    settings_from_dict,
+    settings_to_dict,
+    settings_to_yaml,
+)
 
 DATA = Path(__file__).parent / "data"
 GROUP = "drivenav.explorers"
@@ -324,3 +331,17 @@ def test_a_plugin_run_records_its_entry_point_and_reads_back(hostile: None) -> N
     }
     assert RunInfo.from_json(json.loads(json.dumps(written)), "run.json") == info
     assert plugin == Declared("my-explorer", "hostile_explorers:MY_EXPLORER", DIST)
+
+
+def test_a_config_file_with_every_explorers_default_section_still_loads(tmp_path: Path) -> None:
+    """A file an older ``config show`` wrote held every installed explorer's section: those at their defaults are
+    dropped; one set otherwise is refused in one line."""
+    tree = settings_to_dict(load_settings("drive-nav"))
+    tree["explorer"].update({key: section_defaults(key) for key in ("greedy", "vlfm", "apexnav")})
+    older = tmp_path / "older.yaml"
+    older.write_text(json.dumps(tree), encoding="utf-8")  # JSON is YAML
+    assert load_settings("drive-nav", configs=[str(older)]) == load_settings("drive-nav")
+    tree["explorer"]["vlfm"]["min_goal_distance"] += 1.0
+    older.write_text(json.dumps(tree), encoding="utf-8")
+    with pytest.raises(InputError, match="explorer.vlfm"):
+        load_settings("drive-nav", configs=[str(older)])

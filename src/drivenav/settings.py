@@ -29,6 +29,7 @@ sections of other explorers: a run made when every installed explorer had a sect
 from __future__ import annotations
 
 import dataclasses
+import json
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cache
@@ -249,8 +250,8 @@ def _settings_of(layers: Sequence[tuple[DictConfig, str]]) -> Settings:
     explorers = explorers_of(_chosen(name), _last_given(layers, "run", "agent", RunSettings.agent))
     defaults = _defaults(explorers)
     tree = defaults
-    for layer, source in layers:
-        _refuse_other_sections(layer, explorers, source)
+    for given, source in layers:
+        layer = _held_layer(given, explorers, source)
         tree = _merge(tree, layer, source, defaults)
     return _resolve(tree, explorers)
 
@@ -286,23 +287,34 @@ def _default_settings(explorers: tuple[str, ...]) -> Settings:
     return Settings(explorer=_explorer_settings(explorers))
 
 
-def _refuse_other_sections(layer: DictConfig, explorers: tuple[str, ...], source: str) -> None:
-    """One :class:`InputError` line for a key of ``layer`` in the section of a declared explorer the tree does not
-    hold (``--set explorer.vlfm.keep_radius=...`` while ``directions`` is chosen): that explorer is not configured,
-    so its keys are not known."""
+def _held_layer(layer: DictConfig, explorers: tuple[str, ...], source: str) -> DictConfig:
+    """``layer`` less the sections of declared explorers the tree does not hold that are those explorers' defaults
+    (a file an older ``config show`` wrote held every installed explorer's); a key of such a section set to anything
+    else (``--set explorer.vlfm.keep_radius=...`` while ``directions`` is chosen) is one :class:`InputError` line:
+    that explorer is not configured, so its keys are not read."""
     node = layer.get("explorer") if "explorer" in layer else None
     if not isinstance(node, DictConfig):
-        return
+        return layer
     held = {explorer_key(name) for name in explorers}
     keys = section_keys()
+    dropped = []
     for key in map(str, node.keys()):
-        if key != "name" and key not in held and key in keys:
-            other = keys[key]
-            expected = (
-                f"a key of explorer.{explorer_key(explorers[0])}, the chosen explorer's section (explorer.{key} is "
-                f"read only when {other} is chosen: --set explorer.name={other})"
-            )
-            raise InputError(source, f"explorer.{key}", expected)
+        if key == "name" or key in held or key not in keys:
+            continue
+        if _plain(node[key]) == json.loads(json.dumps(section_defaults(key))):
+            dropped.append(key)
+            continue
+        other = keys[key]
+        expected = (
+            f"a key of explorer.{explorer_key(explorers[0])}, the chosen explorer's section (explorer.{key} is "
+            f"read only when {other} is chosen: --set explorer.name={other})"
+        )
+        raise InputError(source, f"explorer.{key}", expected)
+    if not dropped:
+        return layer
+    rest = OmegaConf.masked_copy(layer, [str(key) for key in layer if key != "explorer"])
+    rest.explorer = OmegaConf.masked_copy(node, [key for key in map(str, node) if key not in dropped])
+    return rest
 
 
 def _writable(tree: DictConfig) -> DictConfig:

@@ -202,8 +202,8 @@ def _cmd_viz(args: argparse.Namespace) -> int:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from drivenav.report.site import write_report
     from drivenav.demo import DEMO_AGENTS, run_demo
+    from drivenav.report.site import write_report
 
     index = run_demo(args.out, positive(args.episodes, "--episodes"), args.seed)
     site = write_report([args.out / agent for agent, _ in DEMO_AGENTS], args.out / "report")
