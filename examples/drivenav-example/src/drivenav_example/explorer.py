@@ -2,28 +2,43 @@
 :class:`~drivenav.agent.explorers.full_scan.FullScan`), it heads for the frontier point with the
 largest weighted-FMM travel time (no farther than ``max_travel_time``) and keeps it until it is explored or cannot be
 reached, driving there as drivenav's greedy baseline does
-(:class:`~drivenav.agent.explorers.frontier_goals.FrontierGoals`). The target search, the approach and STOP are the
-agent body's."""
+(:class:`~drivenav.agent.explorers.frontier_goals.FrontierGoals`). Each new goal is a trace event of its own
+(:class:`FarthestGoal`); the episode's counters are :class:`FarthestCounters` (both declared by its entry,
+:mod:`drivenav_example.config`). The target search, the approach and STOP are the agent body's."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 from drivenav.agent.context import StepContext
 from drivenav.agent.explorer import Explorer, ExplorerSetup
 from drivenav.agent.explorers.frontier_goals import FrontierGoals
 from drivenav.agent.explorers.full_scan import FullScan
 from drivenav.agent.handles import StepHandles
+from drivenav.agent.trace import Event
 from drivenav.directions.types import FrontierPath
 from drivenav.types import Action, Observation
 from drivenav_example.config import FarthestConfig
 
 
 @dataclass(frozen=True)
+class FarthestGoal(Event):
+    """A new goal (at ``step``): its frontier, its point ((x, y) m, the episode's frame) and the travel time to it."""
+
+    frontier_id: int
+    target: tuple[float, float]
+    travel_time: float
+    kind: ClassVar[str] = "farthest_goal"
+
+
+@dataclass(frozen=True)
 class FarthestCounters:
-    """One episode's goals: how many frontier points it chose and how many it skipped as unreachable."""
+    """One episode's goals: how many frontier points it chose, the longest travel time to one (m) and how many it
+    skipped as unreachable."""
 
     goals_chosen: int = 0
+    longest_goal: float = 0.0
     goals_skipped: int = 0
 
 
@@ -37,6 +52,7 @@ class FarthestExplorer(Explorer):
         self.goals = FrontierGoals(min_goal_distance=1.0)
         self.scan = FullScan.ahead(setup.tuning)
         self.chosen = 0
+        self.longest = 0.0
 
     def begin(self, handles: StepHandles) -> None:
         self.scan.begin(handles)
@@ -58,12 +74,15 @@ class FarthestExplorer(Explorer):
         return self.scan.activity(escaping)
 
     def counters(self) -> FarthestCounters:
-        return FarthestCounters(self.chosen, self.goals.skipped)
+        return FarthestCounters(self.chosen, self.longest, self.goals.skipped)
 
     def _new_goal(self, handles: StepHandles, ctx: StepContext, paths: list[FrontierPath]) -> FrontierPath:
         """The farthest frontier point within ``max_travel_time`` (the nearest of all if none is)."""
         within = [p for p in self.goals.far_enough(paths) if p.travel_time <= self.max_travel_time]
         chosen = max(within, key=lambda p: p.travel_time) if within else min(paths, key=lambda p: p.travel_time)
         self.goals.new_goal(handles, ctx, chosen)
+        (x, y), travel_time = chosen.target, float(chosen.travel_time)
+        handles.trace.add(FarthestGoal(handles.step, int(chosen.frontier_id), (float(x), float(y)), travel_time))
         self.chosen += 1
+        self.longest = max(self.longest, travel_time)
         return chosen
