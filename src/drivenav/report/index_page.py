@@ -11,7 +11,7 @@ from drivenav.analysis.ablation_data import Interval
 from drivenav.analysis.stats import BOOTSTRAP_RESAMPLES
 from drivenav.eval.report import shown
 from drivenav.report.html import Cell, element, esc, link, page, table
-from drivenav.report.runs import Run, config_differences
+from drivenav.report.runs import Run, compared_configs, config_differences
 
 
 def _rate(value: float | None, interval: Interval | None) -> Cell:
@@ -66,8 +66,8 @@ def _differences(runs: Sequence[Run]) -> str:
         return ""
     if not keys:
         return title + element("p", "None: every run has the same settings in its run.json.")
-    configs = {run.name: run.config() for run in runs}
-    rows = ([key, *(_value(configs[run.name].get(key)) for run in runs)] for key in keys)
+    configs = compared_configs(runs)
+    rows = ([key, *(_value(config.get(key)) for config in configs)] for key in keys)
     return title + table(["setting", *(run.name for run in runs)], rows)
 
 

@@ -104,23 +104,31 @@ def episode_order(record: EpisodeRecord) -> tuple[int, int, str, str]:
     return 1, 0, "", text
 
 
-def config_differences(runs: Sequence[Run]) -> list[str]:
-    """The dotted config keys whose values are not the same in every run (a key some runs lack differs). A run
-    records its own explorer's section only: another explorer's key it lacks is that explorer's default, as the
-    earlier runs recorded it (:func:`~drivenav.settings.section_defaults`)."""
+def compared_configs(runs: Sequence[Run]) -> list[JsonObject]:
+    """Each run's flat settings as the runs are compared: a run records its own explorer's section only, so a key of
+    another explorer's section that it lacks is that explorer's default (as earlier runs, which recorded every
+    section, hold it; :func:`~drivenav.settings.section_defaults`)."""
     configs = [run.config() for run in runs]
     keys = sorted({key for config in configs for key in config})
     defaults = _explorer_defaults(keys)
-    values = [[json.dumps(config.get(key, defaults.get(key)), sort_keys=True) for config in configs] for key in keys]
-    return [key for key, shown in zip(keys, values, strict=True) if len(set(shown)) > 1]
+    return [{**defaults, **config} for config in configs]
+
+
+def config_differences(runs: Sequence[Run]) -> list[str]:
+    """The dotted config keys whose values are not the same in every run (a key some runs lack differs), the runs
+    compared as :func:`compared_configs` gives them."""
+    configs = compared_configs(runs)
+    keys = sorted({key for config in configs for key in config})
+    return [key for key in keys if len({json.dumps(config.get(key), sort_keys=True) for config in configs}) > 1]
 
 
 def _explorer_defaults(keys: Sequence[str]) -> JsonObject:
     """The installed explorers' default values of the dotted ``explorer.<key>.<field>`` keys among ``keys``."""
+    wanted = set(keys)
     sections = {key.split(".")[1] for key in keys if key.startswith("explorer.") and key.count(".") >= 2}
     found: JsonObject = {}
     for section in sorted(sections):
         defaults = section_defaults(section)
         if defaults is not None:
             found.update(flatten(defaults, f"explorer.{section}."))
-    return found
+    return {key: value for key, value in found.items() if key in wanted}
