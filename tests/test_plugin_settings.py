@@ -343,5 +343,5 @@ def test_a_config_file_with_every_explorers_default_section_still_loads(tmp_path
     assert load_settings("drive-nav", configs=[str(older)]) == load_settings("drive-nav")
     tree["explorer"]["vlfm"]["min_goal_distance"] += 1.0
     older.write_text(json.dumps(tree), encoding="utf-8")
-    with pytest.raises(InputError, match="explorer.vlfm"):
+    with pytest.raises(InputError, match=r"explorer\.vlfm"):
         load_settings("drive-nav", configs=[str(older)])
