@@ -10,6 +10,7 @@ import pytest
 from drivenav.agents import reference_agent
 from drivenav.errors import InputError
 from drivenav.methods import REFERENCE_AGENTS
+from drivenav.semantics.checked import CheckedGrounder, CheckedScorer
 from drivenav.semantics.model_spec import ModelSpec
 from drivenav.semantics.registry import (
     GROUNDER_BACKENDS,
@@ -56,8 +57,10 @@ def test_the_scorer_reads_labels_apart_from_the_model_requirements() -> None:
 
 def test_backends_are_built_by_name() -> None:
     assert make_reasoner(ModelSpec(reasoner="geometric")).name == "geometric"
-    assert type(make_grounder(ModelSpec(detector="ground-truth"))).__name__ == "GroundTruthGrounder"
-    assert type(make_scorer(ModelSpec())).__name__ == "EmbeddedScorer"
+    grounder, scorer = make_grounder(ModelSpec(detector="ground-truth")), make_scorer(ModelSpec())
+    assert isinstance(grounder, CheckedGrounder) and isinstance(scorer, CheckedScorer)  # their answers checked
+    assert type(grounder.inner).__name__ == "GroundTruthGrounder"
+    assert type(scorer.inner).__name__ == "EmbeddedScorer"
 
 
 @pytest.mark.parametrize(

@@ -35,6 +35,7 @@ import zmq
 from numpy.typing import NDArray
 
 from drivenav.errors import InputError, one_line
+from drivenav.semantics.checked import DetectionCheck
 from drivenav.semantics.model_spec import ModelSpec
 from drivenav.semantics.protocols import Detection, Grounder
 from drivenav.semantics.registry import BOX_DETECTORS, GROUNDER_BACKENDS
@@ -192,6 +193,7 @@ class GrounderServer:
         self._shared = None if info.labels else factory()
         self.episodes = _Episodes(self.config)
         self._phrases = _Phrases(self.config.phrases)
+        self._check = DetectionCheck(f"{info.detector} (served grounder)", self.config.max_detections)
         self._pending: list[_Pending] = []
         self.batch_sizes: Counter[int] = Counter()
         self._router = RouterSocket(bind, keys, MAX_ARRAY_BYTES)
@@ -298,12 +300,14 @@ class GrounderServer:
     def _answer_segments(
         self, group: list[_Pending], segment: Callable[[list[SegmentRequest]], list[list[Detection]]]
     ) -> None:
-        """Each request of ``group`` answered with its detections, or all with one ERROR when grounding failed."""
+        """Each request of ``group`` answered with its detections, checked as in process (:class:`DetectionCheck`),
+        or all with one ERROR when grounding failed."""
         requests = [p.request for p in group]
         try:
             found = segment(requests)
             replies = [
-                detections_reply(r.request_id, r.phrase, d, _size(r)) for r, d in zip(requests, found, strict=True)
+                detections_reply(r.request_id, r.phrase, self._check.checked(d, _size(r)), _size(r))
+                for r, d in zip(requests, found, strict=True)
             ]
         except ProtocolError as error:
             replies = [error_reply(r.request_id, str(error)) for r in requests]

@@ -21,7 +21,6 @@ torch and transformers are the optional ``models`` extra, imported inside functi
 
 from __future__ import annotations
 
-import math
 import re
 import time
 from abc import ABC, abstractmethod
@@ -31,6 +30,7 @@ from typing import Any, Final
 
 from PIL import Image
 
+from drivenav.semantics.checked import usable_similarity
 from drivenav.semantics.hf_common import SCORER_OPTION, load_pair, pick_device
 from drivenav.semantics.protocols import ModelCall, ScorePrompt
 from drivenav.types import GroundTruth, Observation
@@ -61,8 +61,9 @@ def blip_caption(text: str) -> str:
 class _TransformersScorer(ABC):
     """What both scorers share: the prompt, the episode's calls, and one timed score a frame.
 
-    A non-finite similarity (an overflow in half precision) is not a score: it is recorded as a ``fallback`` call
-    and answered with 0, the value of a frame with no evidence.
+    A similarity that is not usable (:func:`~drivenav.semantics.checked.usable_similarity`: a non-finite one, an
+    overflow in half precision) is not a score: it is recorded as a ``fallback`` call and answered with 0, the
+    value of a frame with no evidence.
     """
 
     name = ""
@@ -112,9 +113,10 @@ class _TransformersScorer(ABC):
         """The RGB frame's similarity with :meth:`text`."""
         start = time.perf_counter()
         value = self.similarity(Image.fromarray(observation.rgb), self.text(goal, prompt))
-        outcome = "ok" if math.isfinite(value) else "fallback"
+        usable = usable_similarity(value)
+        outcome = "ok" if usable is not None else "fallback"
         self.calls.append(ModelCall("score", (time.perf_counter() - start) * 1000.0, outcome))
-        return value if outcome == "ok" else 0.0
+        return usable if usable is not None else 0.0
 
     @abstractmethod
     def similarity(self, image: Image.Image, text: str) -> float:

@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from drivenav.ranges import Range, check_ranges
-from drivenav.semantics.serve_config import DEFAULT_BIND
+from drivenav.semantics.serve_config import DEFAULT_BIND, DEFAULT_MAX_DETECTIONS, MAX_DETECTIONS
 
 
 @dataclass(frozen=True)
@@ -29,6 +29,9 @@ class ModelSpec:
     the detector grounds, its answer discarded (a served model's cost beside the detector's detections: throughput
     benchmarks with random weights). ``detector_regime``: with ``detector`` ``embedded``, which of its presets
     (:data:`DETECTOR_REGIMES`; docs/regimes.md) it runs: ``paper`` (the default), ``exact``, ``strong``, ``weak``.
+    ``max_detections``: the most detections a frame the agent takes from its grounder, the best scores (each costs
+    a pass over the frame; :data:`~drivenav.semantics.serve_config.DEFAULT_MAX_DETECTIONS`, more than any
+    built-in grounder returns; :mod:`drivenav.semantics.checked`).
     """
 
     reasoner: str = "embedded"
@@ -51,9 +54,16 @@ class ModelSpec:
     compile: bool = False
     detector_shadow_url: str = ""
     detector_regime: str = "paper"
+    max_detections: int = DEFAULT_MAX_DETECTIONS
 
     def __post_init__(self) -> None:
-        check_ranges(self, {"detector_timeout_s": Range(0.0, 86400.0, low_open=True, why="seconds, up to a day")})
+        check_ranges(
+            self,
+            {
+                "detector_timeout_s": Range(0.0, 86400.0, low_open=True, why="seconds, up to a day"),
+                "max_detections": Range(1, MAX_DETECTIONS, integer=True, why="detections a frame"),
+            },
+        )
 
 
 DTYPES = ("auto", "float32", "bfloat16", "float16")

@@ -252,7 +252,11 @@ class Reasoner(Protocol):
 
 @dataclass(frozen=True)
 class Detection:
-    """One grounded instance of a phrase: a boolean mask over the image and a confidence in [0, 1]."""
+    """One grounded instance of a phrase: a boolean mask over the image and a confidence in [0, 1].
+
+    What a grounder returns is checked where it is built (:mod:`drivenav.semantics.checked`): a detection with a
+    score outside [0, 1] (NaN included) or a mask of another size is dropped, an integer mask made boolean.
+    """
 
     mask: NDArray[np.bool_]
     score: float
@@ -260,7 +264,8 @@ class Detection:
 
 
 class Grounder(Protocol):
-    """Open-vocabulary segmentation of a phrase in the current frame (SAM3's role)."""
+    """Open-vocabulary segmentation of a phrase in the current frame (SAM3's role): the :class:`Detection` s found,
+    at most ``models.max_detections`` of them kept (the best scores)."""
 
     name: str
 
@@ -288,13 +293,14 @@ class ImageTextScorer(Protocol):
     ICRA 2024; BLIP-2 ITM's cosine with "Seems like there is a {target} ahead."), and ApexNav's with its own text.
 
     ``score`` returns one similarity for the whole frame, higher meaning more promising; its scale is the
-    backend's own (BLIP-2's cosine in [-1, 1], SigLIP's probability, the embedded stand-in's value in [0, 1)), and
-    only comparisons within one backend matter. ``goal`` is the target's name: the backend puts it into its text,
-    VLFM's by default or ``prompt``'s where one is given.
+    backend's own within [-1, 1] (BLIP-2's cosine, SigLIP's probability, the embedded stand-in's value in
+    [0, 1)), and only comparisons within one backend matter. ``goal`` is the target's name: the backend puts it
+    into its text, VLFM's by default or ``prompt``'s where one is given.
     ``observation`` is the current frame: real models read its RGB image, stand-ins its instance image where the
     world has one (without it they answer a neutral 0), so a world's deferred RGB image is rendered only for
     models that look at it. ``calls`` grows by one :class:`ModelCall` of kind ``score`` per frame scored. Nothing
-    a model returns may raise out of ``score`` (a non-finite similarity is a ``fallback`` call answering 0).
+    a model returns may raise out of ``score``: a similarity that is not a finite number in [-1, 1] is a
+    ``fallback`` call answering 0 (checked where the scorer is built, :mod:`drivenav.semantics.checked`).
     """
 
     name: str

@@ -403,13 +403,16 @@ def make_reasoner(spec: ModelSpec) -> Reasoner:
 
 
 def make_grounder(spec: ModelSpec) -> Grounder:
-    """The grounder named by ``spec`` (shadowed by the served grounder at ``detector_shadow_url`` when set)."""
+    """The grounder named by ``spec`` (shadowed by the served grounder at ``detector_shadow_url`` when set), its
+    detections checked and at most ``max_detections`` a frame kept (:mod:`drivenav.semantics.checked`)."""
+    from drivenav.semantics.checked import CheckedGrounder
+
     grounder = GROUNDER_BACKENDS.get(spec.detector).build(spec)
     if spec.detector_shadow_url:
         from drivenav.semantics.remote import shadowed
 
-        return shadowed(grounder, spec)
-    return grounder
+        grounder = shadowed(grounder, spec)
+    return CheckedGrounder(grounder, spec.max_detections)
 
 
 def make_segmenter(spec: ModelSpec) -> BoxSegmenter:
@@ -418,9 +421,12 @@ def make_segmenter(spec: ModelSpec) -> BoxSegmenter:
 
 
 def make_scorer(spec: ModelSpec) -> ImageTextScorer:
-    """The image-text scorer named by ``spec`` (the VLFM baseline's value source), wrapped in a recorder when
-    ``vlm_record`` is set (the reasoner's file: one recording holds both)."""
-    scorer = SCORER_BACKENDS.get(spec.scorer).build(spec)
+    """The image-text scorer named by ``spec`` (the VLFM baseline's value source), its similarities checked
+    (:mod:`drivenav.semantics.checked`) and, when ``vlm_record`` is set, recorded as checked (the reasoner's file:
+    one recording holds both)."""
+    from drivenav.semantics.checked import CheckedScorer
+
+    scorer: ImageTextScorer = CheckedScorer(SCORER_BACKENDS.get(spec.scorer).build(spec))
     if spec.vlm_record:
         from drivenav.semantics.replay import RecordingScorer
 

@@ -36,6 +36,7 @@ from numpy.typing import NDArray
 
 from drivenav.errors import InputError
 from drivenav.jsonstream import JsonObject
+from drivenav.semantics.checked import usable_similarity
 from drivenav.semantics.protocols import (
     FLOOR_GUESSES,
     FLOOR_KIND,
@@ -215,16 +216,14 @@ def _descriptions(data: JsonObject) -> dict[int, str]:
     return {int(label): text for label, text in descriptions.items()}
 
 
-SCORE_BOUND = 1.0 + 1e-3
-"""The largest recorded score's size: every scorer's similarity lies in [-1, 1] (a cosine, a probability; a
-non-finite one is recorded as its fallback 0), with room for a float32 cosine's rounding past 1."""
-
-
 def _score(data: JsonObject) -> float:
+    """A recorded similarity, checked as a scorer's is (:func:`~drivenav.semantics.checked.usable_similarity`:
+    one that is not usable was recorded as its fallback 0)."""
     value = data.get(SCORE)
-    if isinstance(value, bool) or not isinstance(value, int | float) or not abs(value) <= SCORE_BOUND:
+    similarity = usable_similarity(value)
+    if similarity is None:
         raise AnswerFieldError(SCORE, "a finite similarity in [-1, 1]", value)
-    return float(value)
+    return similarity
 
 
 def answer_from_json(kind: str, data: Any) -> Answer:

@@ -20,6 +20,13 @@ LABEL_BYTES: Final[int] = 192
 ground-truth stand-in, 115 in the embedded one, CPython 3.11)."""
 ENTRY_BYTES: Final[int] = 128
 """What a label name or a phrase of a stand-in's vocabulary is charged, besides its characters."""
+DEFAULT_MAX_DETECTIONS: Final[int] = 200
+"""The detections a frame kept by default, the best scores (``models.max_detections`` and the server's
+``max_detections``; :mod:`drivenav.semantics.checked`): SAM3's 200 object queries, the most any built-in grounder
+returns (the box detectors keep :data:`~drivenav.semantics.boxes.MAX_BOXES`)."""
+MAX_DETECTIONS: Final[int] = 10_000
+"""The largest ``models.max_detections``: each detection costs the agent a pass over the frame, and ten thousand
+full-frame masks take minutes a step."""
 
 
 @dataclass(frozen=True)
@@ -34,7 +41,8 @@ class ServeConfig:
     clients together ``episodes`` and ``held_bytes``; past a bound the least recently used episodes are forgotten,
     the client's own first (a client grounds one episode at a time, and never ends one: it begins the next). An
     episode's vocabulary grows by at most ``phrases`` phrases. Bytes are charged as :data:`LABEL_BYTES` a label and
-    :data:`ENTRY_BYTES` (and its characters) a name or phrase.
+    :data:`ENTRY_BYTES` (and its characters) a name or phrase. A frame's reply holds at most ``max_detections``
+    detections, checked as in process (:mod:`drivenav.semantics.checked`).
     """
 
     batch: int = 8
@@ -46,12 +54,13 @@ class ServeConfig:
     client_episodes: int = 8
     client_bytes: int = 128 * 2**20
     held_bytes: int = 2**30
+    max_detections: int = DEFAULT_MAX_DETECTIONS
 
     def __post_init__(self) -> None:
         if not 1 <= self.batch <= MAX_BATCH:
             raise ValueError(f"batch must be 1-{MAX_BATCH}, got {self.batch}")
         if not (math.isfinite(self.batch_ms) and 0.0 <= self.batch_ms <= MAX_BATCH_MS):
             raise ValueError(f"batch_ms must be 0-{MAX_BATCH_MS:g}, got {self.batch_ms}")
-        counts = (self.episodes, self.phrases, self.poll_ms, self.labels, self.client_episodes)
+        counts = (self.episodes, self.phrases, self.poll_ms, self.labels, self.client_episodes, self.max_detections)
         if min(counts) < 1 or self.client_bytes < self.labels * LABEL_BYTES or self.held_bytes < self.client_bytes:
             raise ValueError(f"limits must be >= 1, and held_bytes >= client_bytes >= labels * {LABEL_BYTES}: {self}")

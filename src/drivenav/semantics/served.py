@@ -352,10 +352,12 @@ def detections_reply(request_id: str, phrase: str, detections: Sequence[Detectio
 
 def read_detections(message: Message, phrase: str, size: tuple[int, int]) -> list[Detection]:
     """The detections of a DETECTIONS reply to ``phrase`` on a frame of ``size`` (a malformed one is a
-    :class:`~drivenav.wire.protocol.ProtocolError`)."""
+    :class:`~drivenav.wire.protocol.ProtocolError`). Their scores are checked as an in-process grounder's are, by
+    the :class:`~drivenav.semantics.checked.CheckedGrounder` the remote grounder is built in (one outside [0, 1]
+    dropped, not the reply refused)."""
     masks, scores = message.arrays.get("masks"), message.arrays.get("scores")
-    if scores is None or scores.dtype != np.float64 or scores.ndim != 1 or not np.all(np.isfinite(scores)):
-        raise ProtocolError("arrays.scores", "a float64 vector of finite scores")
+    if scores is None or scores.dtype != np.float64 or scores.ndim != 1:
+        raise ProtocolError("arrays.scores", "a float64 vector of scores")
     packed = (len(scores), size[0], (size[1] + 7) // 8)
     if masks is None or masks.dtype != np.uint8 or masks.shape != packed:
         raise ProtocolError("arrays.masks", f"uint8 {packed}", None if masks is None else masks.shape)
