@@ -53,7 +53,7 @@ class ModelSpec:
     detector_regime: str = "paper"
 
     def __post_init__(self) -> None:
-        check_ranges(self, {"detector_timeout_s": Range(0.0, 86400.0, low_open=True, why="seconds, up to a day")})
+        check_ranges(self, {"detector_timeout_s": Range(0.0, 3600.0, low_open=True, why="seconds, up to an hour")})
 
 
 DTYPES = ("auto", "float32", "bfloat16", "float16")
