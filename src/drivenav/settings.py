@@ -219,6 +219,27 @@ class Settings:
         return rules
 
 
+def check_parts(settings: Settings) -> None:
+    """Import every part ``settings`` name, as a run does before its first episode: the chosen explorer's class
+    and the reasoner, detector, scorer and segmenter backends. A part that cannot be imported (a broken plug-in, a
+    missing extra) is its one :class:`~drivenav.errors.InputError` line, so that ``config show`` refuses what a
+    run refuses; the models' files and servers are a run's checks (:func:`~drivenav.semantics.registry.check_models`),
+    not those of a tree printed for later."""
+    from drivenav.agent.body import explorer_class
+
+    name = settings.explorer.name
+    with EXPLORERS.guard(name, "import"):
+        explorer_class(explorer_entry(name))
+    models = settings.models
+    for registry, backend in (
+        (REASONER_BACKENDS, models.reasoner),
+        (GROUNDER_BACKENDS, models.detector),
+        (SCORER_BACKENDS, models.scorer),
+        (SEGMENTER_BACKENDS, models.segmenter),
+    ):
+        registry.get(backend)
+
+
 def explorer_section(settings: Settings, name: str) -> object:
     """The settings section of the explorer ``name`` (its entry's defaults when the tree holds none: an explorer
     other than the chosen one)."""
@@ -236,8 +257,13 @@ def load_settings(
 ) -> Settings:
     """Defaults, then the method preset of ``agent``, then ``configs``, then ``options`` (dotted key -> value, from
     dedicated command-line options), then ``overrides`` (see module docstring)."""
-    layers = [] if agent is None else [(_method_layer(agent), "--agent")]
-    layers += [(_config_layer(config), config) for config in configs]
+    method = None if agent is None else _method_layer(agent)
+    layers = [] if method is None else [(method, "--agent")]
+    for config in configs:
+        layer = _config_layer(config)
+        if method is not None:
+            _check_same_method(layer, config, method)
+        layers.append((layer, config))
     layers += [(_option_layer(key, value), "command line") for key, value in (options or {}).items()]
     layers += [(_override_layer(override), "--set") for override in overrides]
     return _settings_of(layers)
@@ -376,6 +402,20 @@ def _method_layer(agent: str) -> DictConfig:
         entry = explorer_entry(method.explorer)
         preset = [f"explorer.name={entry.name}", *entry.body, *method.overrides]
     return OmegaConf.from_dotlist([*preset, f"run.agent={agent}"])
+
+
+def _check_same_method(layer: DictConfig, source: str, method: DictConfig) -> None:
+    """A ``--config`` file naming another method than ``--agent`` (``run.agent``) or another explorer than the
+    method's (``explorer.name``: a file ``config show --agent apexnav`` wrote, loaded with ``--agent drive-nav``) is
+    one line: it would run the file's method recorded under its name, not the method asked for. A file that sets
+    neither, or the same, is a layer like any other (the presets, a file of constants)."""
+    for section, key in (("run", "agent"), ("explorer", "name")):
+        wanted = _last_given([(method, "--agent")], section, key, "")
+        given = _last_given([(layer, source)], section, key, wanted)
+        if wanted and given != wanted:
+            agent = _last_given([(method, "--agent")], "run", "agent", "")
+            expected = f"{wanted}, as --agent {agent} sets it (or no {section}.{key} in the file)"
+            raise InputError(source, f"{section}.{key}", expected, given)
 
 
 def _config_layer(config: str) -> DictConfig:

@@ -54,7 +54,7 @@ class MethodEntry:
     median_vlm_calls: float | None
     failure_causes: dict[str, int]
     missed_target_causes: dict[str, int] = field(default_factory=dict)
-    decisions: dict[str, float] = field(default_factory=dict)
+    decisions: dict[str, float | None] = field(default_factory=dict)
     plugins: tuple[str, ...] = ()
 
     def to_json(self) -> JsonObject:

@@ -410,9 +410,9 @@ def _steps(methods: Methods) -> list[str]:
     ]
     for name, entry in methods.items():
         means = entry.decisions
-        cells = " | ".join(f"{means.get(f'steps.{key}', 0.0):.1f}" for key in activities)
+        cells = " | ".join(_number(means.get(f"steps.{key}", 0.0), "{:.1f}") for key in activities)
         steps = _number(entry.avg_steps, "{:.1f}")
-        lines.append(f"| `{name}` | {steps} | {cells} | {means.get('turn_reversals', 0.0):.1f} |")
+        lines.append(f"| `{name}` | {steps} | {cells} | {_number(means.get('turn_reversals', 0.0), '{:.1f}')} |")
     return lines
 
 

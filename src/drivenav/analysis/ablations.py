@@ -11,6 +11,7 @@ passes :func:`drivenav.viz.run_pictures.render_pictures`): eval draws nothing it
 from __future__ import annotations
 
 import json
+import math
 from collections import Counter, defaultdict
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, replace
@@ -157,10 +158,12 @@ def missed_counts(records: list[EpisodeRecord]) -> dict[str, int]:
     return {cause: counts.get(cause, 0) for cause in MISSED_CAUSES}
 
 
-def decision_means(records: list[EpisodeRecord]) -> dict[str, float]:
+def decision_means(records: list[EpisodeRecord]) -> dict[str, float | None]:
     """Per-episode means of the body's counters (:class:`~drivenav.agent.base.BodyCounters`) and the explorer's
     (:class:`~drivenav.agent.base.ExplorerCounters`); counts by kind under ``NAME.KIND`` with their sum under ``NAME``
-    (``decisions.scan``, ``decisions``), and steps by activity under ``steps.ACTIVITY``."""
+    (``decisions.scan``, ``decisions``), and steps by activity under ``steps.ACTIVITY``. A mean whose sum leaves
+    the floats' range (a plug-in's counters near 1e308) is None, written as ``null``: ``ablations.json`` stays
+    JSON, which has no ``Infinity``."""
     started = [r for r in records if not r.is_error]
     totals: defaultdict[str, float] = defaultdict(float)
     for record in started:
@@ -172,7 +175,12 @@ def decision_means(records: list[EpisodeRecord]) -> dict[str, float]:
             for key, count in value.items() if isinstance(value, dict) else ():
                 totals[f"{name}.{key}"] += count
             totals[name] += sum(value.values()) if isinstance(value, dict) else value
-    return {key: round(value / max(len(started), 1), 3) for key, value in sorted(totals.items())}
+    return {key: _finite(round(value / max(len(started), 1), 3)) for key, value in sorted(totals.items())}
+
+
+def _finite(value: float) -> float | None:
+    """``value``, or None where it is not a finite number (a sum that overflowed)."""
+    return value if math.isfinite(value) else None
 
 
 def _spls_by_episode(records: list[EpisodeRecord]) -> list[float]:

@@ -41,12 +41,14 @@ class Column:
     format: str = "{:.2f}"
     aggregate: str = "mean"
 
-    def cell(self, means: Mapping[str, float], episodes: int) -> str:
+    def cell(self, means: Mapping[str, float | None], episodes: int) -> str:
         """The column's value for a method (``episodes``: those its means are over); ``-`` where it keeps no such
-        counter."""
+        counter, ``overflow`` where its mean left the floats' range (None)."""
         if not any(key in means for key in self.family):
             return "-"
         value = means.get(self.key, 0.0)
+        if value is None:
+            return "overflow"
         return self.format.format(value * episodes if self.aggregate == "sum" else value)
 
 
@@ -74,7 +76,7 @@ def explorer_entries(names: Iterable[str]) -> list[ExplorerEntry]:
     return entries
 
 
-def decision_columns(means: Sequence[Mapping[str, float]], explorers: Iterable[str]) -> list[Column]:
+def decision_columns(means: Sequence[Mapping[str, float | None]], explorers: Iterable[str]) -> list[Column]:
     """The decisions table's columns for methods with these ``means`` whose runs were made by ``explorers``."""
     entries = explorer_entries(explorers)
     columns: dict[str, Column] = {}
@@ -90,7 +92,7 @@ def decision_columns(means: Sequence[Mapping[str, float]], explorers: Iterable[s
     return list(columns.values())
 
 
-def step_columns(means: Sequence[Mapping[str, float]], explorers: Iterable[str]) -> list[str]:
+def step_columns(means: Sequence[Mapping[str, float | None]], explorers: Iterable[str]) -> list[str]:
     """The steps table's activities: :data:`STEP_COLUMNS`, then the other activities of the records but the
     body's hidden ones (those the runs' explorers declare first, in their order)."""
     hidden = set(STEP_COLUMNS) | set(BODY_ACTIVITIES)

@@ -167,9 +167,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_config_show(args: argparse.Namespace) -> int:
-    from drivenav.settings import settings_to_yaml
+    from drivenav.settings import check_parts, settings_to_yaml
 
-    print(settings_to_yaml(settings(args, args.agent)), end="")
+    resolved = settings(args, args.agent)
+    check_parts(resolved)
+    print(settings_to_yaml(resolved), end="")
     return 0
 
 

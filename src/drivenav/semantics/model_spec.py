@@ -60,7 +60,7 @@ class ModelSpec:
         check_ranges(
             self,
             {
-                "detector_timeout_s": Range(0.0, 86400.0, low_open=True, why="seconds, up to a day"),
+                "detector_timeout_s": Range(0.0, 3600.0, low_open=True, why="seconds, up to an hour"),
                 "max_detections": Range(1, MAX_DETECTIONS, integer=True, why="detections a frame"),
             },
         )

@@ -9,6 +9,7 @@ them with their sources and says where our world differs.
 
 from __future__ import annotations
 
+import string
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import ClassVar
@@ -25,6 +26,24 @@ from drivenav.ranges import (
     check_declared,
     check_rule,
 )
+
+PROMPT_FIELDS = ("target", "room")
+"""The fields ApexNav's prompts are formatted with (:class:`~drivenav.semantics.protocols.ScorePrompt`): the goal and
+the room the reasoner named."""
+
+MAX_PROMPT_CHARS = 1000
+"""The longest prompt template, and the longest text it may format to with the longest names checked
+(:data:`LONGEST_NAME` each): ours, some ten times the source's 45 characters, and a bound on the text a scorer
+encodes every frame (a format spec such as ``{room:>99999999}`` would make a 100 MB text per frame)."""
+
+LONGEST_NAME = "x" * 100
+"""The target and room a template is formatted with at load, to bound its formatted length: longer than any
+category or room name of the benchmarks."""
+
+MAX_TSP_SOLUTIONS = 500
+"""The most solutions ``tsp_solutions`` may ask for: ten times ours. Each solution costs about as much as the first
+(some 0.06 ms per frontier), so 500 solve 8 frontiers in about 30 ms and 30 in 0.3 s, where ApexNav gives LKH-3 a
+2 ms budget; more (100,000 took 112 s for one 60-step episode) would buy time, not tours."""
 
 MODES = ("semantic", "geometric")
 """ApexNav's kinds of decision (its ``decisions`` counter): the mode it decided in."""
@@ -71,7 +90,7 @@ class ApexnavConfig:
         "tsp_scale": Range(0.0, MAX_FACTOR, low_open=True, why="integer cost units per metre"),
         "tsp_unreachable": Range(0.0, 1e9, low_open=True, why="metres"),
         "tsp_diagonal": Range(0.0, 1e9, low_open=True, why="metres"),
-        "tsp_solutions": COUNT,
+        "tsp_solutions": Range(1, MAX_TSP_SOLUTIONS, integer=True, why="solutions: ApexNav's budget is 2 ms"),
         "dormant_fov_deg": HALF_TURN,
         "dormant_range": POSITIVE_LENGTH,
         "frontier_changed": Range(0.0, 1.0, low_open=True, why="a share of the frontier's cells"),
@@ -83,7 +102,38 @@ class ApexnavConfig:
     def __post_init__(self) -> None:
         check_declared(self)
         for name in ("prompt", "prompt_anywhere"):
-            check_rule(self, name, "{target}" in getattr(self, name), "a text naming {target}")
+            problem = template_problem(getattr(self, name))
+            check_rule(self, name, problem is None, f"{TEMPLATE_EXPECTED} ({problem})")
+
+
+TEMPLATE_EXPECTED = (
+    f"a text naming {{target}}, with plain fields {{target}} and {{room}}, of {MAX_PROMPT_CHARS} characters at most"
+)
+"""What ApexNav's prompt templates accept (:func:`template_problem`), in the one line refusing one."""
+
+
+def template_problem(template: str) -> str | None:
+    """Why ``template`` cannot serve as ApexNav's prompt, or None: it is formatted once here as every frame formats
+    it, so that a template that would fail there (an unknown field, an unmatched brace, a positional field) or
+    blow up (a huge width) is refused at load. It names ``{target}`` (``{{target}}`` is a literal) with plain fields
+    of :data:`PROMPT_FIELDS` only, no conversion or format spec, and it and its text stay within
+    :data:`MAX_PROMPT_CHARS`."""
+    if len(template) > MAX_PROMPT_CHARS:
+        return f"{len(template)} characters"
+    try:
+        fields = [(name, conversion, spec) for _, name, spec, conversion in string.Formatter().parse(template)]
+    except ValueError as error:
+        return f"unmatched braces: {error}"
+    for name, conversion, spec in fields:
+        if name is not None and (name not in PROMPT_FIELDS or conversion or spec):
+            given = "{" + name + (f"!{conversion}" if conversion else "") + (f":{spec}" if spec else "") + "}"
+            return f"the field {given}"
+    if "target" not in (name for name, _, _ in fields):
+        return "no {target} field; {{target}} is a literal"
+    text = template.format(**dict.fromkeys(PROMPT_FIELDS, LONGEST_NAME))
+    if len(text) > MAX_PROMPT_CHARS:
+        return f"a text of {len(text)} characters with names of {len(LONGEST_NAME)}"
+    return None
 
 
 EXPLORER = ExplorerEntry(
