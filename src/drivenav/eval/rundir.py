@@ -10,8 +10,8 @@ refuses a second record of an episode or a record of an episode outside the run,
 a server the run depends on (:func:`lost_to_a_server`: the served grounder or the robot stopped answering, or
 restarted, while a request of it waited) is recorded as an error, but is no result of its agent's: a resume takes
 its record out and runs it again, and so does it with the episodes that failed to start
-(:func:`start_up_failures`: the ``error`` records before the first record that is not one); the records taken out
-are kept in ``DIR/redone.jsonl``, which no reader reads.
+(:func:`start_up_failures`: ``error`` records of no step before the first record that is not an error); the
+records taken out are kept in ``DIR/redone.jsonl``, which no reader reads.
 ``DIR/traces/`` holds one trace per episode under a bounded name that no two ids share (:func:`trace_path`); the
 record names it, and a trace that cannot be written never costs the record.
 
@@ -321,12 +321,13 @@ class _Setup:
 
 
 def start_up_failures(records: Sequence[EpisodeRecord]) -> list[EpisodeRecord]:
-    """The records of episodes that failed to start: the ``error`` records before the run's first record that is
-    not one (file order). Those are what the fail-fast rule stops on (the first episodes all ending in one
-    exception: a model that cannot be built, an explorer that raises in its constructor), and a resume runs them
-    again; an error after an episode that did not end in one is a result of its agent's and stays."""
+    """The records of episodes that failed to start: ``error`` records of no step, before the run's first record
+    that is not an error (file order). Those are what the fail-fast rule stops on when the first episodes all end
+    in one exception as they start (a model that cannot be built, an explorer that raises in its constructor), and
+    a resume runs them again. An error after some steps, or after an episode that ended without one, is a result of
+    its agent's and stays."""
     first_result = next((i for i, r in enumerate(records) if not r.is_error), len(records))
-    return list(records[:first_result])
+    return [r for r in records[:first_result] if r.steps == 0]
 
 
 def _take_out_reruns(results: Path) -> None:
@@ -356,8 +357,8 @@ def _take_out_reruns(results: Path) -> None:
         log.warning("%d episodes a server lost (%s) are run again", len(lost), " or ".join(LOST_TO_A_SERVER))
     if failed:
         log.warning(
-            "%d episodes that ended in an error before any episode finished without one are run again "
-            "(their records moved to %s)",
+            "%d episodes that ended in an error as they started, before any episode finished without one, are run "
+            "again (their records moved to %s)",
             len(failed),
             REDONE_FILE,
         )
