@@ -86,6 +86,11 @@ class Agent(ABC):
         self.step = 0
         self.step_timings = []
 
+    def start_models(self) -> None:
+        """Build the agent's models now, before its first episode (none here: agents with models build them), so
+        that a model that cannot be built stops a run before any worker starts."""
+        return None
+
     def end_episode(self) -> None:
         """Release what only the finished episode needed (its trace and step timings here; subclasses add their maps),
         once its record and trace are taken, so that the next scene loads beside as little as possible;

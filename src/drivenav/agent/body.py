@@ -140,9 +140,7 @@ class ExplorerAgent(Agent):
         reasoner = self._reasoner_factory()
         reasoner.begin_episode(goal_text, truth)
         hints = self._category_hints(goal_text, reasoner)
-        if self._grounder is None:
-            self._grounder = self._grounder_factory()
-        grounder = self._grounder
+        grounder = self._kept_grounder()
         grounder.begin_episode(truth, seed)
         search = self._target_search(goal_text, grounder, reasoner, hints)
         return BodyState(mapper, pipeline, planner, reasoner, search, hints=hints)
@@ -189,11 +187,29 @@ class ExplorerAgent(Agent):
     def _explorer_setup(self, goal_text: str, truth: GroundTruth | None, mapper: OccupancyMapper) -> ExplorerSetup:
         """What the explorer is made from; the image-text scorer (BLIP-2: gigabytes) is built at the first episode
         of an explorer that uses one, and kept."""
-        if self.uses_scorer and self._scorer is None and self._scorer_factory is not None:
-            self._scorer = self._scorer_factory()
-        scorer = self._scorer if self.uses_scorer else None
+        scorer = self._kept_scorer()
         hints = self.state.hints if self.state is not None and self.explorer_type.uses_hints else None
         return ExplorerSetup(self.explorer_config, self.tuning, goal_text, truth, mapper, scorer, hints)
+
+    def start_models(self) -> None:
+        """Build the models as the first episode would, before it: the grounder and the image-text scorer are kept
+        for the episodes, a reasoner (one per episode) is built once to see that it can be."""
+        self._reasoner_factory()
+        self._kept_grounder()
+        self._kept_scorer()
+
+    def _kept_grounder(self) -> Grounder:
+        """The grounder, built at its first use and kept (SAM3, OWLv2: gigabytes of weights load once)."""
+        if self._grounder is None:
+            self._grounder = self._grounder_factory()
+        return self._grounder
+
+    def _kept_scorer(self) -> ImageTextScorer | None:
+        """The image-text scorer of an explorer that uses one (BLIP-2: gigabytes), built at its first use and kept;
+        None for the others."""
+        if self.uses_scorer and self._scorer is None and self._scorer_factory is not None:
+            self._scorer = self._scorer_factory()
+        return self._scorer if self.uses_scorer else None
 
     def _target_search(
         self, goal_text: str, grounder: Grounder, reasoner: Reasoner, hints: CategoryHints | None

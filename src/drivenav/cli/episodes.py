@@ -42,6 +42,11 @@ def add_episodes(commands: Commands) -> None:
     export.add_argument("--format", required=True, choices=LAYOUTS, help="the Habitat dataset layout")
     export.add_argument("--split", default="val", help="the split's name (default val)")
     export.add_argument("--out", required=True, type=path, help="the dataset folder: writes OUT/SPLIT/SPLIT.json.gz")
+    export.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace an earlier export of the split in OUT/SPLIT (without it such a folder is refused)",
+    )
     export.set_defaults(handler=_cmd_episodes_export)
     stats = sub.add_parser("stats", help="doors, loops, rooms and area of the scenes; distances of the episodes")
     benchmarks = ", ".join(BENCHMARKS)
@@ -106,14 +111,14 @@ def share(text: str, option: str) -> float:
 
 
 def _cmd_episodes_export(args: argparse.Namespace) -> int:
-    from drivenav.envs.habitat.layouts import write_split
+    from drivenav.envs.habitat.layouts import export_split
     from drivenav.eval.episodes import load_episodes
 
     episodes = load_episodes(args.episodes)
     split = str(args.split)
     if not split or "/" in split or split.startswith("."):
         raise InputError("command line", "--split", "a split name such as val", split)
-    written = write_split(episodes, args.out / split / f"{split}.json.gz", args.format, source=args.episodes)
+    written = export_split(episodes, args.out / split, args.format, args.episodes, overwrite=args.overwrite)
     print(f"wrote {len(episodes)} episodes as {args.format} to {written[0]} and {len(written) - 1} content files")
     return 0
 

@@ -9,7 +9,9 @@ their ``run.json``. On resume the writer cuts a torn last line off ``episodes.js
 refuses a second record of an episode or a record of an episode outside the run, naming its line. An episode lost to
 a server the run depends on (:func:`lost_to_a_server`: the served grounder or the robot stopped answering, or
 restarted, while a request of it waited) is recorded as an error, but is no result of its agent's: a resume takes
-its record out and runs it again.
+its record out and runs it again, and so does it with the episodes that failed to start
+(:func:`start_up_failures`: ``error`` records of no step before the first record that is not an error); the
+records taken out are kept in ``DIR/redone.jsonl``, which no reader reads.
 ``DIR/traces/`` holds one trace per episode under a bounded name that no two ids share (:func:`trace_path`); the
 record names it, and a trace that cannot be written never costs the record.
 
@@ -54,6 +56,7 @@ RUN_FILE = "run.json"
 TRACES_DIR = "traces"
 LOCK_FILE = ".lock"
 EPISODES_COPY = "episodes.json.gz"  # the run's episodes, for pictures and reruns
+REDONE_FILE = "redone.jsonl"  # the records a resume took out to run their episodes again (no reader reads them)
 READABLE_ID = 64  # an episode id of at most this many file-name-safe characters is its own trace name
 LOST_TO_A_SERVER = ("GrounderUnavailableError", "RobotUnavailableError")
 """The errors of a request a server lost (``drivenav.semantics.served`` and ``drivenav.wire.client``: no reply by
@@ -189,7 +192,7 @@ class RunDirectory:
         left. A new run writes ``run.json`` and the copy of its episodes while its first episodes run
         (:class:`_Setup`)."""
         make_directory(out)
-        for name in (LOCK_FILE, RUN_FILE, EPISODES_FILE, EPISODES_COPY, SUMMARY_FILE):
+        for name in (LOCK_FILE, RUN_FILE, EPISODES_FILE, EPISODES_COPY, SUMMARY_FILE, REDONE_FILE):
             run_file(out, name)  # never written through a link out of the run
         if inside(out, TRACES_DIR) is None:
             raise InputError(out / TRACES_DIR, TRACES_DIR, "a folder inside the run directory", "a link out of it")
@@ -212,7 +215,7 @@ class RunDirectory:
                 copy = partial(save_episodes, episodes, out / EPISODES_COPY)
                 setup = _Setup(copy, run_file=partial(_write_run_file, out, world, settings, episodes))
             cut_torn_tail(results)
-            _take_out_lost(results)
+            _take_out_reruns(results)
             with setup.alongside():
                 yield RunDirectory(out, frozenset(e.episode_id for e in episodes), setup)
 
@@ -317,24 +320,59 @@ class _Setup:
                 raise RunStoppedError(f"the run's run.json could not be written ({self._failure}); no record was")
 
 
-def _take_out_lost(results: Path) -> None:
-    """Rewrite ``results`` without the records of episodes a server lost, so that the resume runs them again (a new
-    file replaces the old at once: a kill leaves one or the other)."""
+def start_up_failures(records: Sequence[EpisodeRecord]) -> list[EpisodeRecord]:
+    """The records of episodes that failed to start: ``error`` records of no step, before the run's first record
+    that is not an error (file order). Those are what the fail-fast rule stops on when the first episodes all end
+    in one exception as they start (a model that cannot be built, an explorer that raises in its constructor), and
+    a resume runs them again. An error after some steps, or after an episode that ended without one, is a result of
+    its agent's and stays."""
+    first_result = next((i for i, r in enumerate(records) if not r.is_error), len(records))
+    return [r for r in records[:first_result] if r.steps == 0]
+
+
+def _take_out_reruns(results: Path) -> None:
+    """Take out of ``results`` the records a resume runs again: episodes a server lost and episodes that failed to
+    start (:func:`start_up_failures`), each kind said in one line. The records taken out are appended to
+    :data:`REDONE_FILE` (flushed and fsync'ed) before a new ``results`` without them replaces the old at once, so a
+    kill leaves one or the other and loses no record; readers never read them again."""
     if not results.exists():
         return
-    lost = {r.episode_id for r in read_records(results) if lost_to_a_server(r)}
-    if not lost:
+    records = read_records(results)
+    lost = {r.episode_id for r in records if lost_to_a_server(r)}
+    failed = {r.episode_id for r in start_up_failures([r for r in records if r.episode_id not in lost])}
+    if not lost and not failed:
         return
+    redone = {*lost, *failed}
     lines = results.read_text(encoding="utf-8").splitlines(keepends=True)
-    kept = [line for line in lines if not line.strip() or json.loads(line)["episode_id"] not in lost]
+    taken = [bool(line.strip()) and json.loads(line)["episode_id"] in redone for line in lines]
+    _append_synced(results.with_name(REDONE_FILE), [line for line, out in zip(lines, taken, strict=True) if out])
     fresh = results.with_suffix(results.suffix + ".tmp")
     fresh.unlink(missing_ok=True)  # a leftover, a link even: never written through
     with fresh.open("w", encoding="utf-8") as handle:
-        handle.writelines(kept)
+        handle.writelines(line for line, out in zip(lines, taken, strict=True) if not out)
         handle.flush()
         os.fsync(handle.fileno())
     os.replace(fresh, results)
-    log.warning("%d episodes a server lost (%s) are run again", len(lost), " or ".join(LOST_TO_A_SERVER))
+    if lost:
+        log.warning("%d episodes a server lost (%s) are run again", len(lost), " or ".join(LOST_TO_A_SERVER))
+    if failed:
+        log.warning(
+            "%d episodes that ended in an error as they started, before any episode finished without one, are run "
+            "again (their records moved to %s)",
+            len(failed),
+            REDONE_FILE,
+        )
+
+
+def _append_synced(path: Path, lines: Sequence[str]) -> None:
+    """Append ``lines`` to ``path``, flushed and fsync'ed (a link there is removed first: nothing is written
+    through it)."""
+    if path.is_symlink():
+        path.unlink()
+    with path.open("a", encoding="utf-8") as handle:
+        handle.writelines(lines)
+        handle.flush()
+        os.fsync(handle.fileno())
 
 
 def _repair_episodes_copy(path: Path, episodes: Sequence[Episode], sha256: str) -> None:

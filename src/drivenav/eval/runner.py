@@ -2,7 +2,8 @@
 
 Each finished episode is one :class:`~drivenav.eval.records.EpisodeRecord` line in ``DIR/episodes.jsonl``,
 appended, flushed and fsync'ed before the next is written, so an interrupted run (even ``kill -9``) loses no
-finished episode; a rerun with the same ``--out`` skips finished episodes and never duplicates one. Results do
+finished episode; a rerun with the same ``--out`` skips finished episodes and never duplicates one (it runs again
+those that failed to start: :func:`~drivenav.eval.rundir.start_up_failures`). Results do
 not depend on the number of workers: each episode's randomness is seeded from the run seed and the episode id.
 
 The world is built in each worker from a picklable :class:`~drivenav.envs.base.EnvSpec`; its measures give the
@@ -309,11 +310,12 @@ def _in_process(executor: Executor, episodes: int) -> bool:
 
 
 def preflight(spec: RunSpec, executor: Executor, episodes: int) -> None:
-    """Build the run's world and agent once here, before any worker starts, and refuse an agent that needs ground
-    truth the world cannot give. A world or model that cannot start stops the run with one line
+    """Build the run's world, agent and models once here, before any worker starts, and refuse an agent that needs
+    ground truth the world cannot give. A world or model that cannot start stops the run with one line
     (:class:`RunStoppedError`), not with one error record per episode. A run in this process keeps what was built."""
     try:
         worker = _worker_for(spec)
+        worker.agent.start_models()
     except InputError:
         raise
     except BaseException as exc:

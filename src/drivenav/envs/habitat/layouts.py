@@ -13,7 +13,8 @@ category or a child) are not kept.
 Episodes come back in habitat-lab's order (the split file's, then each content file in sorted order, each in file
 order), with their goals resolved, as drivenav :class:`~drivenav.episode.Episode`\\ s. habitat-lab numbers a
 file's episodes from 0 (overwriting ``episode_id``); drivenav keeps the file's own ``episode_id`` where there is
-one, and where the ids of a split repeat across scenes, names every episode ``<scene>:<id>``. macOS metadata files
+one, and where the ids of a split repeat across scenes, names every episode ``<scene>:<id>``; an export writes
+such ids back as ``<id>`` only where they read back the same, else every id as it is. macOS metadata files
 (``._<scene>.json.gz``, as HM3D-OVON's released ``train/content`` holds) are skipped with one warning.
 
 Goals are written under the key of the episode's own text with that text as their category (a synonym
@@ -28,8 +29,9 @@ import json
 import logging
 import math
 import os
+import shutil
 from collections import Counter
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import replace
 from functools import lru_cache
 from pathlib import Path
@@ -158,14 +160,22 @@ def _in_category(goal: Any, text: str, canonical: str | None) -> Any:
 
 
 def _unique_ids(episodes: list[Episode]) -> list[Episode]:
-    counts = Counter(e.episode_id for e in episodes)
-    if all(n == 1 for n in counts.values()):
-        return episodes
-    qualified = [replace(e, episode_id=f"{scene_name(e.scene_id)}:{e.episode_id}") for e in episodes]
-    repeated = [name for name, n in Counter(e.episode_id for e in qualified).items() if n > 1]
+    ids = split_ids([(e.scene_id, e.episode_id) for e in episodes])
+    repeated = [name for name, n in Counter(ids).items() if n > 1]
     if repeated:
         raise InputError("episodes", "episode_id", "ids unique within each scene", repeated[0])
-    return qualified
+    if all(e.episode_id == i for e, i in zip(episodes, ids, strict=True)):
+        return episodes
+    return [replace(e, episode_id=i) for e, i in zip(episodes, ids, strict=True)]
+
+
+def split_ids(held: Sequence[tuple[str, str]]) -> list[str]:
+    """The ids :func:`read_split` gives the episodes of a split, from each one's scene and the id its file holds:
+    the files' own ids where no two are alike, else every one named ``<scene>:<id>``."""
+    ids = [episode_id for _, episode_id in held]
+    if len(set(ids)) == len(ids):
+        return ids
+    return [f"{scene_name(scene_id)}:{episode_id}" for scene_id, episode_id in held]
 
 
 # ----------------------------------------------------------------------------------------------- writing
@@ -184,11 +194,74 @@ def write_split(
     for episode in episodes:
         by_scene.setdefault(episode.scene_id, []).append(episode)
     names = _content_names(by_scene, source)
+    ids = _file_ids(episodes, source)
     written = [_write_json(split_file, _split_payload(episodes, layout))]
     for scene_id, scene_episodes in by_scene.items():
         path = split_file.parent / CONTENT / f"{names[scene_id]}.json.gz"
-        written.append(_write_json(path, _content(scene_episodes, layout, source)))
+        written.append(_write_json(path, _content(scene_episodes, ids, layout, source)))
     return written
+
+
+def export_split(
+    episodes: Sequence[Episode], folder: Path, layout: str, source: str | Path, overwrite: bool = False
+) -> list[Path]:
+    """Write ``episodes`` as the split in ``folder`` (``ROOT/{split}``: the split file and its ``content/``), whole
+    or not at all: it is written beside ``folder`` and renamed into place once complete, so that no other export's
+    content file is ever read with it. A ``folder`` holding anything is refused (an :class:`InputError` on
+    ``--out`` naming it) unless ``overwrite``, which replaces an earlier export and nothing else."""
+    _check_export_folder(folder, overwrite)
+    staging, old = folder.with_name(f".{folder.name}.export"), folder.with_name(f".{folder.name}.replaced")
+    for leftover in (staging, old):
+        shutil.rmtree(leftover, ignore_errors=True)  # a killed export's: drivenav's own names
+    written = write_split(episodes, staging / f"{folder.name}.json.gz", layout, source)
+    if folder.exists():
+        folder.rename(old)
+    staging.rename(folder)
+    shutil.rmtree(old, ignore_errors=True)
+    return [folder / path.relative_to(staging) for path in written]
+
+
+def _check_export_folder(folder: Path, overwrite: bool) -> None:
+    """``folder`` is empty or missing, or (``overwrite``) holds only an export's files: the split file and
+    ``content/*.json.gz``."""
+    if folder.exists() and not folder.is_dir():
+        raise InputError(folder, "--out", "a folder for the split", "an existing file")
+    held = sorted(p for p in folder.rglob("*") if not p.is_dir()) if folder.is_dir() else []
+    if not held:
+        return
+    if not overwrite:
+        expected = "a folder without an earlier export, or --overwrite to replace it (two exports never mix)"
+        raise InputError(folder, "--out", expected, f"{len(held)} files, e.g. {held[0].relative_to(folder)}")
+    exported = {folder / f"{folder.name}.json.gz", *(folder / CONTENT).glob("*.json.gz")}
+    other = next((p for p in held if p not in exported), None)
+    if other is not None:
+        expected = "a folder holding only an earlier export (its split file and content/*.json.gz) to overwrite"
+        raise InputError(folder, "--out", expected, str(other.relative_to(folder)))
+
+
+def _file_ids(episodes: Sequence[Episode], source: str | Path) -> dict[tuple[str, str], str]:
+    """The id each episode's content file holds, by scene and episode id: an id :func:`read_split` named
+    ``<scene>:<id>`` written back as ``<id>`` where the split then reads back with the same ids (or where no form
+    does: one id in several scenes), else every id as it is (``7`` and ``aws_small_house:7`` of one scene would
+    otherwise both be ``'7'``). One id twice in a scene is an :class:`InputError` naming ``source``."""
+    own = [e.episode_id for e in episodes]
+    _refuse_repeated(episodes, source)
+    stripped = [_file_episode_id(e) for e in episodes]
+    reads_back = {
+        form: split_ids([(e.scene_id, i) for e, i in zip(episodes, ids, strict=True)]) == own
+        for form, ids in (("stripped", stripped), ("own", own))
+    }
+    unique = len({(e.scene_id, i) for e, i in zip(episodes, stripped, strict=True)}) == len(episodes)
+    chosen = stripped if reads_back["stripped"] or (unique and not reads_back["own"]) else own
+    return {(e.scene_id, e.episode_id): i for e, i in zip(episodes, chosen, strict=True)}
+
+
+def _refuse_repeated(episodes: Sequence[Episode], source: str | Path) -> None:
+    """One :class:`InputError` naming ``source`` and the id when one scene holds an id twice."""
+    repeated = [held for held, n in Counter((e.scene_id, e.episode_id) for e in episodes).items() if n > 1]
+    if repeated:
+        scene_id, episode_id = repeated[0]
+        raise InputError(source, "episode_id", "ids unique within each scene", f"{episode_id} twice in {scene_id}")
 
 
 def _content_names(by_scene: dict[str, list[Episode]], source: str | Path) -> dict[str, str]:
@@ -212,7 +285,9 @@ def _split_payload(episodes: Sequence[Episode], layout: str) -> JsonObject:
     return {"episodes": [], **{key: maps for key in CATEGORY_MAPS}}
 
 
-def _content(episodes: Iterable[Episode], layout: str, source: str | Path) -> JsonObject:
+def _content(
+    episodes: Iterable[Episode], ids: Mapping[tuple[str, str], str], layout: str, source: str | Path
+) -> JsonObject:
     goals_by_category: dict[str, list[JsonObject]] = {}
     items = []
     for episode in episodes:
@@ -220,7 +295,7 @@ def _content(episodes: Iterable[Episode], layout: str, source: str | Path) -> Js
             if goals_by_category.setdefault(key, goals) != goals:
                 expected = f"the same goals in every episode of one scene and category (key {key})"
                 raise InputError(source, "goals", expected, f"other goals in episode {episode.episode_id}")
-        items.append(_episode_item(episode, layout))
+        items.append(_episode_item(episode, ids[episode.scene_id, episode.episode_id], layout))
     if layout == OVON:
         return {"goals_by_category": goals_by_category, "episodes": items, **{k: {} for k in OVON_CATEGORY_MAPS}}
     return {"episodes": items, "goals_by_category": goals_by_category}
@@ -248,7 +323,7 @@ def _goal_item(goal: ObjectGoal, category: str, layout: str) -> JsonObject:
     return {"object_id": goal.object_id, "object_category": category, "position": position, "view_points": points}
 
 
-def _episode_item(episode: Episode, layout: str) -> JsonObject:
+def _episode_item(episode: Episode, file_id: str, layout: str) -> JsonObject:
     """An episode without its goals: HM3D-OVON's every field (habitat-lab's ``Episode`` ones included), ObjectNav
     v1's as before plus ``scene_dataset_config``."""
     start = {
@@ -256,7 +331,7 @@ def _episode_item(episode: Episode, layout: str) -> JsonObject:
         "start_rotation": coordinates(episode.start_rotation, HABITAT_DIGITS),
     }
     info = _with_euclidean_distance(episode)
-    head = {"episode_id": _file_episode_id(episode), "scene_id": episode.scene_id}
+    head = {"episode_id": file_id, "scene_id": episode.scene_id}
     if layout != OVON:
         return {**head, **start, "object_category": episode.object_category, "goals": [], "info": info,
                 "scene_dataset_config": episode.scene_dataset_config}  # fmt: skip
