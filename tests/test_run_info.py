@@ -82,10 +82,18 @@ def test_a_hand_edited_run_json_is_one_input_error_naming_the_key(
 
 
 def test_resume_compares_the_trees_as_written() -> None:
-    """A key the previous run.json lacks (another drivenav version) refuses the resume, as before."""
+    """A key the previous run.json lacks (another drivenav version) refuses the resume unless it holds its default
+    now: a setting added since, at its default, keeps the behaviour its absence had, and a long run resumes."""
     info = RunInfo.from_json(_written(), RUN_JSON)
     info.check_resume(_written(), RUN_JSON)
     older = _written()
+    del older["config"]["models"]["max_detections"]
+    info.check_resume(older, RUN_JSON)  # added since, at its default
+    changed = _written()
+    changed["config"]["agent"]["enrich"] = False
     del older["config"]["agent"]["enrich"]
     with pytest.raises(InputError, match=r"config\.agent\.enrich"):
+        RunInfo.from_json(changed, RUN_JSON).check_resume(older, RUN_JSON)
+    older["config"]["models"]["unknown_since"] = 1
+    with pytest.raises(InputError, match=r"config\.models\.unknown_since|config\.models"):
         info.check_resume(older, RUN_JSON)

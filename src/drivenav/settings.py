@@ -614,21 +614,33 @@ def settings_to_yaml(settings: Settings) -> str:
     return YAML_HEADER + OmegaConf.to_yaml(OmegaConf.structured(settings))
 
 
-def first_difference(a: Mapping[str, Any], b: Mapping[str, Any]) -> str | None:
+def first_difference(
+    a: Mapping[str, Any], b: Mapping[str, Any], defaults: Mapping[str, Any] | None = None
+) -> str | None:
     """The first dotted key (in sorted order) whose value differs between two trees of
     :func:`settings_to_dict`, or None when they are equal: what refuses a resume into a run directory started with
-    other settings. A key present in one tree only differs."""
-    return _difference(a, b, "")
+    other settings. A key present in one tree only differs, except a key ``a`` lacks that ``b`` holds at its value in
+    ``defaults`` (a setting added since ``a`` was written, left at its default: a default keeps the behaviour the
+    setting's absence had)."""
+    return _difference(a, b, "", _ABSENT if defaults is None else defaults)
 
 
-def _difference(a: object, b: object, prefix: str) -> str | None:
+def _difference(a: object, b: object, prefix: str, defaults: object) -> str | None:
+    if a is _ABSENT and defaults is not _ABSENT and b == defaults:
+        return None
     if not (isinstance(a, Mapping) and isinstance(b, Mapping)):
         return None if a == b else prefix or "(root)"
     for key in sorted({*a, *b}, key=str):
-        found = _difference(a.get(key, _ABSENT), b.get(key, _ABSENT), f"{prefix}{'.' if prefix else ''}{key}")
+        default = defaults.get(key, _ABSENT) if isinstance(defaults, Mapping) else _ABSENT
+        found = _difference(a.get(key, _ABSENT), b.get(key, _ABSENT), f"{prefix}{'.' if prefix else ''}{key}", default)
         if found is not None:
             return found
     return None
+
+
+def default_settings(settings: Settings) -> Settings:
+    """The defaults of a tree like ``settings``: the same explorers' sections, every value its default."""
+    return _default_settings(explorers_of(settings.explorer.name, settings.run.agent))
 
 
 _ABSENT = object()  # a key missing from one tree (unequal to every value, None included)

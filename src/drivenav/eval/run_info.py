@@ -29,6 +29,7 @@ from drivenav.plugins import Declared
 from drivenav.settings import (
     RunSettings,
     Settings,
+    default_settings,
     first_difference,
     held_sections_only,
     settings_from_dict,
@@ -114,9 +115,11 @@ class RunInfo:
         """Refuse to resume a run started with other settings or episodes (``previous``: the directory's
         ``run.json``). Its settings are rebuilt first (a hand-edited value is named as such); the trees are then
         compared as written, so that a key one of them lacks (a ``run.json`` of another drivenav version) is a
-        difference rather than a default."""
+        difference, unless it is a setting added since and left at its default here (the behaviour its absence
+        had: a long grid resumes across a version that adds a setting)."""
         RunInfo.from_json(previous, source)
-        key = first_difference(held_sections_only(previous["config"]), self.config_json())
+        defaults = json.loads(json.dumps(settings_to_dict(default_settings(self.config))))
+        key = first_difference(held_sections_only(previous["config"]), self.config_json(), defaults)
         if key is not None:
             raise InputError(
                 source, f"config.{key}", "the settings this run directory was started with, to resume it", "others"
