@@ -149,6 +149,8 @@ def test_the_registry_hands_the_dtype_and_compile_to_the_grounder(
     seen: dict[str, Any] = {}
 
     class Recorder:
+        name = "recorder"  # a grounder's name (the protocol's), read by the output check that wraps it
+
         def __init__(self, model: str, **kwargs: Any) -> None:
             seen.update(kwargs, model=model)
 

@@ -18,6 +18,10 @@ from drivenav.agent.explorers import EXPLORERS, explorer_entry
 from drivenav.errors import InputError
 from drivenav.methods import METHOD_NAMES, REFERENCE_AGENTS, agent_names, method_named
 from drivenav.semantics.registry import (
+    GROUNDER_BACKENDS,
+    REASONER_BACKENDS,
+    SCORER_BACKENDS,
+    SEGMENTER_BACKENDS,
     make_grounder,
     make_reasoner,
     make_scorer,
@@ -82,3 +86,22 @@ def warn_shadowed_explorers() -> None:
                 name,
                 name,
             )
+
+
+def check_parts(settings: Settings) -> None:
+    """Import every part ``settings`` name, as a run does before its first episode: the chosen explorer's class
+    and the reasoner, detector, scorer and segmenter backends. A part that cannot be imported (a broken plug-in, a
+    missing extra) is its one :class:`~drivenav.errors.InputError` line, so that ``config show`` refuses what a
+    run refuses; the models' files and servers are a run's checks (:func:`~drivenav.semantics.registry.check_models`),
+    not those of a tree printed for later."""
+    name = settings.explorer.name
+    with EXPLORERS.guard(name, "import"):
+        explorer_class(explorer_entry(name))
+    models = settings.models
+    for registry, backend in (
+        (REASONER_BACKENDS, models.reasoner),
+        (GROUNDER_BACKENDS, models.detector),
+        (SCORER_BACKENDS, models.scorer),
+        (SEGMENTER_BACKENDS, models.segmenter),
+    ):
+        registry.get(backend)

@@ -219,27 +219,6 @@ class Settings:
         return rules
 
 
-def check_parts(settings: Settings) -> None:
-    """Import every part ``settings`` name, as a run does before its first episode: the chosen explorer's class
-    and the reasoner, detector, scorer and segmenter backends. A part that cannot be imported (a broken plug-in, a
-    missing extra) is its one :class:`~drivenav.errors.InputError` line, so that ``config show`` refuses what a
-    run refuses; the models' files and servers are a run's checks (:func:`~drivenav.semantics.registry.check_models`),
-    not those of a tree printed for later."""
-    from drivenav.agent.body import explorer_class
-
-    name = settings.explorer.name
-    with EXPLORERS.guard(name, "import"):
-        explorer_class(explorer_entry(name))
-    models = settings.models
-    for registry, backend in (
-        (REASONER_BACKENDS, models.reasoner),
-        (GROUNDER_BACKENDS, models.detector),
-        (SCORER_BACKENDS, models.scorer),
-        (SEGMENTER_BACKENDS, models.segmenter),
-    ):
-        registry.get(backend)
-
-
 def explorer_section(settings: Settings, name: str) -> object:
     """The settings section of the explorer ``name`` (its entry's defaults when the tree holds none: an explorer
     other than the chosen one)."""

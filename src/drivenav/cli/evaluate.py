@@ -167,7 +167,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_config_show(args: argparse.Namespace) -> int:
-    from drivenav.settings import check_parts, settings_to_yaml
+    from drivenav.agents import check_parts
+    from drivenav.settings import settings_to_yaml
 
     resolved = settings(args, args.agent)
     check_parts(resolved)
