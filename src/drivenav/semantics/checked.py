@@ -28,6 +28,7 @@ import numpy as np
 
 from drivenav.semantics.protocols import Detection, Grounder, ImageTextScorer, ModelCall, ScorePrompt
 from drivenav.semantics.serve_config import DEFAULT_MAX_DETECTIONS
+from drivenav.semantics.wrapped import Wrapped
 from drivenav.types import GroundTruth, Observation
 
 log = logging.getLogger(__name__)
@@ -66,22 +67,13 @@ class _Faults:
         log.log(level, "model %s: %s (%s)", self.model, kind, detail)
 
 
-class CheckedScorer:
+class CheckedScorer(Wrapped[ImageTextScorer]):
     """Implements :class:`~drivenav.semantics.protocols.ImageTextScorer` with ``inner``, each similarity checked
     (module docstring): one that is not usable answers 0 and marks its call a ``fallback``."""
 
     def __init__(self, inner: ImageTextScorer) -> None:
-        self.inner = inner
-        self.name = inner.name
+        super().__init__(inner)
         self._faults = _Faults(f"{inner.name} (scorer)")
-
-    @property
-    def calls(self) -> list[ModelCall]:
-        return self.inner.calls
-
-    @calls.setter
-    def calls(self, value: list[ModelCall]) -> None:
-        self.inner.calls = value
 
     def begin_episode(self, truth: GroundTruth | None) -> None:
         self.inner.begin_episode(truth)

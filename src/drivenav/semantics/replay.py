@@ -29,7 +29,7 @@ from collections import defaultdict
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Generic, TypeVar
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -55,6 +55,7 @@ from drivenav.semantics.protocols import (
     VerificationFrame,
     View,
 )
+from drivenav.semantics.wrapped import M, Wrapped
 from drivenav.types import GroundTruth, Observation
 
 Answer = Selection | Proposal | Verdict | CategoryHints | FloorJudgement | float
@@ -277,24 +278,12 @@ def _append(path: Path, request: Request, answer: Answer) -> None:
         file.write(json.dumps(record, sort_keys=True) + "\n")
 
 
-M = TypeVar("M", Reasoner, ImageTextScorer)
-
-
-class _Recorder(Generic[M]):
+class _Recorder(Wrapped[M]):
     """A model ``inner`` whose answers are recorded to ``path``: its name and its calls are the inner model's."""
 
     def __init__(self, inner: M, path: Path) -> None:
-        self.inner: M = inner
+        super().__init__(inner)
         self.path = Path(path)
-        self.name = inner.name
-
-    @property
-    def calls(self) -> list[ModelCall]:
-        return self.inner.calls
-
-    @calls.setter
-    def calls(self, value: list[ModelCall]) -> None:
-        self.inner.calls = value
 
 
 class RecordingReasoner(_Recorder[Reasoner]):
