@@ -176,16 +176,21 @@ def test_the_tour_is_the_enumerated_optimum_on_a_random_case() -> None:
     assert [open_tour(matrix, 100.0, 50) for _ in range(3)] == [tour] * 3
 
 
-def test_without_ortools_apexnav_is_one_line_naming_the_extra(tmp_path: Path) -> None:
-    code = (
-        "import sys; sys.modules['ortools'] = None\n"
-        "from drivenav.cli import main\n"
-        f"sys.exit(main(['eval', '--agent', 'apexnav', '--episodes', '1', '--out', {str(tmp_path / 'run')!r}]))"
-    )
+@pytest.mark.parametrize(
+    "choice",
+    [["--agent", "apexnav"], ["--agent", "drive-nav", "--set", "explorer.name=apexnav"]],
+    ids=["agent", "set"],
+)
+def test_without_ortools_apexnav_is_one_line_naming_the_extra(choice: list[str], tmp_path: Path) -> None:
+    """However ApexNav is chosen, the line names the setting that chose it (explorer.name), not an option that was
+    perhaps not given."""
+    args = ["eval", *choice, "--episodes", "1", "--out", str(tmp_path / "run")]
+    code = f"import sys; sys.modules['ortools'] = None\nfrom drivenav.cli import main\nsys.exit(main({args!r}))"
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=False)
     lines = [line for line in result.stderr.splitlines() if line.strip()]
     assert result.returncode == 2 and len(lines) == 1, result.stderr
     assert "pip install 'drivenav[apexnav]'" in lines[0] and "ortools not installed" in lines[0]
+    assert "explorer.name" in lines[0] and "--agent" not in lines[0]
 
 
 # ----------------------------------------------------------------------------------------------- fusion

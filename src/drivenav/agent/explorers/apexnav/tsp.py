@@ -24,11 +24,11 @@ try:
     from ortools.constraint_solver import pywrapcp, routing_enums_pb2, routing_parameters_pb2
     from ortools.util import optional_boolean_pb2
 except ImportError:  # the apexnav extra is not installed: one line naming it, before any episode
-    raise InputError(
-        "command line",
-        "--agent",
+    raise InputError(  # explorer.name: what --agent apexnav, --set explorer.name=apexnav and --methods all set
+        "settings",
+        "explorer.name",
         "the apexnav extra for ApexNav's TSP solver (pip install 'drivenav[apexnav]', which brings OR-Tools)",
-        "ortools not installed",
+        "apexnav with ortools not installed",
     ) from None
 
 _TIME_BOUNDED = (
