@@ -158,3 +158,22 @@ def test_an_overflowed_mean_reads_back_and_is_shown_as_such(tmp_path: Path) -> N
     report = AblationReport.from_json(data, source)
     assert report.methods[method].decisions["huge"] is None
     assert "overflow" in format_markdown(report)
+
+
+@pytest.mark.parametrize(
+    ("text", "key"),
+    [
+        ("agent:\n  stop_distance: -1\n", "agent.stop_distance"),
+        ("explorer:\n  directions:\n    settle_steps: -3\n", "explorer.directions.settle_steps"),
+    ],
+)
+def test_a_range_error_from_a_config_file_names_the_file(text: str, key: str, tmp_path: Path) -> None:
+    """The line names the file that gave the value, not the merged 'settings' (and --set for a --set)."""
+    config = tmp_path / "bad.yaml"
+    config.write_text(text, encoding="utf-8")
+    with pytest.raises(InputError) as raised:
+        load_settings("drive-nav", configs=[str(config)])
+    assert raised.value.source == str(config) and raised.value.field == key
+    with pytest.raises(InputError) as raised:
+        load_settings("drive-nav", configs=[str(config)], overrides=[f"{key}=-5"])
+    assert raised.value.source == "--set" and raised.value.field == key

@@ -258,7 +258,22 @@ def _settings_of(layers: Sequence[tuple[DictConfig, str]]) -> Settings:
     for given, source in layers:
         layer = _held_layer(given, explorers, source)
         tree = _merge(tree, layer, source, defaults)
-    return _resolve(tree, explorers)
+    try:
+        return _resolve(tree, explorers)
+    except InputError as error:
+        raise _from_layer(error, layers) from None
+
+
+def _from_layer(error: InputError, layers: Sequence[tuple[DictConfig, str]]) -> InputError:
+    """``error``, found once the layers were merged (a value outside its range), named by the source of the last
+    of ``layers`` that gave its key a value (the ``--config`` file, ``--set``, an option) rather than by the merged
+    ``settings``; as it is when no layer gave it one (a default, or the key of a whole section)."""
+    if error.source != "settings":
+        return error
+    for layer, source in reversed(layers):
+        if OmegaConf.select(layer, error.field, default=None, throw_on_resolution_failure=False) is not None:
+            return InputError(source, error.field, error.expected, error.got)
+    return error
 
 
 def _last_given(layers: Sequence[tuple[DictConfig, str]], section: str, key: str, default: str) -> str:
