@@ -539,12 +539,10 @@ def settings_from_dict(tree: JsonObject, provider: Declared | None = None) -> Se
     drivenav recorded every installed explorer's); a chosen explorer that is not installed is one line naming its
     entry point and ``provider``, the package that provided it (:func:`missing_explorer`)."""
     tree = _before_explorers(tree)
-    explorer = tree.get("explorer")
-    if isinstance(explorer, dict) and isinstance(explorer.get("name"), str):
-        name = explorer["name"]
-        if name not in EXPLORERS.names:
-            raise missing_explorer(name, provider)
-        tree = held_sections_only(tree)
+    name = uninstalled_explorer(tree)
+    if name is not None:
+        raise missing_explorer(name, provider)
+    tree = held_sections_only(tree)
     try:
         layer = OmegaConf.create(tree)
     except (OmegaConfBaseException, ValueError) as error:
@@ -563,6 +561,14 @@ def held_sections_only(tree: JsonObject) -> JsonObject:
     explorers = explorers_of(str(explorer["name"]), agent if isinstance(agent, str) else RunSettings.agent)
     keys = {"name", *(explorer_key(name) for name in explorers)}
     return {**tree, "explorer": {key: value for key, value in explorer.items() if key in keys}}
+
+
+def uninstalled_explorer(tree: object) -> str | None:
+    """The explorer ``tree`` (run.json's settings) chooses when it is not installed (a plug-in since uninstalled),
+    else None (an installed one, or a tree that names none: the settings' own checks say what is wrong)."""
+    explorer = tree.get("explorer") if isinstance(tree, dict) else None
+    name = explorer.get("name") if isinstance(explorer, dict) else None
+    return name if isinstance(name, str) and name not in EXPLORERS.names else None
 
 
 def missing_explorer(name: str, provider: Declared | None = None) -> InputError:
@@ -634,7 +640,7 @@ def _difference(a: object, b: object, prefix: str, defaults: object) -> str | No
 
 def default_settings(settings: Settings) -> Settings:
     """The defaults of a tree like ``settings``: the same explorers' sections, every value its default."""
-    return _default_settings(explorers_of(settings.explorer.name, settings.run.agent))
+    return _default_settings(settings.explorer.explorers)
 
 
 _ABSENT = object()  # a key missing from one tree (unequal to every value, None included)

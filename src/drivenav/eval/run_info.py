@@ -21,7 +21,7 @@ import json
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from drivenav.agent.explorers import DEFAULT_EXPLORER, EXPLORERS
+from drivenav.agent.explorers import DEFAULT_EXPLORER
 from drivenav.envs.base import EnvSpec
 from drivenav.errors import InputError
 from drivenav.jsonstream import DOCUMENT, JsonObject
@@ -34,6 +34,7 @@ from drivenav.settings import (
     held_sections_only,
     settings_from_dict,
     settings_to_dict,
+    uninstalled_explorer,
 )
 
 WORLD_KEY = "env"  # the key of the world's recipe in run.json's config
@@ -95,7 +96,7 @@ class RunInfo:
         world = _object(config, WORLD_KEY, source, "config.")
         tree = {key: value for key, value in config.items() if key != WORLD_KEY}
         plugin = explorer_plugin(data, source)
-        recorded = _uninstalled_explorer_tree(tree) if reading else None
+        recorded = tree if reading and uninstalled_explorer(tree) is not None else None
         try:
             settings = settings_from_dict(tree if recorded is None else _without_explorer(tree), plugin)
         except InputError as error:
@@ -126,13 +127,6 @@ class RunInfo:
             )
         if previous["episodes_sha256"] != self.episodes_sha256:
             raise InputError(source, "episodes", "the episodes this run directory was started with, to resume it")
-
-
-def _uninstalled_explorer_tree(tree: JsonObject) -> JsonObject | None:
-    """``tree`` (run.json's settings) when its chosen explorer is not installed, else None."""
-    explorer = tree.get("explorer")
-    name = explorer.get("name") if isinstance(explorer, dict) else None
-    return tree if isinstance(name, str) and name not in EXPLORERS.names else None
 
 
 def _without_explorer(tree: JsonObject) -> JsonObject:

@@ -48,7 +48,7 @@ from drivenav.eval.report import Summary
 from drivenav.eval.run_info import RunInfo, explorer_plugin, world_json
 from drivenav.eval.trace import EpisodeTrace
 from drivenav.jsonstream import JsonObject
-from drivenav.settings import Settings, missing_explorer
+from drivenav.settings import Settings, missing_explorer, uninstalled_explorer
 
 EPISODES_FILE = "episodes.jsonl"
 SUMMARY_FILE = "summary.json"
@@ -262,11 +262,11 @@ def refuse_missing_explorer(out: Path) -> None:
         return
     try:
         data = _read_json(path)
-        name = data["config"]["explorer"]["name"]
         plugin = explorer_plugin(data, path)
-    except (InputError, KeyError, TypeError):
+    except InputError:
         return
-    if isinstance(name, str) and name not in EXPLORERS.names:
+    name = uninstalled_explorer(data.get("config"))
+    if name is not None:
         error = missing_explorer(name, plugin)
         raise InputError(path, f"config.{error.field}", error.expected, error.got)
 
