@@ -99,7 +99,8 @@ class SlowStaged:
         if lap is not None:
             lap("forward")
         found = [
-            [Detection(np.ones(frame.shape[:2], dtype=bool), score, phrase)] for frame, score in zip(frames, pixels)
+            [Detection(np.ones(frame.shape[:2], dtype=bool), score, phrase)]
+            for frame, score in zip(frames, pixels, strict=True)
         ]
         if lap is not None:
             lap("postprocess")
@@ -164,6 +165,41 @@ def test_the_next_batch_is_preprocessed_on_the_socket_thread_while_the_model_run
     assert times.batches == sum(server.batch_sizes.values())
     assert times.seconds["forward"] >= 0.15 * times.batches * 0.9
     assert all(seconds >= 0.0 for seconds in times.seconds.values())
+
+
+def test_two_copies_of_a_model_run_two_batches_at_once() -> None:
+    """``copies=2``: two model threads, each with its own copy; batches of one frame from four clients run on both
+    at the same time, and each client still gets its own frame's answer."""
+    first, second = SlowStaged(forward_s=0.15), SlowStaged(forward_s=0.15)
+    second.spans, second.lock = first.spans, first.lock
+    copies = iter([first, second])
+    config = ServeConfig(batch=1, batch_ms=0.0, copies=2)
+    info = ServedInfo("slow-staged", "-", "cpu", "float32", ("rgb",), False, 1, 0.0)
+    server = GrounderServer(lambda: next(copies), info, LOOPBACK, None, config)
+    answers: dict[int, float] = {}
+    ready = threading.Barrier(4)
+    with serving(server) as endpoint:
+        threads = [threading.Thread(target=ground, args=(endpoint, [c + 1, c + 11], answers, ready)) for c in range(4)]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join()
+    assert answers == {v: pytest.approx(v / 255.0) for c in range(4) for v in (c + 1, c + 11)}
+    forwards = [(name, start, end) for stage, name, start, end in first.spans if stage == "forward"]
+    names = {name for name, _, _ in forwards}
+    assert names == {"drivenav-grounder-model", "drivenav-grounder-model-2"}
+    together = [
+        (a, b) for a in forwards for b in forwards if a[0] != b[0] and a[1] < b[1] < a[2]
+    ]  # one copy's forward began while the other's ran
+    assert together
+    assert server.times.frames == 8 and server.times.batches == 8
+
+
+@pytest.mark.parametrize("copies", ["0", "9"])
+def test_serve_grounder_copies_out_of_range_is_one_line(copies: str, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["serve", "grounder", "--detector", "ground-truth", "--copies", copies]) == 2
+    error = capsys.readouterr().err
+    assert len(error.strip().splitlines()) == 1 and "--copies" in error and "from 1 to 8" in error
 
 
 def test_a_ping_during_a_forward_is_answered_after_it() -> None:

@@ -35,6 +35,8 @@ from drivenav.semantics.serve_pipeline import MODEL_STAGES, ServerTimes
 
 if TYPE_CHECKING:
     from drivenav.semantics.grounder_bench import GrounderBenchOptions
+    from drivenav.semantics.protocols import Grounder
+    from drivenav.semantics.serve_config import ServeConfig
 
 GROUNDING_KEY: Final[str] = "grounding"
 """The traces' per-step timing of the agent's grounding (the detector's call, a served model's round trip)."""
@@ -63,6 +65,7 @@ class ThroughputResult:
     workers: int
     batch: int
     batch_ms: float
+    copies: int
     episodes: int
     errors: int
     frames: int
@@ -126,6 +129,7 @@ class ServedModel:
     dtype: str
     batch: int
     batch_ms: float
+    copies: int
 
 
 def throughput_result(
@@ -147,6 +151,7 @@ def throughput_result(
         workers=workers,
         batch=served.batch,
         batch_ms=served.batch_ms,
+        copies=served.copies,
         episodes=int(summary["episodes"]),
         errors=int(summary["errors"]),
         frames=frames,
@@ -169,27 +174,30 @@ returns its exit status."""
 
 
 def served_eval(
-    options: GrounderBenchOptions, batch_ms: float, workers: int, run_dir: Path, run_eval: RunEval
+    options: GrounderBenchOptions, config: ServeConfig, workers: int, run_dir: Path, run_eval: RunEval
 ) -> ThroughputResult:
-    """``options``' model served (batch ``options.batch`` or ``batch_ms``) beside the eval ``run_eval`` runs into
-    ``run_dir`` with ``workers`` workers; an eval that fails is an :class:`~drivenav.errors.InputError`."""
+    """``options``' model served as ``config`` says (its batching, its copies) beside the eval ``run_eval`` runs
+    into ``run_dir`` with ``workers`` workers; an eval that fails is an :class:`~drivenav.errors.InputError`."""
     from drivenav.semantics.grounder_bench import bench_model
     from drivenav.semantics.grounder_server import GrounderServer, serving
     from drivenav.semantics.hf_common import pick_device, resolve_dtype
-    from drivenav.semantics.serve_config import ServeConfig
     from drivenav.semantics.served import ServedInfo
 
     device = pick_device(options.device)
     grounder, model = bench_model(options, device)
+    copies = [grounder]
     dtype = str(resolve_dtype(options.dtype, device)).removeprefix("torch.")
-    config = ServeConfig(batch=options.batch, batch_ms=batch_ms)
     info = ServedInfo(options.detector, model, device, dtype, ("rgb",), False, config.batch, config.batch_ms)
-    server = GrounderServer(lambda: grounder, info, "tcp://127.0.0.1:*", None, config)
+
+    def copy() -> Grounder:
+        return copies.pop() if copies else bench_model(options, device)[0]
+
+    server = GrounderServer(copy, info, "tcp://127.0.0.1:*", None, config)
     with serving(server) as endpoint:
         start = time.perf_counter()
         status = run_eval(endpoint, run_dir)
         wall_s = time.perf_counter() - start
     if status != 0:
         raise InputError("command line", "eval-throughput -- ...", "an eval that runs (exit 0)", f"exit {status}")
-    served = ServedModel(options.detector, model, device, dtype, config.batch, config.batch_ms)
+    served = ServedModel(options.detector, model, device, dtype, config.batch, config.batch_ms, config.copies)
     return throughput_result(served, server.times, run_dir, workers, wall_s)

@@ -140,6 +140,7 @@ def _add_bench_eval_throughput(sub: Commands) -> None:
     _add_bench_model(parser)
     parser.add_argument("--batch", type=int, default=16, help="the server's batch (default 16)")
     parser.add_argument("--batch-ms", type=float, default=5.0, help="the server's batch wait (default 5 ms)")
+    parser.add_argument("--copies", type=int, default=1, help="copies of the model the server runs (default 1)")
     parser.add_argument("--workers", type=int, default=2, help="eval workers (default 2)")
     parser.add_argument("--out", type=path, default=None, help="the eval's run directory (default: a temporary one)")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
@@ -291,9 +292,11 @@ def _cmd_bench_eval_throughput(args: argparse.Namespace) -> int:
     from dataclasses import asdict
 
     from drivenav.benchmarks.throughput_bench import served_eval
+    from drivenav.cli.serve import serve_config
 
     eval_args = _throughput_eval_args(args.eval_args)
-    options = _bench_options(args, batch=positive(args.batch, "--batch"))
+    config = serve_config(args.batch, args.batch_ms, args.copies)
+    options = _bench_options(args)
     workers = positive(args.workers, "--workers")
     with _models_extra(args.detector), tempfile.TemporaryDirectory(prefix="drivenav-throughput-") as scratch:
         out = args.out or Path(scratch) / "run"
@@ -304,7 +307,7 @@ def _cmd_bench_eval_throughput(args: argparse.Namespace) -> int:
             own = ["--workers", str(workers), "--detector-shadow-url", endpoint, "--out", str(run_dir)]
             return main(["eval", *eval_args, *own])
 
-        result = served_eval(options, args.batch_ms, workers, out, run_eval)
+        result = served_eval(options, config, workers, out, run_eval)
         return print_bench(asdict(result), args.json)
 
 

@@ -26,7 +26,7 @@ import threading
 import time
 from collections import Counter, OrderedDict
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import zmq
@@ -37,7 +37,7 @@ from drivenav.semantics.model_spec import ModelSpec
 from drivenav.semantics.protocols import Grounder
 from drivenav.semantics.registry import BOX_DETECTORS, GROUNDER_BACKENDS
 from drivenav.semantics.serve_config import DEFAULT_BIND, ENTRY_BYTES, LABEL_BYTES, ServeConfig
-from drivenav.semantics.serve_pipeline import ModelThread, ServerTimes, StagedGrounder, Work
+from drivenav.semantics.serve_pipeline import ModelPool, ServerTimes, StagedGrounder, Work
 from drivenav.semantics.served import (
     GROUNDER_PROTOCOL,
     REQUESTS,
@@ -147,29 +147,13 @@ class _Episodes:
             del self._client_held[session.client], self._client_kept[session.client]
 
 
-@dataclass
-class _Phrases:
-    """The distinct phrases whose text features the shared grounder holds (emptied past ``limit``)."""
-
-    limit: int
-    seen: set[str] = field(default_factory=set)
-
-    def admit(self, phrase: str, grounder: Grounder) -> None:
-        if phrase in self.seen:
-            return
-        if len(self.seen) >= self.limit:
-            grounder.begin_episode(None, 0)  # the transformers grounders forget their text features
-            self.seen.clear()
-        self.seen.add(phrase)
-
-
 class GrounderServer:
     """``factory``'s grounder served at ``bind`` (CURVE with ``keys``) as ``info`` describes it: one shared
     instance, or one per episode for a stand-in that reads labels (``info.labels``).
 
-    A shared model is run by a :class:`~drivenav.semantics.serve_pipeline.ModelThread` while this thread receives,
-    decodes and preprocesses the next batch. ``batch_sizes`` counts the batches run by their size, :attr:`times`
-    says where a frame's time went.
+    A shared model runs in ``config.copies`` model threads
+    (:class:`~drivenav.semantics.serve_pipeline.ModelPool`) while this thread receives, decodes and preprocesses the
+    next batch. ``batch_sizes`` counts the batches run by their size, :attr:`times` says where a frame's time went.
     """
 
     def __init__(
@@ -185,7 +169,6 @@ class GrounderServer:
         self._factory = factory
         self._shared = None if info.labels else factory()
         self.episodes = _Episodes(self.config)
-        self._phrases = _Phrases(self.config.phrases)
         self._check = DetectionCheck(f"{info.detector} (served grounder)", self.config.max_detections)
         self._pending: list[_Pending] = []
         self.batch_sizes: Counter[int] = Counter()
@@ -193,19 +176,17 @@ class GrounderServer:
         self.endpoint = self._router.endpoint
         self._times = ServerTimes()
         self._deferred: list[tuple[bytes, Message]] = []
-        self._wake = self._router.context.socket(zmq.PAIR)
-        self._wake.bind(f"inproc://drivenav-grounder-{self._router.server_id}")
-        self._model = None if self._shared is None else self._model_thread(self._shared)
+        self._model = None if self._shared is None else self._model_pool(self._shared, factory)
 
-    def _model_thread(self, grounder: Grounder) -> ModelThread:
-        def admit(phrase: str) -> None:
-            self._phrases.admit(phrase, grounder)
+    def _model_pool(self, shared: Grounder, factory: Callable[[], Grounder]) -> ModelPool:
+        """``config.copies`` model threads: the shared grounder's, and one for each further copy ``factory`` builds."""
+        copies = [shared, *(factory() for _ in range(self.config.copies - 1))]
 
         def encode(reply: Message) -> list[object]:
             return list(self._router.frames(reply, GROUNDER_PROTOCOL))
 
-        wake = f"inproc://drivenav-grounder-{self._router.server_id}"
-        return ModelThread(grounder, self._router.context, wake, self._check.checked, encode, admit, self._sync)
+        context = self._router.context
+        return ModelPool(copies, context, self._check.checked, encode, self.config.phrases, self._sync)
 
     def _sync(self) -> None:
         """Wait for the model's device (a stage's time on a GPU is its kernels', not their launch)."""
@@ -225,13 +206,14 @@ class GrounderServer:
         poller = zmq.Poller()
         poller.register(self._router.socket, zmq.POLLIN)
         poller.register(self._router.monitor, zmq.POLLIN)
-        poller.register(self._wake, zmq.POLLIN)
+        if self._model is not None:
+            poller.register(self._model.wake, zmq.POLLIN)
         log.info("serving the grounder %s on %s", self.info.detector, self.endpoint)
         while not stop.is_set():
             events = dict(poller.poll(self._wait_ms()))
             if self._router.monitor in events:
                 _log_socket_event(self._router)
-            if self._wake in events:
+            if self._model is not None and self._model.wake in events:
                 self._send_replies()
             if self._router.socket in events:
                 self._drain()
@@ -241,17 +223,13 @@ class GrounderServer:
     def close(self) -> None:
         if self._model is not None:
             self._model.stop()
-        self._wake.close(linger=0)
         self._router.close()
 
     def _send_replies(self) -> None:
-        """The replies the model thread encoded, sent (it says so on the wake socket)."""
-        while self._wake.poll(0, zmq.POLLIN):
-            self._wake.recv()
+        """The replies the model threads encoded, sent (they say so on the wake socket)."""
         assert self._model is not None
         start = time.perf_counter()
-        while not self._model.outbox.empty():
-            identity, frames = self._model.outbox.get()
+        for identity, frames in self._model.replies():
             self._router.send(identity, frames)
         self._times.seconds["send"] += time.perf_counter() - start
         if not self._model.busy:
@@ -466,23 +444,35 @@ def build_server(
 
     probe = factory()
     info = served_info(spec, probe, config, model)
-    return GrounderServer((lambda: probe) if not info.labels else factory, info, bind, keys, config)
+    built = [probe]
+
+    def shared() -> Grounder:
+        """The probe first, then a new copy each call (``config.copies``)."""
+        return built.pop() if built else factory()
+
+    return GrounderServer(factory if info.labels else shared, info, bind, keys, config)
 
 
 def run_server(server: GrounderServer, curve: bool) -> None:
     """Serve until Ctrl-C (or SIGTERM); the first line printed names the endpoint (``curve``: keys were given), the
-    last one what was served (:func:`batches_line`)."""
+    last one what was served (:func:`batches_line`) and where a frame's time went
+    (:meth:`~drivenav.semantics.serve_pipeline.ServerTimes.line`)."""
     info, config = server.info, server.config
     print(
         f"serving the grounder {info.detector} ({info.model}, {info.device}, {info.dtype}; batch {config.batch} or "
-        f"{config.batch_ms:g} ms) on {server.endpoint}{' with CURVE' if curve else ''} (Ctrl-C stops)",
+        f"{config.batch_ms:g} ms{_copies(config.copies)}) on {server.endpoint}{' with CURVE' if curve else ''} "
+        "(Ctrl-C stops)",
         flush=True,
     )
     try:
         server.serve()
     finally:
         server.close()
-        print(batches_line(server.batch_sizes), flush=True)
+        print(f"{batches_line(server.batch_sizes)}; {server.times.line()}", flush=True)
+
+
+def _copies(copies: int) -> str:
+    return f"; {copies} copies" if copies > 1 else ""
 
 
 def batches_line(batch_sizes: Counter[int]) -> str:

@@ -19,7 +19,8 @@ import logging
 import queue
 import threading
 import time
-from collections.abc import Callable, Sequence
+import uuid
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Final, Protocol, runtime_checkable
 
@@ -114,7 +115,7 @@ class Work:
 
 class ModelThread:
     """Grounds the batches the socket thread prepares (:class:`Work` lists), one at a time, and leaves each reply,
-    encoded, in :attr:`outbox`; ``wake`` (an inproc PAIR socket's address) is told when replies are there.
+    encoded, in :attr:`outbox`; ``wake`` (an inproc PULL socket's address) is told when replies are there.
 
     ``detections`` checks a frame's detections (as in process); ``encode`` makes a reply's frames; ``admit`` is
     called with a batch's phrase before it is grounded (the phrase cache)."""
@@ -128,6 +129,7 @@ class ModelThread:
         encode: Callable[[Message], Encoded],
         admit: Callable[[str], None],
         sync: Callable[[], None],
+        name: str = "drivenav-grounder-model",
     ) -> None:
         self.grounder = grounder
         self.times = ServerTimes()
@@ -136,10 +138,10 @@ class ModelThread:
         self._held = 0
         self._lock = threading.Lock()
         self._check, self._encode, self._admit, self._sync = check, encode, admit, sync
-        self._signal = context.socket(zmq.PAIR)
+        self._signal = context.socket(zmq.PUSH)
         self._signal.setsockopt(zmq.LINGER, 0)
         self._signal.connect(wake)
-        self._thread = threading.Thread(target=self._run, daemon=True, name="drivenav-grounder-model")
+        self._thread = threading.Thread(target=self._run, daemon=True, name=name)
         self._thread.start()
 
     @property
@@ -212,3 +214,86 @@ class ModelThread:
             found = [self.grounder.segment(observation, work.phrase) for observation in work.observations]
         lap("forward")
         return found
+
+
+@dataclass
+class Phrases:
+    """The distinct phrases whose text features a shared grounder holds (emptied past ``limit``)."""
+
+    limit: int
+    seen: set[str] = field(default_factory=set)
+
+    def admit(self, phrase: str, grounder: Grounder) -> None:
+        if phrase in self.seen:
+            return
+        if len(self.seen) >= self.limit:
+            grounder.begin_episode(None, 0)  # the transformers grounders forget their text features
+            self.seen.clear()
+        self.seen.add(phrase)
+
+
+class ModelPool:
+    """One :class:`ModelThread` per copy of the model (``copies``: several fill a GPU that one leaves idle), their
+    replies announced on :attr:`wake` (a PULL socket the socket thread polls). A prepared batch goes to the first
+    copy ready for one; each copy keeps its own phrases (``phrases`` at most)."""
+
+    def __init__(
+        self,
+        copies: Sequence[Grounder],
+        context: zmq.Context[Any],
+        check: Callable[[Sequence[object], tuple[int, int]], list[Detection]],
+        encode: Callable[[Message], Encoded],
+        phrases: int,
+        sync: Callable[[], None],
+    ) -> None:
+        address = f"inproc://drivenav-grounder-{uuid.uuid4().hex}"
+        self.wake = context.socket(zmq.PULL)
+        self.wake.setsockopt(zmq.LINGER, 0)
+        self.wake.bind(address)
+        self.threads = [
+            ModelThread(copy, context, address, check, encode, _admit(Phrases(phrases), copy), sync, _name(i))
+            for i, copy in enumerate(copies)
+        ]
+
+    @property
+    def ready(self) -> bool:
+        """Whether a copy can take a prepared batch now."""
+        return any(thread.ready for thread in self.threads)
+
+    @property
+    def busy(self) -> bool:
+        """Whether a copy holds a batch whose replies are not all out yet."""
+        return any(thread.busy for thread in self.threads)
+
+    @property
+    def times(self) -> ServerTimes:
+        total = ServerTimes()
+        for thread in self.threads:
+            total = total.add(thread.times)
+        return total
+
+    def put(self, work: list[Work]) -> None:
+        """Hand ``work`` to the first copy ready for it (:attr:`ready` first)."""
+        next(thread for thread in self.threads if thread.ready).put(work)
+
+    def replies(self) -> Iterator[tuple[bytes, Encoded]]:
+        """Every reply encoded so far (the wake socket's signals read)."""
+        while self.wake.poll(0, zmq.POLLIN):
+            self.wake.recv()
+        for thread in self.threads:
+            while not thread.outbox.empty():
+                yield thread.outbox.get()
+
+    def stop(self) -> None:
+        for thread in self.threads:
+            thread.stop()
+        self.wake.close(linger=0)
+
+
+def _admit(phrases: Phrases, grounder: Grounder) -> Callable[[str], None]:
+    return lambda phrase: phrases.admit(phrase, grounder)
+
+
+def _name(index: int) -> str:
+    """A model thread's name: the first copy's plain, the others numbered from 2."""
+    return "drivenav-grounder-model" + (f"-{index + 1}" if index else "")
