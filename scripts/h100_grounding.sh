@@ -8,8 +8,9 @@
 #
 #   bash scripts/h100_grounding.sh [--cpu] [--budget S] [--window S] [--workers N] [STAGE ...]
 #
-# STAGE: sam3-fp32 sam3-bf16 owlv2-fp32 owlv2-bf16 gdino-fp32 gdino-bf16 throughput sam3-compile owlv2-compile
-# gdino-compile (default: all, in this order). --cpu: a dry run of the script itself on this machine's CPU with the
+# STAGE: sam3-fp32 sam3-bf16 owlv2-fp32 owlv2-bf16 gdino-fp32 gdino-bf16 throughput serve-eval serve-eval-x2
+# sam3-compile owlv2-compile gdino-compile (default: all, in this order; serve-eval: `drivenav bench eval-throughput`,
+# SAM3 served to the workers with one model copy, -x2 with two: episodes an hour and where a step's time goes). --cpu: a dry run of the script itself on this machine's CPU with the
 # tests' tiny models (no wheels, no compile stages unless named). Writes every stage's JSON and log, env.json and
 # summary.json to $OUT (default /tmp/h100-grounding); the summary table comes last on stdout.
 #
@@ -41,13 +42,13 @@ RUNS=$(mktemp -d /tmp/h100-grounding-runs.XXXX)  # run directories (traces): onl
 mkdir -p "$OUT"
 START=$(date +%s)
 export DRIVENAV_KERNELS=jit HF_HUB_OFFLINE=1 TRANSFORMERS_OFFLINE=1 TOKENIZERS_PARALLELISM=false PYTHONUNBUFFERED=1
-ALL_STAGES=(sam3-fp32 sam3-bf16 owlv2-fp32 owlv2-bf16 gdino-fp32 gdino-bf16 throughput sam3-compile owlv2-compile
-    gdino-compile)
+ALL_STAGES=(sam3-fp32 sam3-bf16 owlv2-fp32 owlv2-bf16 gdino-fp32 gdino-bf16 throughput serve-eval serve-eval-x2
+    sam3-compile owlv2-compile gdino-compile)
 
 if ((CPU)); then
     PYTHON=${PYTHON:-$([ -x .venv/bin/python ] && echo .venv/bin/python || echo python3)}
     DEVICE=cpu WEIGHTS=--tiny BUDGET=${BUDGET:-900} WINDOW=${WINDOW:-40} WORKERS=${WORKERS:-2}
-    ((${#STAGES[@]})) || STAGES=("${ALL_STAGES[@]:0:7}")  # inductor on a 2-core CPU takes minutes a model
+    ((${#STAGES[@]})) || STAGES=("${ALL_STAGES[@]:0:9}")  # inductor on a 2-core CPU takes minutes a model
 else
     PYTHON=${PYTHON:-python3}
     DEVICE=cuda WEIGHTS=--random-weights BUDGET=${BUDGET:-420} WINDOW=${WINDOW:-150} WORKERS=${WORKERS:-16}
@@ -133,8 +134,8 @@ limit_for() {  # limit_for CAP -> seconds the stage may take now (0: it does not
     echo $((limit < 25 ? 0 : limit))
 }
 
-bench_stage() {  # bench_stage NAME CAP ARGS...
-    local name=$1 cap=$2 limit t0 rc
+bench_stage() {  # bench_stage NAME CAP ARGS... (BENCH: the bench command, default grounder)
+    local name=$1 cap=$2 bench=${BENCH:-grounder} limit t0 rc
     shift 2
     limit=$(limit_for "$cap")
     if ((limit == 0)); then
@@ -142,9 +143,9 @@ bench_stage() {  # bench_stage NAME CAP ARGS...
         record "$name" skipped 0 0 "no time left"
         return
     fi
-    say "$name: drivenav bench grounder $* (at most ${limit}s)"
+    say "$name: drivenav bench $bench $* (at most ${limit}s)"
     t0=$(date +%s)
-    timeout -k 10 "$limit" "$PYTHON" -m drivenav.cli bench grounder --device "$DEVICE" $WEIGHTS --json "$@" \
+    timeout -k 10 "$limit" "$PYTHON" -m drivenav.cli bench "$bench" --device "$DEVICE" $WEIGHTS --json "$@" \
         >"$OUT/$name.json" 2>"$OUT/$name.log"
     rc=$?
     record "$name" "$rc" $(($(date +%s) - t0)) "$limit" "$*"
@@ -163,6 +164,12 @@ run_bench() {  # run_bench STAGE (STACK-KIND)
     bf16) bench_stage "$1" 100 "${args[@]}" --dtype bfloat16 --frames 10 --batch 8 --clients 8 ;;
     compile) bench_stage "$1" 170 "${args[@]}" --dtype bfloat16 --compile --frames 10 ;;
     esac
+}
+
+# -- serve-eval: bench eval-throughput, SAM3 served (COPIES copies) to $WORKERS workers on 2 x $WORKERS episodes ---------
+serve_eval() {  # serve_eval NAME COPIES
+    BENCH=eval-throughput bench_stage "$1" 200 --detector sam3 --batch 16 --copies "$2" --workers "$WORKERS" \
+        -- --agent drive-nav --scenes procedural:16 --episodes $((2 * WORKERS)) --seed 2026
 }
 
 # -- throughput: 16 workers on v1 beside one served SAM3 ------------------------------------------------------------
@@ -224,6 +231,8 @@ setup
 for stage in "${STAGES[@]}"; do
     case "$stage" in
     throughput) throughput ;;
+    serve-eval) serve_eval "$stage" 1 ;;
+    serve-eval-x2) serve_eval "$stage" 2 ;;
     sam3-* | owlv2-* | gdino-*) run_bench "$stage" ;;
     *) say "unknown stage $stage (one of ${ALL_STAGES[*]})"; record "$stage" unknown 0 0 "" ;;
     esac
@@ -288,6 +297,12 @@ print(f"\n== grounding on {env.get('gpu') or 'cpu'} (torch {env.get('torch')}, t
 print(f"{'stage':<15}{'rc':>8}{'wall':>6}" + "".join(f"{c.replace('_ms', '').replace('_per_frame', '/f'):>16}" for c in cols))
 for stage in stages:
     result = stage.get("result") or {}
+    if "episodes_per_hour" in result:  # bench eval-throughput
+        print(f"{stage['stage']:<15}{stage['rc']:>8}{stage['wall_s']:>6}  {result['episodes_per_hour']} episodes/h, "
+              f"{result['frames_per_second']} frames/s, mean batch {result['mean_batch']}, model busy "
+              f"{result['model_busy']}, server ms a frame {result['server_stages_ms']}, a worker's step "
+              f"{result['worker_step']}")
+        continue
     cells = "".join(f"{'-' if result.get(c) is None else result[c]:>16}" for c in cols)
     print(f"{stage['stage']:<15}{stage['rc']:>8}{stage['wall_s']:>6}{cells}")
 tp = summary["throughput"]
