@@ -5,6 +5,9 @@ versioned embedded benchmark)."""
 from __future__ import annotations
 
 import argparse
+import contextlib
+from collections.abc import Iterator
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from drivenav.cli.common import (
@@ -30,6 +33,7 @@ from drivenav.worlds import chosen_world
 if TYPE_CHECKING:
     from drivenav.benchmarks.benchmark import BenchmarkDefinition
     from drivenav.episode import Episode
+    from drivenav.semantics.grounder_bench import GrounderBenchOptions
 
 
 def add_bench(commands: Commands) -> None:
@@ -75,6 +79,7 @@ def add_bench(commands: Commands) -> None:
     robot.add_argument("--json", action="store_true", help="print one JSON object")
     robot.set_defaults(handler=_cmd_bench_robot)
     _add_bench_grounder(sub)
+    _add_bench_eval_throughput(sub)
 
 
 def _add_bench_ablations(sub: Commands) -> None:
@@ -111,14 +116,53 @@ def _add_bench_ablations(sub: Commands) -> None:
 
 
 def _add_bench_grounder(sub: Commands) -> None:
-    from drivenav.semantics.model_spec import DTYPES
-    from drivenav.semantics.registry import MODEL_DETECTORS
-
     parser = sub.add_parser(
         "grounder",
         help="SAM3 / OWLv2 / Grounding DINO (+ a box segmenter) per 640x480 frame in process and served: latency, "
         "stage split, GPU memory (no weights needed)",
     )
+    _add_bench_model(parser)
+    parser.add_argument("--frames", type=int, default=10, help="timed frames, one at a time (default 10)")
+    parser.add_argument("--batch", type=int, default=1, help="B > 1: also time a batched forward of B frames")
+    parser.add_argument(
+        "--clients", type=int, default=0, help="K > 0: also time the served path with K concurrent clients (loopback)"
+    )
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.set_defaults(handler=_cmd_bench_grounder)
+
+
+def _add_bench_eval_throughput(sub: Commands) -> None:
+    parser = sub.add_parser(
+        "eval-throughput",
+        help="drivenav eval beside one served grounder (random weights): episodes an hour, frames a second, where a "
+        "step's time goes (arguments after -- go to eval)",
+    )
+    _add_bench_model(parser)
+    parser.add_argument("--batch", type=int, default=16, help="the server's batch (default 16)")
+    parser.add_argument("--batch-ms", type=float, default=5.0, help="the server's batch wait (default 5 ms)")
+    parser.add_argument("--copies", type=int, default=1, help="copies of the model the server runs (default 1)")
+    parser.add_argument("--workers", type=int, default=2, help="eval workers (default 2)")
+    parser.add_argument("--out", type=path, default=None, help="the eval's run directory (default: a temporary one)")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument(
+        "eval_args",
+        nargs=argparse.REMAINDER,
+        help=f"after --: the eval's episodes and agent (default: {' '.join(THROUGHPUT_EVAL)})",
+    )
+    parser.set_defaults(handler=_cmd_bench_eval_throughput)
+
+
+THROUGHPUT_EVAL = ("--agent", "drive-nav", "--scenes", "procedural:4", "--episodes", "8", "--seed", "2026")
+"""``bench eval-throughput``'s eval without arguments of its own: eight episodes in four procedural houses."""
+THROUGHPUT_OWN = ("--out", "--workers", "--detector-shadow-url", "--detector", "--detector-url")
+"""The eval options ``bench eval-throughput`` sets itself."""
+
+
+def _add_bench_model(parser: argparse.ArgumentParser) -> None:
+    """The model options of ``bench grounder`` and ``bench eval-throughput``."""
+    from drivenav.semantics.model_spec import DTYPES
+    from drivenav.semantics.registry import MODEL_DETECTORS
+
     parser.add_argument("--detector", choices=MODEL_DETECTORS, default="sam3")
     parser.add_argument(
         "--detector-model", default="", help="checkpoint dir or HF-cache model id (default: the detector's, if cached)"
@@ -133,13 +177,6 @@ def _add_bench_grounder(sub: Commands) -> None:
     parser.add_argument(
         "--compile", action="store_true", help="torch.compile the per-frame modules (compiled in the untimed frames)"
     )
-    parser.add_argument("--frames", type=int, default=10, help="timed frames, one at a time (default 10)")
-    parser.add_argument("--batch", type=int, default=1, help="B > 1: also time a batched forward of B frames")
-    parser.add_argument(
-        "--clients", type=int, default=0, help="K > 0: also time the served path with K concurrent clients (loopback)"
-    )
-    parser.add_argument("--json", action="store_true", help="print one JSON object")
-    parser.set_defaults(handler=_cmd_bench_grounder)
 
 
 def add_benchmark(commands: Commands) -> None:
@@ -204,12 +241,11 @@ def _cmd_bench_robot(args: argparse.Namespace) -> int:
     return print_bench(bench_robot(positive(args.repeats, "--repeats")), args.json)
 
 
-def _cmd_bench_grounder(args: argparse.Namespace) -> int:
-    from dataclasses import asdict
+def _bench_options(args: argparse.Namespace, **counts: int) -> GrounderBenchOptions:
+    """The model options of ``bench grounder`` / ``bench eval-throughput`` (and the bench's ``counts``)."""
+    from drivenav.semantics.grounder_bench import GrounderBenchOptions
 
-    from drivenav.semantics.grounder_bench import GrounderBenchOptions, bench_grounder
-
-    options = GrounderBenchOptions(
+    return GrounderBenchOptions(
         detector=args.detector,
         checkpoint=args.detector_model,
         segmenter=args.segmenter,
@@ -219,16 +255,71 @@ def _cmd_bench_grounder(args: argparse.Namespace) -> int:
         device=args.device,
         dtype=args.dtype,
         compile=args.compile,
+        **counts,
+    )
+
+
+@contextlib.contextmanager
+def _models_extra(detector: str) -> Iterator[None]:
+    """A missing torch / transformers / torchvision (the models extra) as one line."""
+    try:
+        yield
+    except ImportError as error:
+        extra = f"the models extra for {detector} (pip install 'drivenav[models]')"
+        raise InputError("command line", "--detector", extra, str(error).splitlines()[0]) from None
+
+
+def _cmd_bench_grounder(args: argparse.Namespace) -> int:
+    from dataclasses import asdict
+
+    from drivenav.semantics.grounder_bench import bench_grounder
+
+    options = _bench_options(
+        args,
         frames=positive(args.frames, "--frames"),
         batch=positive(args.batch, "--batch"),
         clients=positive(args.clients, "--clients") if args.clients else 0,
     )
-    try:
+    with _models_extra(args.detector):
         result = bench_grounder(options)
-    except ImportError as error:  # torch / transformers / torchvision: the models extra
-        extra = f"the models extra for {args.detector} (pip install 'drivenav[models]')"
-        raise InputError("command line", "--detector", extra, str(error).splitlines()[0]) from None
     return print_bench(asdict(result), args.json)
+
+
+def _cmd_bench_eval_throughput(args: argparse.Namespace) -> int:
+    """``bench eval-throughput``: the model served from this process, the eval run in it (its workers spawned)
+    with the model as its detector's shadow (drivenav.benchmarks.throughput_bench)."""
+    import tempfile
+    from dataclasses import asdict
+
+    from drivenav.benchmarks.throughput_bench import served_eval
+    from drivenav.cli.serve import serve_config
+
+    eval_args = _throughput_eval_args(args.eval_args)
+    config = serve_config(args.batch, args.batch_ms, args.copies)
+    options = _bench_options(args)
+    workers = positive(args.workers, "--workers")
+    with _models_extra(args.detector), tempfile.TemporaryDirectory(prefix="drivenav-throughput-") as scratch:
+        out = args.out or Path(scratch) / "run"
+
+        def run_eval(endpoint: str, run_dir: Path) -> int:
+            from drivenav.cli import main
+
+            own = ["--workers", str(workers), "--detector-shadow-url", endpoint, "--out", str(run_dir)]
+            return main(["eval", *eval_args, *own])
+
+        result = served_eval(options, config, workers, out, run_eval)
+        return print_bench(asdict(result), args.json)
+
+
+def _throughput_eval_args(given: list[str]) -> list[str]:
+    """The eval's own arguments (after ``--``; :data:`THROUGHPUT_EVAL` without any); one the bench sets itself is
+    refused in one line."""
+    args = given[1:] if given[:1] == ["--"] else given
+    for arg in args:
+        if arg.split("=", 1)[0] in THROUGHPUT_OWN:
+            expected = f"eval options other than {', '.join(THROUGHPUT_OWN)} (the bench sets them)"
+            raise InputError("command line", "eval-throughput -- ...", expected, arg)
+    return args or list(THROUGHPUT_EVAL)
 
 
 def _cmd_bench_ablations(args: argparse.Namespace) -> int:

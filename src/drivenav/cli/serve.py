@@ -19,12 +19,13 @@ from drivenav.eval.options import path
 if TYPE_CHECKING:
     from drivenav.semantics.model_spec import ModelSpec
     from drivenav.semantics.protocols import Grounder
+    from drivenav.semantics.serve_config import ServeConfig
 
 
 def add_serve(commands: Commands) -> None:
     from drivenav.semantics.model_spec import DTYPES
     from drivenav.semantics.registry import GROUNDER_BACKENDS
-    from drivenav.semantics.serve_config import DEFAULT_BIND, MAX_BATCH, MAX_BATCH_MS, ServeConfig
+    from drivenav.semantics.serve_config import DEFAULT_BIND, MAX_BATCH, MAX_BATCH_MS, MAX_COPIES, ServeConfig
 
     default = ServeConfig()
     parser = commands.add_parser("serve", help="serve a model to every worker: serve grounder")
@@ -61,6 +62,13 @@ def add_serve(commands: Commands) -> None:
         default=default.batch_ms,
         help=f"the longest a request waits for its batch to fill, 0-{MAX_BATCH_MS:g} ms (default {default.batch_ms:g})",
     )
+    grounder.add_argument(
+        "--copies",
+        type=int,
+        default=default.copies,
+        help=f"copies of the model, each in a thread of its own, 1-{MAX_COPIES} (default {default.copies}; more "
+        "fill a GPU that one leaves idle)",
+    )
     grounder.set_defaults(handler=_cmd_serve_grounder)
 
 
@@ -68,16 +76,10 @@ def _cmd_serve_grounder(args: argparse.Namespace) -> int:
     from drivenav.semantics.grounder_server import build_server, run_server
     from drivenav.semantics.model_spec import ModelSpec
     from drivenav.semantics.registry import check_models
-    from drivenav.semantics.serve_config import MAX_BATCH, MAX_BATCH_MS, ServeConfig
     from drivenav.wire.security import check_bind
 
     check_bind(args.bind, args.keys)  # before the model loads
-    if not 1 <= args.batch <= MAX_BATCH:
-        raise InputError("command line", "--batch", f"a number of frames from 1 to {MAX_BATCH}", args.batch)
-    if not (math.isfinite(args.batch_ms) and 0.0 <= args.batch_ms <= MAX_BATCH_MS):
-        expected = f"a number of milliseconds from 0 to {MAX_BATCH_MS:g} (the longest a request waits for its batch)"
-        raise InputError("command line", "--batch-ms", expected, args.batch_ms)
-    config = ServeConfig(batch=args.batch, batch_ms=args.batch_ms)
+    config = serve_config(args.batch, args.batch_ms, args.copies)
     spec = ModelSpec(
         detector=args.detector,
         detector_model=args.detector_model,
@@ -96,6 +98,21 @@ def _cmd_serve_grounder(args: argparse.Namespace) -> int:
         print("drivenav: stopped serving the grounder", file=sys.stderr)
         return 130
     return 0
+
+
+def serve_config(batch: int, batch_ms: float, copies: int) -> ServeConfig:
+    """A server's batching and copies from the command line (``--batch``, ``--batch-ms``, ``--copies``), each out
+    of its range one line."""
+    from drivenav.semantics.serve_config import MAX_BATCH, MAX_BATCH_MS, MAX_COPIES, ServeConfig
+
+    if not 1 <= batch <= MAX_BATCH:
+        raise InputError("command line", "--batch", f"a number of frames from 1 to {MAX_BATCH}", batch)
+    if not (math.isfinite(batch_ms) and 0.0 <= batch_ms <= MAX_BATCH_MS):
+        expected = f"a number of milliseconds from 0 to {MAX_BATCH_MS:g} (the longest a request waits for its batch)"
+        raise InputError("command line", "--batch-ms", expected, batch_ms)
+    if not 1 <= copies <= MAX_COPIES:
+        raise InputError("command line", "--copies", f"a number of model copies from 1 to {MAX_COPIES}", copies)
+    return ServeConfig(batch=batch, batch_ms=batch_ms, copies=copies)
 
 
 def _random_build(args: argparse.Namespace) -> tuple[Callable[[ModelSpec], Grounder] | None, str]:

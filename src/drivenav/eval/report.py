@@ -7,9 +7,11 @@ they are failures of the run, reported as such, never navigation failures.
 
 from __future__ import annotations
 
+import json
 from collections import Counter
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields, replace
+from pathlib import Path
 from statistics import median
 
 from drivenav.eval.records import EpisodeRecord
@@ -80,9 +82,15 @@ def with_calls(data: JsonObject) -> JsonObject:
     return data if calls is None else {**data, **calls}
 
 
+RATE_KEYS = ("episodes_per_hour", "frames_per_second")
+"""An eval's rate in ``summary.json`` (:class:`Throughput`), absent from a summary of records read back."""
+
+
 @dataclass(frozen=True)
 class Summary:
-    """The ``summary.json`` fields."""
+    """The ``summary.json`` fields. ``episodes_per_hour`` and ``frames_per_second`` are the eval's own rate, over
+    the wall time of its last session that ran episodes (:class:`Throughput`); None where no eval timed them (a
+    summary of records read back)."""
 
     episodes: int
     success_rate: float | None
@@ -101,10 +109,14 @@ class Summary:
     errors: int
     stop_reasons: dict[str, int] = field(default_factory=dict)
     calls: CallCounts | None = None
+    episodes_per_hour: float | None = None
+    frames_per_second: float | None = None
 
     def to_json(self) -> JsonObject:
-        """The ``summary.json`` object (keys in field order, the calls by model flat at the end)."""
-        return with_calls(asdict(self))
+        """The ``summary.json`` object (keys in field order, the calls by model flat at the end; the rate only where
+        an eval timed one)."""
+        data = with_calls(asdict(self))
+        return {key: value for key, value in data.items() if key not in RATE_KEYS or value is not None}
 
     @staticmethod
     def from_json(data: JsonObject) -> Summary:
@@ -113,8 +125,31 @@ class Summary:
         return Summary(**CallCounts.without(data), calls=CallCounts.from_json(data))
 
 
-def summarize(records: Sequence[EpisodeRecord]) -> Summary:
-    """Aggregate episode records into a :class:`Summary`."""
+@dataclass(frozen=True)
+class Throughput:
+    """An eval session's rate (issue 61): ``episodes`` finished in ``wall_s`` seconds of it (start-up included),
+    whose agents took ``frames`` steps (a frame rendered and grounded each)."""
+
+    episodes: int
+    frames: int
+    wall_s: float
+
+    @property
+    def episodes_per_hour(self) -> float | None:
+        return round(3600.0 * self.episodes / self.wall_s, 1) if self.episodes and self.wall_s > 0 else None
+
+    @property
+    def frames_per_second(self) -> float | None:
+        return round(self.frames / self.wall_s, 2) if self.episodes and self.wall_s > 0 else None
+
+    def line(self) -> str:
+        """The rate as the progress bar shows it."""
+        eph, fps = self.episodes_per_hour, self.frames_per_second
+        return "" if eph is None or fps is None else f"{eph:.0f} ep/h, {fps:.1f} frames/s"
+
+
+def summarize(records: Sequence[EpisodeRecord], throughput: Throughput | None = None) -> Summary:
+    """Aggregate episode records into a :class:`Summary` (with an eval session's ``throughput`` when it timed one)."""
     return Summary(
         episodes=len(records),
         success_rate=_rounded(mean(records, lambda r: r.success), 6),
@@ -133,7 +168,28 @@ def summarize(records: Sequence[EpisodeRecord]) -> Summary:
         errors=sum(r.is_error for r in records),
         stop_reasons=dict(sorted(Counter(r.stop_reason for r in records).items())),
         calls=CallCounts.of(records),
+        episodes_per_hour=throughput.episodes_per_hour if throughput is not None else None,
+        frames_per_second=throughput.frames_per_second if throughput is not None else None,
     )
+
+
+def rate_kept(summary: Summary, earlier: Path) -> Summary:
+    """``summary`` with the rate of the summary written at ``earlier`` by the session that ran the episodes (a
+    rerun with nothing left to run times nothing); an earlier summary that cannot be read keeps none."""
+    try:
+        data = json.loads(earlier.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return summary
+    rates = [
+        float(r) for key in RATE_KEYS if isinstance(r := _key(data, key), (int, float)) and not isinstance(r, bool)
+    ]
+    if len(rates) != len(RATE_KEYS):
+        return summary
+    return replace(summary, episodes_per_hour=rates[0], frames_per_second=rates[1])
+
+
+def _key(data: object, key: str) -> object:
+    return data.get(key) if isinstance(data, dict) else None
 
 
 def shown(value: float | None, template: str, scale: float = 1.0) -> str:
@@ -167,6 +223,8 @@ def format_table(summary: Summary, title: str = "") -> str:
         ("VLM fallbacks", f"{summary.vlm_fallbacks}"),
         ("errors", f"{summary.errors}"),
         ("stop reasons", ", ".join(f"{k}: {v}" for k, v in summary.stop_reasons.items()) or "-"),
+        ("episodes per hour", shown(summary.episodes_per_hour, "{:.0f}")),
+        ("frames per second", shown(summary.frames_per_second, "{:.1f}")),
     ]
     width = max(len(name) for name, _ in rows)
     lines = [title] if title else []

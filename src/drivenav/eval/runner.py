@@ -13,6 +13,7 @@ Habitat metrics, the trajectory gives steps and revisits. Ground truth reaches o
 from __future__ import annotations
 
 import logging
+import time
 import zlib
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -32,8 +33,8 @@ from drivenav.episode import Episode
 from drivenav.errors import InputError, RunStoppedError, one_line
 from drivenav.eval.executor import Executor
 from drivenav.eval.records import ERROR, EpisodeRecord, checked_measures, failure_cause
-from drivenav.eval.report import Summary, summarize
-from drivenav.eval.rundir import RunDirectory, lost_to_a_server
+from drivenav.eval.report import Summary, Throughput, rate_kept, summarize
+from drivenav.eval.rundir import SUMMARY_FILE, RunDirectory, lost_to_a_server
 from drivenav.eval.timings import to_columns
 from drivenav.eval.trace import EpisodeError, EpisodeTrace
 from drivenav.plugins import is_part_failure, plugin_in_traceback, stop_signals_marked
@@ -391,13 +392,14 @@ def _evaluate(
             total=len(episodes), initial=len(done), desc=label, unit="ep", disable=not show_progress, mininterval=1.0
         )
         first: list[EpisodeRecord] = []
+        rate = _Rate(time.perf_counter())
         with bar, logging_redirect_tqdm():
             for record, trace in run_all(todo, spec, executor):
                 run.save(record, trace)
-                _advance(bar)
+                _advance(bar, rate.add(record))
                 _stop_if_failing_alike(first, record, max(executor.workers or 1, FAIL_FAST_EPISODES), out)
         records = run.records()
-        summary = summarize(records)
+        summary = summarize(records, rate.throughput()) if todo else rate_kept(summarize(records), out / SUMMARY_FILE)
         run.write_summary(summary)
     if summary.errors:
         log.warning(
@@ -430,8 +432,27 @@ def _stop_if_failing_alike(first: list[EpisodeRecord], record: EpisodeRecord, co
         )
 
 
-def _advance(bar: tqdm[Any]) -> None:
-    """One more episode on the bar; the last one is drawn by closing the bar only (else its line prints twice)."""
+@dataclass
+class _Rate:
+    """This session's episodes and frames since ``start`` (``time.perf_counter``), for the bar and the summary."""
+
+    start: float
+    episodes: int = 0
+    frames: int = 0
+
+    def add(self, record: EpisodeRecord) -> Throughput:
+        self.episodes += 1
+        self.frames += record.steps
+        return self.throughput()
+
+    def throughput(self) -> Throughput:
+        return Throughput(self.episodes, self.frames, time.perf_counter() - self.start)
+
+
+def _advance(bar: tqdm[Any], rate: Throughput) -> None:
+    """One more episode on the bar, with the session's rate; the last one is drawn by closing the bar only (else
+    its line prints twice)."""
+    bar.set_postfix_str(rate.line(), refresh=False)
     if bar.total is not None and bar.n + 1 >= bar.total:
         bar.n += 1
     else:

@@ -21,6 +21,14 @@ from this process on loopback: ``served_ms_per_frame`` is the throughput of K cl
 ``served_overhead_ms`` is what serving adds to one frame at batch 1 (one client, a server that never waits: the
 median latency of a served frame minus that of the same frame in process, both through ``segment_batch``). The
 clients share this process with the server, so on a CPU they also compete for its cores.
+
+Where a served frame's time goes (issue 61), from the K clients' run: ``served_stages_ms``, the server's
+milliseconds a frame by stage (:class:`~drivenav.semantics.serve_pipeline.ServerTimes`: decoding the request, the
+wait for its batch, the grounder's preprocessing, forward and postprocessing, the reply's check, mask packing and
+encoding, and its sending), ``served_added_ms`` what serving adds to a frame's busy time beyond the grounder's
+own stages, ``served_mean_batch`` the mean batch; and a client's own share, ``client_encode_ms`` (a SEGMENT of a
+640x480 frame made and encoded) and ``client_decode_ms`` (a DETECTIONS of the frame's detections decoded and its
+masks unpacked).
 """
 
 from __future__ import annotations
@@ -47,6 +55,7 @@ from drivenav.semantics.hf_common import (
 )
 from drivenav.semantics.model_spec import ModelSpec
 from drivenav.semantics.registry import BOX_DETECTORS, DEFAULT_SEGMENTER, make_segmenter
+from drivenav.semantics.serve_pipeline import ServerTimes
 from drivenav.types import CameraIntrinsics, Observation, Pose
 from drivenav.wire.protocol import Message
 
@@ -61,6 +70,8 @@ BENCH_HFOV_DEG: Final[float] = 79.0
 SERVED_NOTE: Final[str] = "served_ms_per_frame: --clients K times the served path (one model copy, K workers)"
 OVERHEAD_FRAMES: Final[int] = 2
 """Untimed frames through a fresh server first (its text cache, the sockets' connection)."""
+CODEC_REPEATS: Final[int] = 20
+"""Repeats of a client's encoding and decoding, timed apart from the served run."""
 
 
 @dataclass(frozen=True)
@@ -122,6 +133,11 @@ class GrounderBenchResult:
     clients: int
     served_ms_per_frame: float | None
     served_overhead_ms: float | None
+    served_stages_ms: dict[str, float] | None
+    served_added_ms: float | None
+    served_mean_batch: float | None
+    client_encode_ms: float | None
+    client_decode_ms: float | None
     gpu_memory_mb: float | None
     notes: str
 
@@ -150,7 +166,7 @@ def bench_grounder(options: GrounderBenchOptions) -> GrounderBenchResult:
         raise InputError("command line", "--device", "cpu, or cuda where a GPU is visible", device)
     if on_cuda:
         torch.cuda.reset_peak_memory_stats()
-    grounder, model = _grounder(options, device)
+    grounder, model = bench_model(options, device)
     timed = None
     if isinstance(grounder, BoxGrounder):
         timed = grounder.segmenter = _TimedSegmenter(grounder.segmenter, device)
@@ -180,6 +196,11 @@ def bench_grounder(options: GrounderBenchOptions) -> GrounderBenchResult:
         clients=options.clients,
         served_ms_per_frame=served.ms_per_frame if served else None,
         served_overhead_ms=served.overhead_ms if served else None,
+        served_stages_ms=served.times.per_frame_ms() if served else None,
+        served_added_ms=served.times.added_ms() if served else None,
+        served_mean_batch=round(served.times.frames / served.times.batches, 2) if served else None,
+        client_encode_ms=served.encode_ms if served else None,
+        client_decode_ms=served.decode_ms if served else None,
         gpu_memory_mb=round(torch.cuda.max_memory_allocated() / 2**20, 1) if on_cuda else None,
         notes=_notes(options, on_cuda and dtype == "float32", timings if timed is not None else None),
     )
@@ -217,7 +238,7 @@ class _TimedSegmenter:
         return masks
 
 
-def _grounder(options: GrounderBenchOptions, device: str) -> tuple[TransformersGrounder, str]:
+def bench_model(options: GrounderBenchOptions, device: str) -> tuple[TransformersGrounder, str]:
     """The grounder and a description of its model: the checkpoint's, else random weights (tiny or full size); a box
     detector's segmenter from its checkpoint, else with random weights."""
     from drivenav.semantics.random_grounders import GROUNDERS, random_grounder, random_segmenter
@@ -276,6 +297,9 @@ def _batched(grounder: TransformersGrounder, options: GrounderBenchOptions, devi
 class _Served:
     ms_per_frame: float
     overhead_ms: float
+    times: ServerTimes
+    encode_ms: float
+    decode_ms: float
 
 
 def _served(grounder: TransformersGrounder, options: GrounderBenchOptions, device: str) -> _Served:
@@ -293,9 +317,39 @@ def _served(grounder: TransformersGrounder, options: GrounderBenchOptions, devic
     with serving(server(ServeConfig(batch=1, batch_ms=0.0))) as endpoint:
         remote = [_served_seconds(endpoint, frames)[OVERHEAD_FRAMES:]]
     overhead = np.median(remote[0]) - np.median(local[OVERHEAD_FRAMES:])
-    with serving(server(ServeConfig(batch=min(options.clients, MAX_BATCH)))) as endpoint:
+    concurrent = server(ServeConfig(batch=min(options.clients, MAX_BATCH)))
+    with serving(concurrent) as endpoint:
         wall = _concurrent_seconds(endpoint, frames, options.clients)
-    return _Served(_ms(wall / (options.clients * options.frames)), _ms(overhead))
+    encode_ms, decode_ms = _client_codec_ms(grounder, frames[-1])
+    per_frame = _ms(wall / (options.clients * options.frames))
+    return _Served(per_frame, _ms(overhead), concurrent.times, encode_ms, decode_ms)
+
+
+def _client_codec_ms(grounder: TransformersGrounder, rgb: NDArray[np.uint8]) -> tuple[float, float]:
+    """A client's median milliseconds to make and encode a SEGMENT of ``rgb``, and to decode the DETECTIONS of its
+    detections (masks unpacked), over :data:`CODEC_REPEATS` repeats."""
+    from drivenav.semantics.served import (
+        GROUNDER_PROTOCOL,
+        REPLIES,
+        detections_reply,
+        read_detections,
+        segment_request,
+    )
+    from drivenav.wire.protocol import decode, encode
+
+    observation = _observation(rgb, 0)
+    size = (FRAME_HEIGHT, FRAME_WIDTH)
+    reply = encode(detections_reply("1", PHRASE, grounder.segment_batch([rgb], PHRASE)[0], size), GROUNDER_PROTOCOL)
+
+    def request() -> object:
+        return encode(segment_request("1", "e", observation, PHRASE, ("rgb",)), GROUNDER_PROTOCOL)
+
+    def detections() -> object:
+        message = decode([memoryview(frame) for frame in reply], REPLIES, GROUNDER_PROTOCOL)
+        return read_detections(message, PHRASE, size)
+
+    timed = [[_timed(work, "cpu")[1] for _ in range(CODEC_REPEATS)] for work in (request, detections)]
+    return _ms(np.median(timed[0])), _ms(np.median(timed[1]))
 
 
 def _served_seconds(

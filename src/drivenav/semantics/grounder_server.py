@@ -25,21 +25,19 @@ import math
 import threading
 import time
 from collections import Counter, OrderedDict
-from collections.abc import Callable, Iterator, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Protocol, runtime_checkable
 
-import numpy as np
 import zmq
-from numpy.typing import NDArray
 
 from drivenav.errors import InputError, one_line
 from drivenav.semantics.checked import DetectionCheck
 from drivenav.semantics.model_spec import ModelSpec
-from drivenav.semantics.protocols import Detection, Grounder
+from drivenav.semantics.protocols import Grounder
 from drivenav.semantics.registry import BOX_DETECTORS, GROUNDER_BACKENDS
 from drivenav.semantics.serve_config import DEFAULT_BIND, ENTRY_BYTES, LABEL_BYTES, ServeConfig
+from drivenav.semantics.serve_pipeline import ModelPool, ServerTimes, StagedGrounder, Work
 from drivenav.semantics.served import (
     GROUNDER_PROTOCOL,
     REQUESTS,
@@ -54,13 +52,6 @@ from drivenav.wire.protocol import MAX_ARRAY_BYTES, Message, ProtocolError, deco
 from drivenav.wire.router import RouterSocket, error_reply, in_background, loose_id
 
 log = logging.getLogger(__name__)
-
-
-@runtime_checkable
-class BatchGrounder(Protocol):
-    """A grounder that segments one phrase in several frames in one forward (the transformers grounders)."""
-
-    def segment_batch(self, frames: Sequence[NDArray[np.uint8]], phrase: str) -> list[list[Detection]]: ...
 
 
 @dataclass
@@ -156,27 +147,13 @@ class _Episodes:
             del self._client_held[session.client], self._client_kept[session.client]
 
 
-@dataclass
-class _Phrases:
-    """The distinct phrases whose text features the shared grounder holds (emptied past ``limit``)."""
-
-    limit: int
-    seen: set[str] = field(default_factory=set)
-
-    def admit(self, phrase: str, grounder: Grounder) -> None:
-        if phrase in self.seen:
-            return
-        if len(self.seen) >= self.limit:
-            grounder.begin_episode(None, 0)  # the transformers grounders forget their text features
-            self.seen.clear()
-        self.seen.add(phrase)
-
-
 class GrounderServer:
     """``factory``'s grounder served at ``bind`` (CURVE with ``keys``) as ``info`` describes it: one shared
     instance, or one per episode for a stand-in that reads labels (``info.labels``).
 
-    ``batch_sizes`` counts the batches run by their size.
+    A shared model runs in ``config.copies`` model threads
+    (:class:`~drivenav.semantics.serve_pipeline.ModelPool`) while this thread receives, decodes and preprocesses the
+    next batch. ``batch_sizes`` counts the batches run by their size, :attr:`times` says where a frame's time went.
     """
 
     def __init__(
@@ -192,12 +169,36 @@ class GrounderServer:
         self._factory = factory
         self._shared = None if info.labels else factory()
         self.episodes = _Episodes(self.config)
-        self._phrases = _Phrases(self.config.phrases)
         self._check = DetectionCheck(f"{info.detector} (served grounder)", self.config.max_detections)
         self._pending: list[_Pending] = []
         self.batch_sizes: Counter[int] = Counter()
         self._router = RouterSocket(bind, keys, MAX_ARRAY_BYTES)
         self.endpoint = self._router.endpoint
+        self._times = ServerTimes()
+        self._deferred: list[tuple[bytes, Message]] = []
+        self._model = None if self._shared is None else self._model_pool(self._shared, factory)
+
+    def _model_pool(self, shared: Grounder, factory: Callable[[], Grounder]) -> ModelPool:
+        """``config.copies`` model threads: the shared grounder's, and one for each further copy ``factory`` builds."""
+        copies = [shared, *(factory() for _ in range(self.config.copies - 1))]
+
+        def encode(reply: Message) -> list[object]:
+            return list(self._router.frames(reply, GROUNDER_PROTOCOL))
+
+        context = self._router.context
+        return ModelPool(copies, context, self._check.checked, encode, self.config.phrases, self._sync)
+
+    def _sync(self) -> None:
+        """Wait for the model's device (a stage's time on a GPU is its kernels', not their launch)."""
+        if self.info.device.startswith("cuda"):
+            import torch
+
+            torch.cuda.synchronize()
+
+    @property
+    def times(self) -> ServerTimes:
+        """Where the frames served so far spent their time (:class:`~drivenav.semantics.serve_pipeline.ServerTimes`)."""
+        return self._times if self._model is None else self._times.add(self._model.times)
 
     def serve(self, stop: threading.Event | None = None) -> None:
         """Answer requests until ``stop`` is set (or Ctrl-C)."""
@@ -205,18 +206,36 @@ class GrounderServer:
         poller = zmq.Poller()
         poller.register(self._router.socket, zmq.POLLIN)
         poller.register(self._router.monitor, zmq.POLLIN)
+        if self._model is not None:
+            poller.register(self._model.wake, zmq.POLLIN)
         log.info("serving the grounder %s on %s", self.info.detector, self.endpoint)
         while not stop.is_set():
             events = dict(poller.poll(self._wait_ms()))
             if self._router.monitor in events:
                 _log_socket_event(self._router)
+            if self._model is not None and self._model.wake in events:
+                self._send_replies()
             if self._router.socket in events:
                 self._drain()
             if self._due():
                 self._run_batch()
 
     def close(self) -> None:
+        if self._model is not None:
+            self._model.stop()
         self._router.close()
+
+    def _send_replies(self) -> None:
+        """The replies the model threads encoded, sent (they say so on the wake socket)."""
+        assert self._model is not None
+        start = time.perf_counter()
+        for identity, frames in self._model.replies():
+            self._router.send(identity, frames)
+        self._times.seconds["send"] += time.perf_counter() - start
+        if not self._model.busy:
+            for identity, pong in self._deferred:
+                self._send(identity, pong)
+            self._deferred.clear()
 
     # -- requests ------------------------------------------------------------------------------------------------
     def _drain(self) -> None:
@@ -225,6 +244,7 @@ class GrounderServer:
             self._receive()
 
     def _receive(self) -> None:
+        start = time.perf_counter()
         identity, frames = self._router.receive()
         try:
             request = decode([f.buffer for f in frames], REQUESTS, GROUNDER_PROTOCOL)
@@ -240,11 +260,13 @@ class GrounderServer:
             reply = error_reply(request.request_id, f"{request.type} failed on the server: {one_line(error)}")
         if reply is not None:
             self._send(identity, reply)
+        elif request.type == "SEGMENT":
+            self._times.seconds["decode"] += time.perf_counter() - start
 
     def _answer(self, identity: bytes, request: Message) -> Message | None:
         """The reply to a request answered at once; a SEGMENT is queued (None)."""
         if request.type == "PING":
-            return Message("PONG", request.request_id)
+            return self._pong(identity, Message("PONG", request.request_id))
         if request.type == "HELLO":
             return Message("WELCOME", request.request_id, body=self.info.to_json())
         if request.type == "BEGIN":
@@ -253,6 +275,14 @@ class GrounderServer:
         if self._shared is None:
             self.episodes.get(segment.episode)  # an unknown episode is refused now, not after the batch
         self._pending.append(_Pending(identity, segment, time.monotonic()))
+        return None
+
+    def _pong(self, identity: bytes, pong: Message) -> Message | None:
+        """A PONG now, or once the model's batches in hand are done: as between batches of one thread, a PING
+        shows that the model answers, not only the socket (an episode's start does not begin on a stalled model)."""
+        if self._model is None or not self._model.busy:
+            return pong
+        self._deferred.append((identity, pong))
         return None
 
     def _begin(self, identity: bytes, request: Message) -> Message:
@@ -270,14 +300,18 @@ class GrounderServer:
 
     # -- batches -------------------------------------------------------------------------------------------------
     def _wait_ms(self) -> int:
-        """How long to wait for a request: until the oldest queued one's batch is due, at most ``poll_ms``."""
-        if not self._pending:
+        """How long to wait for a request: until the oldest queued one's batch is due, at most ``poll_ms`` (while the
+        model holds a batch in hand and another ready, until it says it is done)."""
+        if not self._pending or not self._model_ready():
             return self.config.poll_ms
         left = self._pending[0].arrived + self.config.batch_ms / 1000.0 - time.monotonic()
         return max(0, min(self.config.poll_ms, math.ceil(left * 1000.0)))
 
+    def _model_ready(self) -> bool:
+        return self._model is None or self._model.ready
+
     def _due(self) -> bool:
-        if not self._pending:
+        if not self._pending or not self._model_ready():
             return False
         waited = time.monotonic() - self._pending[0].arrived
         return len(self._pending) >= self.config.batch or waited * 1000.0 >= self.config.batch_ms
@@ -286,53 +320,61 @@ class GrounderServer:
         batch = self._pending[: self.config.batch]
         del self._pending[: self.config.batch]
         self.batch_sizes[len(batch)] += 1
-        if self._shared is None:
+        now = time.monotonic()
+        self._times.seconds["wait"] += sum(now - pending.arrived for pending in batch)
+        if self._model is None:
             for pending in batch:
-                self._answer_segments([pending], self._segment_alone)
+                self._answer_alone(pending)
             return
         groups: dict[tuple[str, tuple[int, ...]], list[_Pending]] = {}
         for pending in batch:
             key = (pending.request.phrase, pending.request.observation.depth.shape)
             groups.setdefault(key, []).append(pending)
-        for group in groups.values():
-            self._answer_segments(group, self._segment_shared)
+        work = [prepared for group in groups.values() if (prepared := self._prepared(group)) is not None]
+        if work:
+            self._model.put(work)
 
-    def _answer_segments(
-        self, group: list[_Pending], segment: Callable[[list[SegmentRequest]], list[list[Detection]]]
-    ) -> None:
-        """Each request of ``group`` answered with its detections, checked as in process (:class:`DetectionCheck`),
-        or all with one ERROR when grounding failed."""
+    def _prepared(self, group: list[_Pending]) -> Work | None:
+        """``group`` as the model thread's work, its frames preprocessed here where the grounder allows (a failure
+        answers the group with one ERROR now)."""
         requests = [p.request for p in group]
+        replies = [(p.identity, p.request.request_id, _size(p.request)) for p in group]
+        work = Work(requests[0].phrase, replies, [r.observation for r in requests])
+        if not isinstance(self._shared, StagedGrounder):
+            return work
+        start = time.perf_counter()
         try:
-            found = segment(requests)
-            replies = [
-                detections_reply(r.request_id, r.phrase, self._check.checked(d, _size(r)), _size(r))
-                for r, d in zip(requests, found, strict=True)
-            ]
-        except ProtocolError as error:
-            replies = [error_reply(r.request_id, str(error)) for r in requests]
+            work.pixels = self._shared.preprocess(work.frames)
         except Exception as error:
-            log.exception("grounding %r failed", requests[0].phrase)
-            replies = [error_reply(r.request_id, f"grounding failed: {one_line(error)}") for r in requests]
-        for pending, reply in zip(group, replies, strict=True):
-            self._send(pending.identity, reply)
+            log.exception("preprocessing frames for %r failed", work.phrase)
+            for request, pending in zip(requests, group, strict=True):
+                failed = f"grounding failed: {one_line(error)}"
+                self._send(pending.identity, error_reply(request.request_id, failed))
+            return None
+        finally:
+            self._times.seconds["preprocess"] += time.perf_counter() - start
+        return work
 
-    def _segment_shared(self, requests: list[SegmentRequest]) -> list[list[Detection]]:
-        """One phrase in frames of one size, in one forward where the grounder batches."""
-        assert self._shared is not None
-        phrase = requests[0].phrase
-        self._phrases.admit(phrase, self._shared)
-        if isinstance(self._shared, BatchGrounder):
-            return self._shared.segment_batch([r.observation.rgb for r in requests], phrase)
-        return [self._shared.segment(r.observation, phrase) for r in requests]
-
-    def _segment_alone(self, requests: list[SegmentRequest]) -> list[list[Detection]]:
-        """A stand-in's episode grounds its one request, the phrase's category added to its vocabulary first."""
-        (request,) = requests
-        session = self.episodes.get(request.episode)
-        if session.vocabulary is not None:
-            self._extend(session, session.vocabulary, request.canonical)
-        return [session.grounder.segment(request.observation, request.phrase)]
+    def _answer_alone(self, pending: _Pending) -> None:
+        """A stand-in's episode grounds its one request, the phrase's category added to its vocabulary first; the
+        detections checked as in process (:class:`DetectionCheck`), or an ERROR when grounding failed."""
+        request, start = pending.request, time.perf_counter()
+        try:
+            session = self.episodes.get(request.episode)
+            if session.vocabulary is not None:
+                self._extend(session, session.vocabulary, request.canonical)
+            found = session.grounder.segment(request.observation, request.phrase)
+            self._times.seconds["forward"] += time.perf_counter() - start
+            size = _size(request)
+            reply = detections_reply(request.request_id, request.phrase, self._check.checked(found, size), size)
+        except ProtocolError as error:
+            reply = error_reply(request.request_id, str(error))
+        except Exception as error:
+            log.exception("grounding %r failed", request.phrase)
+            reply = error_reply(request.request_id, f"grounding failed: {one_line(error)}")
+        self._send(pending.identity, reply)
+        self._times.frames += 1
+        self._times.batches += 1
 
     def _extend(self, session: _Session, vocabulary: TableVocabulary, canonical: Mapping[str, str | None]) -> None:
         """Add a SEGMENT's phrase and its category to an episode's vocabulary: at most ``phrases`` phrases an
@@ -347,7 +389,9 @@ class GrounderServer:
             vocabulary.table[phrase] = category
 
     def _send(self, identity: bytes, reply: Message) -> None:
+        start = time.perf_counter()
         self._router.send(identity, self._router.frames(reply, GROUNDER_PROTOCOL))
+        self._times.seconds["reply"] += time.perf_counter() - start
 
 
 def _size(request: SegmentRequest) -> tuple[int, int]:
@@ -400,23 +444,35 @@ def build_server(
 
     probe = factory()
     info = served_info(spec, probe, config, model)
-    return GrounderServer((lambda: probe) if not info.labels else factory, info, bind, keys, config)
+    built = [probe]
+
+    def shared() -> Grounder:
+        """The probe first, then a new copy each call (``config.copies``)."""
+        return built.pop() if built else factory()
+
+    return GrounderServer(factory if info.labels else shared, info, bind, keys, config)
 
 
 def run_server(server: GrounderServer, curve: bool) -> None:
     """Serve until Ctrl-C (or SIGTERM); the first line printed names the endpoint (``curve``: keys were given), the
-    last one what was served (:func:`batches_line`)."""
+    last one what was served (:func:`batches_line`) and where a frame's time went
+    (:meth:`~drivenav.semantics.serve_pipeline.ServerTimes.line`)."""
     info, config = server.info, server.config
     print(
         f"serving the grounder {info.detector} ({info.model}, {info.device}, {info.dtype}; batch {config.batch} or "
-        f"{config.batch_ms:g} ms) on {server.endpoint}{' with CURVE' if curve else ''} (Ctrl-C stops)",
+        f"{config.batch_ms:g} ms{_copies(config.copies)}) on {server.endpoint}{' with CURVE' if curve else ''} "
+        "(Ctrl-C stops)",
         flush=True,
     )
     try:
         server.serve()
     finally:
         server.close()
-        print(batches_line(server.batch_sizes), flush=True)
+        print(f"{batches_line(server.batch_sizes)}; {server.times.line()}", flush=True)
+
+
+def _copies(copies: int) -> str:
+    return f"; {copies} copies" if copies > 1 else ""
 
 
 def batches_line(batch_sizes: Counter[int]) -> str:

@@ -230,11 +230,24 @@ class TransformersGrounder(ABC):
 
     def segment_batch(self, frames: Sequence[NDArray[np.uint8]], phrase: str) -> list[list[Detection]]:
         """:meth:`segment` for several frames of one size in one forward (no frame cache): detections per frame."""
+        return self.segment_pixels(self.preprocess(frames), frames, phrase)
+
+    def segment_pixels(
+        self, pixels: Any, frames: Sequence[NDArray[np.uint8]], phrase: str, lap: Callable[[str], None] | None = None
+    ) -> list[list[Detection]]:
+        """:meth:`segment_batch` of frames already preprocessed (``pixels``, :meth:`preprocess`'s batch): a server
+        preprocesses the next batch while this one runs. ``lap`` is called with ``"forward"`` once the model's
+        output is there and with ``"postprocess"`` once the detections are (a server's timing of its stages)."""
         import torch
 
         with torch.inference_mode():
-            vision = self.encode_vision(self.preprocess(frames))
-            return self.postprocess(self.decode(vision, self.text_features(phrase)), frames, phrase)
+            outputs = self.decode(self.encode_vision(pixels), self.text_features(phrase))
+            if lap is not None:
+                lap("forward")
+            detections = self.postprocess(outputs, frames, phrase)
+        if lap is not None:
+            lap("postprocess")
+        return detections
 
     def text_features(self, phrase: str) -> Any:
         """``phrase``'s text features, encoded on its first use in the episode."""

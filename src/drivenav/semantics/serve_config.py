@@ -15,6 +15,8 @@ MAX_BATCH_MS: Final[float] = 1000.0
 """The longest a request may wait for its batch to fill (``--batch-ms``): a second on every frame of every episode
 already makes a 500-step episode eight minutes slower, and a client's request must be answered well within its
 ``models.detector_timeout_s``."""
+MAX_COPIES: Final[int] = 8
+"""The most copies of a model one server runs (``--copies``): each holds its weights and activations on the device."""
 LABEL_BYTES: Final[int] = 192
 """What one ground-truth label of a stand-in's episode is charged (measured: about 185 bytes a label in the
 ground-truth stand-in, 115 in the embedded one, CPython 3.11)."""
@@ -42,7 +44,8 @@ class ServeConfig:
     the client's own first (a client grounds one episode at a time, and never ends one: it begins the next). An
     episode's vocabulary grows by at most ``phrases`` phrases. Bytes are charged as :data:`LABEL_BYTES` a label and
     :data:`ENTRY_BYTES` (and its characters) a name or phrase. A frame's reply holds at most ``max_detections``
-    detections, checked as in process (:mod:`drivenav.semantics.checked`).
+    detections, checked as in process (:mod:`drivenav.semantics.checked`). A model (not a stand-in) runs as
+    ``copies`` copies, each in a thread of its own (one fills a GPU only when its batches keep it busy).
     """
 
     batch: int = 8
@@ -55,8 +58,11 @@ class ServeConfig:
     client_bytes: int = 128 * 2**20
     held_bytes: int = 2**30
     max_detections: int = DEFAULT_MAX_DETECTIONS
+    copies: int = 1
 
     def __post_init__(self) -> None:
+        if not 1 <= self.copies <= MAX_COPIES:
+            raise ValueError(f"copies must be 1-{MAX_COPIES}, got {self.copies}")
         if not 1 <= self.batch <= MAX_BATCH:
             raise ValueError(f"batch must be 1-{MAX_BATCH}, got {self.batch}")
         if not (math.isfinite(self.batch_ms) and 0.0 <= self.batch_ms <= MAX_BATCH_MS):

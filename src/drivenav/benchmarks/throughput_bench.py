@@ -1,0 +1,203 @@
+"""``drivenav bench eval-throughput``: a real ``drivenav eval`` beside one served grounder, and where a step's time
+goes (issue 61).
+
+The grounder (SAM3, OWLv2 or Grounding DINO with their box segmenter; random weights, full size or the tests' tiny
+ones, as ``bench grounder`` builds them) is served from this process on loopback
+(:class:`~drivenav.semantics.grounder_server.GrounderServer`: a socket thread and a model thread). The eval's
+workers act on the embedded detector's detections, and every frame they ground is also sent to the served model and
+waited for (``--detector-shadow-url``): each step pays the model's wire, batch and forward, and the records are
+those of a plain run (random weights would give noise).
+
+What it says: the eval's rate (episodes an hour, frames a second, over its wall time, start-up included) and where
+the time went, on both sides of the wire. A worker's step (its wall time: the eval's wall time times the workers
+over the frames) splits into the agent's compute (mapping, directions, inspection, value maps, fusion, policy:
+the traces' per-step timings), its grounding (the embedded detector and the served model's round trip, as one
+timed step of the agent) and the rest (rendering the world, the runner, the pool). The server's share comes from
+its :class:`~drivenav.semantics.serve_pipeline.ServerTimes`: each stage's milliseconds a frame, the mean batch,
+what serving adds to a frame beyond the grounder's own stages, and ``model_busy``, the share of the wall time
+the grounder's own stages kept the model busy (1.0: the model is the bottleneck).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Final
+
+from drivenav.errors import InputError
+from drivenav.eval.rundir import EPISODES_FILE, SUMMARY_FILE, trace_path
+from drivenav.eval.timings import COMPUTE_KEYS
+from drivenav.eval.trace import EpisodeTrace
+from drivenav.semantics.serve_pipeline import MODEL_STAGES, ServerTimes
+
+if TYPE_CHECKING:
+    from drivenav.semantics.grounder_bench import GrounderBenchOptions
+    from drivenav.semantics.protocols import Grounder
+    from drivenav.semantics.serve_config import ServeConfig
+
+GROUNDING_KEY: Final[str] = "grounding"
+"""The traces' per-step timing of the agent's grounding (the detector's call, a served model's round trip)."""
+
+
+@dataclass(frozen=True)
+class WorkerSteps:
+    """A worker's milliseconds a step, on average over the run's steps: its wall time, the agent's compute, its
+    grounding, and the rest (rendering, the runner)."""
+
+    wall_ms: float
+    agent_ms: float
+    grounding_ms: float
+    other_ms: float
+
+
+@dataclass(frozen=True)
+class ThroughputResult:
+    """An eval beside a served grounder (module docstring). ``server_stages_ms``: milliseconds a frame by stage;
+    ``server_added_ms``: what serving adds to a frame beyond the grounder's stages."""
+
+    detector: str
+    model: str
+    device: str
+    dtype: str
+    workers: int
+    batch: int
+    batch_ms: float
+    copies: int
+    episodes: int
+    errors: int
+    frames: int
+    wall_s: float
+    episodes_per_hour: float | None
+    frames_per_second: float | None
+    worker_step: WorkerSteps | None
+    frames_served: int
+    mean_batch: float | None
+    server_stages_ms: dict[str, float]
+    server_added_ms: float | None
+    model_busy: float | None
+    run_dir: str
+
+
+def worker_steps(traces: Iterable[EpisodeTrace], workers: int, wall_s: float) -> WorkerSteps | None:
+    """The mean step of the run's ``workers`` over ``wall_s`` seconds, from its traces' per-step timings (None
+    without a timed step)."""
+    agent = grounding = 0.0
+    steps = 0
+    for trace in traces:
+        columns = trace.step_ms
+        length = max((len(values) for values in columns.values()), default=0)
+        steps += length
+        agent += sum(sum(columns.get(key, ())) for key in COMPUTE_KEYS)
+        grounding += sum(columns.get(GROUNDING_KEY, ()))
+    if not steps:
+        return None
+    wall_ms = 1000.0 * wall_s * workers / steps
+    agent_ms, grounding_ms = agent / steps, grounding / steps
+    return WorkerSteps(*(round(ms, 3) for ms in (wall_ms, agent_ms, grounding_ms, wall_ms - agent_ms - grounding_ms)))
+
+
+def model_busy(times: ServerTimes, wall_s: float) -> float | None:
+    """The share of ``wall_s`` the grounder's own stages took on the server (None for no time)."""
+    if wall_s <= 0:
+        return None
+    return round(sum(times.seconds[stage] for stage in MODEL_STAGES) / wall_s, 3)
+
+
+def run_traces(run_dir: Path) -> list[EpisodeTrace]:
+    """The traces of the run's finished episodes (a torn or missing one is left out)."""
+    traces = []
+    for line in (run_dir / EPISODES_FILE).read_text(encoding="utf-8").splitlines():
+        path = trace_path(run_dir, str(json.loads(line)["episode_id"]))
+        try:
+            traces.append(EpisodeTrace.from_json(json.loads(path.read_text(encoding="utf-8")), path))
+        except (OSError, ValueError, InputError):
+            continue
+    return traces
+
+
+@dataclass(frozen=True)
+class ServedModel:
+    """The served grounder of the bench: what it is (``detector``, ``model``, ``device``, ``dtype``) and its
+    server's batching."""
+
+    detector: str
+    model: str
+    device: str
+    dtype: str
+    batch: int
+    batch_ms: float
+    copies: int
+
+
+def throughput_result(
+    served: ServedModel, times: ServerTimes, run_dir: Path, workers: int, wall_s: float
+) -> ThroughputResult:
+    """The bench's figures from the finished eval in ``run_dir`` and its server's ``times``: a worker's step and the
+    model's busy share over the eval's own wall time (its summary's rate), ``wall_s`` the bench's (start-up
+    included)."""
+    summary: dict[str, Any] = json.loads((run_dir / SUMMARY_FILE).read_text(encoding="utf-8"))
+    traces = run_traces(run_dir)
+    frames = sum(len(trace.actions) for trace in traces)
+    rate = summary.get("frames_per_second")
+    eval_s = frames / rate if isinstance(rate, (int, float)) and rate > 0 else wall_s
+    return ThroughputResult(
+        detector=served.detector,
+        model=served.model,
+        device=served.device,
+        dtype=served.dtype,
+        workers=workers,
+        batch=served.batch,
+        batch_ms=served.batch_ms,
+        copies=served.copies,
+        episodes=int(summary["episodes"]),
+        errors=int(summary["errors"]),
+        frames=frames,
+        wall_s=round(wall_s, 3),
+        episodes_per_hour=summary.get("episodes_per_hour"),
+        frames_per_second=summary.get("frames_per_second"),
+        worker_step=worker_steps(traces, workers, eval_s),
+        frames_served=times.frames,
+        mean_batch=round(times.frames / times.batches, 2) if times.batches else None,
+        server_stages_ms=times.per_frame_ms(),
+        server_added_ms=times.added_ms(),
+        model_busy=model_busy(times, eval_s),
+        run_dir=str(run_dir),
+    )
+
+
+RunEval = Callable[[str, Path], int]
+"""Runs the eval with its detector shadowed by the server at the endpoint given, into the run directory given;
+returns its exit status."""
+
+
+def served_eval(
+    options: GrounderBenchOptions, config: ServeConfig, workers: int, run_dir: Path, run_eval: RunEval
+) -> ThroughputResult:
+    """``options``' model served as ``config`` says (its batching, its copies) beside the eval ``run_eval`` runs
+    into ``run_dir`` with ``workers`` workers; an eval that fails is an :class:`~drivenav.errors.InputError`."""
+    from drivenav.semantics.grounder_bench import bench_model
+    from drivenav.semantics.grounder_server import GrounderServer, serving
+    from drivenav.semantics.hf_common import pick_device, resolve_dtype
+    from drivenav.semantics.served import ServedInfo
+
+    device = pick_device(options.device)
+    grounder, model = bench_model(options, device)
+    copies = [grounder]
+    dtype = str(resolve_dtype(options.dtype, device)).removeprefix("torch.")
+    info = ServedInfo(options.detector, model, device, dtype, ("rgb",), False, config.batch, config.batch_ms)
+
+    def copy() -> Grounder:
+        return copies.pop() if copies else bench_model(options, device)[0]
+
+    server = GrounderServer(copy, info, "tcp://127.0.0.1:*", None, config)
+    with serving(server) as endpoint:
+        start = time.perf_counter()
+        status = run_eval(endpoint, run_dir)
+        wall_s = time.perf_counter() - start
+    if status != 0:
+        raise InputError("command line", "eval-throughput -- ...", "an eval that runs (exit 0)", f"exit {status}")
+    served = ServedModel(options.detector, model, device, dtype, config.batch, config.batch_ms, config.copies)
+    return throughput_result(served, server.times, run_dir, workers, wall_s)

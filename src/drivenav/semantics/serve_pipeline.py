@@ -1,0 +1,299 @@
+"""The served grounder's model thread and the timing of its stages (issue 61).
+
+A :class:`~drivenav.semantics.grounder_server.GrounderServer` of a model (not a stand-in) runs in two threads: its
+socket thread receives and decodes requests, forms the batches and preprocesses them, and sends the replies; the
+:class:`ModelThread` runs the model's forward and postprocessing and encodes the replies. The socket thread hands
+over one prepared batch at a time while the model runs the one before (a queue of one), so that receiving,
+decoding and preprocessing the next batch overlap the forward instead of following it. A served model's time is
+thus the forward's, plus the little the socket thread cannot overlap.
+
+:class:`ServerTimes` says where a served frame's time went: the server's busy seconds by stage (``decode``:
+receiving and decoding a request; ``preprocess``, ``forward``, ``postprocess``: the grounder's stages, the forward
+holding what a grounder that does not split its stages takes; ``reply``: checking the detections, packing the masks
+and encoding the reply; ``send``), and the seconds each frame waited for its batch to start (``wait``).
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import time
+import uuid
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Final, Protocol, runtime_checkable
+
+import numpy as np
+import zmq
+from numpy.typing import NDArray
+
+from drivenav.errors import one_line
+from drivenav.semantics.protocols import Detection, Grounder
+from drivenav.semantics.served import detections_reply
+from drivenav.types import Observation
+from drivenav.wire.protocol import Message, ProtocolError
+from drivenav.wire.router import error_reply
+
+log = logging.getLogger(__name__)
+
+STAGES: Final[tuple[str, ...]] = ("decode", "wait", "preprocess", "forward", "postprocess", "reply", "send")
+"""A served frame's stages, in order (module docstring)."""
+MODEL_STAGES: Final[frozenset[str]] = frozenset({"preprocess", "forward", "postprocess"})
+"""The grounder's own stages: what the frame costs in process too."""
+
+Encoded = list[Any]
+"""A reply's frames, ready to send (:meth:`~drivenav.wire.router.RouterSocket.frames`)."""
+
+
+@runtime_checkable
+class BatchGrounder(Protocol):
+    """A grounder that segments one phrase in several frames in one forward (the transformers grounders)."""
+
+    def segment_batch(self, frames: Sequence[NDArray[np.uint8]], phrase: str) -> list[list[Detection]]: ...
+
+
+@runtime_checkable
+class StagedGrounder(BatchGrounder, Protocol):
+    """A batch grounder whose preprocessing can run apart from the rest
+    (:class:`~drivenav.semantics.hf_common.TransformersGrounder`)."""
+
+    def preprocess(self, frames: Sequence[NDArray[np.uint8]]) -> Any: ...
+
+    def segment_pixels(
+        self, pixels: Any, frames: Sequence[NDArray[np.uint8]], phrase: str, lap: Callable[[str], None] | None = None
+    ) -> list[list[Detection]]: ...
+
+
+@dataclass
+class ServerTimes:
+    """Seconds by stage (:data:`STAGES`; ``wait`` summed over frames, the others the server's busy time) over
+    ``frames`` frames in ``batches`` batches."""
+
+    frames: int = 0
+    batches: int = 0
+    seconds: dict[str, float] = field(default_factory=lambda: dict.fromkeys(STAGES, 0.0))
+
+    def add(self, other: ServerTimes) -> ServerTimes:
+        seconds = {stage: self.seconds[stage] + other.seconds[stage] for stage in STAGES}
+        return ServerTimes(self.frames + other.frames, self.batches + other.batches, seconds)
+
+    def per_frame_ms(self) -> dict[str, float]:
+        """Each stage's milliseconds a frame (none without frames)."""
+        if not self.frames:
+            return {}
+        return {stage: round(1000.0 * self.seconds[stage] / self.frames, 3) for stage in STAGES}
+
+    def added_ms(self) -> float | None:
+        """What serving adds to a frame's busy time beyond the grounder's own stages (decode, reply, send)."""
+        if not self.frames:
+            return None
+        added = sum(s for stage, s in self.seconds.items() if stage not in MODEL_STAGES and stage != "wait")
+        return round(1000.0 * added / self.frames, 3)
+
+    def line(self) -> str:
+        """The breakdown in words (a server's last line)."""
+        shown = ", ".join(f"{stage} {ms:g}" for stage, ms in self.per_frame_ms().items())
+        return f"ms a frame: {shown}; added by serving {self.added_ms():g}" if self.frames else "no frames"
+
+
+@dataclass
+class Work:
+    """One phrase in frames of one size, to be grounded in one forward: the requests' ``replies`` (client
+    identity, request id, frame size), their observations, and the frames' pixels when the socket thread
+    preprocessed them."""
+
+    phrase: str
+    replies: list[tuple[bytes, str, tuple[int, int]]]
+    observations: list[Observation]
+    pixels: Any = None
+
+    @property
+    def frames(self) -> list[NDArray[np.uint8]]:
+        return [observation.rgb for observation in self.observations]
+
+
+class ModelThread:
+    """Grounds the batches the socket thread prepares (:class:`Work` lists), one at a time, and leaves each reply,
+    encoded, in :attr:`outbox`; ``wake`` (an inproc PULL socket's address) is told when replies are there.
+
+    ``detections`` checks a frame's detections (as in process); ``encode`` makes a reply's frames; ``admit`` is
+    called with a batch's phrase before it is grounded (the phrase cache)."""
+
+    def __init__(
+        self,
+        grounder: Grounder,
+        context: zmq.Context[Any],
+        wake: str,
+        check: Callable[[Sequence[object], tuple[int, int]], list[Detection]],
+        encode: Callable[[Message], Encoded],
+        admit: Callable[[str], None],
+        sync: Callable[[], None],
+        name: str = "drivenav-grounder-model",
+    ) -> None:
+        self.grounder = grounder
+        self.times = ServerTimes()
+        self.outbox: queue.SimpleQueue[tuple[bytes, Encoded]] = queue.SimpleQueue()
+        self._inbox: queue.Queue[list[Work] | None] = queue.Queue(maxsize=1)
+        self._held = 0
+        self._lock = threading.Lock()
+        self._check, self._encode, self._admit, self._sync = check, encode, admit, sync
+        self._signal = context.socket(zmq.PUSH)
+        self._signal.setsockopt(zmq.LINGER, 0)
+        self._signal.connect(wake)
+        self._thread = threading.Thread(target=self._run, daemon=True, name=name)
+        self._thread.start()
+
+    @property
+    def ready(self) -> bool:
+        """Whether a prepared batch can be handed over now (the one before was taken)."""
+        return self._inbox.empty()
+
+    @property
+    def busy(self) -> bool:
+        """Whether a batch is in hand or waiting (its replies not all in :attr:`outbox` yet)."""
+        with self._lock:
+            return self._held > 0
+
+    def put(self, work: list[Work]) -> None:
+        with self._lock:
+            self._held += 1
+        self._inbox.put(work)
+
+    def stop(self) -> None:
+        """Finish the batch in hand, then end the thread."""
+        self._inbox.put(None)
+        self._thread.join()
+        self._signal.close(linger=0)
+
+    def _run(self) -> None:
+        while (work := self._inbox.get()) is not None:
+            for group in work:
+                self._ground(group)
+            with self._lock:
+                self._held -= 1
+            self._signal.send(b"", copy=True)
+
+    def _ground(self, work: Work) -> None:
+        """Each request of ``work`` answered with its detections, or all with one ERROR when grounding failed."""
+        mark = time.perf_counter()
+
+        def lap(stage: str) -> None:
+            nonlocal mark
+            self._sync()
+            now = time.perf_counter()
+            self.times.seconds[stage] += now - mark
+            mark = now
+
+        try:
+            found = self._segment(work, lap)
+            replies = [
+                detections_reply(request_id, work.phrase, self._check(d, size), size)
+                for (_, request_id, size), d in zip(work.replies, found, strict=True)
+            ]
+        except ProtocolError as error:
+            replies = [error_reply(request_id, str(error)) for _, request_id, _ in work.replies]
+        except Exception as error:
+            log.exception("grounding %r failed", work.phrase)
+            failed = f"grounding failed: {one_line(error)}"
+            replies = [error_reply(request_id, failed) for _, request_id, _ in work.replies]
+        for (identity, _, _), reply in zip(work.replies, replies, strict=True):
+            self.outbox.put((identity, self._encode(reply)))
+        lap("reply")
+        self.times.frames += len(work.observations)
+        self.times.batches += 1
+
+    def _segment(self, work: Work, lap: Callable[[str], None]) -> list[list[Detection]]:
+        """The frames' detections, in one forward where the grounder batches; the stages timed by ``lap``."""
+        self._admit(work.phrase)
+        if work.pixels is not None and isinstance(self.grounder, StagedGrounder):
+            return self.grounder.segment_pixels(work.pixels, work.frames, work.phrase, lap)
+        if isinstance(self.grounder, BatchGrounder):
+            found = self.grounder.segment_batch(work.frames, work.phrase)
+        else:
+            found = [self.grounder.segment(observation, work.phrase) for observation in work.observations]
+        lap("forward")
+        return found
+
+
+@dataclass
+class Phrases:
+    """The distinct phrases whose text features a shared grounder holds (emptied past ``limit``)."""
+
+    limit: int
+    seen: set[str] = field(default_factory=set)
+
+    def admit(self, phrase: str, grounder: Grounder) -> None:
+        if phrase in self.seen:
+            return
+        if len(self.seen) >= self.limit:
+            grounder.begin_episode(None, 0)  # the transformers grounders forget their text features
+            self.seen.clear()
+        self.seen.add(phrase)
+
+
+class ModelPool:
+    """One :class:`ModelThread` per copy of the model (``copies``: several fill a GPU that one leaves idle), their
+    replies announced on :attr:`wake` (a PULL socket the socket thread polls). A prepared batch goes to the first
+    copy ready for one; each copy keeps its own phrases (``phrases`` at most)."""
+
+    def __init__(
+        self,
+        copies: Sequence[Grounder],
+        context: zmq.Context[Any],
+        check: Callable[[Sequence[object], tuple[int, int]], list[Detection]],
+        encode: Callable[[Message], Encoded],
+        phrases: int,
+        sync: Callable[[], None],
+    ) -> None:
+        address = f"inproc://drivenav-grounder-{uuid.uuid4().hex}"
+        self.wake = context.socket(zmq.PULL)
+        self.wake.setsockopt(zmq.LINGER, 0)
+        self.wake.bind(address)
+        self.threads = [
+            ModelThread(copy, context, address, check, encode, _admit(Phrases(phrases), copy), sync, _name(i))
+            for i, copy in enumerate(copies)
+        ]
+
+    @property
+    def ready(self) -> bool:
+        """Whether a copy can take a prepared batch now."""
+        return any(thread.ready for thread in self.threads)
+
+    @property
+    def busy(self) -> bool:
+        """Whether a copy holds a batch whose replies are not all out yet."""
+        return any(thread.busy for thread in self.threads)
+
+    @property
+    def times(self) -> ServerTimes:
+        total = ServerTimes()
+        for thread in self.threads:
+            total = total.add(thread.times)
+        return total
+
+    def put(self, work: list[Work]) -> None:
+        """Hand ``work`` to the first copy ready for it (:attr:`ready` first)."""
+        next(thread for thread in self.threads if thread.ready).put(work)
+
+    def replies(self) -> Iterator[tuple[bytes, Encoded]]:
+        """Every reply encoded so far (the wake socket's signals read)."""
+        while self.wake.poll(0, zmq.POLLIN):
+            self.wake.recv()
+        for thread in self.threads:
+            while not thread.outbox.empty():
+                yield thread.outbox.get()
+
+    def stop(self) -> None:
+        for thread in self.threads:
+            thread.stop()
+        self.wake.close(linger=0)
+
+
+def _admit(phrases: Phrases, grounder: Grounder) -> Callable[[str], None]:
+    return lambda phrase: phrases.admit(phrase, grounder)
+
+
+def _name(index: int) -> str:
+    """A model thread's name: the first copy's plain, the others numbered from 2."""
+    return "drivenav-grounder-model" + (f"-{index + 1}" if index else "")

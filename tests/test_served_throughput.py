@@ -1,0 +1,281 @@
+"""Served grounding at the model's speed (issue 61): the server's model thread (the next batch decoded and
+preprocessed while the model runs the current one), where a served frame's time goes (``ServerTimes``), the eval's
+rate (episodes an hour, frames a second: on its bar and in ``summary.json``) and ``bench eval-throughput``.
+
+No speed is asserted: the figures have to be there and add up; what overlaps is checked from recorded intervals.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from numpy.typing import NDArray
+
+from drivenav.cli import main
+from drivenav.eval.report import Summary, Throughput, rate_kept, summarize
+from drivenav.semantics.grounder_server import GrounderServer, serving
+from drivenav.semantics.protocols import Detection
+from drivenav.semantics.remote import RemoteGrounder
+from drivenav.semantics.serve_config import ServeConfig
+from drivenav.semantics.serve_pipeline import STAGES, ServerTimes, StagedGrounder
+from drivenav.semantics.served import GrounderClient, ServedInfo
+from drivenav.types import CameraIntrinsics, GroundTruth, Observation, Pose
+from drivenav.wire.protocol import Message
+
+LOOPBACK = "tcp://127.0.0.1:*"
+RUN = ["eval", "--agent", "directional", "--scenes", "procedural:2", "--episodes", "2", "--seed", "2"]
+RUN += ["--max-steps", "12", "--set", "sim.width=160", "--set", "sim.height=120"]
+
+
+# --- the breakdown ---------------------------------------------------------------------------------------------------
+
+
+def test_server_times_are_milliseconds_a_frame_and_serving_adds_what_is_not_the_model() -> None:
+    seconds = dict.fromkeys(STAGES, 0.0)
+    seconds.update(decode=0.004, wait=0.4, preprocess=0.02, forward=0.2, postprocess=0.04, reply=0.008, send=0.004)
+    times = ServerTimes(frames=8, batches=2, seconds=seconds)
+    assert times.per_frame_ms() == {
+        "decode": 0.5,
+        "wait": 50.0,
+        "preprocess": 2.5,
+        "forward": 25.0,
+        "postprocess": 5.0,
+        "reply": 1.0,
+        "send": 0.5,
+    }
+    assert times.added_ms() == 2.0  # decode, reply, send: not the grounder's stages, not the queue
+    both = times.add(times)
+    assert (both.frames, both.batches, both.seconds["forward"]) == (16, 4, 0.4)
+    assert ServerTimes().per_frame_ms() == {} and ServerTimes().added_ms() is None
+    assert "added by serving 2" in times.line()
+
+
+# --- the model thread ------------------------------------------------------------------------------------------------
+
+
+class SlowStaged:
+    """A staged grounder whose forward takes ``forward_s``: it records where (which thread) and when each stage ran,
+    and finds one full-frame detection scored by the frame's first pixel."""
+
+    name = "slow-staged"
+
+    def __init__(self, forward_s: float) -> None:
+        self.forward_s = forward_s
+        self.spans: list[tuple[str, str, float, float]] = []
+        self.lock = threading.Lock()
+
+    def _span(self, stage: str, start: float) -> None:
+        with self.lock:
+            self.spans.append((stage, threading.current_thread().name, start, time.perf_counter()))
+
+    def begin_episode(self, truth: GroundTruth | None, seed: int) -> None:
+        pass
+
+    def segment(self, observation: Observation, phrase: str) -> list[Detection]:
+        return self.segment_batch([observation.rgb], phrase)[0]
+
+    def segment_batch(self, frames: Sequence[NDArray[np.uint8]], phrase: str) -> list[list[Detection]]:
+        return self.segment_pixels(self.preprocess(frames), frames, phrase)
+
+    def preprocess(self, frames: Sequence[NDArray[np.uint8]]) -> Any:
+        start = time.perf_counter()
+        pixels = [float(frame[0, 0, 0]) / 255.0 for frame in frames]
+        self._span("preprocess", start)
+        return pixels
+
+    def segment_pixels(
+        self, pixels: Any, frames: Sequence[NDArray[np.uint8]], phrase: str, lap: Callable[[str], None] | None = None
+    ) -> list[list[Detection]]:
+        start = time.perf_counter()
+        time.sleep(self.forward_s)
+        self._span("forward", start)
+        if lap is not None:
+            lap("forward")
+        found = [
+            [Detection(np.ones(frame.shape[:2], dtype=bool), score, phrase)]
+            for frame, score in zip(frames, pixels, strict=True)
+        ]
+        if lap is not None:
+            lap("postprocess")
+        return found
+
+
+def frame(value: int, step: int = 0) -> Observation:
+    return Observation(
+        rgb=np.full((24, 32, 3), value, dtype=np.uint8),
+        depth=np.ones((24, 32), dtype=np.float32),
+        semantic=None,
+        pose=Pose(0.0, 0.0, 0.0),
+        intrinsics=CameraIntrinsics.from_hfov(32, 24, 79.0),
+        step=step,
+        collided=False,
+    )
+
+
+def staged_server(grounder: SlowStaged, config: ServeConfig) -> GrounderServer:
+    info = ServedInfo("slow-staged", "-", "cpu", "float32", ("rgb",), False, config.batch, config.batch_ms)
+    return GrounderServer(lambda: grounder, info, LOOPBACK, None, config)
+
+
+def ground(endpoint: str, values: list[int], answers: dict[int, float], ready: threading.Barrier) -> None:
+    client = GrounderClient(endpoint)
+    try:
+        info = ServedInfo.from_json(client.request(Message("HELLO", client.next_id())).body)
+        grounder = RemoteGrounder(client, info)
+        grounder.begin_episode(None, 0)
+        ready.wait()
+        for step, value in enumerate(values):
+            (detection,) = grounder.segment(frame(value, step), "chair")
+            answers[value] = detection.score
+    finally:
+        client.close()
+
+
+def test_the_next_batch_is_preprocessed_on_the_socket_thread_while_the_model_runs() -> None:
+    """Four clients, batches of up to 2 frames, a 150 ms forward: the model runs on its own thread, and a batch's
+    preprocessing overlaps the forward of the batch before; every client gets its own frame's answer."""
+    grounder = SlowStaged(forward_s=0.15)
+    server = staged_server(grounder, ServeConfig(batch=2, batch_ms=0.0))
+    answers: dict[int, float] = {}
+    ready = threading.Barrier(4)
+    with serving(server) as endpoint:
+        threads = [
+            threading.Thread(target=ground, args=(endpoint, [10 * c + 1, 10 * c + 2], answers, ready)) for c in range(4)
+        ]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join()
+    assert answers == {v: pytest.approx(v / 255.0) for c in range(4) for v in (10 * c + 1, 10 * c + 2)}
+    forwards = [(start, end) for stage, _, start, end in grounder.spans if stage == "forward"]
+    preprocessed = [(name, start, end) for stage, name, start, end in grounder.spans if stage == "preprocess"]
+    assert {name for stage, name, _, _ in grounder.spans if stage == "forward"} == {"drivenav-grounder-model"}
+    assert {name for name, _, _ in preprocessed} == {"drivenav-grounder-server"}
+    overlapping = [p for p in preprocessed if any(f0 < p[1] and p[2] < f1 for f0, f1 in forwards)]
+    assert overlapping, "no batch was preprocessed while the model ran the one before"
+    times = server.times
+    assert times.frames == 8 == sum(n * c for n, c in server.batch_sizes.items())
+    assert times.batches == sum(server.batch_sizes.values())
+    assert times.seconds["forward"] >= 0.15 * times.batches * 0.9
+    assert all(seconds >= 0.0 for seconds in times.seconds.values())
+
+
+def test_two_copies_of_a_model_run_two_batches_at_once() -> None:
+    """``copies=2``: two model threads, each with its own copy; batches of one frame from four clients run on both
+    at the same time, and each client still gets its own frame's answer."""
+    first, second = SlowStaged(forward_s=0.15), SlowStaged(forward_s=0.15)
+    second.spans, second.lock = first.spans, first.lock
+    copies = iter([first, second])
+    config = ServeConfig(batch=1, batch_ms=0.0, copies=2)
+    info = ServedInfo("slow-staged", "-", "cpu", "float32", ("rgb",), False, 1, 0.0)
+    server = GrounderServer(lambda: next(copies), info, LOOPBACK, None, config)
+    answers: dict[int, float] = {}
+    ready = threading.Barrier(4)
+    with serving(server) as endpoint:
+        threads = [threading.Thread(target=ground, args=(endpoint, [c + 1, c + 11], answers, ready)) for c in range(4)]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join()
+    assert answers == {v: pytest.approx(v / 255.0) for c in range(4) for v in (c + 1, c + 11)}
+    forwards = [(name, start, end) for stage, name, start, end in first.spans if stage == "forward"]
+    names = {name for name, _, _ in forwards}
+    assert names == {"drivenav-grounder-model", "drivenav-grounder-model-2"}
+    together = [
+        (a, b) for a in forwards for b in forwards if a[0] != b[0] and a[1] < b[1] < a[2]
+    ]  # one copy's forward began while the other's ran
+    assert together
+    assert server.times.frames == 8 and server.times.batches == 8
+
+
+@pytest.mark.parametrize("copies", ["0", "9"])
+def test_serve_grounder_copies_out_of_range_is_one_line(copies: str, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["serve", "grounder", "--detector", "ground-truth", "--copies", copies]) == 2
+    error = capsys.readouterr().err
+    assert len(error.strip().splitlines()) == 1 and "--copies" in error and "from 1 to 8" in error
+
+
+def test_a_ping_during_a_forward_is_answered_after_it() -> None:
+    """As a server of one thread did: a PONG says the model answers, so it waits for the batch in hand."""
+    grounder = SlowStaged(forward_s=0.4)
+    server = staged_server(grounder, ServeConfig(batch=1, batch_ms=0.0))
+    with serving(server) as endpoint:
+        segmenting = GrounderClient(endpoint)
+        pinging = GrounderClient(endpoint)
+        try:
+            info = ServedInfo.from_json(segmenting.request(Message("HELLO", segmenting.next_id())).body)
+            remote = RemoteGrounder(segmenting, info)
+            remote.begin_episode(None, 0)
+            worker = threading.Thread(target=remote.segment, args=(frame(3), "chair"))
+            worker.start()
+            time.sleep(0.1)  # the forward has begun
+            start = time.perf_counter()
+            assert pinging.request(Message("PING", pinging.next_id())).type == "PONG"
+            waited = time.perf_counter() - start
+            worker.join()
+        finally:
+            segmenting.close()
+            pinging.close()
+    assert waited >= 0.2
+    assert isinstance(grounder, StagedGrounder)
+
+
+# --- the eval's rate -------------------------------------------------------------------------------------------------
+
+
+def test_the_summary_keeps_the_rate_and_a_rerun_with_nothing_to_run_keeps_it_too(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "run"
+    assert main([*RUN, "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    summary = json.loads((out / "summary.json").read_text())
+    steps = [json.loads(line)["steps"] for line in (out / "episodes.jsonl").read_text().splitlines()]
+    eph, fps = summary["episodes_per_hour"], summary["frames_per_second"]
+    assert eph > 0 and fps > 0
+    assert fps / eph * 3600.0 == pytest.approx(sum(steps) / len(steps), rel=0.01)  # frames an episode
+    assert "episodes per hour" in printed and "frames per second" in printed
+    assert main([*RUN, "--out", str(out)]) == 0  # nothing left: the rate of the session that ran them stays
+    again = json.loads((out / "summary.json").read_text())
+    assert (again["episodes_per_hour"], again["frames_per_second"]) == (eph, fps)
+
+
+def test_a_summary_of_records_read_back_has_no_rate(tmp_path: Path) -> None:
+    assert summarize([]).episodes_per_hour is None and summarize([]).frames_per_second is None
+    assert Throughput(episodes=3, frames=300, wall_s=60.0).line() == "180 ep/h, 5.0 frames/s"
+    assert Throughput(episodes=0, frames=0, wall_s=1.0).line() == ""
+    (tmp_path / "summary.json").write_text('{"episodes_per_hour": "fast"}')
+    assert rate_kept(summarize([]), tmp_path / "summary.json") == summarize([])
+    old = {k: v for k, v in summarize([]).to_json().items() if k not in ("episodes_per_hour", "frames_per_second")}
+    assert Summary.from_json(old).episodes_per_hour is None  # a summary written before the rate reads
+
+
+# --- bench eval-throughput -------------------------------------------------------------------------------------------
+
+
+def test_bench_eval_throughput_runs_an_eval_beside_a_served_model(capsys: pytest.CaptureFixture[str]) -> None:
+    pytest.importorskip("transformers")
+    args = ["bench", "eval-throughput", "--tiny", "--device", "cpu", "--workers", "1", "--json", "--"]
+    assert main([*args, *RUN[1:]]) == 0
+    result = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert result["episodes"] == 2 and result["errors"] == 0 and result["workers"] == 1
+    assert result["frames"] > 0 and result["frames_served"] >= result["frames"]  # every step grounded once at least
+    assert result["episodes_per_hour"] > 0 and result["frames_per_second"] > 0
+    step = result["worker_step"]
+    assert step["wall_ms"] == pytest.approx(step["agent_ms"] + step["grounding_ms"] + step["other_ms"], abs=0.01)
+    assert set(result["server_stages_ms"]) == set(STAGES) and result["server_added_ms"] >= 0.0
+    assert 0.0 < result["model_busy"] <= 1.0 and result["mean_batch"] >= 1.0
+
+
+@pytest.mark.parametrize("own", ["--out", "--workers=2", "--detector-shadow-url"])
+def test_bench_eval_throughput_refuses_the_options_it_sets(own: str, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["bench", "eval-throughput", "--tiny", "--", *RUN[1:], own, "x"]) == 2
+    error = capsys.readouterr().err
+    assert len(error.strip().splitlines()) == 1 and own in error and "the bench sets them" in error
