@@ -38,6 +38,10 @@ METHOD_KEYS = {
     "sr_ci95",
     "spl_ci95",
     "vlm_calls",
+    "avg_reasoner_calls",
+    "median_reasoner_calls",
+    "avg_scorer_calls",
+    "median_scorer_calls",
     "failure_causes",
 }
 DATA = Path(__file__).parent / "data" / "ablations"

@@ -8,9 +8,11 @@ why it stopped.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from drivenav.agent.trace import StopEvent, Trace
+from drivenav.semantics.protocols import FLOOR_KIND, HINTS_KIND
 from drivenav.types import Action, GroundTruth, Observation, SimConfig
 
 
@@ -24,6 +26,43 @@ class ModelCounters:
     enrich_rounds: int = 0
     verifications: dict[str, int] = field(default_factory=dict)
     phrase: str = ""
+
+    def split(self, total: int) -> CallSplit | None:
+        """The episode's ``total`` model calls split by model (:func:`split_calls`)."""
+        return split_calls(self.vlm_calls_by_kind, total)
+
+
+REASONER, SCORER = "reasoner", "scorer"
+CALL_MODELS: Mapping[str, str] = {
+    "select_direction": REASONER,
+    "propose_prompt": REASONER,
+    "verify": REASONER,
+    HINTS_KIND: REASONER,
+    FLOOR_KIND: REASONER,
+    "score": SCORER,
+}
+"""The model behind each :class:`~drivenav.semantics.protocols.ModelCall` kind, the one place that tells them apart:
+the reasoner's questions (a VLM or LLM, seconds a call) and the image-text scorer's frames (``score``: VLFM and
+ApexNav score every frame, ``drive-nav-plus`` its new views; milliseconds a call)."""
+
+
+@dataclass(frozen=True)
+class CallSplit:
+    """An episode's model calls by model: the reasoner's and the image-text scorer's."""
+
+    reasoner: int
+    scorer: int
+
+
+def split_calls(by_kind: Mapping[str, int], total: int) -> CallSplit | None:
+    """``total`` calls split by :data:`CALL_MODELS`, or None where the counts by kind cannot tell: a record without
+    them (a record's ``vlm_calls_by_kind`` that does not add up to its ``vlm_calls``) or with a kind of no known
+    model (a plug-in's)."""
+    if sum(by_kind.values()) != total or not set(by_kind) <= set(CALL_MODELS):
+        return None
+    return CallSplit(
+        *(sum(n for kind, n in by_kind.items() if CALL_MODELS[kind] == model) for model in (REASONER, SCORER))
+    )
 
 
 CounterValue = int | float | dict[str, int]

@@ -15,6 +15,7 @@ from typing import TypeVar
 from drivenav.analysis.beyond import PairedEntry
 from drivenav.analysis.compare import Comparison
 from drivenav.errors import InputError
+from drivenav.eval.report import CallCounts, with_calls
 from drivenav.jsonstream import DOCUMENT, JsonObject
 
 Interval = tuple[float, float]
@@ -36,10 +37,11 @@ def _each(values: JsonObject, read: Callable[[JsonObject], _Record]) -> dict[str
 @dataclass(frozen=True)
 class MethodEntry:
     """One method's aggregate over its episodes: SR and SPL with 95 % intervals (None without a measured episode),
-    steps, revisits, reasoner calls, failures by cause, missed targets by cause, and per-episode means of the
-    decision counters (``decisions.REASON``, ``steps.ACTIVITY``) and the plug-in explorers whose counters these
-    are (``plugins``: their declarations title their columns; drivenav's own are always known). ``errors`` counts
-    the episodes an exception ended, never navigation failures."""
+    steps, revisits, model calls (in all; by model under ``calls``, None in a report written before it), failures by
+    cause, missed targets by cause, and per-episode means of the decision counters (``decisions.REASON``,
+    ``steps.ACTIVITY``) and the plug-in explorers whose counters these are (``plugins``: their declarations title
+    their columns; drivenav's own are always known). ``errors`` counts the episodes an exception ended, never
+    navigation failures."""
 
     episodes: int
     errors: int
@@ -56,23 +58,29 @@ class MethodEntry:
     missed_target_causes: dict[str, int] = field(default_factory=dict)
     decisions: dict[str, float | None] = field(default_factory=dict)
     plugins: tuple[str, ...] = ()
+    calls: CallCounts | None = None
 
     def to_json(self) -> JsonObject:
         """The entry's keys; ``plugins`` only where there are some, as one text (``a,b``: a CSV cell), so that the
-        files of drivenav's own methods keep their keys."""
+        files of drivenav's own methods keep their keys; the calls by model flat at the end (none in a report
+        written before them)."""
         data = asdict(self)
         data.update(sr_ci95=_interval_json(self.sr_ci95), spl_ci95=_interval_json(self.spl_ci95))
         plugins = data.pop("plugins")
         if plugins:
             data["plugins"] = ",".join(plugins)
-        return data
+        return with_calls(data)
 
     @staticmethod
     def from_json(data: JsonObject) -> MethodEntry:
-        values = {**data, "sr_ci95": _interval(data["sr_ci95"]), "spl_ci95": _interval(data["spl_ci95"])}
+        values = {
+            **CallCounts.without(data),
+            "sr_ci95": _interval(data["sr_ci95"]),
+            "spl_ci95": _interval(data["spl_ci95"]),
+        }
         plugins = data.get("plugins", "")
         values["plugins"] = tuple(plugins.split(",")) if plugins else ()
-        return MethodEntry(**values)
+        return MethodEntry(**values, calls=CallCounts.from_json(data))
 
 
 @dataclass(frozen=True)

@@ -37,6 +37,7 @@ from drivenav.analysis.paper_tables import (
     PaperRow,
 )
 from drivenav.analysis.stats import BOOTSTRAP_RESAMPLES
+from drivenav.eval.report import CallCounts
 from drivenav.jsonstream import JsonObject
 
 Methods = dict[str, MethodEntry]
@@ -381,20 +382,33 @@ def _decisions(methods: Methods) -> list[str]:
     lines = [
         "## Decisions and direction labels per episode",
         "",
-        "Means per episode (reasoner calls: median and mean). Decisions by trigger: the start scan (and every "
+        "Means per episode (model calls: median and mean, the reasoner's questions apart from the image-text "
+        "scorer's frames; `-` where the runs cannot tell them apart). Decisions by trigger: the start scan (and every "
         "decision of the 360 deg scanning methods), an inspection event, the followed direction gone, the "
         "planner stuck; a dead end offers the rear range because no direction is left in the forward 240 deg. "
         "ApexNav's decisions by mode (semantic: a TSP over the high-value frontiers when three or more, geometric: "
         "the nearest) and the frontiers it made dormant. `-`: the method's explorer keeps no such counter.",
         "",
-        "| method | reasoner calls (median / mean) | " + " | ".join(column.title for column in columns) + " |",
-        "|---|---|" + "---|" * len(columns),
+        "| method | reasoner calls (median / mean) | scorer calls (median / mean) | "
+        + " | ".join(column.title for column in columns)
+        + " |",
+        "|---|---|---|" + "---|" * len(columns),
     ]
     for name, entry in methods.items():
-        calls = f"{_number(entry.median_vlm_calls, '{:g}')} / {_number(entry.vlm_calls, '{:.1f}')}"
         cells = " | ".join(column.cell(entry.decisions, entry.episodes - entry.errors) for column in columns)
-        lines.append(f"| `{name}` | {calls} | {cells} |")
+        lines.append(f"| `{name}` | {_calls(entry.calls)} | {cells} |")
     return lines
+
+
+def _calls(calls: CallCounts | None) -> str:
+    """The reasoner's and the scorer's cells: median / mean calls per episode (``-`` where the runs cannot tell)."""
+    known = calls or CallCounts(None, None, None, None)
+    reasoner = _median_mean(known.median_reasoner_calls, known.avg_reasoner_calls)
+    return f"{reasoner} | {_median_mean(known.median_scorer_calls, known.avg_scorer_calls)}"
+
+
+def _median_mean(median: float | None, mean: float | None) -> str:
+    return f"{_number(median, '{:g}')} / {_number(mean, '{:.1f}')}"
 
 
 def _steps(methods: Methods) -> list[str]:

@@ -144,6 +144,7 @@ def method_entry(records: list[EpisodeRecord]) -> MethodEntry:
         missed_target_causes=missed_counts(records),
         decisions=decision_means(records),
         plugins=tuple(sorted({r.explorer.name for r in records if r.explorer} - set(BUILT_IN_EXPLORERS))),
+        calls=summary.calls,
     )
 
 

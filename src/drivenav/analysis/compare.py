@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from drivenav.eval.records import EpisodeRecord
-from drivenav.eval.report import Summary, shown, summarize
+from drivenav.eval.report import CALL_COLUMNS, Summary, call_means, shown, summarize
 from drivenav.eval.rundir import RunContents, read_run
 from drivenav.jsonstream import JsonObject
 
@@ -109,9 +109,10 @@ def compare_runs(runs: RunRecords, min_distance: float = TABLE_II_MIN_DISTANCE) 
 
 
 def format_comparison(result: Comparison) -> str:
-    """The comparison as a plain-text table."""
+    """The comparison as a plain-text table (model calls per episode by model: the reasoner's, the scorer's)."""
+    calls = " ".join(CALL_COLUMNS)
     header = (
-        f"{'method':<20} {'episodes':>8} {'errors':>6} {'SR %':>6} {'SPL %':>6} {'steps':>7} {'revisits':>8}"
+        f"{'method':<20} {'episodes':>8} {'errors':>6} {'SR %':>6} {'SPL %':>6} {'steps':>7} {'revisits':>8} {calls}"
         f" | common (n={result.common_episodes}, d0 > {result.min_distance:g} m): {'steps':>7} {'revisits':>8}"
     )
     lines = [header, "-" * len(header)]
@@ -119,9 +120,13 @@ def format_comparison(result: Comparison) -> str:
         overall, common = row.overall, row.common
         tail = f"{common.avg_steps:>7.1f} {common.avg_revisits:>8.3f}" if common else f"{'-':>7} {'-':>8}"
         rates = [shown(value, "{:>6.1f}", 100.0).rjust(6) for value in (overall.success_rate, overall.spl)]
+        means = call_means(overall.calls)
+        per_model = " ".join(
+            shown(value, "{:.2f}").rjust(len(column)) for column, value in zip(CALL_COLUMNS, means, strict=True)
+        )
         lines.append(
             f"{name:<20} {overall.episodes:>8} {overall.errors:>6} {' '.join(rates)}"
-            f" {shown(overall.avg_steps, '{:>7.1f}'):>7} {shown(overall.avg_revisits, '{:>8.3f}'):>8}"
+            f" {shown(overall.avg_steps, '{:>7.1f}'):>7} {shown(overall.avg_revisits, '{:>8.3f}'):>8} {per_model}"
             f" | {'':>38}{tail}"
         )
     return "\n".join(lines)

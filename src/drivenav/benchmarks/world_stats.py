@@ -371,10 +371,16 @@ def distances_from_start(episode: Episode, from_start: Distance) -> tuple[float,
 
 
 def measure(
-    episodes: Sequence[Episode], library: SceneLibrary, config: StatsConfig = StatsConfig(), source: str = "EPISODES"
+    episodes: Sequence[Episode],
+    library: SceneLibrary,
+    config: StatsConfig = StatsConfig(),
+    source: str = "EPISODES",
+    measured_one: Callable[[], object] = lambda: None,
 ) -> WorldStats:
     """The statistics of ``episodes`` and of the scenes they use (each scene once, in first-use order), loaded from
-    ``library``; an episode whose scene ``library`` lacks is an :class:`InputError` naming ``source``."""
+    ``library``; an episode whose scene ``library`` lacks is an :class:`InputError` naming ``source``.
+    ``measured_one`` is called after each episode is measured (a progress bar's step: an episode's distances take
+    milliseconds, a million of them many minutes)."""
     by_scene: dict[str, list[Episode]] = {}
     for i, episode in enumerate(episodes):
         if episode.scene_id not in library:
@@ -387,7 +393,9 @@ def measure(
         scene = library.load(scene_id)
         terrain = terrain_of(scene, config.sim)
         scenes.append(measure_scene(scene, config, terrain))
-        measured.extend(_episode_stats(e, scenes[-1], terrain, config) for e in scene_episodes)
+        for episode in scene_episodes:
+            measured.append(_episode_stats(episode, scenes[-1], terrain, config))
+            measured_one()
     names = list(dict.fromkeys(s.scene_set for s in scenes))
     groups = [*names, ALL] if len(names) > 1 else names
     return WorldStats(

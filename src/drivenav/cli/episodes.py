@@ -5,13 +5,15 @@ docs/world-vs-hm3d.md)."""
 from __future__ import annotations
 
 import argparse
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NoReturn
 
 from drivenav.cli.common import Commands
 from drivenav.errors import InputError
 from drivenav.eval.options import episode_count, path, seed
 
 if TYPE_CHECKING:
+    from tqdm import tqdm
+
     from drivenav.envs.embedded.library import SceneLibrary
     from drivenav.episode import Episode
 
@@ -130,7 +132,8 @@ def _cmd_episodes_stats(args: argparse.Namespace) -> int:
     from drivenav.benchmarks.world_stats_table import format_world_stats
 
     episodes, library = _stats_input(args)
-    stats = measure(episodes, library, source=str(args.episodes))
+    with progress("measuring", len(episodes)) as bar:
+        stats = measure(episodes, library, source=str(args.episodes), measured_one=bar.update)
     print(json.dumps(stats.to_json(), indent=1) if args.json else format_world_stats(stats))
     return 0
 
@@ -157,7 +160,8 @@ def _stats_input(args: argparse.Namespace) -> tuple[list[Episode], SceneLibrary]
             file=sys.stderr,
         )
     else:
-        validate_for_scenes(episodes, library, name, StatsConfig().sim)
+        with progress("checking", len(episodes)) as bar:
+            validate_for_scenes(episodes, library, name, StatsConfig().sim, checked_one=bar.update)
     return episodes, library
 
 
@@ -174,4 +178,14 @@ def _stats_file(name: str, layout: str | None) -> list[Episode]:
     if not Path(name).is_file():
         expected = f"an episodes file or a benchmark name ({', '.join(BENCHMARKS)})"
         raise InputError("command line", "EPISODES", expected, name)
-    return load_episodes(name)
+    with progress("reading", None) as bar:
+        return load_episodes(name, read_one=bar.update)
+
+
+def progress(stage: str, total: int | None) -> tqdm[NoReturn]:
+    """A progress line of ``episodes stats`` (episodes read, checked, measured: a million episodes take minutes) on
+    standard error, and only where it is a terminal (tqdm's ``disable=None``): never in stdout's table or JSON, nor
+    in a log."""
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=f"episodes stats: {stage}", unit="ep", disable=None, mininterval=1.0, leave=False)

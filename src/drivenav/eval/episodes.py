@@ -17,7 +17,7 @@ import gzip
 import json
 import os
 import secrets
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import Any
@@ -129,11 +129,14 @@ def _write_gzip(path: Path, episodes: Iterable[Episode]) -> None:
         gz.write("".join(pending).encode())
 
 
-def load_episodes(path: str | Path, require_goals: bool = True) -> list[Episode]:
+def load_episodes(
+    path: str | Path, require_goals: bool = True, read_one: Callable[[], object] = lambda: None
+) -> list[Episode]:
     """Read and validate an episode file (json.gz, or plain .json), streamed: the episodes are read one at a time
     and a goals text that episodes repeat is read once (one shared tuple), so a file of 100,000 episodes is read in
     seconds and held in about 1 KB per episode. ``require_goals`` False also reads a live run's copy of its
-    episode (``drivenav run``: a target, no goals)."""
+    episode (``drivenav run``: a target, no goals); ``read_one`` is called after each episode read (a progress
+    bar's step)."""
     source = Path(path)
     if not source.is_file():
         raise InputError(source, "--episodes", "an episode count or an existing .json.gz file")
@@ -145,7 +148,10 @@ def load_episodes(path: str | Path, require_goals: bool = True) -> list[Episode]
     stream = ArrayStream(source, "episodes", member="goals", convert=goals)
     try:
         with _no_cycle_collection():
-            episodes = [_parse_streamed(fields, f"episodes[{i}]", x, goals, i) for i, x in enumerate(stream.items())]
+            episodes = []
+            for i, item in enumerate(stream.items()):
+                episodes.append(_parse_streamed(fields, f"episodes[{i}]", item, goals, i))
+                read_one()
     except InputError as error:
         if error.field != DOCUMENT:  # a Habitat file fails on its first episode's goals: say what it is
             _refuse_habitat_layout(fields, _top_level(source))
@@ -219,13 +225,20 @@ GEODESIC_TOLERANCE = 0.10  # an episode's info.geodesic_distance may differ this
 FLOOR_TOLERANCE = START_TOLERANCE  # metres: a start stands on a floor (Habitat's one-floor step limit)
 
 
-def validate_for_scenes(episodes: list[Episode], library: SceneLibrary, source: str | Path, sim: SimConfig) -> None:
+def validate_for_scenes(
+    episodes: list[Episode],
+    library: SceneLibrary,
+    source: str | Path,
+    sim: SimConfig,
+    checked_one: Callable[[], object] = lambda: None,
+) -> None:
     """Every episode fits the world: its scene is in ``library``; its start and view points lie on the scene's one
     connected navigable area (:mod:`drivenav.envs.embedded.terrain`; in a building, on a floor within 0.25 m of
     their heights), so a goal is reachable from the start; in a building, every goal has a view point on its own
     floor and a start off the navigable area over a stairwell is named as such; and ``info.geodesic_distance`` (if
     given) is the world's start-to-goal distance (what SPL divides by) within 10 %. Goals that episodes share (one
-    tuple, as a file's repeated goals text reads) are checked once."""
+    tuple, as a file's repeated goals text reads) are checked once. ``checked_one`` is called after each episode
+    checked (a progress bar's step)."""
     fields = Fields(source)
     terrains: dict[str, Terrain] = {}
     distances: dict[tuple[str, tuple[int, ...]], DistanceField] = {}  # by the goals' ids: all alive in ``episodes``
@@ -241,6 +254,7 @@ def validate_for_scenes(episodes: list[Episode], library: SceneLibrary, source: 
             distances[key] = terrain.field(episode.view_points_xyz())
         _check_start(episode, f"episodes[{i}]", terrain, fields)
         _check_geodesic(episode, f"episodes[{i}]", distances[key], fields)
+        checked_one()
 
 
 def _where(episode: Episode) -> str:

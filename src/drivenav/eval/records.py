@@ -24,7 +24,7 @@ import math
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
-from drivenav.agent.base import BodyCounters, CounterValue, ExplorerCounters, ModelCounters
+from drivenav.agent.base import BodyCounters, CallSplit, CounterValue, ExplorerCounters, ModelCounters
 from drivenav.envs.base import EpisodeMeasures
 from drivenav.errors import InputError
 from drivenav.jsonstream import JsonObject
@@ -82,6 +82,12 @@ class EpisodeRecord:
     @property
     def is_error(self) -> bool:
         return self.stop_reason == ERROR
+
+    @property
+    def calls(self) -> CallSplit | None:
+        """``vlm_calls`` split into the reasoner's and the image-text scorer's (None where the record cannot tell:
+        :func:`~drivenav.agent.base.split_calls`)."""
+        return self.stats.split(self.vlm_calls)
 
     def to_json(self) -> JsonObject:
         """The JSON object written to ``episodes.jsonl`` (model statistics and the body's counters flat beside the

@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 from collections import Counter
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from statistics import median
 
@@ -26,6 +26,64 @@ def mean(records: Sequence[EpisodeRecord], value: Callable[[EpisodeRecord], floa
 
 def _rounded(value: float | None, digits: int) -> float | None:
     return None if value is None else round(value, digits)
+
+
+def _median(values: Sequence[int]) -> float | None:
+    return median(values) if values else None
+
+
+def _average(values: Sequence[int]) -> float | None:
+    return _rounded(sum(values) / len(values), 3) if values else None
+
+
+@dataclass(frozen=True)
+class CallCounts:
+    """Model calls per episode by model (:func:`~drivenav.agent.base.split_calls`): the reasoner's and the image-text
+    scorer's, mean and median over the records that tell them apart (None where none does: a record written without
+    ``vlm_calls_by_kind``). ``avg_vlm_calls`` adds the two, though a scorer call costs milliseconds and a reasoner
+    call seconds."""
+
+    avg_reasoner_calls: float | None
+    median_reasoner_calls: float | None
+    avg_scorer_calls: float | None
+    median_scorer_calls: float | None
+
+    @staticmethod
+    def of(records: Sequence[EpisodeRecord]) -> CallCounts:
+        splits = [split for split in (r.calls for r in records) if split is not None]
+        reasoner, scorer = [s.reasoner for s in splits], [s.scorer for s in splits]
+        return CallCounts(_average(reasoner), _median(reasoner), _average(scorer), _median(scorer))
+
+    @staticmethod
+    def from_json(data: JsonObject) -> CallCounts | None:
+        """The counts among ``data``'s keys (a summary's, a method's), or None where it was written before them."""
+        if CALL_KEYS[0] not in data:
+            return None
+        return CallCounts(*(data[key] for key in CALL_KEYS))
+
+    @staticmethod
+    def without(data: JsonObject) -> JsonObject:
+        """``data`` less the counts' keys."""
+        return {key: value for key, value in data.items() if key not in CALL_KEYS}
+
+
+CALL_COLUMNS = ("reasoner calls", "scorer calls")
+"""The model-call columns of every table (the report's pages, ``compare``): the reasoner's and the image-text
+scorer's, never added together."""
+
+CALL_KEYS = tuple(item.name for item in fields(CallCounts))
+"""The keys :class:`CallCounts` adds, flat, to ``summary.json`` and to each method of ``ablations.json``."""
+
+
+def with_calls(data: JsonObject) -> JsonObject:
+    """An object whose ``calls`` (a :class:`CallCounts` as a dictionary, or None) is written flat at its end, or not
+    at all where it is None (files written before it keep their bytes)."""
+    calls = data.pop("calls")
+    return data if calls is None else {**data, **calls}
+
+
+RATE_KEYS = ("episodes_per_hour", "frames_per_second")
+"""An eval's rate in ``summary.json`` (:class:`Throughput`), absent from a summary of records read back."""
 
 
 @dataclass(frozen=True)
@@ -50,17 +108,21 @@ class Summary:
     vlm_fallbacks: int
     errors: int
     stop_reasons: dict[str, int] = field(default_factory=dict)
+    calls: CallCounts | None = None
     episodes_per_hour: float | None = None
     frames_per_second: float | None = None
 
     def to_json(self) -> JsonObject:
-        """The ``summary.json`` object (keys in field order)."""
-        return asdict(self)
+        """The ``summary.json`` object (keys in field order, the calls by model flat at the end; the rate only where
+        an eval timed one)."""
+        data = with_calls(asdict(self))
+        return {key: value for key, value in data.items() if key not in RATE_KEYS or value is not None}
 
     @staticmethod
     def from_json(data: JsonObject) -> Summary:
-        """A summary as :meth:`to_json` wrote it (a missing or unknown key is a :class:`TypeError`)."""
-        return Summary(**data)
+        """A summary as :meth:`to_json` wrote it, with or without the calls by model (a missing or unknown key is a
+        :class:`TypeError`)."""
+        return Summary(**CallCounts.without(data), calls=CallCounts.from_json(data))
 
 
 @dataclass(frozen=True)
@@ -101,10 +163,11 @@ def summarize(records: Sequence[EpisodeRecord], throughput: Throughput | None = 
         avg_distance_to_goal=_rounded(mean(records, lambda r: r.distance_to_goal), 3),
         avg_collisions=_rounded(mean(records, lambda r: r.collisions), 3),
         avg_vlm_calls=_rounded(mean(records, lambda r: r.vlm_calls), 3),
-        median_vlm_calls=median([r.vlm_calls for r in records]) if records else None,
+        median_vlm_calls=_median([r.vlm_calls for r in records]),
         vlm_fallbacks=sum(r.stats.vlm_fallbacks for r in records),
         errors=sum(r.is_error for r in records),
         stop_reasons=dict(sorted(Counter(r.stop_reason for r in records).items())),
+        calls=CallCounts.of(records),
         episodes_per_hour=throughput.episodes_per_hour if throughput is not None else None,
         frames_per_second=throughput.frames_per_second if throughput is not None else None,
     )
@@ -117,9 +180,10 @@ def rate_kept(summary: Summary, earlier: Path) -> Summary:
         data = json.loads(earlier.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return summary
-    keys = ("episodes_per_hour", "frames_per_second")
-    rates = [float(r) for key in keys if isinstance(r := _key(data, key), (int, float)) and not isinstance(r, bool)]
-    if len(rates) != len(keys):
+    rates = [
+        float(r) for key in RATE_KEYS if isinstance(r := _key(data, key), (int, float)) and not isinstance(r, bool)
+    ]
+    if len(rates) != len(RATE_KEYS):
         return summary
     return replace(summary, episodes_per_hour=rates[0], frames_per_second=rates[1])
 
@@ -133,8 +197,13 @@ def shown(value: float | None, template: str, scale: float = 1.0) -> str:
     return "n/a" if value is None else template.format(scale * value)
 
 
+def call_means(calls: CallCounts | None) -> tuple[float | None, float | None]:
+    """Reasoner and scorer calls per episode (None where the records cannot tell them apart)."""
+    return (None, None) if calls is None else (calls.avg_reasoner_calls, calls.avg_scorer_calls)
+
+
 def format_table(summary: Summary, title: str = "") -> str:
-    """A plain-text table of a summary, for the terminal."""
+    """A plain-text table of a summary, for the terminal (model calls in all, then the reasoner's and the scorer's)."""
     rows = [
         ("episodes", f"{summary.episodes}"),
         ("success rate", shown(summary.success_rate, "{:.1f} %", 100.0)),
@@ -146,7 +215,11 @@ def format_table(summary: Summary, title: str = "") -> str:
         ("avg revisits", shown(summary.avg_revisits, "{:.3f}")),
         ("avg retraced stretches", shown(summary.avg_retraced_revisits, "{:.3f}")),
         ("avg collisions", shown(summary.avg_collisions, "{:.2f}")),
-        ("avg VLM calls", shown(summary.avg_vlm_calls, "{:.2f}")),
+        ("avg model calls", shown(summary.avg_vlm_calls, "{:.2f}")),
+        *(
+            (f"avg {name}", shown(value, "{:.2f}"))
+            for name, value in zip(CALL_COLUMNS, call_means(summary.calls), strict=True)
+        ),
         ("VLM fallbacks", f"{summary.vlm_fallbacks}"),
         ("errors", f"{summary.errors}"),
         ("stop reasons", ", ".join(f"{k}: {v}" for k, v in summary.stop_reasons.items()) or "-"),

@@ -16,7 +16,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from drivenav.agent.base import CounterValue
+from drivenav.agent.base import CALL_MODELS, REASONER, CounterValue
 from drivenav.agent.explorers import BUILT_IN_EXPLORERS
 from drivenav.agent.trace import (
     DetectionEvent,
@@ -32,7 +32,7 @@ from drivenav.agent.trace import (
 from drivenav.analysis.counter_columns import explorer_entries
 from drivenav.episode import Episode
 from drivenav.eval.records import EpisodeRecord, missed_cause
-from drivenav.eval.report import shown
+from drivenav.eval.report import CALL_COLUMNS, shown
 from drivenav.eval.trace import EpisodeTrace
 from drivenav.report.config import ReportConfig
 from drivenav.report.html import Cell, element, esc, link, page, table, void
@@ -103,7 +103,6 @@ def _facts(record: EpisodeRecord, episode: Episode | None) -> str:
     cause = record.failure_cause
     if cause == "missed_target":
         cause += f" ({missed_cause(record)})"
-    calls = ", ".join(f"{kind} {n}" for kind, n in sorted(record.stats.vlm_calls_by_kind.items()))
     facts = [
         ("goal", record.object_category),
         ("scene", record.scene_id),
@@ -118,11 +117,26 @@ def _facts(record: EpisodeRecord, episode: Episode | None) -> str:
         ("collisions", shown(record.collisions, "{:.0f}")),
         ("stop reason", record.stop_reason),
         ("failure cause", cause or "-"),
-        ("VLM calls", f"{record.vlm_calls}" + (f" ({calls})" if calls else "")),
+        ("model calls", str(record.vlm_calls)),
+        *_calls(record),
         ("error", record.error or "-"),
     ]
     items = "".join(element("dt", esc(name)) + element("dd", esc(value)) for name, value in facts)
     return element("dl", items, {"class": "facts"})
+
+
+def _calls(record: EpisodeRecord) -> list[tuple[str, str]]:
+    """The reasoner's calls (with their kinds) and the image-text scorer's, each a fact of its own (n/a where the
+    record cannot tell them apart)."""
+    split = record.calls
+    if split is None:
+        return [(name, "n/a") for name in CALL_COLUMNS]
+    kinds = sorted((kind, n) for kind, n in record.stats.vlm_calls_by_kind.items() if CALL_MODELS[kind] == REASONER)
+    listed = ", ".join(f"{kind} {n}" for kind, n in kinds)
+    return [
+        (CALL_COLUMNS[0], f"{split.reasoner}" + (f" ({listed})" if listed else "")),
+        (CALL_COLUMNS[1], f"{split.scorer}"),
+    ]
 
 
 def _picture(src: str, episode_id: str) -> str:

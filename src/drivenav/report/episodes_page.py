@@ -12,8 +12,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from drivenav.agent.base import CallSplit
 from drivenav.eval.records import EpisodeRecord
-from drivenav.eval.report import shown
+from drivenav.eval.report import CALL_COLUMNS, shown
 from drivenav.eval.rundir import file_name
 from drivenav.report.html import Attributes, Cell, element, esc, link, page, row, table, void
 from drivenav.report.runs import Run
@@ -31,7 +32,7 @@ COLUMNS = (
     "revisits",
     "stop reason",
     "failure cause",
-    "VLM calls",
+    *CALL_COLUMNS,
 )
 FILTERS = (  # (field, label): the select filters, each over the values its column holds
     ("method", "run"),
@@ -97,8 +98,13 @@ class EpisodeRow:
             _number(record.revisits, "{:.0f}"),
             record.stop_reason,
             record.failure_cause,
-            _number(record.vlm_calls, "{:.0f}"),
+            *(_number(count, "{:.0f}") for count in _calls(record.calls)),
         ]
+
+
+def _calls(split: CallSplit | None) -> tuple[int | None, int | None]:
+    """The reasoner's and the scorer's calls (None where the record cannot tell them apart)."""
+    return (None, None) if split is None else (split.reasoner, split.scorer)
 
 
 def _number(value: float | None, template: str) -> Cell:

@@ -1,6 +1,6 @@
 """The report's entry page, ``index.html``: one row per run (SR and SPL with their 95 % intervals, steps, revisits,
-errors, reasoner calls), the settings in which the runs differ (from ``run.json``), and the paper's tables when the
-runs form an ablation set."""
+errors, reasoner and scorer calls), the settings in which the runs differ (from ``run.json``), and the paper's
+tables when the runs form an ablation set."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from collections.abc import Sequence
 
 from drivenav.analysis.ablation_data import Interval
 from drivenav.analysis.stats import BOOTSTRAP_RESAMPLES
-from drivenav.eval.report import shown
+from drivenav.eval.report import CALL_COLUMNS, call_means, shown
 from drivenav.report.html import Cell, element, esc, link, page, table
 from drivenav.report.runs import Run, compared_configs, config_differences
 
@@ -39,18 +39,19 @@ def _run_row(run: Run) -> list[Cell | str]:
         shown(entry.avg_steps, "{:.1f}"),
         shown(entry.avg_revisits, "{:.3f}"),
         str(entry.errors),
-        shown(entry.vlm_calls, "{:.2f}"),
+        *(shown(value, "{:.2f}") for value in call_means(entry.calls)),
         _world(run),
         (run.info.git_commit or "-")[:10] if run.info else "-",
     ]
 
 
 def _runs_table(runs: Sequence[Run]) -> str:
-    header = ["run", "episodes", "SR %", "SPL %", "steps", "revisits", "errors", "VLM calls", "world", "commit"]
+    header = ["run", "episodes", "SR %", "SPL %", "steps", "revisits", "errors", *CALL_COLUMNS, "world", "commit"]
     caption = (
         "SR and SPL in %, 95 % intervals in brackets (Wilson score for SR, percentile bootstrap of the mean with "
-        f"{BOOTSTRAP_RESAMPLES} resamples for SPL); steps, revisits and VLM calls are means per episode; errors are "
-        "episodes an exception ended."
+        f"{BOOTSTRAP_RESAMPLES} resamples for SPL); steps, revisits and model calls are means per episode (reasoner "
+        "calls: questions to the reasoning model; scorer calls: frames the image-text scorer scored; n/a for records "
+        "without calls by kind); errors are episodes an exception ended."
     )
     return element("p", esc(caption)) + table(header, (_run_row(run) for run in runs), {"class": "sortable"})
 
