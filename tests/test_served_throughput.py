@@ -195,6 +195,38 @@ def test_two_copies_of_a_model_run_two_batches_at_once() -> None:
     assert server.times.frames == 8 and server.times.batches == 8
 
 
+def test_a_batch_runs_once_every_client_grounding_now_waits_on_it() -> None:
+    """Batches of up to 16 frames or 1 s. Two clients grounding together: after their first frames the server knows
+    both, and a batch runs as soon as both wait (on the queue or the model), not 1 s later. A client seen within
+    ``active_s`` that sends nothing (a worker waiting on its VLM) makes the other's frame wait its batch_ms, as
+    before; once it has not been seen for ``active_s``, no more."""
+    grounder = SlowStaged(forward_s=0.0)
+    server = staged_server(grounder, ServeConfig(batch=16, batch_ms=1000.0, active_s=2.0))
+    answers: dict[int, float] = {}
+
+    def timed(values: list[int], clients: int = 1) -> float:
+        ready = threading.Barrier(clients)
+        threads = [
+            threading.Thread(target=ground, args=(endpoint, values[c::clients], answers, ready)) for c in range(clients)
+        ]
+        start = time.perf_counter()
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join()
+        return time.perf_counter() - start
+
+    with serving(server) as endpoint:
+        together = timed(list(range(40)), clients=2)
+        behind_a_quiet_one = timed([100])  # the two clients above are still active: it waits for them
+        time.sleep(2.1)
+        alone = timed([101])
+    assert len(answers) == 42
+    assert together < 1.0 * 4  # 40 frames: at most the first batches waited their 1 s (not 20 batches x 1 s)
+    assert behind_a_quiet_one >= 1.0
+    assert alone < 1.0
+
+
 @pytest.mark.parametrize("copies", ["0", "9"])
 def test_serve_grounder_copies_out_of_range_is_one_line(copies: str, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["serve", "grounder", "--detector", "ground-truth", "--copies", copies]) == 2

@@ -147,6 +147,35 @@ class _Episodes:
             del self._client_held[session.client], self._client_kept[session.client]
 
 
+class _Clients:
+    """The clients grounding now: each seen sending a SEGMENT within the last ``active_s`` seconds, and how many
+    of each one's frames the model threads hold. A client waits for each reply before its next request, so when
+    every such client has a frame queued or in the model, no frame can come that a batch would wait for."""
+
+    def __init__(self, active_s: float) -> None:
+        self.active_s = active_s
+        self._seen: dict[bytes, float] = {}
+        self._held: Counter[bytes] = Counter()
+
+    def saw(self, identity: bytes) -> None:
+        self._seen[identity] = time.monotonic()
+
+    def hold(self, identities: list[bytes]) -> None:
+        self._held.update(identities)
+
+    def release(self, identity: bytes) -> None:
+        self._held[identity] -= 1
+        if self._held[identity] <= 0:
+            del self._held[identity]
+
+    def all_waiting(self, queued: set[bytes]) -> bool:
+        """Whether every client grounding now has a frame ``queued`` or held by the model."""
+        since = time.monotonic() - self.active_s
+        for identity in [i for i, seen in self._seen.items() if seen < since]:
+            del self._seen[identity]
+        return self._seen.keys() <= queued | self._held.keys()
+
+
 class GrounderServer:
     """``factory``'s grounder served at ``bind`` (CURVE with ``keys``) as ``info`` describes it: one shared
     instance, or one per episode for a stand-in that reads labels (``info.labels``).
@@ -171,6 +200,7 @@ class GrounderServer:
         self.episodes = _Episodes(self.config)
         self._check = DetectionCheck(f"{info.detector} (served grounder)", self.config.max_detections)
         self._pending: list[_Pending] = []
+        self._clients = _Clients(self.config.active_s)
         self.batch_sizes: Counter[int] = Counter()
         self._router = RouterSocket(bind, keys, MAX_ARRAY_BYTES)
         self.endpoint = self._router.endpoint
@@ -231,6 +261,7 @@ class GrounderServer:
         start = time.perf_counter()
         for identity, frames in self._model.replies():
             self._router.send(identity, frames)
+            self._clients.release(identity)
         self._times.seconds["send"] += time.perf_counter() - start
         if not self._model.busy:
             for identity, pong in self._deferred:
@@ -275,6 +306,7 @@ class GrounderServer:
         if self._shared is None:
             self.episodes.get(segment.episode)  # an unknown episode is refused now, not after the batch
         self._pending.append(_Pending(identity, segment, time.monotonic()))
+        self._clients.saw(identity)
         return None
 
     def _pong(self, identity: bytes, pong: Message) -> Message | None:
@@ -311,10 +343,14 @@ class GrounderServer:
         return self._model is None or self._model.ready
 
     def _due(self) -> bool:
+        """A batch runs when a model copy is ready for it and the batch is full, or its oldest frame has waited
+        ``batch_ms``, or every client grounding now is waiting on it or on the model (no frame can come)."""
         if not self._pending or not self._model_ready():
             return False
         waited = time.monotonic() - self._pending[0].arrived
-        return len(self._pending) >= self.config.batch or waited * 1000.0 >= self.config.batch_ms
+        if len(self._pending) >= self.config.batch or waited * 1000.0 >= self.config.batch_ms:
+            return True
+        return self._clients.all_waiting({pending.identity for pending in self._pending})
 
     def _run_batch(self) -> None:
         batch = self._pending[: self.config.batch]
@@ -332,6 +368,7 @@ class GrounderServer:
             groups.setdefault(key, []).append(pending)
         work = [prepared for group in groups.values() if (prepared := self._prepared(group)) is not None]
         if work:
+            self._clients.hold([identity for w in work for identity, _, _ in w.replies])
             self._model.put(work)
 
     def _prepared(self, group: list[_Pending]) -> Work | None:

@@ -45,7 +45,10 @@ class ServeConfig:
     episode's vocabulary grows by at most ``phrases`` phrases. Bytes are charged as :data:`LABEL_BYTES` a label and
     :data:`ENTRY_BYTES` (and its characters) a name or phrase. A frame's reply holds at most ``max_detections``
     detections, checked as in process (:mod:`drivenav.semantics.checked`). A model (not a stand-in) runs as
-    ``copies`` copies, each in a thread of its own (one fills a GPU only when its batches keep it busy).
+    ``copies`` copies, each in a thread of its own (one fills a GPU only when its batches keep it busy). A batch
+    also runs, before ``batch_ms``, once every client that sent a frame in the last ``active_s`` seconds has one
+    queued or in the model: a client waits for its reply before its next frame, so none can come (a worker that
+    grounds every step, or every few seconds behind a VLM's answer, is such a client).
     """
 
     batch: int = 8
@@ -59,8 +62,11 @@ class ServeConfig:
     held_bytes: int = 2**30
     max_detections: int = DEFAULT_MAX_DETECTIONS
     copies: int = 1
+    active_s: float = 10.0
 
     def __post_init__(self) -> None:
+        if not (math.isfinite(self.active_s) and self.active_s > 0.0):
+            raise ValueError(f"active_s must be a positive number of seconds, got {self.active_s}")
         if not 1 <= self.copies <= MAX_COPIES:
             raise ValueError(f"copies must be 1-{MAX_COPIES}, got {self.copies}")
         if not 1 <= self.batch <= MAX_BATCH:
