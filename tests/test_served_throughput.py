@@ -234,6 +234,13 @@ def test_serve_grounder_copies_out_of_range_is_one_line(copies: str, capsys: pyt
     assert len(error.strip().splitlines()) == 1 and "--copies" in error and "from 1 to 8" in error
 
 
+def test_serve_grounder_copies_of_a_stand_in_are_refused(capsys: pytest.CaptureFixture[str]) -> None:
+    """A stand-in is one instance per episode: copies of it mean nothing, and the option is refused, not ignored."""
+    assert main(["serve", "grounder", "--detector", "embedded", "--copies", "2"]) == 2
+    error = capsys.readouterr().err
+    assert len(error.strip().splitlines()) == 1 and "--copies" in error
+
+
 def test_a_ping_during_a_forward_is_answered_after_it() -> None:
     """As a server of one thread did: a PONG says the model answers, so it waits for the batch in hand."""
     grounder = SlowStaged(forward_s=0.4)

@@ -80,6 +80,7 @@ def _cmd_serve_grounder(args: argparse.Namespace) -> int:
 
     check_bind(args.bind, args.keys)  # before the model loads
     config = serve_config(args.batch, args.batch_ms, args.copies)
+    _refuse_model_options(args)
     spec = ModelSpec(
         detector=args.detector,
         detector_model=args.detector_model,
@@ -124,7 +125,7 @@ def _random_build(args: argparse.Namespace) -> tuple[Callable[[ModelSpec], Groun
 
     given = "--tiny" if args.tiny else "--random-weights"
     if args.detector not in MODEL_DETECTORS:
-        raise InputError("command line", given, f"a model detector ({', '.join(MODEL_DETECTORS)})", args.detector)
+        raise _model_detector_only(given, args.detector)
     if args.detector_model or args.segmenter_model:
         raise InputError("command line", given, "no --detector-model or --segmenter-model", "a checkpoint")
     try:
@@ -133,3 +134,36 @@ def _random_build(args: argparse.Namespace) -> tuple[Callable[[ModelSpec], Groun
         extra = f"the models extra for {args.detector} (pip install 'drivenav[models]')"
         raise InputError("command line", "--detector", extra, str(error).splitlines()[0]) from None
     return partial(random_grounder, tiny=args.tiny), "tiny random weights" if args.tiny else "random weights"
+
+
+def _refuse_model_options(args: argparse.Namespace) -> None:
+    """A detector that loads no model (the embedded one, ground truth: not
+    :func:`~drivenav.semantics.serve_config.takes_model_options`) honours none of the model options: the first one
+    given is refused in one line naming it, as ``--tiny`` is, never ignored."""
+    from drivenav.semantics.registry import DEFAULT_SEGMENTER
+    from drivenav.semantics.serve_config import takes_model_options
+
+    if takes_model_options(args.detector):
+        return
+    options = (
+        ("--detector-model", args.detector_model, ""),
+        ("--device", args.device, ""),
+        ("--dtype", args.dtype, "auto"),
+        ("--compile", args.compile, False),
+        ("--segmenter", args.segmenter, DEFAULT_SEGMENTER),
+        ("--segmenter-model", args.segmenter_model, ""),
+        ("--random-weights", args.random_weights, False),
+        ("--tiny", args.tiny, False),
+        ("--copies", args.copies, 1),
+    )
+    given = next((option for option, value, unset in options if value != unset), None)
+    if given is not None:
+        raise _model_detector_only(given, args.detector)
+
+
+def _model_detector_only(option: str, detector: str) -> InputError:
+    """The line for ``option``, which only a model detector honours, given with ``detector``."""
+    from drivenav.semantics.registry import MODEL_DETECTORS
+
+    expected = f"a model detector ({', '.join(MODEL_DETECTORS)}) with {option}"
+    return InputError("command line", option, expected, detector)

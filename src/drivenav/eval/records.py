@@ -282,10 +282,13 @@ def missed_cause(record: EpisodeRecord) -> str:
     return "detected_not_accepted"
 
 
-def read_records(path: Path, episode_ids: frozenset[str] | None = None) -> list[EpisodeRecord]:
+def read_records(
+    path: Path, episode_ids: frozenset[str] | None = None, agent: str | None = None
+) -> list[EpisodeRecord]:
     """The records of ``episodes.jsonl``, read only (a torn last line, from a kill or a run still writing it, is
-    left out, never cut: only the run's own writer repairs it, under its lock). A second record of one episode, or
-    one of an episode not in ``episode_ids`` (when given: the run's), is an :class:`InputError` naming its line."""
+    left out, never cut: only the run's own writer repairs it, under its lock). A second record of one episode, one
+    of an episode not in ``episode_ids`` (when given: the run's), or one of another agent than the run's
+    (:func:`check_agent`) is an :class:`InputError` naming its line."""
     if not path.exists():
         return []
     data = path.read_bytes()
@@ -298,6 +301,7 @@ def read_records(path: Path, episode_ids: frozenset[str] | None = None) -> list[
             record = EpisodeRecord.from_json(json.loads(line), f"{path}:{number}")
         except ValueError:
             raise InputError(path, f"line {number}", "one JSON object per line") from None
+        check_agent(record, agent, f"{path}:{number}")
         first = first_line.get(record.episode_id)
         if first is not None:
             got = f"a second record of episode {record.episode_id!r} (the first is on line {first})"
@@ -308,6 +312,16 @@ def read_records(path: Path, episode_ids: frozenset[str] | None = None) -> list[
         first_line[record.episode_id] = number
         records.append(record)
     return records
+
+
+def check_agent(record: EpisodeRecord, agent: str | None, source: str) -> None:
+    """Refuse a record of another agent than its run's (``agent``: the ``run.agent`` its ``run.json`` names, as
+    written: a method, a preset, an ablation or a plug-in's, installed or not; None for records without a
+    ``run.json``, not checked): one :class:`InputError` naming the line and ``record.agent``. A run's records are
+    its agent's results only (``vlfm`` in a ``drive-nav`` run, an agent no registry knows, are not)."""
+    if agent is not None and record.agent != agent:
+        expected = f"{agent!r}, the agent of this run (run.json's run.agent)"
+        raise InputError(source, "record.agent", expected, record.agent)
 
 
 def cut_torn_tail(path: Path) -> None:

@@ -63,6 +63,14 @@ class RunInfo:
     explorer_plugin: Declared | None = None
     recorded: JsonObject | None = None
 
+    @property
+    def agent(self) -> str:
+        """The run's agent (``config.run.agent``; an uninstalled plug-in's as recorded): the agent every record of
+        the run names (:func:`~drivenav.eval.records.check_agent`)."""
+        run = (self.recorded or {}).get("run")
+        recorded = run.get("agent") if isinstance(run, dict) else None
+        return recorded if isinstance(recorded, str) else self.config.run.agent
+
     def config_json(self) -> JsonObject:
         """``run.json``'s ``config`` tree: the world under ``env`` beside the settings' sections (as recorded, for a
         run read back whose explorer is not installed)."""

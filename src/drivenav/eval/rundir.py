@@ -17,8 +17,10 @@ record names it, and a trace that cannot be written never costs the record.
 
 Readers (``compare``, ``report``, ``viz``, ``bench ablations``' tables) read a run through :func:`read_run`, which
 checks it as a resume does, with the same checker and the same lines: every record's types and ranges
-(:meth:`EpisodeRecord.from_json`), one record per episode, only episodes of the run (those of its copy), and the
-copy itself against ``run.json``'s ``episodes_sha256``. Every file a run names is opened through :func:`inside`:
+(:meth:`EpisodeRecord.from_json`), one record per episode, only episodes of the run (those of its copy), only
+records of the run's agent (``run.json``'s ``run.agent``: a record naming another, ``vlfm`` in a ``drive-nav`` run,
+is refused, naming its line and ``record.agent``; :func:`~drivenav.eval.records.check_agent`), and the copy itself
+against ``run.json``'s ``episodes_sha256``. Every file a run names is opened through :func:`inside`:
 resolved, links included, it must stay inside the run directory.
 """
 
@@ -157,7 +159,8 @@ def read_run(out: Path) -> RunContents:
             expected = f"the episodes whose sha256 {RUN_FILE} records (episodes_sha256)"
             raise InputError(copy, "episodes", expected, "a copy of other episodes")
     ids = None if episodes is None else frozenset(e.episode_id for e in episodes)
-    return RunContents(info, episodes, tuple(read_records(results, ids)))
+    agent = None if info is None else info.agent
+    return RunContents(info, episodes, tuple(read_records(results, ids, agent)))
 
 
 def run_file(out: Path, name: str) -> Path | None:
@@ -176,12 +179,13 @@ def run_file(out: Path, name: str) -> Path | None:
 class RunDirectory:
     """An open, locked run directory (see the module docstring); records are appended kill-safely."""
 
-    def __init__(self, out: Path, episode_ids: frozenset[str], setup: _Setup) -> None:
-        """Open the run's records: ``finished`` holds the episodes they finished (a duplicate or foreign record is
-        an :class:`InputError` here, before any episode runs)."""
+    def __init__(self, out: Path, episode_ids: frozenset[str], agent: str, setup: _Setup) -> None:
+        """Open the run's records of ``agent``: ``finished`` holds the episodes they finished (a duplicate or
+        foreign record, or one of another agent, is an :class:`InputError` here, before any episode runs)."""
         self.out = out
         self.results = out / EPISODES_FILE
         self._episode_ids = episode_ids
+        self._agent = agent
         self._setup = setup
         self.finished = frozenset(r.episode_id for r in self.records())  # checked before any episode runs
 
@@ -215,17 +219,19 @@ class RunDirectory:
                 copy = partial(save_episodes, episodes, out / EPISODES_COPY)
                 setup = _Setup(copy, run_file=partial(_write_run_file, out, world, settings, episodes))
             cut_torn_tail(results)
-            _take_out_reruns(results)
+            _take_out_reruns(results, settings.run.agent)
             with setup.alongside():
-                yield RunDirectory(out, frozenset(e.episode_id for e in episodes), setup)
+                yield RunDirectory(out, frozenset(e.episode_id for e in episodes), settings.run.agent, setup)
 
     def records(self) -> list[EpisodeRecord]:
-        """The run's records (a duplicate, or a record of an episode outside the run, is an :class:`InputError`)."""
-        return read_records(self.results, self._episode_ids)
+        """The run's records (a duplicate, a record of an episode outside the run or of another agent is an
+        :class:`InputError`)."""
+        return read_records(self.results, self._episode_ids, self._agent)
 
     def save(self, record: EpisodeRecord, trace: EpisodeTrace) -> None:
-        """The trace first, then the record (naming the trace) appended, flushed and fsync'ed: the record marks the
-        episode finished. A trace that cannot be written is logged and the record kept, with no trace named."""
+        """The trace first, then the record (naming the trace and the run's agent) appended, flushed and fsync'ed:
+        the record marks the episode finished. A trace that cannot be written is logged and the record kept, with
+        no trace named."""
         self._setup.wait_ready()
         path = trace_path(self.out, record.episode_id)
         try:
@@ -234,6 +240,7 @@ class RunDirectory:
         except (OSError, TypeError, ValueError) as error:
             log.warning("episode %r: its trace could not be written (%s); the record is kept", record.episode_id, error)
             named = replace(record, trace="")
+        named = replace(named, agent=self._agent)  # the run's, whatever the agent object calls itself (a stand-in)
         with self.results.open("a", encoding="utf-8") as handle:
             handle.write(json.dumps(named.to_json(), sort_keys=True) + "\n")
             handle.flush()
@@ -330,14 +337,14 @@ def start_up_failures(records: Sequence[EpisodeRecord]) -> list[EpisodeRecord]:
     return [r for r in records[:first_result] if r.steps == 0]
 
 
-def _take_out_reruns(results: Path) -> None:
+def _take_out_reruns(results: Path, agent: str) -> None:
     """Take out of ``results`` the records a resume runs again: episodes a server lost and episodes that failed to
     start (:func:`start_up_failures`), each kind said in one line. The records taken out are appended to
     :data:`REDONE_FILE` (flushed and fsync'ed) before a new ``results`` without them replaces the old at once, so a
     kill leaves one or the other and loses no record; readers never read them again."""
     if not results.exists():
         return
-    records = read_records(results)
+    records = read_records(results, agent=agent)
     lost = {r.episode_id for r in records if lost_to_a_server(r)}
     failed = {r.episode_id for r in start_up_failures([r for r in records if r.episode_id not in lost])}
     if not lost and not failed:

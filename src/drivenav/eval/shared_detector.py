@@ -6,7 +6,9 @@ its endpoint first; its log goes to ``DIR/grounder-server.log``), and the worker
 workers, their frames batched. The run directory records the detector itself (``models.detector``: the
 detections are the same), so a rerun resumes with or without sharing. The server is stopped when the run ends,
 fails or is interrupted; an episode it lost (it died, or stalled past ``models.detector_timeout_s``) is recorded as
-an error and run again by a resume (:func:`drivenav.eval.rundir.lost_to_a_server`).
+an error and run again by a resume (:func:`drivenav.eval.rundir.lost_to_a_server`). A server gone at an episode's
+start stops the run with a line that says to rerun the same command (it serves a new one), not to restart a server
+the user never started.
 
 The run chooses the endpoint and speaks to the server on loopback, so ``--detector-url`` and ``--detector-keys``
 are refused with ``--share-detector``, never ignored: a server of the user's is reached with ``--detector remote``.
@@ -28,8 +30,8 @@ from typing import IO, Final
 from drivenav.errors import InputError, RunStoppedError
 from drivenav.eval.executor import Executor
 from drivenav.semantics.model_spec import ModelSpec
-from drivenav.semantics.remote import reach_server
-from drivenav.semantics.serve_config import DEFAULT_BIND
+from drivenav.semantics.remote import GrounderGoneError, reach_server
+from drivenav.semantics.serve_config import DEFAULT_BIND, takes_model_options
 
 LOG_FILE: Final[str] = "grounder-server.log"
 START_S: Final[float] = 600.0
@@ -57,22 +59,18 @@ def check_shareable(models: ModelSpec, executor: Executor) -> None:
 
 
 def server_command(models: ModelSpec) -> list[str]:
-    """``drivenav serve grounder`` for ``models``' detector on a free loopback port."""
-    return [
-        sys.executable,
-        "-m",
-        "drivenav.cli",
-        "serve",
-        "grounder",
-        f"--detector={models.detector}",
+    """``drivenav serve grounder`` for ``models``' detector on a free loopback port (its model options only for a
+    detector that takes them: :func:`~drivenav.semantics.serve_config.takes_model_options`)."""
+    model = [
         f"--detector-model={models.detector_model}",
         f"--dtype={models.dtype}",
         f"--device={models.detector_device}",
         f"--segmenter={models.segmenter}",
         f"--segmenter-model={models.segmenter_model}",
         *(["--compile"] if models.compile else []),
-        "--bind=tcp://127.0.0.1:*",
     ]
+    serve = [sys.executable, "-m", "drivenav.cli", "serve", "grounder", f"--detector={models.detector}"]
+    return [*serve, *(model if takes_model_options(models.detector) else []), "--bind=tcp://127.0.0.1:*"]
 
 
 @contextlib.contextmanager
@@ -89,6 +87,11 @@ def shared_detector(models: ModelSpec, out: Path, start_s: float = START_S) -> I
             )
             reach_server(served)
             yield served
+        except GrounderGoneError as error:
+            raise RunStoppedError(
+                f"{error.cause} (at an episode's start): the run's own grounder server stopped (its log: {log_path}); "
+                "finished episodes are saved: rerun the same command to resume, it serves a new one"
+            ) from None
         finally:
             _stop(process)
 

@@ -31,6 +31,24 @@ from drivenav.wire.client import ClientConfig, PeerUnavailableError
 from drivenav.wire.protocol import Message, ProtocolError
 from drivenav.wire.security import check_endpoint, client_keys, is_loopback
 
+
+class GrounderGoneError(RunStoppedError):
+    """The served grounder did not answer at an episode's start (``cause``): the run stops, finished episodes saved.
+    Its line is advice for a server of the user's (``--detector remote``): restart or fix it, then rerun; the run's
+    own server (``eval --share-detector``) is served anew by a rerun, and says so instead
+    (:func:`~drivenav.eval.shared_detector.shared_detector`). Pickled as its ``cause`` (from a worker)."""
+
+    def __init__(self, cause: str) -> None:
+        super().__init__(cause)
+        self.cause = cause
+
+    def __str__(self) -> str:
+        return (
+            f"{self.cause} (at an episode's start): finished episodes are saved; restart or fix the grounder server "
+            "(drivenav serve grounder) and rerun the same command to resume"
+        )
+
+
 # -- the client -------------------------------------------------------------------------------------------------------
 
 
@@ -61,10 +79,7 @@ class RemoteGrounder:
         try:
             self.client.request(request)
         except GrounderUnavailableError as error:
-            raise RunStoppedError(
-                f"{error} (at an episode's start): finished episodes are saved; restart or fix the grounder server "
-                "(drivenav serve grounder) and rerun the same command to resume"
-            ) from None
+            raise GrounderGoneError(str(error)) from None
 
     def segment(self, observation: Observation, phrase: str) -> list[Detection]:
         """The server's detections of ``phrase`` in the frame (a :class:`GrounderUnavailableError` when it does

@@ -76,3 +76,13 @@ class ServeConfig:
         counts = (self.episodes, self.phrases, self.poll_ms, self.labels, self.client_episodes, self.max_detections)
         if min(counts) < 1 or self.client_bytes < self.labels * LABEL_BYTES or self.held_bytes < self.client_bytes:
             raise ValueError(f"limits must be >= 1, and held_bytes >= client_bytes >= labels * {LABEL_BYTES}: {self}")
+
+
+def takes_model_options(detector: str) -> bool:
+    """Whether the served ``detector`` honours the model options (``--detector-model``, ``--device``, ``--dtype``,
+    ``--compile``, ``--segmenter``, ``--segmenter-model``): a transformers model detector, or a plug-in's grounder
+    (its builder reads them from the models' settings). The embedded and ground-truth stand-ins load no model:
+    ``serve grounder`` refuses those options with them, and ``eval --share-detector`` gives none."""
+    from drivenav.semantics.registry import GROUNDER_BACKENDS, MODEL_DETECTORS
+
+    return detector in MODEL_DETECTORS or GROUNDER_BACKENDS.is_plugin(detector)

@@ -14,7 +14,9 @@ Episodes come back in habitat-lab's order (the split file's, then each content f
 order), with their goals resolved, as drivenav :class:`~drivenav.episode.Episode`\\ s. habitat-lab numbers a
 file's episodes from 0 (overwriting ``episode_id``); drivenav keeps the file's own ``episode_id`` where there is
 one, and where the ids of a split repeat across scenes, names every episode ``<scene>:<id>``; an export writes
-such ids back as ``<id>`` only where they read back the same, else every id as it is. macOS metadata files
+such ids back as ``<id>`` only where they read back the same, else every id as it is. A name that still repeats is
+refused naming the file it came from: an id twice in one scene, or two scenes of one base name in different folders
+(``<scene>`` cannot tell them apart: the line an export gives for them). macOS metadata files
 (``._<scene>.json.gz``, as HM3D-OVON's released ``train/content`` holds) are skipped with one warning.
 
 Goals are written under the key of the episode's own text with that text as their category (a synonym
@@ -35,7 +37,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import replace
 from functools import lru_cache
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 from drivenav.envs.habitat.benchmarks import LAYOUTS, OVON
 from drivenav.episode import (
@@ -105,11 +107,14 @@ def read_split(split_file: Path, layout: str) -> list[Episode]:
     if not split_file.is_file():
         raise InputError(split_file, "<document>", "a split file {split}/{split}.json.gz of the benchmark")
     episodes: list[Episode] = []
+    files: list[Path] = []
     for path in split_files(split_file):
-        episodes.extend(_read_file(path, layout))
+        read = _read_file(path, layout)
+        episodes.extend(read)
+        files.extend(path for _ in read)
     if not episodes:
         raise InputError(split_file, "episodes", "at least one episode in the split or its content/ files", 0)
-    return _unique_ids(episodes)
+    return _unique_ids(episodes, files)
 
 
 def _read_file(path: Path, layout: str) -> list[Episode]:
@@ -159,11 +164,13 @@ def _in_category(goal: Any, text: str, canonical: str | None) -> Any:
     return goal
 
 
-def _unique_ids(episodes: list[Episode]) -> list[Episode]:
+def _unique_ids(episodes: list[Episode], files: Sequence[Path]) -> list[Episode]:
+    """The episodes named as :func:`split_ids` names them; one name twice is refused (:func:`_refuse_repeated_name`,
+    ``files``: the file each episode was read from)."""
     ids = split_ids([(e.scene_id, e.episode_id) for e in episodes])
     repeated = [name for name, n in Counter(ids).items() if n > 1]
     if repeated:
-        raise InputError("episodes", "episode_id", "ids unique within each scene", repeated[0])
+        _refuse_repeated_name(repeated[0], episodes, ids, files)
     if all(e.episode_id == i for e, i in zip(episodes, ids, strict=True)):
         return episodes
     return [replace(e, episode_id=i) for e, i in zip(episodes, ids, strict=True)]
@@ -256,6 +263,19 @@ def _file_ids(episodes: Sequence[Episode], source: str | Path) -> dict[tuple[str
     return {(e.scene_id, e.episode_id): i for e, i in zip(episodes, chosen, strict=True)}
 
 
+def _refuse_repeated_name(
+    name: str, episodes: Sequence[Episode], ids: Sequence[str], files: Sequence[Path]
+) -> NoReturn:
+    """One :class:`InputError` naming the file of the second episode named ``name``: two scenes of one base name
+    (``<scene>:<id>`` cannot tell them apart) are the export's line (:func:`_content_names`), one id twice in a
+    scene is :func:`_refuse_repeated`'s."""
+    (first, _), (second, file) = [(e, f) for e, i, f in zip(episodes, ids, files, strict=True) if i == name][:2]
+    if first.scene_id != second.scene_id:
+        _content_names([first.scene_id, second.scene_id], file)
+    _refuse_repeated([first, second], file)
+    raise InputError(file, "episode_id", "ids unique within each scene", name)
+
+
 def _refuse_repeated(episodes: Sequence[Episode], source: str | Path) -> None:
     """One :class:`InputError` naming ``source`` and the id when one scene holds an id twice."""
     repeated = [held for held, n in Counter((e.scene_id, e.episode_id) for e in episodes).items() if n > 1]
@@ -264,10 +284,11 @@ def _refuse_repeated(episodes: Sequence[Episode], source: str | Path) -> None:
         raise InputError(source, "episode_id", "ids unique within each scene", f"{episode_id} twice in {scene_id}")
 
 
-def _content_names(by_scene: dict[str, list[Episode]], source: str | Path) -> dict[str, str]:
-    """Each scene's content file name (its base name without extensions), one per scene."""
+def _content_names(scene_ids: Iterable[str], source: str | Path) -> dict[str, str]:
+    """Each scene's content file name (its base name without extensions), one per scene; two scenes of one base
+    name are one :class:`InputError` naming ``source``."""
     names: dict[str, str] = {}
-    for scene_id in by_scene:
+    for scene_id in scene_ids:
         name = scene_name(scene_id)
         other = next((s for s, n in names.items() if n == name), None)
         if other is not None:
