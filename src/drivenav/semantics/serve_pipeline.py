@@ -168,11 +168,15 @@ class ModelThread:
 
     def _run(self) -> None:
         while (work := self._inbox.get()) is not None:
-            for group in work:
-                self._ground(group)
-            with self._lock:
-                self._held -= 1
-            self._signal.send(b"", copy=True)
+            try:
+                for group in work:
+                    self._ground(group)
+            except Exception:  # a reply that could not be encoded: its client times out, the thread goes on
+                log.exception("the model thread failed on a batch")
+            finally:
+                with self._lock:
+                    self._held -= 1
+                self._signal.send(b"", copy=True)
 
     def _ground(self, work: Work) -> None:
         """Each request of ``work`` answered with its detections, or all with one ERROR when grounding failed."""
