@@ -170,13 +170,16 @@ class Floors:
         (True)."""
         floor, config = self.floor, self.config
         on_floor = handles.step - floor.arrived
-        due = floor.asked < 0 or handles.step - floor.asked >= config.ask_every
+        waiting = floor.judged_other and config.near_way > 0.0  # judged, a way not yet near: look at every step
+        due = floor.asked < 0 or handles.step - floor.asked >= config.ask_every or waiting
         if on_floor < config.min_floor_steps or not due:
             return False
+        if not floor.judged_other and _frontier_within(ctx, config.near_frontier):
+            return False  # ASCENT's timing: the floor still has a frontier near; asked again at the next step
         floor.asked = handles.step
         ways = [w for w in self._ways(ctx) if self._open(w) and not self._was_dropped(w)]
-        if floor.judged_other:  # judged so before and the way not taken (its entry out of reach then): again
-            return self._set_off(handles, ctx, ways, "judged")
+        if floor.judged_other:  # judged so before and the way not taken (its entry out of reach or far then): again
+            return self._set_off(handles, ctx, self._near(ctx, ways), "judged")
         unvisited = [w for w in ways if w[1] is None]
         if unvisited and not floor.overstayed and on_floor >= config.share * (self.budget - floor.arrived):
             floor.overstayed = True
@@ -189,7 +192,18 @@ class Floors:
         if floor.others < config.confirm:
             return False
         floor.judged_other = True
-        return self._set_off(handles, ctx, ways, "judged")
+        return self._set_off(handles, ctx, self._near(ctx, ways), "judged")
+
+    def _near(
+        self, ctx: StepContext, ways: list[tuple[StairCandidate, int | None]]
+    ) -> list[tuple[StairCandidate, int | None]]:
+        """The ways whose entry lies within :attr:`FloorsConfig.near_way` of the agent (all of them at 0): a floor
+        judged without the target is left by a way met on the explorer's own course, not by crossing the floor."""
+        reach = self.config.near_way
+        if reach <= 0.0:
+            return ways
+        here = (ctx.pose.x, ctx.pose.y)
+        return [w for w in ways if math.dist(here, w[0].entry) <= reach]
 
     def leave(self, handles: StepHandles, ctx: StepContext) -> bool:
         """The current floor has nothing left to explore: set off for the best way to another floor not yet
@@ -407,6 +421,14 @@ class Floors:
         handles.state.goal = None
         handles.state.planner.reset()
         return None
+
+
+def _frontier_within(ctx: StepContext, reach: float) -> bool:
+    """Whether a frontier of the floor's map has a cell within ``reach`` metres of the agent (never at 0)."""
+    if reach <= 0.0:
+        return False
+    here = np.array([ctx.pose.x, ctx.pose.y])
+    return any(float(np.min(np.hypot(*(f.points - here).T))) <= reach for f in ctx.frontiers if len(f.points))
 
 
 def _open_side(observation: Observation) -> int:
