@@ -13,12 +13,13 @@ import numpy as np
 from drivenav.agent.config import FloorsConfig
 from drivenav.agent.context import StepContext
 from drivenav.agent.explorer import Explorer
-from drivenav.agent.floors import Floor, Floors, Portal, _frontier_within
+from drivenav.agent.floors import Floor, Floors, Portal, StairTrip, _frontier_within
 from drivenav.agent.handles import StepHandles
 from drivenav.agent.state import BodyState
+from drivenav.mapping.stairs import StairCandidate
 from drivenav.mapping.types import Frontier
 from drivenav.semantics.protocols import FloorGuess, FloorJudgement
-from drivenav.types import CameraIntrinsics, Observation, Pose
+from drivenav.types import Action, CameraIntrinsics, Observation, Pose
 
 H, W = 24, 32
 
@@ -125,3 +126,26 @@ def test_with_near_way_a_floor_judged_other_is_left_once_a_way_is_near() -> None
 def test_the_frontier_test_measures_to_the_nearest_cell() -> None:
     ctx = cast(StepContext, SimpleNamespace(pose=Pose(0.0, 0.0, 0.0), frontiers=[frontier(3.0, 4.0)]))
     assert _frontier_within(ctx, 5.0) and not _frontier_within(ctx, 4.9) and not _frontier_within(ctx, 0.0)
+
+
+def test_on_stairs_a_detour_that_collides_too_is_followed_by_one_to_the_other_side() -> None:
+    """Wedged at a flight's foot: the heading collides, the open side's detour collides, so the other side next
+    (not the same detour again and again until the stairs are given up)."""
+    f = floors(FloorsConfig())
+    trip = StairTrip(StairCandidate((0.0, 0.0), 0.0, True), None, phase="climb")
+    turn = np.radians(30.0)
+    handles = cast(StepHandles, SimpleNamespace(tuning=SimpleNamespace(turn=turn)))
+
+    def drive(yaw: float, collided: bool) -> Action:
+        obs = observation(0)
+        obs = Observation(obs.rgb, obs.depth, None, Pose(0.0, 0.0, yaw), obs.intrinsics, 0, collided)
+        return f._along(handles, obs, trip)
+
+    assert drive(0.0, False) == Action.MOVE_FORWARD  # on the heading
+    first = drive(0.0, True)  # collided without moving: a turn toward the open side
+    assert first in (Action.TURN_LEFT, Action.TURN_RIGHT)
+    side = 1.0 if first == Action.TURN_LEFT else -1.0
+    assert drive(side * turn, False) == Action.MOVE_FORWARD  # the detour step
+    assert drive(side * turn, True) == (Action.TURN_RIGHT if side > 0 else Action.TURN_LEFT)  # it collided too
+    assert drive(0.0, False) == (Action.TURN_RIGHT if side > 0 else Action.TURN_LEFT)  # on to the other side
+    assert drive(-side * turn, False) == Action.MOVE_FORWARD

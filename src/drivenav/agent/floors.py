@@ -96,8 +96,8 @@ class Portal:
 class StairTrip:
     """Stairs being taken: the way (entry, heading, up or down, the floor it leads to if known), the phase
     (``approach``: driving to the entry on the map; ``turn``: facing the heading; ``climb``: on the way), its
-    counts, where the last step on it set off, the detour under way (+1 left, -1 right, 0 none) and how many steps
-    toward the entry collided without moving."""
+    counts, where the last step on it set off, the detour under way (+1 left, -1 right, 0 none), the side the last
+    forward step went off the heading (0: on it) and how many steps toward the entry collided without moving."""
 
     way: StairCandidate
     to: int | None
@@ -109,6 +109,7 @@ class StairTrip:
     steady: int = 0
     last_xy: Point = (math.inf, math.inf)
     detour: int = 0
+    side: int = 0
     blocked: int = 0
 
 
@@ -364,16 +365,18 @@ class Floors:
         """Face the stairs' heading and drive: no planner on stairs (its escape from a collision turns away; the
         world slides the agent along a railing it meets at an angle, so driving on follows the flight). A forward
         step that collided without moving is followed by one step a turn off the heading, toward the side the
-        depth frame shows more open (:func:`_open_side`), then the heading again."""
+        depth frame shows more open (:func:`_open_side`), then the heading again; where that step collided too, the
+        next goes a turn off to the other side (else the agent would push the same way until it gives the stairs
+        up: on a development set, wedged at a flight's foot for 120 steps)."""
         pose = observation.pose
         stuck = observation.collided and math.dist((pose.x, pose.y), trip.last_xy) < 0.05
-        if trip.detour == 0 and stuck:
-            trip.detour = _open_side(observation)
+        if trip.detour == 0 and stuck:  # a detour step that collided too: the other side next
+            trip.detour = -trip.side if trip.side else _open_side(observation)
         turn = handles.tuning.turn
         error = math.remainder(trip.way.heading + trip.detour * turn - pose.yaw, 2.0 * math.pi)
         if abs(error) > turn / 2.0:
             return Action.TURN_LEFT if error > 0.0 else Action.TURN_RIGHT
-        trip.detour = 0
+        trip.side, trip.detour = trip.detour, 0
         trip.forward += 1
         trip.last_xy = (pose.x, pose.y)
         return Action.MOVE_FORWARD
