@@ -98,7 +98,7 @@ def floors_with_a_portal(config: FloorsConfig) -> Floors:
 
 
 def test_with_near_frontier_the_floor_question_waits_until_no_frontier_is_near() -> None:
-    f, judge = floors_with_a_portal(FloorsConfig(near_frontier=2.0, min_floor_steps=100)), Judge("other")
+    f, judge = floors_with_a_portal(FloorsConfig(near_frontier=2.0, near_way=0.0, min_floor_steps=100)), Judge("other")
     assert not step(f, judge, 100, (0.0, 0.0), [frontier(1.5, 0.0), frontier(8.0, 0.0)])
     assert judge.asked == 0  # a frontier 1.5 m away: not asked, and asked again at the next step
     assert step(f, judge, 101, (0.0, 0.0), [frontier(3.0, 0.0)])

@@ -15,13 +15,14 @@ the reasoner's hints are the episode's. A floor first reached begins as the epis
 
 **The floor rule.** A floor is left for another in two cases. (1) *The floor question*: once
 :attr:`FloorsConfig.min_floor_steps` were spent on the floor, and every :attr:`FloorsConfig.ask_every` steps after,
-while a way to a floor neither explored nor judged is known, the reasoner is shown the floor's album (frames spread
-over the stay on it) and asked whether the target is likely on this floor; on ``other`` the agent sets off (once per
-floor). (2) *Exhaustion*: the floor's explorer finds nothing left to explore on it (the ``no_frontier`` STOP of
-every method). Either way the agent takes a way to another floor that it knows (the stairs it came by) or sees
-(:func:`~drivenav.mapping.stairs.find_stairs`: a flight rising from the floor, a stairwell's opening), to a floor not
-yet exhausted -- an unknown floor first, then the nearest -- and STOPs as before when there is none. ASCENT asks its
-floor question only when no near frontier is left and keeps a minimum of steps between floor changes; here the
+while a way to a floor neither explored nor judged is known, the reasoner is shown the floor's album (frames spread over
+the stay on it) and asked whether the target is likely on this floor; on ``other`` the agent sets off by a way within
+:attr:`FloorsConfig.near_way` of it (looked for at every step after; once per floor). (2) *Exhaustion*: the floor's
+explorer finds nothing left to explore on it (the ``no_frontier`` STOP of every method). Either way the agent takes a
+way to another floor that it knows (the stairs it came by) or sees (:func:`~drivenav.mapping.stairs.find_stairs`: a
+flight rising from the floor, a stairwell's opening), to a floor not yet exhausted -- an unknown floor first, then the
+nearest -- and STOPs as before when there is none. ASCENT asks its floor question only when no near frontier is left
+(:attr:`FloorsConfig.near_frontier`, off by default) and keeps a minimum of steps between floor changes; here the
 minimum is the steps on a floor before it is asked, and exhaustion is the fallback.
 
 **Taking stairs.** The agent drives on its floor's map to the stairs' entry, turns to their heading, and drives
