@@ -109,7 +109,8 @@ def test_an_agent_judging_the_target_upstairs_goes_up_and_comes_back_down(monkey
     hidden = Storey(replace(lower.plan, objects=[*lower.plan.objects, plant]), lower.elevation)
     building = replace(walled(), storeys=(hidden, upper))
     env = EmbeddedEnv(lambda _: building, SIM)
-    agent = make_agent(load_settings("drive-nav", overrides=[*OVERRIDES, "agent.floors.min_floor_steps=0"]))
+    far = ["agent.floors.min_floor_steps=0", "agent.floors.near_way=0"]  # set off at once, by a way however far
+    agent = make_agent(load_settings("drive-nav", overrides=[*OVERRIDES, *far]))
     assert isinstance(agent, ExplorerAgent)
     task = episode(building, (1.0, 4.0, 0.0), "plant")
     observation = env.reset(task)

@@ -1,17 +1,25 @@
-"""The floors' bookkeeping without a world: a floor's album spans the stay on it, and the floors known from heights
-(a level within the tolerance, a new one only far from every known one)."""
+"""The floors' bookkeeping without a world: a floor's album spans the stay on it, the floors known from heights
+(a level within the tolerance, a new one only far from every known one), and the floor rule's timing switches
+(``near_frontier``: asked only with no frontier near; ``near_way``: a floor judged without the target left by a way
+near)."""
 
 from __future__ import annotations
 
+from types import SimpleNamespace
 from typing import cast
 
 import numpy as np
 
 from drivenav.agent.config import FloorsConfig
+from drivenav.agent.context import StepContext
 from drivenav.agent.explorer import Explorer
-from drivenav.agent.floors import Floor, Floors
+from drivenav.agent.floors import Floor, Floors, Portal, StairTrip, _frontier_within
+from drivenav.agent.handles import StepHandles
 from drivenav.agent.state import BodyState
-from drivenav.types import CameraIntrinsics, Observation, Pose
+from drivenav.mapping.stairs import StairCandidate
+from drivenav.mapping.types import Frontier
+from drivenav.semantics.protocols import FloorGuess, FloorJudgement
+from drivenav.types import Action, CameraIntrinsics, Observation, Pose
 
 H, W = 24, 32
 
@@ -48,3 +56,96 @@ def test_a_level_is_known_within_its_tolerance_and_a_new_one_only_far_from_all()
     assert f._new_level(2.9)
     assert f._add_level(2.9) == 1
     assert f._level_at(3.1) == 1 and not f._new_level(4.0)
+
+
+class Judge:
+    """A reasoner that answers the floor question with ``guess`` and counts the questions."""
+
+    def __init__(self, guess: FloorGuess) -> None:
+        self.guess, self.asked = guess, 0
+
+    def judge_floor(self, goal: str, views: object) -> FloorJudgement:
+        self.asked += 1
+        return FloorJudgement(self.guess, note="stub")
+
+
+def frontier(x: float, y: float) -> Frontier:
+    return Frontier(0, np.array([[x, y]]), np.zeros((1, 2), np.int64), (x, y), 1.0)
+
+
+def step(f: Floors, judge: Judge, n: int, here: tuple[float, float], frontiers: list[Frontier]) -> bool:
+    """One turn of the floor rule at step ``n``, the agent at ``here``, the floor's map with ``frontiers``."""
+    state = SimpleNamespace(reasoner=judge, goal=None, planner=SimpleNamespace(reset=lambda: None))
+    handles = SimpleNamespace(
+        step=n,
+        state=state,
+        host=SimpleNamespace(goal_text="bed"),
+        trace=SimpleNamespace(add=lambda event: None),
+        start_segment=lambda: None,
+    )
+    ctx = SimpleNamespace(pose=Pose(*here, 0.0), frontiers=frontiers)
+    return f.ask(cast(StepHandles, handles), cast(StepContext, ctx))
+
+
+def floors_with_a_portal(config: FloorsConfig) -> Floors:
+    """Floors whose first floor (no stairs on its map) knows a way up at (10, 0) to a second floor."""
+    mapper = SimpleNamespace(relief=lambda: None)
+    first = Floor(0.0, cast(BodyState, SimpleNamespace(mapper=mapper)), cast(Explorer, None))
+    f = Floors(config, first, lambda: (cast(BodyState, None), cast(Explorer, None)), lambda floor: None, 500)
+    f.floors.append(Floor(3.0, cast(BodyState, None), cast(Explorer, None)))
+    f.portals.append(Portal(0, (10.0, 0.0), 0.0, 1))
+    return f
+
+
+def test_with_near_frontier_the_floor_question_waits_until_no_frontier_is_near() -> None:
+    f, judge = floors_with_a_portal(FloorsConfig(near_frontier=2.0, near_way=0.0, min_floor_steps=100)), Judge("other")
+    assert not step(f, judge, 100, (0.0, 0.0), [frontier(1.5, 0.0), frontier(8.0, 0.0)])
+    assert judge.asked == 0  # a frontier 1.5 m away: not asked, and asked again at the next step
+    assert step(f, judge, 101, (0.0, 0.0), [frontier(3.0, 0.0)])
+    assert judge.asked == 1 and f.trip is not None and f.trip.to == 1
+
+
+def test_without_near_frontier_the_question_comes_on_its_schedule() -> None:
+    f, judge = floors_with_a_portal(FloorsConfig(min_floor_steps=100)), Judge("this")
+    assert not step(f, judge, 100, (0.0, 0.0), [frontier(0.5, 0.0)])
+    assert not step(f, judge, 101, (0.0, 0.0), [frontier(0.5, 0.0)])
+    assert judge.asked == 1  # the next question at step 125
+    assert not step(f, judge, 125, (0.0, 0.0), [])
+    assert judge.asked == 2
+
+
+def test_with_near_way_a_floor_judged_other_is_left_once_a_way_is_near() -> None:
+    f, judge = floors_with_a_portal(FloorsConfig(near_way=3.0, min_floor_steps=100)), Judge("other")
+    assert not step(f, judge, 100, (0.0, 0.0), [])  # judged other, the way 10 m away: explore on
+    assert judge.asked == 1 and f.floor.judged_other and f.trip is None
+    assert not step(f, judge, 101, (5.0, 0.0), [])
+    assert step(f, judge, 102, (8.0, 0.0), [])  # looked at every step once judged: 2 m from the way, set off
+    assert judge.asked == 1 and f.trip is not None
+
+
+def test_the_frontier_test_measures_to_the_nearest_cell() -> None:
+    ctx = cast(StepContext, SimpleNamespace(pose=Pose(0.0, 0.0, 0.0), frontiers=[frontier(3.0, 4.0)]))
+    assert _frontier_within(ctx, 5.0) and not _frontier_within(ctx, 4.9) and not _frontier_within(ctx, 0.0)
+
+
+def test_on_stairs_a_detour_that_collides_too_is_followed_by_one_to_the_other_side() -> None:
+    """Wedged at a flight's foot: the heading collides, the open side's detour collides, so the other side next
+    (not the same detour again and again until the stairs are given up)."""
+    f = floors(FloorsConfig())
+    trip = StairTrip(StairCandidate((0.0, 0.0), 0.0, True), None, phase="climb")
+    turn = np.radians(30.0)
+    handles = cast(StepHandles, SimpleNamespace(tuning=SimpleNamespace(turn=turn)))
+
+    def drive(yaw: float, collided: bool) -> Action:
+        obs = observation(0)
+        obs = Observation(obs.rgb, obs.depth, None, Pose(0.0, 0.0, yaw), obs.intrinsics, 0, collided)
+        return f._along(handles, obs, trip)
+
+    assert drive(0.0, False) == Action.MOVE_FORWARD  # on the heading
+    first = drive(0.0, True)  # collided without moving: a turn toward the open side
+    assert first in (Action.TURN_LEFT, Action.TURN_RIGHT)
+    side = 1.0 if first == Action.TURN_LEFT else -1.0
+    assert drive(side * turn, False) == Action.MOVE_FORWARD  # the detour step
+    assert drive(side * turn, True) == (Action.TURN_RIGHT if side > 0 else Action.TURN_LEFT)  # it collided too
+    assert drive(0.0, False) == (Action.TURN_RIGHT if side > 0 else Action.TURN_LEFT)  # on to the other side
+    assert drive(-side * turn, False) == Action.MOVE_FORWARD

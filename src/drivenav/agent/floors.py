@@ -15,13 +15,14 @@ the reasoner's hints are the episode's. A floor first reached begins as the epis
 
 **The floor rule.** A floor is left for another in two cases. (1) *The floor question*: once
 :attr:`FloorsConfig.min_floor_steps` were spent on the floor, and every :attr:`FloorsConfig.ask_every` steps after,
-while a way to a floor neither explored nor judged is known, the reasoner is shown the floor's album (frames spread
-over the stay on it) and asked whether the target is likely on this floor; on ``other`` the agent sets off (once per
-floor). (2) *Exhaustion*: the floor's explorer finds nothing left to explore on it (the ``no_frontier`` STOP of
-every method). Either way the agent takes a way to another floor that it knows (the stairs it came by) or sees
-(:func:`~drivenav.mapping.stairs.find_stairs`: a flight rising from the floor, a stairwell's opening), to a floor not
-yet exhausted -- an unknown floor first, then the nearest -- and STOPs as before when there is none. ASCENT asks its
-floor question only when no near frontier is left and keeps a minimum of steps between floor changes; here the
+while a way to a floor neither explored nor judged is known, the reasoner is shown the floor's album (frames spread over
+the stay on it) and asked whether the target is likely on this floor; on ``other`` the agent sets off by a way within
+:attr:`FloorsConfig.near_way` of it (looked for at every step after; once per floor). (2) *Exhaustion*: the floor's
+explorer finds nothing left to explore on it (the ``no_frontier`` STOP of every method). Either way the agent takes a
+way to another floor that it knows (the stairs it came by) or sees (:func:`~drivenav.mapping.stairs.find_stairs`: a
+flight rising from the floor, a stairwell's opening), to a floor not yet exhausted -- an unknown floor first, then the
+nearest -- and STOPs as before when there is none. ASCENT asks its floor question only when no near frontier is left
+(:attr:`FloorsConfig.near_frontier`, off by default) and keeps a minimum of steps between floor changes; here the
 minimum is the steps on a floor before it is asked, and exhaustion is the fallback.
 
 **Taking stairs.** The agent drives on its floor's map to the stairs' entry, turns to their heading, and drives
@@ -96,8 +97,8 @@ class Portal:
 class StairTrip:
     """Stairs being taken: the way (entry, heading, up or down, the floor it leads to if known), the phase
     (``approach``: driving to the entry on the map; ``turn``: facing the heading; ``climb``: on the way), its
-    counts, where the last step on it set off, the detour under way (+1 left, -1 right, 0 none) and how many steps
-    toward the entry collided without moving."""
+    counts, where the last step on it set off, the detour under way (+1 left, -1 right, 0 none), the side the last
+    forward step went off the heading (0: on it) and how many steps toward the entry collided without moving."""
 
     way: StairCandidate
     to: int | None
@@ -109,6 +110,7 @@ class StairTrip:
     steady: int = 0
     last_xy: Point = (math.inf, math.inf)
     detour: int = 0
+    side: int = 0
     blocked: int = 0
 
 
@@ -170,13 +172,16 @@ class Floors:
         (True)."""
         floor, config = self.floor, self.config
         on_floor = handles.step - floor.arrived
-        due = floor.asked < 0 or handles.step - floor.asked >= config.ask_every
+        waiting = floor.judged_other and config.near_way > 0.0  # judged, a way not yet near: look at every step
+        due = floor.asked < 0 or handles.step - floor.asked >= config.ask_every or waiting
         if on_floor < config.min_floor_steps or not due:
             return False
+        if not floor.judged_other and _frontier_within(ctx, config.near_frontier):
+            return False  # ASCENT's timing: the floor still has a frontier near; asked again at the next step
         floor.asked = handles.step
         ways = [w for w in self._ways(ctx) if self._open(w) and not self._was_dropped(w)]
-        if floor.judged_other:  # judged so before and the way not taken (its entry out of reach then): again
-            return self._set_off(handles, ctx, ways, "judged")
+        if floor.judged_other:  # judged so before and the way not taken (its entry out of reach or far then): again
+            return self._set_off(handles, ctx, self._near(ctx, ways), "judged")
         unvisited = [w for w in ways if w[1] is None]
         if unvisited and not floor.overstayed and on_floor >= config.share * (self.budget - floor.arrived):
             floor.overstayed = True
@@ -189,7 +194,18 @@ class Floors:
         if floor.others < config.confirm:
             return False
         floor.judged_other = True
-        return self._set_off(handles, ctx, ways, "judged")
+        return self._set_off(handles, ctx, self._near(ctx, ways), "judged")
+
+    def _near(
+        self, ctx: StepContext, ways: list[tuple[StairCandidate, int | None]]
+    ) -> list[tuple[StairCandidate, int | None]]:
+        """The ways whose entry lies within :attr:`FloorsConfig.near_way` of the agent (all of them at 0): a floor
+        judged without the target is left by a way met on the explorer's own course, not by crossing the floor."""
+        reach = self.config.near_way
+        if reach <= 0.0:
+            return ways
+        here = (ctx.pose.x, ctx.pose.y)
+        return [w for w in ways if math.dist(here, w[0].entry) <= reach]
 
     def leave(self, handles: StepHandles, ctx: StepContext) -> bool:
         """The current floor has nothing left to explore: set off for the best way to another floor not yet
@@ -350,16 +366,18 @@ class Floors:
         """Face the stairs' heading and drive: no planner on stairs (its escape from a collision turns away; the
         world slides the agent along a railing it meets at an angle, so driving on follows the flight). A forward
         step that collided without moving is followed by one step a turn off the heading, toward the side the
-        depth frame shows more open (:func:`_open_side`), then the heading again."""
+        depth frame shows more open (:func:`_open_side`), then the heading again; where that step collided too, the
+        next goes a turn off to the other side (else the agent would push the same way until it gives the stairs
+        up: on a development set, wedged at a flight's foot for 120 steps)."""
         pose = observation.pose
         stuck = observation.collided and math.dist((pose.x, pose.y), trip.last_xy) < 0.05
-        if trip.detour == 0 and stuck:
-            trip.detour = _open_side(observation)
+        if trip.detour == 0 and stuck:  # a detour step that collided too: the other side next
+            trip.detour = -trip.side if trip.side else _open_side(observation)
         turn = handles.tuning.turn
         error = math.remainder(trip.way.heading + trip.detour * turn - pose.yaw, 2.0 * math.pi)
         if abs(error) > turn / 2.0:
             return Action.TURN_LEFT if error > 0.0 else Action.TURN_RIGHT
-        trip.detour = 0
+        trip.side, trip.detour = trip.detour, 0
         trip.forward += 1
         trip.last_xy = (pose.x, pose.y)
         return Action.MOVE_FORWARD
@@ -407,6 +425,14 @@ class Floors:
         handles.state.goal = None
         handles.state.planner.reset()
         return None
+
+
+def _frontier_within(ctx: StepContext, reach: float) -> bool:
+    """Whether a frontier of the floor's map has a cell within ``reach`` metres of the agent (never at 0)."""
+    if reach <= 0.0:
+        return False
+    here = np.array([ctx.pose.x, ctx.pose.y])
+    return any(float(np.min(np.hypot(*(f.points - here).T))) <= reach for f in ctx.frontiers if len(f.points))
 
 
 def _open_side(observation: Observation) -> int:
