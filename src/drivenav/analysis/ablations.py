@@ -55,7 +55,7 @@ from drivenav.eval.run_info import world_json
 from drivenav.eval.rundir import EPISODES_COPY, trace_path
 from drivenav.eval.runner import RunSpec, evaluate
 from drivenav.eval.timings import runtime_table, traced_steps
-from drivenav.eval.trace import EpisodeTrace
+from drivenav.eval.trace import read_trace
 from drivenav.methods import agent_names, method_named
 from drivenav.types import SimConfig
 
@@ -233,19 +233,12 @@ def measure_runtime(runs: RunRecords, dirs: dict[str, Path]) -> Runtime:
     trace has timings."""
     sim = SimConfig()
     for method in sorted(dirs, key=lambda name: name != RUNTIME_METHOD):
-        read = (_read_trace(trace_path(dirs[method], episode_id)) for episode_id in runs[method])
+        read = (read_trace(trace_path(dirs[method], episode_id)) for episode_id in runs[method])
         steps, decisions, episodes = traced_steps(trace for trace in read if trace is not None)
         if steps:
             compute = runtime_table(steps, decisions, episodes, method, sim.width, sim.height)
             return Runtime(ComputeTable.from_json(compute), model_call_latency(runs))
     return Runtime(None, model_call_latency(runs))
-
-
-def _read_trace(path: Path) -> EpisodeTrace | None:
-    try:
-        return EpisodeTrace.from_json(json.loads(path.read_text(encoding="utf-8")), path)
-    except (OSError, ValueError, InputError):
-        return None  # a missing, torn or malformed trace only leaves its steps out of the timings
 
 
 def paired_outcomes(runs: RunRecords, reference: str = PAIRED_REFERENCE) -> dict[str, Paired]:

@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Any, Final
 from drivenav.errors import InputError
 from drivenav.eval.rundir import EPISODES_FILE, SUMMARY_FILE, trace_path
 from drivenav.eval.timings import COMPUTE_KEYS
-from drivenav.eval.trace import EpisodeTrace
+from drivenav.eval.trace import EpisodeTrace, read_trace
 from drivenav.semantics.serve_pipeline import MODEL_STAGES, ServerTimes
 
 if TYPE_CHECKING:
@@ -108,14 +108,9 @@ def model_busy(times: ServerTimes, wall_s: float) -> float | None:
 
 def run_traces(run_dir: Path) -> list[EpisodeTrace]:
     """The traces of the run's finished episodes (a torn or missing one is left out)."""
-    traces = []
-    for line in (run_dir / EPISODES_FILE).read_text(encoding="utf-8").splitlines():
-        path = trace_path(run_dir, str(json.loads(line)["episode_id"]))
-        try:
-            traces.append(EpisodeTrace.from_json(json.loads(path.read_text(encoding="utf-8")), path))
-        except (OSError, ValueError, InputError):
-            continue
-    return traces
+    lines = (run_dir / EPISODES_FILE).read_text(encoding="utf-8").splitlines()
+    read = (read_trace(trace_path(run_dir, str(json.loads(line)["episode_id"]))) for line in lines)
+    return [trace for trace in read if trace is not None]
 
 
 @dataclass(frozen=True)
@@ -179,20 +174,19 @@ def served_eval(
     """``options``' model served as ``config`` says (its batching, its copies) beside the eval ``run_eval`` runs
     into ``run_dir`` with ``workers`` workers; an eval that fails is an :class:`~drivenav.errors.InputError`."""
     from drivenav.semantics.grounder_bench import bench_model
-    from drivenav.semantics.grounder_server import GrounderServer, serving
+    from drivenav.semantics.grounder_server import GrounderServer, probe_first, serving
     from drivenav.semantics.hf_common import pick_device, resolve_dtype
     from drivenav.semantics.served import ServedInfo
 
     device = pick_device(options.device)
     grounder, model = bench_model(options, device)
-    copies = [grounder]
     dtype = str(resolve_dtype(options.dtype, device)).removeprefix("torch.")
     info = ServedInfo(options.detector, model, device, dtype, ("rgb",), False, config.batch, config.batch_ms)
 
-    def copy() -> Grounder:
-        return copies.pop() if copies else bench_model(options, device)[0]
+    def build() -> Grounder:
+        return bench_model(options, device)[0]
 
-    server = GrounderServer(copy, info, "tcp://127.0.0.1:*", None, config)
+    server = GrounderServer(probe_first(grounder, build), info, "tcp://127.0.0.1:*", None, config)
     with serving(server) as endpoint:
         start = time.perf_counter()
         status = run_eval(endpoint, run_dir)

@@ -14,6 +14,7 @@ drivenav wrote it), so that a reader never misreads a layout it does not know.
 
 from __future__ import annotations
 
+import json
 import traceback
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -21,6 +22,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from drivenav.agent.trace import Event, Point, event_from_dict
+from drivenav.errors import InputError
 from drivenav.jsonstream import JsonObject
 from drivenav.validation import Fields
 
@@ -180,3 +182,12 @@ def _error(value: Any, fields: Fields) -> EpisodeError:
     keys = ("type", "message", "traceback")
     error = fields.mapping(value, "error", keys=keys, required=keys)
     return EpisodeError(*(_text(error[key], f"error.{key}", fields) for key in keys))
+
+
+def read_trace(path: Path) -> EpisodeTrace | None:
+    """The trace saved at ``path``, or None where it is missing, torn or malformed: a reader of a run's timings
+    leaves that episode's steps out."""
+    try:
+        return EpisodeTrace.from_json(json.loads(path.read_text(encoding="utf-8")), path)
+    except (OSError, ValueError, InputError):
+        return None

@@ -34,17 +34,23 @@ import zmq
 from drivenav.errors import InputError, one_line
 from drivenav.semantics.checked import DetectionCheck
 from drivenav.semantics.model_spec import ModelSpec
-from drivenav.semantics.protocols import Grounder
+from drivenav.semantics.protocols import Detection, Grounder
 from drivenav.semantics.registry import BOX_DETECTORS, GROUNDER_BACKENDS
 from drivenav.semantics.serve_config import DEFAULT_BIND, ENTRY_BYTES, LABEL_BYTES, ServeConfig
-from drivenav.semantics.serve_pipeline import ModelPool, ServerTimes, StagedGrounder, Work
+from drivenav.semantics.serve_pipeline import (
+    ModelPool,
+    ServerTimes,
+    StagedGrounder,
+    Work,
+    grounded_replies,
+    grounding_failed,
+)
 from drivenav.semantics.served import (
     GROUNDER_PROTOCOL,
     REQUESTS,
     SegmentRequest,
     ServedInfo,
     TableVocabulary,
-    detections_reply,
     read_begin,
     read_segment,
 )
@@ -384,9 +390,8 @@ class GrounderServer:
             work.pixels = self._shared.preprocess(work.frames)
         except Exception as error:
             log.exception("preprocessing frames for %r failed", work.phrase)
-            for request, pending in zip(requests, group, strict=True):
-                failed = f"grounding failed: {one_line(error)}"
-                self._send(pending.identity, error_reply(request.request_id, failed))
+            for identity, request_id, _ in work.replies:
+                self._send(identity, error_reply(request_id, grounding_failed(error)))
             return None
         finally:
             self._times.seconds["preprocess"] += time.perf_counter() - start
@@ -396,19 +401,17 @@ class GrounderServer:
         """A stand-in's episode grounds its one request, the phrase's category added to its vocabulary first; the
         detections checked as in process (:class:`DetectionCheck`), or an ERROR when grounding failed."""
         request, start = pending.request, time.perf_counter()
-        try:
+
+        def ground() -> list[list[Detection]]:
             session = self.episodes.get(request.episode)
             if session.vocabulary is not None:
                 self._extend(session, session.vocabulary, request.canonical)
             found = session.grounder.segment(request.observation, request.phrase)
             self._times.seconds["forward"] += time.perf_counter() - start
-            size = _size(request)
-            reply = detections_reply(request.request_id, request.phrase, self._check.checked(found, size), size)
-        except ProtocolError as error:
-            reply = error_reply(request.request_id, str(error))
-        except Exception as error:
-            log.exception("grounding %r failed", request.phrase)
-            reply = error_reply(request.request_id, f"grounding failed: {one_line(error)}")
+            return [found]
+
+        asked = [(request.request_id, _size(request))]
+        (reply,) = grounded_replies(request.phrase, asked, ground, self._check.checked)
         self._send(pending.identity, reply)
         self._times.frames += 1
         self._times.batches += 1
@@ -481,13 +484,18 @@ def build_server(
 
     probe = factory()
     info = served_info(spec, probe, config, model)
+    return GrounderServer(factory if info.labels else probe_first(probe, factory), info, bind, keys, config)
+
+
+def probe_first(probe: Grounder, build: Callable[[], Grounder]) -> Callable[[], Grounder]:
+    """A server's factory of shared copies: ``probe`` (a copy already built, to describe the server) first, then a
+    new ``build()`` for each further copy (``ServeConfig.copies``)."""
     built = [probe]
 
-    def shared() -> Grounder:
-        """The probe first, then a new copy each call (``config.copies``)."""
-        return built.pop() if built else factory()
+    def copy() -> Grounder:
+        return built.pop() if built else build()
 
-    return GrounderServer(factory if info.labels else shared, info, bind, keys, config)
+    return copy
 
 
 def run_server(server: GrounderServer, curve: bool) -> None:

@@ -41,6 +41,8 @@ STAGES: Final[tuple[str, ...]] = ("decode", "wait", "preprocess", "forward", "po
 """A served frame's stages, in order (module docstring)."""
 MODEL_STAGES: Final[frozenset[str]] = frozenset({"preprocess", "forward", "postprocess"})
 """The grounder's own stages: what the frame costs in process too."""
+SERVING_STAGES: Final[tuple[str, ...]] = ("decode", "reply", "send")
+"""What serving adds to a frame's busy time: the stages that are neither the grounder's nor the queue's wait."""
 
 Encoded = list[Any]
 """A reply's frames, ready to send (:meth:`~drivenav.wire.router.RouterSocket.frames`)."""
@@ -88,8 +90,7 @@ class ServerTimes:
         """What serving adds to a frame's busy time beyond the grounder's own stages (decode, reply, send)."""
         if not self.frames:
             return None
-        added = sum(s for stage, s in self.seconds.items() if stage not in MODEL_STAGES and stage != "wait")
-        return round(1000.0 * added / self.frames, 3)
+        return round(1000.0 * sum(self.seconds[stage] for stage in SERVING_STAGES) / self.frames, 3)
 
     def line(self) -> str:
         """The breakdown in words (a server's last line)."""
@@ -117,8 +118,8 @@ class ModelThread:
     """Grounds the batches the socket thread prepares (:class:`Work` lists), one at a time, and leaves each reply,
     encoded, in :attr:`outbox`; ``wake`` (an inproc PULL socket's address) is told when replies are there.
 
-    ``detections`` checks a frame's detections (as in process); ``encode`` makes a reply's frames; ``admit`` is
-    called with a batch's phrase before it is grounded (the phrase cache)."""
+    ``check`` checks a frame's detections (as in process); ``encode`` makes a reply's frames; ``admit`` is called
+    with a batch's phrase before it is grounded (the phrase cache); ``sync`` waits for the model's device."""
 
     def __init__(
         self,
@@ -189,18 +190,8 @@ class ModelThread:
             self.times.seconds[stage] += now - mark
             mark = now
 
-        try:
-            found = self._segment(work, lap)
-            replies = [
-                detections_reply(request_id, work.phrase, self._check(d, size), size)
-                for (_, request_id, size), d in zip(work.replies, found, strict=True)
-            ]
-        except ProtocolError as error:
-            replies = [error_reply(request_id, str(error)) for _, request_id, _ in work.replies]
-        except Exception as error:
-            log.exception("grounding %r failed", work.phrase)
-            failed = f"grounding failed: {one_line(error)}"
-            replies = [error_reply(request_id, failed) for _, request_id, _ in work.replies]
+        asked = [(request_id, size) for _, request_id, size in work.replies]
+        replies = grounded_replies(work.phrase, asked, lambda: self._segment(work, lap), self._check)
         for (identity, _, _), reply in zip(work.replies, replies, strict=True):
             self.outbox.put((identity, self._encode(reply)))
         lap("reply")
@@ -218,6 +209,33 @@ class ModelThread:
             found = [self.grounder.segment(observation, work.phrase) for observation in work.observations]
         lap("forward")
         return found
+
+
+def grounded_replies(
+    phrase: str,
+    asked: Sequence[tuple[str, tuple[int, int]]],
+    ground: Callable[[], list[list[Detection]]],
+    check: Callable[[Sequence[object], tuple[int, int]], list[Detection]],
+) -> list[Message]:
+    """The replies to requests of ``phrase`` (``asked``: each request's id and frame size): DETECTIONS of what
+    ``ground`` found in each frame, checked as in process (``check``), or, where grounding failed, an ERROR each
+    naming why (a request the server refuses, :class:`ProtocolError`, or the grounder's own failure, logged)."""
+    try:
+        found = ground()
+        return [
+            detections_reply(request_id, phrase, check(d, size), size)
+            for (request_id, size), d in zip(asked, found, strict=True)
+        ]
+    except ProtocolError as error:
+        return [error_reply(request_id, str(error)) for request_id, _ in asked]
+    except Exception as error:
+        log.exception("grounding %r failed", phrase)
+        return [error_reply(request_id, grounding_failed(error)) for request_id, _ in asked]
+
+
+def grounding_failed(error: Exception) -> str:
+    """An ERROR reply's words for a grounder (or its preprocessing) that raised ``error``."""
+    return f"grounding failed: {one_line(error)}"
 
 
 @dataclass
