@@ -13,11 +13,13 @@ import numpy as np
 from drivenav.agent.config import FloorsConfig
 from drivenav.agent.context import StepContext
 from drivenav.agent.explorer import Explorer
-from drivenav.agent.floors import Floor, Floors, Portal, StairTrip, _frontier_within
+from drivenav.agent.floors import Floor, Floors, Portal, StairTrip, _frontier_within, _navigable_near
 from drivenav.agent.handles import StepHandles
 from drivenav.agent.state import BodyState
+from drivenav.directions.types import DirectionResult
+from drivenav.grid import GridSpec
 from drivenav.mapping.stairs import StairCandidate
-from drivenav.mapping.types import Frontier
+from drivenav.mapping.types import Frontier, MapSnapshot
 from drivenav.semantics.protocols import FloorGuess, FloorJudgement
 from drivenav.types import Action, CameraIntrinsics, Observation, Pose
 
@@ -149,3 +151,67 @@ def test_on_stairs_a_detour_that_collides_too_is_followed_by_one_to_the_other_si
     assert drive(side * turn, True) == (Action.TURN_RIGHT if side > 0 else Action.TURN_LEFT)  # it collided too
     assert drive(0.0, False) == (Action.TURN_RIGHT if side > 0 else Action.TURN_LEFT)  # on to the other side
     assert drive(-side * turn, False) == Action.MOVE_FORWARD
+
+
+def two_floors_judged(config: FloorsConfig) -> Floors:
+    """Floors after a wrong ``other``: the first floor judged without the target, the agent on the second, which
+    knows only the way back down at (10, 0) (its portal)."""
+    f = floors_with_a_portal(config)
+    f.floors[0].judged_other = True
+    f.floors[1].state = cast(BodyState, SimpleNamespace(mapper=SimpleNamespace(relief=lambda: None)))
+    f.portals.append(Portal(1, (10.0, 0.0), np.pi, 0))
+    f.current = 1
+    return f
+
+
+def test_without_recheck_a_floor_whose_ways_lead_to_judged_floors_is_never_asked() -> None:
+    f, judge = two_floors_judged(FloorsConfig(min_floor_steps=100, recheck=False)), Judge("other")
+    for n in (100, 125, 150):
+        assert not step(f, judge, n, (0.0, 0.0), [])
+    assert judge.asked == 0 and f.trip is None
+
+
+def test_with_recheck_other_on_the_second_floor_sends_the_agent_back_by_any_way() -> None:
+    f, judge = two_floors_judged(FloorsConfig(min_floor_steps=100, recheck=True, near_way=3.0)), Judge("this")
+    assert not step(f, judge, 100, (0.0, 0.0), [])  # asked: "this", the agent stays
+    assert judge.asked == 1 and not f.floor.judged_other
+    judge.guess = "other"
+    assert step(f, judge, 125, (0.0, 0.0), [])  # "other" here too: back, though the way is 10 m off
+    assert judge.asked == 2 and f.floor.rechecked and f.trip is not None and f.trip.to == 0
+
+
+def test_back_on_the_first_floor_a_recheck_does_not_send_the_agent_up_again() -> None:
+    f, judge = two_floors_judged(FloorsConfig(min_floor_steps=100, recheck=True)), Judge("other")
+    f.floors[1].judged_other = f.floors[1].rechecked = True
+    f.current = 0  # back where the first "other" was said
+    for n in (100, 101, 125, 150):
+        assert not step(f, judge, n, (9.0, 0.0), [])  # the way up is near, but its floor is judged too
+    assert judge.asked == 0 and f.trip is None
+
+
+def test_a_way_whose_entry_the_map_cannot_reach_rests_before_it_is_tried_again() -> None:
+    config = FloorsConfig(retry_steps=40)
+    f = floors_with_a_portal(config)
+    way = (StairCandidate((10.0, 0.0), 0.0, True), 1)
+    f.trip = StairTrip(way[0], 1)
+    state = SimpleNamespace(goal=None, planner=SimpleNamespace(reset=lambda: None))
+    handles = cast(StepHandles, SimpleNamespace(step=200, state=state))
+    assert f._drop(handles, remember=False) is None and f.trip is None
+    assert not f._usable(way, 200) and not f._usable(way, 239)
+    assert f._usable(way, 240)  # tried again 40 steps on
+    assert f._usable((StairCandidate((12.0, 0.0), 0.0, True), 1), 200)  # another way is not resting
+
+
+def test_an_entry_with_no_floor_behind_it_sets_out_from_the_nearest_navigable_point() -> None:
+    """At the top of a flight the strip of floor behind the way back down can be all inflation: the navigable
+    point nearest the entry in any direction is the place to set out from (else the agent set off at every
+    step and never went)."""
+    grid = GridSpec(0.05, (0.0, 0.0), (40, 40))
+    navigable = np.zeros((40, 40), np.bool_)
+    navigable[:, 30:] = True  # floor only to the east, from x = 1.5 m
+    snapshot = MapSnapshot(grid, ~navigable, navigable, navigable)
+    ctx = StepContext(Pose(2.0, 1.0, 0.0), snapshot, [], cast(DirectionResult, SimpleNamespace(directions=[])), None)
+    down_west = StairCandidate((1.0, 1.0), 0.0, False)  # heading east: "back" is west, where there is no floor
+    point = _navigable_near(ctx, down_west)
+    assert point is not None and abs(point[0] - 1.525) < 1e-9 and abs(point[1] - 1.0) < 0.03
+    assert _navigable_near(ctx, StairCandidate((-1.0, 1.0), 0.0, False)) is None  # 2.5 m from any floor

@@ -100,6 +100,11 @@ class FloorsConfig:
     cross-floor one); ``near_way`` 3.0: metres within which a way's entry must lie for a floor judged without the
     target to be left (looked at every step once judged; 0: any way, however far; 3 m, about a room: on our three
     development sets one same-floor and one cross-floor episode more, none fewer, than any way);
+    ``recheck`` (on): the floor question is also asked on a floor whose every way leads to a floor judged without
+    the target (a floor reached after ``other``), and ``other`` there sends the agent back by the nearest way (on
+    our three development sets one same-floor episode more, none fewer);
+    ``retry_steps`` 40: steps before a way whose entry the map could not reach is tried again (the body's
+    ``blacklist_steps``; before, it was tried at the next step, and an agent could set off at every step);
     ``album_every`` 15 and ``album_size``
     12: a floor's album (what the question shows), a frame every 15 steps, thinned to every other one and half as often
     past 12, so that it spans the stay on the floor; ``stairs``: how stairs are read from depth.
@@ -119,6 +124,8 @@ class FloorsConfig:
     ask_every: int = 25
     near_frontier: float = 0.0
     near_way: float = 3.0
+    recheck: bool = True
+    retry_steps: int = 40
     album_every: int = 15
     album_size: int = 12
     stairs: StairTuning = field(default_factory=StairTuning)
@@ -139,6 +146,7 @@ class FloorsConfig:
                 "ask_every": COUNT,
                 "near_frontier": LENGTH,
                 "near_way": LENGTH,
+                "retry_steps": COUNT,
                 "album_every": COUNT,
                 "album_size": COUNT,
             },

@@ -23,13 +23,15 @@ way to another floor that it knows (the stairs it came by) or sees (:func:`~driv
 flight rising from the floor, a stairwell's opening), to a floor not yet exhausted -- an unknown floor first, then the
 nearest -- and STOPs as before when there is none. ASCENT asks its floor question only when no near frontier is left
 (:attr:`FloorsConfig.near_frontier`, off by default) and keeps a minimum of steps between floor changes; here the
-minimum is the steps on a floor before it is asked, and exhaustion is the fallback.
+minimum is the steps on a floor before it is asked, and exhaustion is the fallback. With
+:attr:`FloorsConfig.recheck` (on by default) a floor reached after ``other`` whose every way leads back to floors
+judged so is asked too, and ``other`` there sends the agent back.
 
 **Taking stairs.** The agent drives on its floor's map to the stairs' entry, turns to their heading, and drives
 along it (:meth:`Floors.climb`), its maps frozen, until it stands on a level again; a way on which
 :attr:`FloorsConfig.probe_steps` forward steps change the height by less than half a step, or whose entry takes
-more than :attr:`FloorsConfig.approach_steps` to reach, is dropped; one whose entry the map cannot reach yet is
-tried again later. The stairs it used are remembered both ways (a *portal*).
+more than :attr:`FloorsConfig.approach_steps` to reach, is dropped; one whose entry the map cannot reach yet rests
+and is tried again :attr:`FloorsConfig.retry_steps` later. The stairs it used are remembered both ways (a *portal*).
 
 On a world without floors no height ever changes and no stairs are found: every record is what it was. With
 ``agent.floors.enabled`` false the body is the planar one a method was published with.
@@ -67,7 +69,8 @@ class Floor:
     explorer found nothing left, the step the agent last arrived on it, whether its explorer has begun, its album
     (frames taken on it, what the floor question shows) and the steps between them (0: not yet thinned), whether
     the reasoner judged the target on another floor, the step it was last asked, whether it was left by the
-    share rule, and how many ``other`` answers in a row it had."""
+    share rule, how many ``other`` answers in a row it had, and whether it was judged without the target on a
+    recheck (:attr:`FloorsConfig.recheck`: then it is left by any way back, not only a near one)."""
 
     level: float
     state: BodyState
@@ -81,6 +84,7 @@ class Floor:
     asked: int = -1
     overstayed: bool = False
     others: int = 0
+    rechecked: bool = False
 
 
 @dataclass(frozen=True)
@@ -139,6 +143,7 @@ class Floors:
         self.trip: StairTrip | None = None
         self.portals: list[Portal] = []
         self.dropped: list[StairCandidate] = []
+        self.resting: list[tuple[StairCandidate, int]] = []  # ways whose entry the map could not reach, until a step
         self.changes = 0
 
     @property
@@ -168,8 +173,8 @@ class Floors:
         """Every ``ask_every`` steps once ``min_floor_steps`` were spent on the floor, while a way to a floor neither
         explored nor judged without the target is known: the share rule (the floor had its share of the steps and a
         floor not yet visited is in reach), then the floor question (the reasoner judges the target on another
-        floor; once it did, the agent sets off again at each question's turn until it leaves). Either sets off
-        (True)."""
+        floor; once it did, the agent sets off again at each question's turn until it leaves); where every way
+        leads to a floor judged so, the recheck (:meth:`_recheck`, a switch). Either sets off (True)."""
         floor, config = self.floor, self.config
         on_floor = handles.step - floor.arrived
         waiting = floor.judged_other and config.near_way > 0.0  # judged, a way not yet near: look at every step
@@ -179,9 +184,13 @@ class Floors:
         if not floor.judged_other and _frontier_within(ctx, config.near_frontier):
             return False  # ASCENT's timing: the floor still has a frontier near; asked again at the next step
         floor.asked = handles.step
-        ways = [w for w in self._ways(ctx) if self._open(w) and not self._was_dropped(w)]
+        known = [w for w in self._ways(ctx) if self._usable(w, handles.step)]
+        ways = [w for w in known if self._open(w)]
         if floor.judged_other:  # judged so before and the way not taken (its entry out of reach or far then): again
-            return self._set_off(handles, ctx, self._near(ctx, ways), "judged")
+            back = [w for w in known if self._worth(w)] if floor.rechecked else []
+            return self._set_off(handles, ctx, self._near(ctx, ways) if ways else back, "judged")
+        if not ways and config.recheck and config.ask:
+            return self._recheck(handles, ctx, [w for w in known if self._worth(w)])
         unvisited = [w for w in ways if w[1] is None]
         if unvisited and not floor.overstayed and on_floor >= config.share * (self.budget - floor.arrived):
             floor.overstayed = True
@@ -195,6 +204,22 @@ class Floors:
             return False
         floor.judged_other = True
         return self._set_off(handles, ctx, self._near(ctx, ways), "judged")
+
+    def _recheck(self, handles: StepHandles, ctx: StepContext, ways: list[tuple[StairCandidate, int | None]]) -> bool:
+        """The floor question on a floor whose every way leads to a floor judged without the target
+        (:attr:`FloorsConfig.recheck`): ``other`` here too contradicts the earlier answer, and the agent goes back
+        by the nearest way, however far (True; where its entry cannot be reached yet, again at the next turns);
+        the floor it goes back to stays judged, and this floor is now judged too, so neither is left for the
+        other on the reasoner's word again."""
+        if not ways:
+            return False
+        floor = self.floor
+        judgement = handles.state.reasoner.judge_floor(handles.host.goal_text, floor.album)
+        handles.trace.add(FloorJudged(handles.step, self.current, judgement.guess, judgement.note))
+        if judgement.guess != "other":
+            return False
+        floor.judged_other = floor.rechecked = True
+        return self._set_off(handles, ctx, ways, "judged")
 
     def _near(
         self, ctx: StepContext, ways: list[tuple[StairCandidate, int | None]]
@@ -211,7 +236,7 @@ class Floors:
         """The current floor has nothing left to explore: set off for the best way to another floor not yet
         exhausted (True), or say there is none (False: the agent STOPs)."""
         self.floor.exhausted = True
-        ways = [w for w in self._ways(ctx) if self._worth(w) and not self._was_dropped(w)]
+        ways = [w for w in self._ways(ctx) if self._worth(w) and self._usable(w, handles.step)]
         return self._set_off(handles, ctx, ways, "explored")
 
     def _set_off(
@@ -265,8 +290,13 @@ class Floors:
         """Unknown floors first."""
         return to is not None
 
-    def _was_dropped(self, way: tuple[StairCandidate, int | None]) -> bool:
-        return any(math.dist(way[0].entry, d.entry) < 0.5 for d in self.dropped)
+    def _usable(self, way: tuple[StairCandidate, int | None], step: int) -> bool:
+        """Neither dropped for good nor resting: an entry the map could not reach is tried again
+        :attr:`FloorsConfig.retry_steps` later, not at the next step (else the agent sets off every step)."""
+        entry = way[0].entry
+        if any(math.dist(entry, d.entry) < 0.5 for d in self.dropped):
+            return False
+        return not any(math.dist(entry, r.entry) < 0.5 and step < until for r, until in self.resting)
 
     # ----------------------------------------------------------------------------------------- taking stairs
 
@@ -416,11 +446,14 @@ class Floors:
 
     def _drop(self, handles: StepHandles, remember: bool = True) -> Action | None:
         """Give the way up and go on exploring the floor (which STOPs again if nothing is left); ``remember``: never
-        take it again (not for an entry the map cannot reach yet: it may later)."""
+        take it again (else, for an entry the map cannot reach yet, not for :attr:`FloorsConfig.retry_steps`: it
+        may be reached later)."""
         trip = self.trip
         assert trip is not None
         if remember:
             self.dropped.append(trip.way)
+        else:
+            self.resting.append((trip.way, handles.step + self.config.retry_steps))
         self.trip = None
         handles.state.goal = None
         handles.state.planner.reset()
@@ -446,10 +479,26 @@ def _open_side(observation: Observation) -> int:
 
 def _navigable_near(ctx: StepContext, way: StairCandidate) -> Point | None:
     """The navigable point nearest the entry back along the way's heading (the entry of a flight seen from the
-    floor lies against its first step, in the obstacles' inflation), within 1.5 m."""
+    floor lies against its first step, in the obstacles' inflation), within :data:`ENTRY_REACH`; else the
+    navigable point nearest the entry in any direction within that reach (where the agent arrived at the top of a
+    flight, the floor back along the way's heading may be a strip too narrow for the inflation, the stairwell's
+    drops beside it)."""
     back = (-math.cos(way.heading), -math.sin(way.heading))
-    for k in range(31):
+    steps = round(ENTRY_REACH / 0.05)
+    for k in range(steps + 1):
         point = (way.entry[0] + back[0] * 0.05 * k, way.entry[1] + back[1] * 0.05 * k)
         if ctx.free(*point):
             return point
-    return None
+    snapshot = ctx.snapshot
+    cells = np.argwhere(snapshot.navigable)
+    if not len(cells):
+        return None
+    points = snapshot.grid.cell_to_world(cells)
+    gaps = np.hypot(*(points - np.asarray(way.entry)).T)
+    nearest = int(np.argmin(gaps))
+    if gaps[nearest] > ENTRY_REACH:
+        return None
+    return float(points[nearest, 0]), float(points[nearest, 1])
+
+
+ENTRY_REACH = 1.5  # metres from a way's entry within which the agent looks for navigable floor to set out from
