@@ -89,6 +89,9 @@ def test_an_agent_changes_floors_and_maps_each_floor_apart(
     assert first.level == 0.0 and reached.level == pytest.approx(level, abs=0.05)
     assert wall_cells_in_map(agent, 0, other_floors_wall, env.start_pose) == 0
     assert reached.state.mapper.snapshot().explored.sum() > 0  # the floor reached has a map of its own
+    arrival = next(e.step for e in agent.trace.events if e.kind == "floor_reached")
+    scans = [e.step for e in agent.trace.events if e.kind == "scan"]
+    assert scans == [0, arrival]  # the floor reached begins with a scan, announced when it begins
 
 
 def test_with_floors_off_the_agent_keeps_one_map() -> None:

@@ -34,9 +34,9 @@ class FullScan:
         return cls(full_scan_turns(tuning.turn))
 
     def begin(self, handles: StepHandles) -> None:
-        """The episode's start scan is announced in the trace (a ``scan`` event at step 0), from the explorer's
-        ``begin``."""
-        handles.trace.add(ScanStarted(0, self.turns))
+        """The start scan is announced in the trace (a ``scan`` event at this step: 0 for the episode's, the step
+        of arrival for a floor first reached), from the explorer's ``begin``."""
+        handles.trace.add(ScanStarted(handles.step, self.turns))
 
     def restart(self, handles: StepHandles) -> None:
         """A new full scan from this step (``direction-360``'s scan at a decision), announced in the trace."""
