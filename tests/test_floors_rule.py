@@ -215,3 +215,35 @@ def test_an_entry_with_no_floor_behind_it_sets_out_from_the_nearest_navigable_po
     point = _navigable_near(ctx, down_west)
     assert point is not None and abs(point[0] - 1.525) < 1e-9 and abs(point[1] - 1.0) < 0.03
     assert _navigable_near(ctx, StairCandidate((-1.0, 1.0), 0.0, False)) is None  # 2.5 m from any floor
+
+
+def test_at_a_suspected_way_the_agent_drives_on_faces_along_the_railing_and_goes_on() -> None:
+    """A way suspected behind a railing (agent.floors.railings): from where the map let the agent get, it drives on
+    toward the point to look from (off the map's navigable floor), faces the way's heading, and the trip ends with
+    the place looked from remembered and traced; a suspect near it is not looked at again."""
+    f = floors(FloorsConfig(railings=True, look_steps=6))
+    suspect = StairCandidate((1.0, 0.0), np.pi, False, seen=False)
+    f.trip = StairTrip(suspect, None, phase="turn")
+    events: list[object] = []
+    state = SimpleNamespace(goal=None, planner=SimpleNamespace(reset=lambda: None))
+    handles = cast(
+        StepHandles,
+        SimpleNamespace(
+            step=7, tuning=SimpleNamespace(turn=np.radians(30.0)), trace=SimpleNamespace(add=events.append), state=state
+        ),
+    )
+    obs = observation(0)
+
+    def at(x: float, yaw: float) -> Action | None:
+        o = Observation(obs.rgb, obs.depth, None, Pose(x, 0.0, yaw), obs.intrinsics, 0, False)
+        assert f.trip is not None
+        return f._look(handles, o, f.trip)
+
+    assert at(0.0, 0.0) == Action.MOVE_FORWARD and at(0.25, 0.0) == Action.MOVE_FORWARD  # on toward (1, 0)
+    assert at(0.5, 0.0) in (Action.TURN_LEFT, Action.TURN_RIGHT)  # near enough: face back along the railing
+    for k in range(1, 6):
+        assert at(0.5, k * np.radians(30.0)) == Action.TURN_LEFT
+    assert at(0.5, np.pi) is None and f.trip is None  # faced: the trip ends, the explorer acts
+    assert f.looked == [(1.0, 0.0)] and [type(e).__name__ for e in events] == ["FloorLooked"]
+    assert not f._unlooked(StairCandidate((1.4, 0.3), np.pi, False, seen=False))
+    assert f._unlooked(StairCandidate((3.0, 0.0), np.pi, False, seen=False))

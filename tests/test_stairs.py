@@ -20,6 +20,7 @@ from drivenav.mapping.stairs import (
     Relief,
     StairCandidate,
     StairTuning,
+    find_railings,
     find_stairs,
 )
 from drivenav.mapping.types import MapSnapshot
@@ -121,3 +122,63 @@ def test_the_plane_search_finds_the_flights_bearing(bearing: float, with_railing
     assert len(ways) == 1 and ways[0].up
     error = math.degrees(math.remainder(ways[0].heading - math.radians(bearing), 2.0 * math.pi))
     assert abs(error) <= 2.5  # the bearings tried are 2 degrees apart
+
+
+def test_a_railing_seen_from_beside_suggests_looking_from_beyond_its_ends() -> None:
+    """Upstairs beside the stairwell (its railing along y = 2 m between x = 2 and 6.05 m, 1.2 m away), turning a full
+    circle, no floor is seen past the 0.9 m railing and no drop: no way down. The railing is a thin line about the
+    camera's height with unseen floor behind it, and each of its ends gives a place to look from, 0.6 m beyond it and
+    0.45 m toward the unseen side, looking back along the line: past the flight's top, where the stairs arrive,
+    looking down them."""
+    mapper, start = scanned((4.0, 0.8, STOREY), 0.0, turns=11)
+    relief, snapshot = mapper.relief(), mapper.snapshot()
+    assert relief is not None and not relief.drops.any()
+    assert find_stairs(relief, snapshot, TUNING) == []
+    suspects = sorted((to_world(start, s), s) for s in find_railings(relief, snapshot, TUNING))
+    assert all(not s.up and not s.seen for _, s in suspects)
+    ends = [world for world, _ in suspects]
+    assert len(ends) == 2
+    (x0, y0, h0), (x1, y1, h1) = ends
+    assert abs(y0 - 2.45) < 0.15 and abs(y1 - 2.45) < 0.15  # toward the unseen side, the stairwell's middle
+    assert x1 > 6.05 and abs(math.remainder(h1 - math.pi, 2.0 * math.pi)) < 0.2  # past the top, looking down the flight
+    assert x0 < 2.4 and abs(math.remainder(h0, 2.0 * math.pi)) < 0.2  # the other end, looking the other way
+
+
+def railing_map(top: float, rows: slice, cols: slice) -> tuple[Relief, MapSnapshot]:
+    """A 5 x 5 m map seen up to y = 2 m, with obstacle cells of highest point ``top`` at ``rows, cols``."""
+    grid = GridSpec(0.05, (0.0, 0.0), (100, 100))
+    obstacle = np.zeros((100, 100), np.bool_)
+    obstacle[rows, cols] = True
+    explored = np.zeros((100, 100), np.bool_)
+    explored[:40, :] = True
+    heights = np.full((100, 100), NO_POINT, np.float32)
+    heights[rows, cols] = top
+    relief = Relief(grid, heights, np.zeros((100, 100), np.bool_))
+    return relief, MapSnapshot(grid, obstacle, explored | obstacle, explored & ~obstacle)
+
+
+@pytest.mark.parametrize(
+    ("top", "rows", "cols", "found"),
+    [
+        (0.88, slice(40, 41), slice(20, 80), 2),  # a 3 m line at the camera's height, unseen floor behind: both ends
+        (0.88, slice(40, 41), slice(20, 50), 0),  # 1.5 m: shorter than a flight's run
+        (2.4, slice(40, 41), slice(20, 80), 0),  # a wall's height
+        (0.88, slice(40, 52), slice(20, 80), 0),  # an area of that height: a furniture top seen, no line
+    ],
+)
+def test_only_a_long_thin_line_about_the_cameras_height_suggests_a_way_down(
+    top: float, rows: slice, cols: slice, found: int
+) -> None:
+    relief, snapshot = railing_map(top, rows, cols)
+    assert len(find_railings(relief, snapshot, TUNING)) == found
+
+
+def test_an_end_with_a_railing_across_it_is_not_looked_from_when_the_other_is_clear() -> None:
+    """A 3 m railing along y = 2 m (x from 1 to 4 m) with a railing across its west end on the unseen side (x = 1 m,
+    y from 2 to 3 m): the stairs cannot arrive there, so only the east end is looked from, looking back west."""
+    relief, snapshot = railing_map(0.88, slice(40, 41), slice(20, 80))
+    snapshot.obstacle[40:60, 19:20] = True
+    suspects = find_railings(relief, snapshot, TUNING)
+    assert len(suspects) == 1
+    (x, y), heading = suspects[0].entry, suspects[0].heading
+    assert x > 4.0 and 2.3 < y < 2.6 and abs(abs(heading) - math.pi) < 0.1

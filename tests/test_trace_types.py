@@ -16,6 +16,7 @@ from drivenav.agent.trace import (
     DirectionSelected,
     Event,
     FloorJudged,
+    FloorLooked,
     FloorReached,
     FloorSetOff,
     InspectionStarted,
@@ -51,6 +52,7 @@ EXAMPLES: tuple[Event, ...] = (
     InspectionVoid(13, (1, 2)),
     FloorJudged(14, 0, "other", "0.00 of the goal's rooms among kitchen, living room, dining room"),
     FloorSetOff(15, 0, (4.5, -2.0), True, "judged"),
+    FloorLooked(20, 0, (6.6, 2.4)),
     FloorReached(40, 1, 0, True),
 )
 

@@ -105,6 +105,11 @@ class FloorsConfig:
     our three development sets one same-floor episode more, none fewer);
     ``retry_steps`` 40: steps before a way whose entry the map could not reach is tried again (the body's
     ``blacklist_steps``; before, it was tried at the next step, and an agent could set off at every step);
+    ``railings`` (off): ways down suspected behind railing-high lines (:func:`~drivenav.mapping.stairs.find_railings`)
+    count as ways to an unknown floor below while none is known: the floor question is asked, and on ``other`` (or
+    exhaustion) the agent goes to look from beyond the line's open end, however far; off by default, as kitchen
+    counters give such lines too, so that one-floor records stay as they were; ``look_steps`` 6: forward steps
+    toward the point to look from, off the map's navigable floor;
     ``album_every`` 15 and ``album_size``
     12: a floor's album (what the question shows), a frame every 15 steps, thinned to every other one and half as often
     past 12, so that it spans the stay on the floor; ``stairs``: how stairs are read from depth.
@@ -126,6 +131,8 @@ class FloorsConfig:
     near_way: float = 3.0
     recheck: bool = True
     retry_steps: int = 40
+    railings: bool = False
+    look_steps: int = 6
     album_every: int = 15
     album_size: int = 12
     stairs: StairTuning = field(default_factory=StairTuning)
@@ -147,6 +154,7 @@ class FloorsConfig:
                 "near_frontier": LENGTH,
                 "near_way": LENGTH,
                 "retry_steps": COUNT,
+                "look_steps": STEPS,
                 "album_every": COUNT,
                 "album_size": COUNT,
             },

@@ -25,7 +25,10 @@ nearest -- and STOPs as before when there is none. ASCENT asks its floor questio
 (:attr:`FloorsConfig.near_frontier`, off by default) and keeps a minimum of steps between floor changes; here the
 minimum is the steps on a floor before it is asked, and exhaustion is the fallback. With
 :attr:`FloorsConfig.recheck` (on by default) a floor reached after ``other`` whose every way leads back to floors
-judged so is asked too, and ``other`` there sends the agent back.
+judged so is asked too, and ``other`` there sends the agent back. With :attr:`FloorsConfig.railings` (off by default)
+a way down suspected behind a railing (:func:`~drivenav.mapping.stairs.find_railings`) counts as a way to an unknown
+floor while no way down is known: the agent goes to look from beyond the railing's end (:meth:`Floors._look`), and
+the way down, if the look shows one, is taken like any other.
 
 **Taking stairs.** The agent drives on its floor's map to the stairs' entry, turns to their heading, and drives
 along it (:meth:`Floors.climb`), its maps frozen, until it stands on a level again; a way on which
@@ -48,9 +51,9 @@ import numpy as np
 
 from drivenav.agent.config import FloorsConfig
 from drivenav.agent.context import Point, StepContext, replan
-from drivenav.agent.trace import FloorJudged, FloorReached, FloorSetOff
+from drivenav.agent.trace import FloorJudged, FloorLooked, FloorReached, FloorSetOff
 from drivenav.inspection.views import frame_view
-from drivenav.mapping.stairs import StairCandidate, find_stairs
+from drivenav.mapping.stairs import StairCandidate, find_railings, find_stairs
 from drivenav.semantics.protocols import View
 from drivenav.types import Action, Observation
 
@@ -118,6 +121,7 @@ class StairTrip:
     blocked: int = 0
 
 
+LOOKED_NEAR = 1.0  # metres: a suspected way this near a place the agent looked from was looked at
 ON_FLOOR = 0.05  # metres from a level's height at which the agent is off the stairs (a tread is 0.15 m or more)
 BLOCKED_STEPS = 3  # steps toward an entry that collided without moving, before the agent sets off from near it
 BLOCKED_NEAR = 1.0  # metres from the entry that count as near it then
@@ -144,6 +148,7 @@ class Floors:
         self.portals: list[Portal] = []
         self.dropped: list[StairCandidate] = []
         self.resting: list[tuple[StairCandidate, int]] = []  # ways whose entry the map could not reach, until a step
+        self.looked: list[Point] = []  # where the agent looked for a suspected way (agent.floors.railings)
         self.changes = 0
 
     @property
@@ -230,7 +235,7 @@ class Floors:
         if reach <= 0.0:
             return ways
         here = (ctx.pose.x, ctx.pose.y)
-        return [w for w in ways if math.dist(here, w[0].entry) <= reach]
+        return [w for w in ways if not w[0].seen or math.dist(here, w[0].entry) <= reach]
 
     def leave(self, handles: StepHandles, ctx: StepContext) -> bool:
         """The current floor has nothing left to explore: set off for the best way to another floor not yet
@@ -246,7 +251,7 @@ class Floors:
         if not ways:
             return False
         here = (ctx.pose.x, ctx.pose.y)
-        way, to = min(ways, key=lambda item: (self._known(item[1]), math.dist(here, item[0].entry)))
+        way, to = min(ways, key=lambda item: (self._known(item[1]), not item[0].seen, math.dist(here, item[0].entry)))
         self.trip = StairTrip(way, to)
         handles.trace.add(FloorSetOff(handles.step, self.current, way.entry, way.up, reason))
         handles.state.goal = None
@@ -267,7 +272,15 @@ class Floors:
             for seen in find_stairs(relief, ctx.snapshot, self.config.stairs):
                 if not any(math.dist(seen.entry, w.entry) < 1.0 for w, _ in ways):
                     ways.append((seen, self._next_level(seen.up)))
+            if self.config.railings and not any(not w.up for w, _ in ways):
+                ways += [
+                    (s, None) for s in find_railings(relief, ctx.snapshot, self.config.stairs) if self._unlooked(s)
+                ]
         return ways
+
+    def _unlooked(self, suspect: StairCandidate) -> bool:
+        """A suspected way not yet looked at (within :data:`LOOKED_NEAR` of a place the agent looked from)."""
+        return all(math.dist(suspect.entry, point) >= LOOKED_NEAR for point in self.looked)
 
     def _next_level(self, up: bool) -> int | None:
         """The known floor next above (or below) the current one, None if none is known."""
@@ -312,7 +325,41 @@ class Floors:
             action = self._approach(handles, observation, ctx, trip)
             if action is not None:
                 return action
+        if not trip.way.seen:
+            return self._look(handles, observation, trip)
         return self._turn(handles, observation, trip)
+
+    def _look(self, handles: StepHandles, observation: Observation, trip: StairTrip) -> Action | None:
+        """At a suspected way (:func:`~drivenav.mapping.stairs.find_railings`): drive on toward the point to look
+        from -- off the map's navigable floor, as the strip where stairs arrive is rarely seen before -- until
+        within :data:`LOOKED_NEAR` of it, after :attr:`FloorsConfig.look_steps` forward steps or once a step
+        collides without moving; then face along the railing. Then the trip ends (None: the explorer acts) and the
+        maps hold the stairwell's drops if it is there: a way down the floor rule takes like any other."""
+        pose, turn = observation.pose, handles.tuning.turn
+        here = (pose.x, pose.y)
+        stuck = observation.collided and math.dist(here, trip.last_xy) < 0.05
+        if trip.phase != "face":
+            trip.phase = "toward"
+            gap = math.dist(here, trip.way.entry)
+            if gap <= LOOKED_NEAR / 2.0 or trip.forward >= self.config.look_steps or stuck:
+                trip.phase = "face"
+            else:
+                bearing = math.atan2(trip.way.entry[1] - pose.y, trip.way.entry[0] - pose.x)
+                error = math.remainder(bearing - pose.yaw, 2.0 * math.pi)
+                if abs(error) > turn / 2.0:
+                    return Action.TURN_LEFT if error > 0.0 else Action.TURN_RIGHT
+                trip.forward += 1
+                trip.last_xy = here
+                return Action.MOVE_FORWARD
+        error = math.remainder(trip.way.heading - pose.yaw, 2.0 * math.pi)
+        if abs(error) > turn / 2.0:
+            return Action.TURN_LEFT if error > 0.0 else Action.TURN_RIGHT
+        self.looked.append(trip.way.entry)
+        handles.trace.add(FloorLooked(handles.step, self.current, trip.way.entry))
+        self.trip = None
+        handles.state.goal = None
+        handles.state.planner.reset()
+        return None
 
     def _approach(
         self, handles: StepHandles, observation: Observation, ctx: StepContext, trip: StairTrip

@@ -180,6 +180,16 @@ class FloorSetOff(Event):
 
 
 @dataclass(frozen=True)
+class FloorLooked(Event):
+    """On floor ``floor`` the agent looked for a way down suspected behind a railing, from ``point`` (episode frame;
+    ``agent.floors.railings``, docs/floors.md)."""
+
+    floor: int
+    point: Point
+    kind: ClassVar[str] = "floor_looked"
+
+
+@dataclass(frozen=True)
 class FloorReached(Event):
     """The agent arrived on floor ``floor`` (``new``: first reached) by stairs from floor ``came_from``."""
 

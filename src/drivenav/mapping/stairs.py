@@ -24,6 +24,12 @@ Candidates (:func:`find_stairs`), at a floor decision:
 - **down**: a connected region of drops at least :attr:`StairTuning.min_drop_area` large whose edge toward free
   floor is open (not walled or railed) over at least :attr:`StairTuning.min_opening`: where stairs leave the floor.
   The direction of descent runs across that opening into the region.
+
+Suspected ways down (:func:`find_railings`, used only with ``agent.floors.railings``): a level camera at 0.88 m sees
+no floor past a 0.9 m railing, so a stairwell seen from beside is a thin line of obstacles whose highest point seen is
+about the camera's height, with unseen floor behind it. Such a line at least :attr:`StairTuning.min_railing` long
+suggests the stairwell's open edge beyond one of its ends, where the stairs arrive: a place to go and look from, not
+a way (kitchen counters are as high and give such lines too).
 """
 
 from __future__ import annotations
@@ -56,6 +62,12 @@ class StairTuning:
     ``drop`` 0.2: a ray reaching this much beyond the floor plane found no floor; ``max_height`` 2.5: points higher
     above the floor are out of any flight's first storey-half and left out; ``min_drop_area`` 0.25 and
     ``min_opening`` 0.5: a stairwell's drop region and its open edge (a flight is at least 0.6 m wide).
+    Railings (:func:`find_railings`): ``railing_low`` 0.8 and ``railing_high`` 0.95, the highest point seen on a
+    railing's cells (its face up to the camera's 0.88 m: a 0.9 m railing's top is not seen from below it);
+    ``min_railing`` 2.0, the least length of a railing line (a flight's run is 3 m or more; a kitchen counter is up
+    to 3 m);
+    ``railing_beyond`` 0.6 and ``railing_across`` 0.45, where the agent looks from: that far beyond an end of the
+    line and toward its unseen side (the middle of a flight 0.75-1.0 m wide, in the strip of floor where it arrives).
     """
 
     climb: float = 0.2
@@ -64,6 +76,11 @@ class StairTuning:
     max_height: float = 2.5
     min_drop_area: float = 0.25
     min_opening: float = 0.5
+    railing_low: float = 0.8
+    railing_high: float = 0.95
+    min_railing: float = 2.0
+    railing_beyond: float = 0.6
+    railing_across: float = 0.45
 
     def __post_init__(self) -> None:
         check_ranges(
@@ -75,6 +92,11 @@ class StairTuning:
                 "max_height": POSITIVE_LENGTH,
                 "min_drop_area": LENGTH,
                 "min_opening": LENGTH,
+                "railing_low": LENGTH,
+                "railing_high": POSITIVE_LENGTH,
+                "min_railing": LENGTH,
+                "railing_beyond": LENGTH,
+                "railing_across": LENGTH,
             },
         )
 
@@ -91,11 +113,13 @@ class Relief:
 @dataclass(frozen=True)
 class StairCandidate:
     """A way off the floor: the point on the floor to set out from (episode frame), the heading to drive (radians,
-    counter-clockwise), and whether the stairs go up."""
+    counter-clockwise), and whether the stairs go up; ``seen`` False: a way only suspected (:func:`find_railings`),
+    whose entry is where to look from and its heading where to look."""
 
     entry: tuple[float, float]
     heading: float
     up: bool
+    seen: bool = True
 
 
 @jit(
@@ -348,3 +372,68 @@ def _into(edge: F64, toward: F64) -> float:
 
 
 OPENING_REACH_CELLS = 8  # cells from a stairwell to the floor its opening gives on: the inflation and two cells more
+
+
+def find_railings(relief: Relief, snapshot: MapSnapshot, tuning: StairTuning) -> list[StairCandidate]:
+    """Suspected ways down behind railings (module docstring): for each thin line of obstacle cells whose highest
+    point seen lies between :attr:`StairTuning.railing_low` and :attr:`StairTuning.railing_high`, at least
+    :attr:`StairTuning.min_railing` long, each end (:func:`_railing_ends`) gives the
+    point :attr:`StairTuning.railing_beyond` past it and :attr:`StairTuning.railing_across` toward the line's unseen
+    side, looking back along the line."""
+    top = relief.top
+    low = snapshot.obstacle & ~relief.drops & (top >= tuning.railing_low) & (top <= tuning.railing_high)
+    thin = low & ~ndimage.binary_opening(low, structure=np.ones((3, 3), bool))  # furniture tops seen are areas
+    labels, count = ndimage.label(thin, structure=np.ones((3, 3), bool))
+    unseen = ~snapshot.explored & ~snapshot.obstacle
+    found: list[StairCandidate] = []
+    for k in range(1, count + 1):
+        xy = relief.grid.cell_to_world(np.argwhere(labels == k))
+        ends = _railing_ends(xy, unseen, relief.grid, tuning)
+        clear = [end for end, crossed in ends if not _count_in(snapshot.obstacle, relief.grid, crossed)]
+        found += clear or [end for end, _ in ends]
+    return found
+
+
+def _railing_ends(xy: F64, unseen: Mask, grid: GridSpec, tuning: StairTuning) -> list[tuple[StairCandidate, F64]]:
+    """Where to look from at each end of one railing line (its cells' centres ``xy``), with the points from the
+    unseen side's middle at that end out to there: its major axis ``u`` long enough; its unseen side ``n`` the one
+    with more cells never seen :data:`RAILING_PROBE` away from the line's middle; each end the mean of the line's
+    cells within :data:`RAILING_END` of it. An obstacle on those points is a railing or wall across the stairwell at
+    that end (:func:`find_railings` then keeps the other end; both where both are crossed, or neither: the railing
+    across is not always seen, and looking from the wrong end costs a few steps)."""
+    if len(xy) * grid.resolution < tuning.min_railing:  # too few cells to span the length
+        return []
+    centre = xy.mean(axis=0)
+    _, _, axes = np.linalg.svd(xy - centre, full_matrices=False)
+    u, n = axes[0], axes[1]
+    along = (xy - centre) @ u
+    if np.ptp(along) < tuning.min_railing:
+        return []
+    middle = xy[np.abs(along) <= np.ptp(along) / 4.0]
+    sides = [int(_count_in(unseen, grid, middle + sign * RAILING_PROBE * n)) for sign in (1.0, -1.0)]
+    if max(sides) == 0:
+        return []
+    side = n if sides[0] >= sides[1] else -n
+    ends: list[tuple[StairCandidate, F64]] = []
+    for sign, extreme in ((1.0, along.max()), (-1.0, along.min())):
+        near_end = np.abs(along - extreme) <= RAILING_END
+        outward = sign * u
+        inside = xy[near_end].mean(axis=0) + tuning.railing_across * side
+        look_from = inside + tuning.railing_beyond * outward
+        crossed = inside + np.linspace(0.0, tuning.railing_beyond, 13)[:, None] * outward
+        heading = math.atan2(-outward[1], -outward[0])
+        way = StairCandidate((float(look_from[0]), float(look_from[1])), heading, up=False, seen=False)
+        ends.append((way, crossed))
+    return ends
+
+
+def _count_in(mask: Mask, grid: GridSpec, points: F64) -> int:
+    """How many of ``points`` fall on true cells of ``mask`` (points off the grid count none)."""
+    cells = grid.world_to_cell(points)
+    rows, cols = mask.shape
+    inside = (cells[:, 0] >= 0) & (cells[:, 0] < rows) & (cells[:, 1] >= 0) & (cells[:, 1] < cols)
+    return int(mask[cells[inside, 0], cells[inside, 1]].sum())
+
+
+RAILING_PROBE = 0.3  # metres from a railing line at which its sides are told apart (seen floor, unseen stairwell)
+RAILING_END = 0.25  # metres from a line's extreme along it within which its cells make its end
