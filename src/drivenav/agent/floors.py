@@ -52,6 +52,7 @@ import numpy as np
 from drivenav.agent.config import FloorsConfig
 from drivenav.agent.context import Point, StepContext, replan
 from drivenav.agent.trace import FloorJudged, FloorLooked, FloorReached, FloorSetOff
+from drivenav.inspection import turn_toward
 from drivenav.inspection.views import frame_view
 from drivenav.mapping.stairs import StairCandidate, find_railings, find_stairs
 from drivenav.semantics.protocols import View
@@ -202,9 +203,8 @@ class Floors:
             return self._set_off(handles, ctx, unvisited, "share")
         if not ways or not config.ask:
             return False
-        judgement = handles.state.reasoner.judge_floor(handles.host.goal_text, floor.album)
-        handles.trace.add(FloorJudged(handles.step, self.current, judgement.guess, judgement.note))
-        floor.others = floor.others + 1 if judgement.guess == "other" else 0
+        guess = self._judge(handles)
+        floor.others = floor.others + 1 if guess == "other" else 0
         if floor.others < config.confirm:
             return False
         floor.judged_other = True
@@ -218,13 +218,17 @@ class Floors:
         other on the reasoner's word again."""
         if not ways:
             return False
-        floor = self.floor
-        judgement = handles.state.reasoner.judge_floor(handles.host.goal_text, floor.album)
-        handles.trace.add(FloorJudged(handles.step, self.current, judgement.guess, judgement.note))
-        if judgement.guess != "other":
+        if self._judge(handles) != "other":
             return False
+        floor = self.floor
         floor.judged_other = floor.rechecked = True
         return self._set_off(handles, ctx, ways, "judged")
+
+    def _judge(self, handles: StepHandles) -> str:
+        """The floor question on the current floor (its album shown), traced; the reasoner's guess."""
+        judgement = handles.state.reasoner.judge_floor(handles.host.goal_text, self.floor.album)
+        handles.trace.add(FloorJudged(handles.step, self.current, judgement.guess, judgement.note))
+        return judgement.guess
 
     def _near(
         self, ctx: StepContext, ways: list[tuple[StairCandidate, int | None]]
@@ -345,15 +349,15 @@ class Floors:
                 trip.phase = "face"
             else:
                 bearing = math.atan2(trip.way.entry[1] - pose.y, trip.way.entry[0] - pose.x)
-                error = math.remainder(bearing - pose.yaw, 2.0 * math.pi)
-                if abs(error) > turn / 2.0:
-                    return Action.TURN_LEFT if error > 0.0 else Action.TURN_RIGHT
+                action = turn_toward(pose.yaw, bearing, turn)
+                if action is not None:
+                    return action
                 trip.forward += 1
                 trip.last_xy = here
                 return Action.MOVE_FORWARD
-        error = math.remainder(trip.way.heading - pose.yaw, 2.0 * math.pi)
-        if abs(error) > turn / 2.0:
-            return Action.TURN_LEFT if error > 0.0 else Action.TURN_RIGHT
+        action = turn_toward(pose.yaw, trip.way.heading, turn)
+        if action is not None:
+            return action
         self.looked.append(trip.way.entry)
         handles.trace.add(FloorLooked(handles.step, self.current, trip.way.entry))
         self.trip = None
@@ -385,9 +389,9 @@ class Floors:
         return action if action is not None else self._drop(handles, remember=False)
 
     def _turn(self, handles: StepHandles, observation: Observation, trip: StairTrip) -> Action:
-        error = math.remainder(trip.way.heading - observation.pose.yaw, 2.0 * math.pi)
-        if abs(error) > handles.tuning.turn / 2.0:
-            return Action.TURN_LEFT if error > 0.0 else Action.TURN_RIGHT
+        action = turn_toward(observation.pose.yaw, trip.way.heading, handles.tuning.turn)
+        if action is not None:
+            return action
         trip.phase = "climb"
         trip.steps = 0
         trip.last_height = observation.pose.z
@@ -451,9 +455,9 @@ class Floors:
         if trip.detour == 0 and stuck:  # a detour step that collided too: the other side next
             trip.detour = -trip.side if trip.side else _open_side(observation)
         turn = handles.tuning.turn
-        error = math.remainder(trip.way.heading + trip.detour * turn - pose.yaw, 2.0 * math.pi)
-        if abs(error) > turn / 2.0:
-            return Action.TURN_LEFT if error > 0.0 else Action.TURN_RIGHT
+        action = turn_toward(pose.yaw, trip.way.heading + trip.detour * turn, turn)
+        if action is not None:
+            return action
         trip.side, trip.detour = trip.detour, 0
         trip.forward += 1
         trip.last_xy = (pose.x, pose.y)
@@ -537,10 +541,13 @@ def _navigable_near(ctx: StepContext, way: StairCandidate) -> Point | None:
         if ctx.free(*point):
             return point
     snapshot = ctx.snapshot
-    cells = np.argwhere(snapshot.navigable)
+    grid, reach = snapshot.grid, math.ceil(ENTRY_REACH / snapshot.grid.resolution) + 1
+    row, col = grid.cell_at(*way.entry)  # only cells this near can lie within the reach
+    r0, c0 = max(row - reach, 0), max(col - reach, 0)
+    cells = np.argwhere(snapshot.navigable[r0 : max(row + reach + 1, 0), c0 : max(col + reach + 1, 0)])
     if not len(cells):
         return None
-    points = snapshot.grid.cell_to_world(cells)
+    points = grid.cell_to_world(cells + np.array([r0, c0]))
     gaps = np.hypot(*(points - np.asarray(way.entry)).T)
     nearest = int(np.argmin(gaps))
     if gaps[nearest] > ENTRY_REACH:

@@ -430,9 +430,8 @@ def _railing_ends(xy: F64, unseen: Mask, grid: GridSpec, tuning: StairTuning) ->
 def _count_in(mask: Mask, grid: GridSpec, points: F64) -> int:
     """How many of ``points`` fall on true cells of ``mask`` (points off the grid count none)."""
     cells = grid.world_to_cell(points)
-    rows, cols = mask.shape
-    inside = (cells[:, 0] >= 0) & (cells[:, 0] < rows) & (cells[:, 1] >= 0) & (cells[:, 1] < cols)
-    return int(mask[cells[inside, 0], cells[inside, 1]].sum())
+    cells = cells[grid.contains(cells)]
+    return int(mask[cells[:, 0], cells[:, 1]].sum())
 
 
 RAILING_PROBE = 0.3  # metres from a railing line at which its sides are told apart (seen floor, unseen stairwell)
