@@ -123,6 +123,8 @@ class EmbeddedReasonerConfig:
     room_similarity: float = 0.5
     floor_rooms: int = 3
     floor_passages: tuple[str, ...] = ("hallway",)
+    floor_together: tuple[str, ...] = ("kitchen", "living room", "dining room", "garage")
+    floor_everywhere: tuple[str, ...] = ("bathroom",)
     floor_this: float = 0.5
     floor_other: float = 0.15
     room_evidence: float = 0.5
@@ -304,8 +306,11 @@ class EmbeddedReasoner:
         rooms the views show (a visible category found mostly, ``room_evidence`` of its share, in one room type
         shows that room): ``this`` where the rooms shown hold ``floor_this`` of the goal's share, ``other`` where
         at least ``floor_rooms`` rooms are shown, ``floor_passages`` (hallways) not counted, and they hold at most
-        ``floor_other`` of it (a ground floor of
-        kitchen and living room for a bed), else ``unsure``. It reads only what the views show."""
+        ``floor_other`` of it (a ground floor of kitchen and living room for a bed), else ``unsure``. For ``other``
+        the rooms shown are completed with what every home is known to have (:meth:`_held`): a bathroom on every
+        floor (``floor_everywhere``), and the entrance floor's rooms kept together (``floor_together``), so that a
+        kitchen not yet seen beside a living room is no reason for ``other``; the ``this`` share stays what the
+        views show. It reads only what the views show."""
         return self._timed(FLOOR_KIND, lambda: self._floor(goal, views))
 
     def _floor(self, goal: str, views: Sequence[View]) -> FloorJudgement:
@@ -321,10 +326,20 @@ class EmbeddedReasoner:
         note = f"{share:.2f} of the goal's rooms among {', '.join(sorted(here)) or 'none'}"
         if share >= self.config.floor_this:
             return FloorJudgement("this", note=note)
+        held = self._held(here)
+        possible = sum(wanted.get(room, 0.0) for room in held)
+        if possible > share:
+            note += f"; {possible:.2f} with the rooms this floor has unseen"
         telling = here - set(self.config.floor_passages)  # every floor has its hallways: they tell no floor apart
-        if len(telling) >= self.config.floor_rooms and share <= self.config.floor_other:
+        if len(telling) >= self.config.floor_rooms and possible <= self.config.floor_other:
             return FloorJudgement("other", note=note)
         return FloorJudgement("unsure", note=note)
+
+    def _held(self, shown: set[str]) -> set[str]:
+        """The rooms a floor showing ``shown`` has (common knowledge of homes): those, the rooms every floor has
+        (``floor_everywhere``), and the entrance floor's rooms (``floor_together``) where it shows one of them."""
+        together = set(self.config.floor_together)
+        return shown | set(self.config.floor_everywhere) | (together if shown & together else set())
 
     def _room_of(self, vocabulary: CategoryVocabulary, category: str) -> str | None:
         """The room a category shows: the one holding at least ``room_evidence`` of its objects, if any."""
