@@ -104,7 +104,8 @@ class Portal:
 @dataclass
 class StairTrip:
     """Stairs being taken: the way (entry, heading, up or down, the floor it leads to if known), the phase
-    (``approach``: driving to the entry on the map; ``turn``: facing the heading; ``climb``: on the way), its
+    (``approach``: driving to the entry on the map; ``turn``: facing the heading; ``climb``: on the way; for a
+    suspected way, ``toward`` and ``face``: driving on to the point to look from, facing along the railing), its
     counts, where the last step on it set off, the detour under way (+1 left, -1 right, 0 none), the side the last
     forward step went off the heading (0: on it) and how many steps toward the entry collided without moving."""
 
@@ -121,7 +122,13 @@ class StairTrip:
     side: int = 0
     blocked: int = 0
 
+    def stuck(self, observation: Observation) -> bool:
+        """Whether the step just taken collided without moving (less than :data:`STILL` from where it set off)."""
+        pose = observation.pose
+        return observation.collided and math.dist((pose.x, pose.y), self.last_xy) < STILL
 
+
+STILL = 0.05  # metres: a colliding step that moved less than this did not move
 LOOKED_NEAR = 1.0  # metres: a suspected way this near a place the agent looked from was looked at
 ON_FLOOR = 0.05  # metres from a level's height at which the agent is off the stairs (a tread is 0.15 m or more)
 BLOCKED_STEPS = 3  # steps toward an entry that collided without moving, before the agent sets off from near it
@@ -341,7 +348,7 @@ class Floors:
         maps hold the stairwell's drops if it is there: a way down the floor rule takes like any other."""
         pose, turn = observation.pose, handles.tuning.turn
         here = (pose.x, pose.y)
-        stuck = observation.collided and math.dist(here, trip.last_xy) < 0.05
+        stuck = trip.stuck(observation)
         if trip.phase != "face":
             trip.phase = "toward"
             gap = math.dist(here, trip.way.entry)
@@ -360,9 +367,7 @@ class Floors:
             return action
         self.looked.append(trip.way.entry)
         handles.trace.add(FloorLooked(handles.step, self.current, trip.way.entry))
-        self.trip = None
-        handles.state.goal = None
-        handles.state.planner.reset()
+        self._end_trip(handles)
         return None
 
     def _approach(
@@ -376,7 +381,7 @@ class Floors:
         goal = _navigable_near(ctx, trip.way)
         if goal is None:
             return self._drop(handles, remember=False)
-        trip.blocked += observation.collided and math.dist(here, trip.last_xy) < 0.05
+        trip.blocked += trip.stuck(observation)
         trip.last_xy = here
         near = math.dist(here, goal)
         if near <= self.config.entry_tolerance or (trip.blocked >= BLOCKED_STEPS and near <= BLOCKED_NEAR):
@@ -451,7 +456,7 @@ class Floors:
         next goes a turn off to the other side (else the agent would push the same way until it gives the stairs
         up: on a development set, wedged at a flight's foot for 120 steps)."""
         pose = observation.pose
-        stuck = observation.collided and math.dist((pose.x, pose.y), trip.last_xy) < 0.05
+        stuck = trip.stuck(observation)
         if trip.detour == 0 and stuck:  # a detour step that collided too: the other side next
             trip.detour = -trip.side if trip.side else _open_side(observation)
         turn = handles.tuning.turn
@@ -505,10 +510,14 @@ class Floors:
             self.dropped.append(trip.way)
         else:
             self.resting.append((trip.way, handles.step + self.config.retry_steps))
+        self._end_trip(handles)
+        return None
+
+    def _end_trip(self, handles: StepHandles) -> None:
+        """The trip is over on the floor it set off from: the explorer acts again, from a fresh course."""
         self.trip = None
         handles.state.goal = None
         handles.state.planner.reset()
-        return None
 
 
 def _frontier_within(ctx: StepContext, reach: float) -> bool:
