@@ -128,7 +128,9 @@ def test_the_env_reports_heights_and_the_oracle_climbs_to_a_goal_upstairs() -> N
     observation = env.reset(episode)
     assert env.world_pose().z == 0.0 and observation.pose.z == 0.0
     oracle = OracleAgent(SIM)
-    oracle.reset("bed", 0, env.ground_truth(frozenset({GEODESIC})))
+    truth = env.ground_truth(frozenset({GEODESIC}))
+    assert truth.geodesic is not None and truth.geodesic.goal_heights == (STOREY,)  # the bed's floor
+    oracle.reset("bed", 0, truth)
     for _ in range(300):
         action = oracle.act(observation)
         observation = env.step(action)

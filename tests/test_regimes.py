@@ -31,7 +31,7 @@ from drivenav.semantics.embedded_detector import EmbeddedGrounder, regime_ground
 from drivenav.semantics.ground_truth import GroundTruthGrounder
 from drivenav.semantics.model_spec import DETECTOR_REGIMES, ModelSpec
 from drivenav.semantics.oracle import OracleReasoner, OracleScorer, goal_distance, sight_progress
-from drivenav.semantics.protocols import Candidate
+from drivenav.semantics.protocols import Candidate, View
 from drivenav.semantics.registry import check_models, model_requirements, scorer_requirements
 from drivenav.settings import load_settings
 from drivenav.types import GEODESIC, SEMANTIC, CameraIntrinsics, GroundTruth, Observation, Pose
@@ -39,10 +39,16 @@ from drivenav.types import GEODESIC, SEMANTIC, CameraIntrinsics, GroundTruth, Ob
 
 class PointGoal:
     """A geodesic oracle in an open plane: Euclidean distance to one goal point, infinite inside a wall strip
-    ``x > wall`` (the episode starts at ``start``)."""
+    ``x > wall`` (the episode starts at ``start``); the goal is seen from ``heights``."""
 
-    def __init__(self, goal: tuple[float, float], start: Pose | None = None, wall: float = math.inf) -> None:
-        self.goal, self._start, self.wall = goal, start or Pose(0.0, 0.0, 0.0), wall
+    def __init__(
+        self,
+        goal: tuple[float, float],
+        start: Pose | None = None,
+        wall: float = math.inf,
+        heights: tuple[float, ...] = (0.0,),
+    ) -> None:
+        self.goal, self._start, self.wall, self.heights = goal, start or Pose(0.0, 0.0, 0.0), wall, heights
 
     @property
     def start_pose(self) -> Pose:
@@ -55,6 +61,10 @@ class PointGoal:
 
     def forward(self, pose: Pose) -> tuple[Pose, bool]:
         return pose, False
+
+    @property
+    def goal_heights(self) -> tuple[float, ...]:
+        return self.heights
 
 
 def oracle(geodesic: PointGoal | None, goal: str = "sofa") -> OracleReasoner:
@@ -153,6 +163,25 @@ def test_oracle_verification_prompts_and_hints_come_from_the_truth() -> None:
     assert reasoner.category_hints("toilet").room == max(shares, key=lambda room: shares[room])
     assert reasoner.judge_floor("sofa", []).guess == "unsure"
     assert [call.kind for call in reasoner.calls][-1] == "judge_floor"
+
+
+def test_the_oracle_says_whether_the_floor_its_views_were_taken_on_holds_a_goal() -> None:
+    def judged(start_height: float, goal_heights: tuple[float, ...], *view_heights: float) -> str:
+        """The oracle's floor answer for an episode started at ``start_height``, views at heights above the start."""
+        reasoner = oracle(PointGoal((10.0, 0.0), Pose(0.0, 0.0, 0.0, start_height), heights=goal_heights))
+        blank = view(1)
+        views = [View(1, blank.rgb, None, Pose(0.0, 0.0, 0.0, z), 0.0, 0.0, 0) for z in view_heights]
+        return reasoner.judge_floor("sofa", views).guess
+
+    assert judged(3.0, (0.0,), 0.0) == "other"  # upstairs, the goal on the ground floor
+    assert judged(3.0, (0.0,), 0.0, -3.0) == "this"  # the last view is the floor's: down there
+    assert judged(3.0, (0.0, 3.1), 0.0) == "this"  # one of two goals on this floor
+    assert judged(0.0, (1.2,), 0.0) == "this"  # a view point 1.2 m up is still this floor's (half a storey)
+    assert judged(0.0, (1.25,), 0.0) == "other"
+    assert judged(0.0, (), 0.0) == "other"  # no goal anywhere
+    assert judged(3.0, (0.0,)) == "unsure"  # no views
+    reasoner = oracle(None)
+    assert reasoner.judge_floor("sofa", [view(1)]).guess == "unsure"  # no goal heights without a geodesic truth
 
 
 def test_without_a_geodesic_the_oracle_chooses_as_the_embedded_reasoner() -> None:

@@ -233,6 +233,11 @@ class GeodesicOracle(Protocol):
         """Where a forward step from a world-frame pose along its yaw ends, and whether it collides."""
         ...
 
+    @property
+    def goal_heights(self) -> tuple[float, ...]:
+        """The heights of the goals' view points in the world frame (the floors the goals are seen from)."""
+        ...
+
 
 class CategoryVocabulary(Protocol):
     """The world's category names (``semantic``): what a phrase names, and a category's synonyms."""

@@ -27,6 +27,7 @@ from drivenav.episode import Episode
 from drivenav.eval.episodes import load_episodes, save_episodes
 from drivenav.eval.records import EpisodeRecord
 from drivenav.eval.trace import EpisodeTrace
+from drivenav.types import GEODESIC
 from test_floor_stats import write_hm3d_floors
 
 OVERRIDES = ("sim.success_distance=0.25", "sim.width=320", "sim.height=240")
@@ -98,6 +99,24 @@ def test_hm3d_v1_multi_floor_episodes_run_alike_through_habitat_lab(tmp_path: Pa
         (start, placed), (end, _) = direct[2][0], direct[2][-1]
         assert start == 0.0 and placed == pytest.approx(episode.start_height, abs=0.25)
         assert direct[0].success == 1 and abs(end) >= STOREY  # the fixture's goals lie on the other floor
+
+
+def test_the_goals_heights_are_the_same_ground_truth_in_both_worlds(data_dir: Path) -> None:
+    """The oracle reasoner's floor answer reads the heights of the goals' view points from the geodesic ground truth
+    (docs/regimes.md): habitat's view points' ``y``, the embedded episode's view point heights."""
+    spec = spec_of(data_dir, "hm3d-v1")
+    worlds = BothWorlds(spec, settings_for("oracle", spec.benchmark, *OVERRIDES))
+    try:
+        for episode in spec.episodes():
+            expected = tuple(sorted({height for *_, height in episode.view_points_xyz()}))
+            for world in (worlds.embedded, worlds.habitat):
+                world.reset(episode)
+                geodesic = world.ground_truth(frozenset({GEODESIC})).geodesic
+                assert geodesic is not None
+                assert geodesic.goal_heights == pytest.approx(expected, abs=1e-5), episode.episode_id
+            assert len(expected) >= 1
+    finally:
+        worlds.close()
 
 
 def test_drive_nav_keeps_its_floors_through_habitat_lab(data_dir: Path) -> None:

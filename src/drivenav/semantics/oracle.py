@@ -16,7 +16,9 @@ episode's geodesic distance to the nearest goal (``geodesic``), so their records
   without an instance image).
 * ApexNav's category question: the embedded reasoner's confusable objects and threshold, and the room type that
   holds most of the category's objects in the world (the vocabulary's room shares), "everywhere" where it knows none.
-* The floor question: "unsure" (it is not told on which storey the goals lie).
+* The floor question: ``this`` where a goal's view point lies within :data:`HALF_STOREY` of the height the floor's
+  views were taken at, else ``other`` (the goals' heights are part of the geodesic ground truth); "unsure" without
+  views or without a geodesic ground truth. It says a floor has no goal, not which way the goals are.
 * The scorer (VLFM's and ApexNav's frame value): how much nearer the nearest goal the camera's line of sight leads,
   ``max over r of (d(pose) - d(pose + r * heading)) / r`` for ``r`` in :data:`REACH` (metres), clipped to [0, 1]: 1
   looking along the geodesic, 0 looking away or at a wall.
@@ -33,6 +35,7 @@ from drivenav.semantics.protocols import (
     EVERYWHERE,
     Candidate,
     CategoryHints,
+    FloorGuess,
     FloorJudgement,
     Judgement,
     ModelCall,
@@ -46,6 +49,10 @@ from drivenav.types import GeodesicOracle, GroundTruth, Observation, Pose
 
 REACH = (0.5, 1.0, 1.5, 2.0)
 """The distances along the line of sight (metres) at which the oracle scorer measures the geodesic's drop."""
+HALF_STOREY = 1.2
+"""Metres: a goal whose view point lies this near a floor's height is on that floor. Half of 2.4 m, the least
+floor-to-floor height the embedded buildings assume, as ``drivenav episodes stats`` counts floor changes: a view
+point a floor up or down is never within it, one on the floor (a step above or below it at most) always is."""
 
 
 class OracleReasoner(EmbeddedReasoner):
@@ -104,7 +111,12 @@ class OracleReasoner(EmbeddedReasoner):
         return CategoryHints(hints.similar, hints.threshold, room)
 
     def _floor(self, goal: str, views: Sequence[View]) -> FloorJudgement:
-        return FloorJudgement("unsure", note="the oracle is not told the goals' storeys")
+        if self._geodesic is None or not views:
+            return FloorJudgement("unsure", note="no goal heights" if views else "no views")
+        height = self._geodesic.start_pose.z + views[-1].pose.z
+        nearest = min((abs(goal_height - height) for goal_height in self._geodesic.goal_heights), default=math.inf)
+        guess: FloorGuess = "this" if nearest <= HALF_STOREY else "other"
+        return FloorJudgement(guess, note=f"the nearest goal view point {nearest:.2f} m above or below the floor")
 
 
 def goal_distance(geodesic: GeodesicOracle, frontiers: Sequence[Pose]) -> float:

@@ -70,6 +70,7 @@ class _Geodesic:
     field: DistanceField
     start_pose: Pose
     step: float
+    goal_heights: tuple[float, ...]
 
     def distance(self, pose: Pose) -> float:
         return float(self.field.at(pose.x, pose.y, pose.z))
@@ -97,6 +98,7 @@ class EmbeddedEnv:
         self._worlds: OrderedDict[str, _World] = OrderedDict()
         self._scene_id: str | None = None
         self._start = Pose(0.0, 0.0, 0.0)
+        self._goal_heights: tuple[float, ...] = ()
         self._xyz = (0.0, 0.0, 0.0)
         self._turns = 0
         self._steps = 0
@@ -156,7 +158,9 @@ class EmbeddedEnv:
         self._turns = 0
         self._steps = 0
         goal_ids = [goal.object_id for goal in episode.goals]
-        self._measures.reset(world.terrain.field(episode.view_points_xyz()), self._start, goal_ids)
+        view_points = episode.view_points_xyz()
+        self._goal_heights = tuple(sorted({height for *_, height in view_points}))
+        self._measures.reset(world.terrain.field(view_points), self._start, goal_ids)
         observation = self._observe(collided=False)
         self._measures.update(None, self.state, observation)
         return observation
@@ -191,7 +195,8 @@ class EmbeddedEnv:
         labels = {obj.instance_id: obj.category for obj in objects} if semantic else None
         geodesic = None
         if GEODESIC in kinds:
-            geodesic = _Geodesic(world, self._measures.goal_field, self._start, self._config.forward_step)
+            field, step = self._measures.goal_field, self._config.forward_step
+            geodesic = _Geodesic(world, field, self._start, step, self._goal_heights)
         return GroundTruth(labels, VOCABULARY if semantic else None, geodesic)
 
     def close(self) -> None:

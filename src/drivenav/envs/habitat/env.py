@@ -97,6 +97,10 @@ class _SimGeodesic:
         arrived = Pose(nx, ny, yaw, float(reached[1]))
         return arrived, _collided(pose, arrived, self.step)
 
+    @property
+    def goal_heights(self) -> tuple[float, ...]:
+        return tuple(sorted({float(position[1]) for position in self.targets}))  # habitat's y is up
+
 
 def _collided(start: Pose, reached: Pose, step: float) -> bool:
     """habitat-sim's collision rule (``ObjectControls``): a forward step of ``step`` metres collided when the squared
