@@ -39,16 +39,16 @@ def two_floors() -> Building:
 
 
 def building_episode(
-    building: Building, start: tuple[float, float, float], category: str, episode_id: str = "0"
+    building: Building, start: tuple[float, float, float], category: str, episode_id: str = "0", yaw: float = 0.0
 ) -> Episode:
-    """An episode in ``building`` from world point ``start`` (x, y, height), facing +x, to the objects of
-    ``category`` (their view points for Habitat's default sensor)."""
+    """An episode in ``building`` from world point ``start`` (x, y, height), facing ``yaw`` (radians from +x), to
+    the objects of ``category`` (their view points for Habitat's default sensor)."""
     goals = scene_goals(building, SimConfig())
     return Episode(
         episode_id=episode_id,
         scene_id=building.scene_id,
         start_position=world_to_habitat(*start),
-        start_rotation=yaw_to_quaternion(0.0),
+        start_rotation=yaw_to_quaternion(yaw),
         object_category=category,
         goals=tuple(goals.goals[category]),
         info={"canonical_category": category},

@@ -4,6 +4,7 @@ with floors off it keeps one map."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -92,6 +93,24 @@ def test_an_agent_changes_floors_and_maps_each_floor_apart(
     arrival = next(e.step for e in agent.trace.events if e.kind == "floor_reached")
     scans = [e.step for e in agent.trace.events if e.kind == "scan"]
     assert scans == [0, arrival]  # the floor reached begins with a scan, announced when it begins
+
+
+@pytest.mark.parametrize(
+    ("yaw_deg", "start"), [(15.0, (1.0, 1.5, 0.0)), (45.0, (1.0, 4.0, 0.0)), (45.0, (1.0, 1.5, 0.0))]
+)
+def test_an_agent_facing_no_multiple_of_a_turn_along_the_flight_still_climbs_it(
+    yaw_deg: float, start: tuple[float, float, float]
+) -> None:
+    """Started 15 degrees off the flight's axis, the agent can face its heading only to within 15 degrees and drifts
+    6.5 cm sideways a step: it keeps to the flight's centre line at the foot and climbs to the bed (before, it
+    drifted off the foot into the flight's open side and gave the stairs up in each of these three)."""
+    building = walled()
+    env = EmbeddedEnv(lambda _: building, SIM)
+    agent = make_agent(load_settings("drive-nav", overrides=OVERRIDES))
+    assert isinstance(agent, ExplorerAgent)
+    drive(env, agent, building_episode(building, start, "bed", "bed", yaw=math.radians(yaw_deg)))
+    assert env.measures().success == 1, agent.stop_reason
+    assert [e.kind for e in agent.trace.events if e.kind.startswith("floor_")] == ["floor_set_off", "floor_reached"]
 
 
 def test_with_floors_off_the_agent_keeps_one_map() -> None:

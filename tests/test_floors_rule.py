@@ -5,15 +5,27 @@ near)."""
 
 from __future__ import annotations
 
+import math
 from types import SimpleNamespace
 from typing import cast
 
 import numpy as np
+import pytest
 
 from drivenav.agent.config import FloorsConfig
 from drivenav.agent.context import StepContext
 from drivenav.agent.explorer import Explorer
-from drivenav.agent.floors import Floor, Floors, Portal, StairTrip, _frontier_within, _navigable_near
+from drivenav.agent.floors import (
+    LINE_AHEAD,
+    LINE_BAND,
+    Floor,
+    Floors,
+    Portal,
+    StairTrip,
+    _frontier_within,
+    _line_heading,
+    _navigable_near,
+)
 from drivenav.agent.handles import StepHandles
 from drivenav.agent.state import BodyState
 from drivenav.directions.types import DirectionResult
@@ -26,10 +38,11 @@ from drivenav.types import Action, CameraIntrinsics, Observation, Pose
 H, W = 24, 32
 
 
-def observation(step: int) -> Observation:
+def observation(step: int, pose: Pose | None = None) -> Observation:
     rgb = np.zeros((H, W, 3), np.uint8)
     depth = np.full((H, W), 2.0, np.float32)
-    return Observation(rgb, depth, None, Pose(0.0, 0.0, 0.0), CameraIntrinsics.from_hfov(W, H, 79.0), step, False)
+    intrinsics = CameraIntrinsics.from_hfov(W, H, 79.0)
+    return Observation(rgb, depth, None, pose or Pose(0.0, 0.0, 0.0), intrinsics, step, False)
 
 
 def floors(config: FloorsConfig) -> Floors:
@@ -247,3 +260,20 @@ def test_at_a_suspected_way_the_agent_drives_on_faces_along_the_railing_and_goes
     assert f.looked == [(1.0, 0.0)] and [type(e).__name__ for e in events] == ["FloorLooked"]
     assert not f._unlooked(StairCandidate((1.4, 0.3), np.pi, False, seen=False))
     assert f._unlooked(StairCandidate((3.0, 0.0), np.pi, False, seen=False))
+
+
+def test_before_the_stairs_the_agent_steers_back_to_the_flights_centre_line() -> None:
+    """A flight from (1, 2) heading +y (its centre line x = 1): within LINE_BAND of the line the way's heading; farther
+    to one side, toward the point LINE_AHEAD ahead on the line; once off the level, the way's heading alone."""
+    trip = StairTrip(StairCandidate((1.0, 2.0), math.pi / 2, up=True), to=None)
+
+    def heading(x: float, y: float) -> float:
+        return _line_heading(observation(0, Pose(x, y, 0.0)), trip)
+
+    assert LINE_BAND == 0.1 and LINE_AHEAD == 0.5
+    assert heading(1.05, 1.0) == math.pi / 2  # 5 cm right of the line: on it
+    assert heading(0.7, 1.0) == pytest.approx(math.pi / 2 - math.atan2(0.3, 0.5))  # 0.3 m left: 31 degrees right
+    assert heading(1.3, 1.0) == pytest.approx(math.pi / 2 + math.atan2(0.3, 0.5))
+    assert heading(0.7, 3.0) == pytest.approx(math.pi / 2 - math.atan2(0.3, 0.5))  # past the entry alike
+    trip.left_level = True
+    assert heading(0.7, 3.0) == math.pi / 2

@@ -133,6 +133,8 @@ LOOKED_NEAR = 1.0  # metres: a suspected way this near a place the agent looked 
 ON_FLOOR = 0.05  # metres from a level's height at which the agent is off the stairs (a tread is 0.15 m or more)
 BLOCKED_STEPS = 3  # steps toward an entry that collided without moving, before the agent sets off from near it
 BLOCKED_NEAR = 1.0  # metres from the entry that count as near it then
+LINE_BAND = 0.1  # metres off a flight's centre line before the agent steers back to it (:func:`_line_heading`)
+LINE_AHEAD = 0.5  # metres along the centre line to the point steered for (two forward steps)
 
 NewFloor = Callable[[], tuple["BodyState", "Explorer"]]
 """Makes a floor's body state and explorer (the body's, for a floor first reached)."""
@@ -394,7 +396,7 @@ class Floors:
         return action if action is not None else self._drop(handles, remember=False)
 
     def _turn(self, handles: StepHandles, observation: Observation, trip: StairTrip) -> Action:
-        action = turn_toward(observation.pose.yaw, trip.way.heading, handles.tuning.turn)
+        action = turn_toward(observation.pose.yaw, _line_heading(observation, trip), handles.tuning.turn)
         if action is not None:
             return action
         trip.phase = "climb"
@@ -454,13 +456,14 @@ class Floors:
         step that collided without moving is followed by one step a turn off the heading, toward the side the
         depth frame shows more open (:func:`_open_side`), then the heading again; where that step collided too, the
         next goes a turn off to the other side (else the agent would push the same way until it gives the stairs
-        up: on a development set, wedged at a flight's foot for 120 steps)."""
+        up: on a development set, wedged at a flight's foot for 120 steps). Until the agent leaves its level it keeps
+        to the flight's centre line (:func:`_line_heading`)."""
         pose = observation.pose
         stuck = trip.stuck(observation)
         if trip.detour == 0 and stuck:  # a detour step that collided too: the other side next
             trip.detour = -trip.side if trip.side else _open_side(observation)
         turn = handles.tuning.turn
-        action = turn_toward(pose.yaw, trip.way.heading + trip.detour * turn, turn)
+        action = turn_toward(pose.yaw, _line_heading(observation, trip) + trip.detour * turn, turn)
         if action is not None:
             return action
         trip.side, trip.detour = trip.detour, 0
@@ -526,6 +529,24 @@ def _frontier_within(ctx: StepContext, reach: float) -> bool:
         return False
     here = np.array([ctx.pose.x, ctx.pose.y])
     return any(float(np.min(np.hypot(*(f.points - here).T))) <= reach for f in ctx.frontiers if len(f.points))
+
+
+def _line_heading(observation: Observation, trip: StairTrip) -> float:
+    """The heading to drive toward the stairs: the way's own, or, while the agent has not left its level and stands
+    more than :data:`LINE_BAND` to one side of the line through the entry along that heading (the flight's centre
+    line), toward the point :data:`LINE_AHEAD` metres ahead on it. Turns come in steps of 30 degrees from the
+    episode's start heading, so the agent can face a flight's heading only to within 15 degrees, and each step so
+    far off drifts 6.5 cm sideways: from a foot reached to one side of the line it drifted into the flight's side
+    wall and was stopped there (a development episode, its way given up after the probe's steps). The band is the
+    room beside the narrowest flight (0.75 m less the agent's 0.36 m, halved: 0.195 m) less one such drift. Once on
+    the stairs the way's heading alone: a flight's line holds for its first flight only."""
+    way, pose = trip.way, observation.pose
+    if trip.left_level:
+        return way.heading
+    offset = math.cos(way.heading) * (pose.y - way.entry[1]) - math.sin(way.heading) * (pose.x - way.entry[0])
+    if abs(offset) <= LINE_BAND:
+        return way.heading
+    return way.heading - math.atan2(offset, LINE_AHEAD)
 
 
 def _open_side(observation: Observation) -> int:
