@@ -31,7 +31,9 @@ floor while no way down is known: the agent goes to look from beyond the railing
 the way down, if the look shows one, is taken like any other.
 
 **Taking stairs.** The agent drives on its floor's map to the stairs' entry, turns to their heading, and drives
-along it (:meth:`Floors.climb`), its maps frozen, until it stands on a level again; a way on which
+along it (:meth:`Floors.climb`), its maps frozen, until it stands on a level again; until it leaves its level it
+keeps to the line through the entry along the heading (:func:`_line_heading`: its turns seldom face a flight's
+heading exactly); a way on which
 :attr:`FloorsConfig.probe_steps` forward steps change the height by less than half a step, or whose entry takes
 more than :attr:`FloorsConfig.approach_steps` to reach, is dropped; one whose entry the map cannot reach yet rests
 and is tried again :attr:`FloorsConfig.retry_steps` later. The stairs it used are remembered both ways (a *portal*).
