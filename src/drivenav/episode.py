@@ -21,6 +21,11 @@ Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
 DEFAULT_SCENE_DATASET = "default"  # habitat-lab's Episode.scene_dataset_config when a file names none
 CHILDREN = "children_object_categories"
+HALF_STOREY = 1.2
+"""Metres: a goal view point this near a height is on that height's floor. Half of 2.4 m, the least floor-to-floor
+height the embedded buildings assume: a view point a floor up or down is never within it, one on the floor (a step
+above or below it at most) always is. It counts floor changes in episodes without floor information (HM3D's; ``drivenav
+episodes stats``) and gives the oracle reasoner its floor answer."""
 
 
 def world_to_habitat(x: float, y: float, height: float = 0.0) -> Vec3:

@@ -35,7 +35,7 @@ from drivenav.envs.embedded.building import Building, storeys_of
 from drivenav.envs.embedded.library import SceneLibrary
 from drivenav.envs.embedded.scene import Scene
 from drivenav.envs.embedded.terrain import Terrain, terrain_of
-from drivenav.episode import Episode
+from drivenav.episode import HALF_STOREY, Episode
 from drivenav.errors import InputError
 from drivenav.jsonstream import JsonObject
 from drivenav.types import SimConfig
@@ -73,7 +73,7 @@ class StatsConfig:
     ratio_edges: tuple[float, ...] = (0.0, 1.05, 1.1, 1.2, 1.5, 2.0, 3.0, math.inf)
     long_episode: float = 10.0
     straight_ratios: tuple[float, ...] = (1.05, 1.2)
-    half_storey: float = 1.2
+    half_storey: float = HALF_STOREY
     segmentation: SegmentationConfig = field(default_factory=SegmentationConfig)
     sim: SimConfig = field(default_factory=SimConfig)
 

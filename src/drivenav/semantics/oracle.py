@@ -16,9 +16,10 @@ episode's geodesic distance to the nearest goal (``geodesic``), so their records
   without an instance image).
 * ApexNav's category question: the embedded reasoner's confusable objects and threshold, and the room type that
   holds most of the category's objects in the world (the vocabulary's room shares), "everywhere" where it knows none.
-* The floor question: ``this`` where a goal's view point lies within :data:`HALF_STOREY` of the height the floor's
-  views were taken at, else ``other`` (the goals' heights are part of the geodesic ground truth); "unsure" without
-  views or without a geodesic ground truth. It says a floor has no goal, not which way the goals are.
+* The floor question: ``this`` where a goal's view point lies within :data:`~drivenav.episode.HALF_STOREY` (1.2 m)
+  of the height the floor's views were taken at, else ``other`` (the goals' heights are part of the geodesic ground
+  truth); "unsure" without views or without a geodesic ground truth. It says a floor has no goal, not which way the
+  goals are.
 * The scorer (VLFM's and ApexNav's frame value): how much nearer the nearest goal the camera's line of sight leads,
   ``max over r of (d(pose) - d(pose + r * heading)) / r`` for ``r`` in :data:`REACH` (metres), clipped to [0, 1]: 1
   looking along the geodesic, 0 looking away or at a wall.
@@ -29,6 +30,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
+from drivenav.episode import HALF_STOREY
 from drivenav.instances import instance_areas
 from drivenav.semantics.embedded import EmbeddedReasoner, goal_phrases, label_under_mask, normalize_phrase
 from drivenav.semantics.protocols import (
@@ -49,10 +51,6 @@ from drivenav.types import GeodesicOracle, GroundTruth, Observation, Pose
 
 REACH = (0.5, 1.0, 1.5, 2.0)
 """The distances along the line of sight (metres) at which the oracle scorer measures the geodesic's drop."""
-HALF_STOREY = 1.2
-"""Metres: a goal whose view point lies this near a floor's height is on that floor. Half of 2.4 m, the least
-floor-to-floor height the embedded buildings assume, as ``drivenav episodes stats`` counts floor changes: a view
-point a floor up or down is never within it, one on the floor (a step above or below it at most) always is."""
 
 
 class OracleReasoner(EmbeddedReasoner):
