@@ -313,6 +313,36 @@ def test_bench_eval_throughput_runs_an_eval_beside_a_served_model(capsys: pytest
     assert 0.0 < result["model_busy"] <= 1.0 and result["mean_batch"] >= 1.0
 
 
+def test_bench_eval_throughput_with_a_waiting_forward_serves_no_model(capsys: pytest.CaptureFixture[str]) -> None:
+    """--forward-ms: each batch waits that long and finds nothing; the eval's records are its detector's."""
+    args = ["bench", "eval-throughput", "--forward-ms", "20", "--workers", "1", "--json", "--"]
+    assert main([*args, *RUN[1:]]) == 0
+    result = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert result["detector"] == "wait" and result["device"] == "none" and result["errors"] == 0
+    assert result["frames_served"] >= result["frames"] > 0
+    assert result["server_stages_ms"]["forward"] >= 20.0 / result["mean_batch"] - 0.01  # slept, shared by a batch
+    assert result["server_stages_ms"]["preprocess"] == 0.0 and 0.0 < result["model_busy"] <= 1.0
+
+
+@pytest.mark.parametrize(
+    ("given", "field"),
+    [
+        (["--forward-ms", "-1"], "--forward-ms"),
+        (["--forward-ms", "nan"], "--forward-ms"),
+        (["--forward-ms", "20000"], "--forward-ms"),
+        (["--forward-ms", "5", "--tiny"], "--tiny"),
+        (["--forward-ms", "5", "--dtype", "bfloat16"], "--dtype"),
+        (["--forward-ms", "5", "--segmenter", "mobilesam"], "--segmenter"),
+    ],
+)
+def test_bench_eval_throughput_forward_ms_out_of_range_or_with_a_model_is_one_line(
+    given: list[str], field: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["bench", "eval-throughput", *given]) == 2
+    error = capsys.readouterr().err.strip()
+    assert len(error.splitlines()) == 1 and f"field '{field}'" in error
+
+
 @pytest.mark.parametrize("own", ["--out", "--workers=2", "--detector-shadow-url"])
 def test_bench_eval_throughput_refuses_the_options_it_sets(own: str, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["bench", "eval-throughput", "--tiny", "--", *RUN[1:], own, "x"]) == 2

@@ -16,28 +16,40 @@ timed step of the agent) and the rest (rendering the world, the runner, the pool
 its :class:`~drivenav.semantics.serve_pipeline.ServerTimes`: each stage's milliseconds a frame, the mean batch,
 what serving adds to a frame beyond the grounder's own stages, and ``model_busy``, the share of the wall time
 the grounder's own stages kept the model busy (1.0: the model is the bottleneck).
+
+``--forward-ms MS`` serves :class:`WaitingGrounder` instead of a model: a forward that waits ``MS`` and computes
+nothing, as a GPU's forward looks to its host. On a machine without one it measures serving and the workers (what
+overlaps, how batches form) without a model's compute competing with the workers for the CPU.
 """
 
 from __future__ import annotations
 
 import json
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
+
+import numpy as np
+from numpy.typing import NDArray
 
 from drivenav.errors import InputError
 from drivenav.eval.rundir import EPISODES_FILE, SUMMARY_FILE, trace_path
 from drivenav.eval.timings import COMPUTE_KEYS
 from drivenav.eval.trace import EpisodeTrace, read_trace
+from drivenav.semantics.protocols import Detection
 from drivenav.semantics.serve_pipeline import MODEL_STAGES, ServerTimes
+from drivenav.types import GroundTruth, Observation
 
 if TYPE_CHECKING:
     from drivenav.semantics.grounder_bench import GrounderBenchOptions
     from drivenav.semantics.protocols import Grounder
     from drivenav.semantics.serve_config import ServeConfig
 
+WAITING: Final[str] = "wait"
+"""The detector name of :class:`WaitingGrounder` (``--forward-ms``) in the bench's figures."""
 GROUNDING_KEY: Final[str] = "grounding"
 """The traces' per-step timing of the agent's grounding (the detector's call, a served model's round trip)."""
 
@@ -168,30 +180,74 @@ RunEval = Callable[[str, Path], int]
 returns its exit status."""
 
 
-def served_eval(
-    options: GrounderBenchOptions, config: ServeConfig, workers: int, run_dir: Path, run_eval: RunEval
-) -> ThroughputResult:
-    """``options``' model served as ``config`` says (its batching, its copies) beside the eval ``run_eval`` runs
-    into ``run_dir`` with ``workers`` workers; an eval that fails is an :class:`~drivenav.errors.InputError`."""
+class WaitingGrounder:
+    """A model's stand-in that measures serving and the workers without a model's compute (``--forward-ms``): each
+    batch's forward is ``forward_ms`` milliseconds of waiting, whatever its size (a GPU's time as its host sees it,
+    below the GPU's saturation), and it finds nothing."""
+
+    name = WAITING
+
+    def __init__(self, forward_ms: float) -> None:
+        self.forward_ms = forward_ms
+
+    def begin_episode(self, truth: GroundTruth | None, seed: int) -> None:
+        """Nothing to begin: it reads no ground truth and holds no text features."""
+
+    def segment(self, observation: Observation, phrase: str) -> list[Detection]:
+        return self.segment_batch([observation.rgb], phrase)[0]
+
+    def segment_batch(self, frames: Sequence[NDArray[np.uint8]], phrase: str) -> list[list[Detection]]:
+        time.sleep(self.forward_ms / 1000.0)
+        return [[] for _ in frames]
+
+
+def _served_model(
+    options: GrounderBenchOptions, config: ServeConfig, forward_ms: float
+) -> tuple[ServedModel, Callable[[], Grounder]]:
+    """What the bench serves and the server's factory of its copies: ``options``' model, or with ``forward_ms`` a
+    :class:`WaitingGrounder`."""
+    from drivenav.semantics.grounder_server import probe_first
+
+    batching = (config.batch, config.batch_ms, config.copies)
+    if forward_ms > 0.0:
+        model = f"a {forward_ms:g} ms wait a batch, no compute"
+        return ServedModel(WAITING, model, "none", "none", *batching), partial(WaitingGrounder, forward_ms)
     from drivenav.semantics.grounder_bench import bench_model
-    from drivenav.semantics.grounder_server import GrounderServer, probe_first, serving
     from drivenav.semantics.hf_common import pick_device, resolve_dtype
-    from drivenav.semantics.served import ServedInfo
 
     device = pick_device(options.device)
     grounder, model = bench_model(options, device)
     dtype = str(resolve_dtype(options.dtype, device)).removeprefix("torch.")
-    info = ServedInfo(options.detector, model, device, dtype, ("rgb",), False, config.batch, config.batch_ms)
 
     def build() -> Grounder:
         return bench_model(options, device)[0]
 
-    server = GrounderServer(probe_first(grounder, build), info, "tcp://127.0.0.1:*", None, config)
+    return ServedModel(options.detector, model, device, dtype, *batching), probe_first(grounder, build)
+
+
+def served_eval(
+    options: GrounderBenchOptions,
+    config: ServeConfig,
+    workers: int,
+    run_dir: Path,
+    run_eval: RunEval,
+    forward_ms: float = 0.0,
+) -> ThroughputResult:
+    """``options``' model (with ``forward_ms`` > 0, a :class:`WaitingGrounder` instead) served as ``config`` says
+    (its batching, its copies) beside the eval ``run_eval`` runs into ``run_dir`` with ``workers`` workers; an eval
+    that fails is an :class:`~drivenav.errors.InputError`."""
+    from drivenav.semantics.grounder_server import GrounderServer, serving
+    from drivenav.semantics.served import ServedInfo
+
+    served, factory = _served_model(options, config, forward_ms)
+    info = ServedInfo(
+        served.detector, served.model, served.device, served.dtype, ("rgb",), False, config.batch, config.batch_ms
+    )
+    server = GrounderServer(factory, info, "tcp://127.0.0.1:*", None, config)
     with serving(server) as endpoint:
         start = time.perf_counter()
         status = run_eval(endpoint, run_dir)
         wall_s = time.perf_counter() - start
     if status != 0:
         raise InputError("command line", "eval-throughput -- ...", "an eval that runs (exit 0)", f"exit {status}")
-    served = ServedModel(options.detector, model, device, dtype, config.batch, config.batch_ms, config.copies)
     return throughput_result(served, server.times, run_dir, workers, wall_s)

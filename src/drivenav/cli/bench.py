@@ -142,6 +142,13 @@ def _add_bench_eval_throughput(sub: Commands) -> None:
     parser.add_argument("--batch-ms", type=float, default=5.0, help="the server's batch wait (default 5 ms)")
     parser.add_argument("--copies", type=int, default=1, help="copies of the model the server runs (default 1)")
     parser.add_argument("--workers", type=int, default=2, help="eval workers (default 2)")
+    parser.add_argument(
+        "--forward-ms",
+        type=float,
+        default=0.0,
+        help="serve no model: each batch's forward waits MS ms and computes nothing (a GPU's time as the host sees "
+        f"it; up to {MAX_FORWARD_MS:g} ms), to measure serving and the workers without a GPU",
+    )
     parser.add_argument("--out", type=path, default=None, help="the eval's run directory (default: a temporary one)")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument(
@@ -154,6 +161,8 @@ def _add_bench_eval_throughput(sub: Commands) -> None:
 
 THROUGHPUT_EVAL = ("--agent", "drive-nav", "--scenes", "procedural:4", "--episodes", "8", "--seed", "2026")
 """``bench eval-throughput``'s eval without arguments of its own: eight episodes in four procedural houses."""
+MAX_FORWARD_MS = 10_000.0
+"""``bench eval-throughput --forward-ms``'s largest wait a batch."""
 THROUGHPUT_OWN = ("--out", "--workers", "--detector-shadow-url", "--detector", "--detector-url")
 """The eval options ``bench eval-throughput`` sets itself."""
 
@@ -295,6 +304,7 @@ def _cmd_bench_eval_throughput(args: argparse.Namespace) -> int:
     from drivenav.cli.serve import serve_config
 
     eval_args = _throughput_eval_args(args.eval_args)
+    forward_ms = _forward_ms(args)
     config = serve_config(args.batch, args.batch_ms, args.copies)
     options = _bench_options(args)
     workers = positive(args.workers, "--workers")
@@ -307,8 +317,25 @@ def _cmd_bench_eval_throughput(args: argparse.Namespace) -> int:
             own = ["--workers", str(workers), "--detector-shadow-url", endpoint, "--out", str(run_dir)]
             return main(["eval", *eval_args, *own])
 
-        result = served_eval(options, config, workers, out, run_eval)
+        result = served_eval(options, config, workers, out, run_eval, forward_ms)
         return print_bench(asdict(result), args.json)
+
+
+def _forward_ms(args: argparse.Namespace) -> float:
+    """``--forward-ms``: 0 (the model), or a wait a batch in (0, :data:`MAX_FORWARD_MS`] with no model option."""
+    forward_ms: float = args.forward_ms
+    if not (0.0 <= forward_ms <= MAX_FORWARD_MS):
+        expected = f"0 (the model) or the milliseconds a batch's forward waits, at most {MAX_FORWARD_MS:g}"
+        raise InputError("command line", "--forward-ms", expected, forward_ms)
+    from drivenav.semantics.registry import DEFAULT_SEGMENTER
+
+    unset = {"tiny": False, "random_weights": False, "compile": False, "detector_model": "", "device": None}
+    unset |= {"dtype": "auto", "segmenter": DEFAULT_SEGMENTER, "segmenter_model": ""}
+    given = [name for name, value in unset.items() if getattr(args, name) != value]
+    if forward_ms > 0.0 and given:
+        option = "--" + given[0].replace("_", "-")
+        raise InputError("command line", option, "no model option with --forward-ms (it serves no model)", option)
+    return forward_ms
 
 
 def _throughput_eval_args(given: list[str]) -> list[str]:
