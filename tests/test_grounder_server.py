@@ -442,13 +442,17 @@ def run_records(out: Path) -> list[dict[str, Any]]:
     return sorted(records, key=lambda r: str(r["episode_id"]))
 
 
-def test_eval_through_a_served_embedded_detector_gives_the_in_process_records(tmp_path: Path) -> None:
-    assert main([*RUN, "--out", str(tmp_path / "local")]) == 0
+@pytest.mark.parametrize("agent", ["drive-nav", "apexnav"])
+def test_eval_through_a_served_embedded_detector_gives_the_in_process_records(agent: str, tmp_path: Path) -> None:
+    """Served frames go out before the frame is mapped (all of ApexNav's phrases at once) and give the records of
+    the in-process detector."""
+    run = [*RUN, "--agent", agent]
+    assert main([*run, "--out", str(tmp_path / "local")]) == 0
     local = run_records(tmp_path / "local")
     assert any(r["success"] for r in local)  # the detector found targets: its answers mattered
     with served(lambda: EmbeddedGrounder(default_embedder()), "embedded") as (server, _):
         args = ["--detector", "remote", "--detector-url", server.endpoint, "--set", "models.detector_served=embedded"]
-        assert main([*RUN, *args, "--out", str(tmp_path / "remote")]) == 0
+        assert main([*run, *args, "--out", str(tmp_path / "remote")]) == 0
     assert run_records(tmp_path / "remote") == local
 
 

@@ -83,7 +83,7 @@ class FusedTargetSearch(TargetSearch):
         self.fusion.begin_frame()
         for label, phrase in enumerate(self.phrases):
             mark = time.perf_counter()
-            detections = self.grounder.segment(observation, phrase)
+            detections = self.ground(observation, phrase)
             self._grounding += time.perf_counter() - mark
             for detection in detections:
                 self._fuse(observation, detection, label, trace)

@@ -29,7 +29,7 @@ from drivenav.agent.trace import (
 )
 from drivenav.mapping.objects import ObjectCandidate, ObjectMap, project_mask
 from drivenav.mapping.types import MapSnapshot
-from drivenav.semantics.protocols import Detection, Grounder, Reasoner, VerificationFrame, View
+from drivenav.semantics.protocols import Detection, Grounder, Reasoner, VerificationFrame, View, prefetch
 from drivenav.types import Observation, SimConfig
 
 OVERLAY_COLOR = np.array([255, 0, 0], dtype=np.float32)
@@ -69,12 +69,36 @@ class TargetSearch:
         self.step = 0
         self._frames: dict[int, list[VerificationFrame]] = {}
         self._aside: dict[int, int] = {}  # candidate id -> step until which it is set aside
+        self._grounded: tuple[Observation | None, dict[str, list[Detection]]] = (None, {})  # this frame's, by phrase
 
     def begin(self, goal: str) -> None:
         self.goal = goal
         self.phrase = goal
 
     # ----------------------------------------------------------------- every step
+
+    @property
+    def phrases(self) -> tuple[str, ...]:
+        """The phrases :meth:`observe` grounds in every frame: the target's."""
+        return (self.phrase,)
+
+    def prefetch(self, observation: Observation) -> None:
+        """Tell the grounder, before the frame is mapped, which phrases :meth:`observe` will ground in it (a served
+        grounder grounds them meanwhile)."""
+        if self.grounder is not None:
+            prefetch(self.grounder, observation, self.phrases)
+
+    def ground(self, observation: Observation, phrase: str) -> list[Detection]:
+        """The grounder's detections of ``phrase`` in ``observation``: each frame is grounded once per phrase (a
+        pending candidate's last frame, a proposed phrase that is the current one, ask again what was found)."""
+        assert self.grounder is not None
+        frame, found = self._grounded
+        if frame is not observation:
+            found = {}
+            self._grounded = (observation, found)
+        if phrase not in found:
+            found[phrase] = self.grounder.segment(observation, phrase)
+        return found[phrase]
 
     def observe(
         self,
@@ -92,7 +116,7 @@ class TargetSearch:
         self.step = observation.step
         if self.grounder is None:
             return
-        for detection in self.grounder.segment(observation, self.phrase):
+        for detection in self.ground(observation, self.phrase):
             self._handle(observation, detection, trace)
 
     def _project(self, observation: Observation, detection: Detection) -> NDArray[np.float64]:
@@ -157,7 +181,7 @@ class TargetSearch:
         """The agent has reached a pending candidate: judge this last approach frame, and accept the candidate
         unless it is rejected now (no rejection within the frames it got)."""
         candidate = self.objects.get(candidate_id)
-        detections = self.grounder.segment(observation, self.phrase) if self.grounder is not None else []
+        detections = self.ground(observation, self.phrase) if self.grounder is not None else []
         for detection in detections:
             points = self._project(observation, detection)
             match = self.objects.match(points) if len(points) else None
@@ -197,7 +221,7 @@ class TargetSearch:
             phrase = proposal.phrase.strip()
             if not phrase or phrase.lower() in (f.lower() for f in self.failed_phrases):
                 break  # the proposer has run out of new phrases
-            detections = self.grounder.segment(observation, phrase)
+            detections = self.ground(observation, phrase)
             grounded = [self._handle(observation, d, trace) for d in detections]
             if any(grounded):
                 self.phrase = phrase

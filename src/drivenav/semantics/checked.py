@@ -26,7 +26,7 @@ from typing import Final
 
 import numpy as np
 
-from drivenav.semantics.protocols import Detection, Grounder, ImageTextScorer, ModelCall, ScorePrompt
+from drivenav.semantics.protocols import Detection, Grounder, ImageTextScorer, ModelCall, ScorePrompt, prefetch
 from drivenav.semantics.serve_config import DEFAULT_MAX_DETECTIONS
 from drivenav.semantics.wrapped import Wrapped
 from drivenav.types import GroundTruth, Observation
@@ -151,6 +151,9 @@ class CheckedGrounder:
 
     def begin_episode(self, truth: GroundTruth | None, seed: int) -> None:
         self.inner.begin_episode(truth, seed)
+
+    def prefetch(self, observation: Observation, phrases: Sequence[str]) -> None:
+        prefetch(self.inner, observation, phrases)
 
     def segment(self, observation: Observation, phrase: str) -> list[Detection]:
         return self.check.checked(self.inner.segment(observation, phrase), observation.depth.shape[:2])

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Literal, Protocol
+from typing import Literal, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -274,6 +274,21 @@ class Grounder(Protocol):
         ...
 
     def segment(self, observation: Observation, phrase: str) -> list[Detection]: ...
+
+
+@runtime_checkable
+class Prefetching(Protocol):
+    """A grounder that can be told early which phrases a frame will be segmented for (a served one: the requests go
+    out at once and the server grounds the frame while the agent maps it). A grounder without :meth:`prefetch`
+    simply grounds when asked; :func:`prefetch` tells one that has it."""
+
+    def prefetch(self, observation: Observation, phrases: Sequence[str]) -> None: ...
+
+
+def prefetch(grounder: Grounder, observation: Observation, phrases: Sequence[str]) -> None:
+    """Tell ``grounder`` that ``observation`` will be segmented for ``phrases`` (where it can make use of it)."""
+    if isinstance(grounder, Prefetching):
+        grounder.prefetch(observation, phrases)
 
 
 @dataclass(frozen=True)

@@ -7,12 +7,13 @@ from __future__ import annotations
 
 import functools
 import uuid
+from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
 
 from drivenav.errors import InputError, RunStoppedError
 from drivenav.semantics.model_spec import ModelSpec
-from drivenav.semantics.protocols import Detection, Grounder
+from drivenav.semantics.protocols import Detection, Grounder, prefetch
 from drivenav.semantics.registry import GROUNDER_BACKENDS
 from drivenav.semantics.served import (
     HEARTBEAT_S,
@@ -27,7 +28,7 @@ from drivenav.semantics.served import (
     segment_request,
 )
 from drivenav.types import CategoryVocabulary, GroundTruth, Observation
-from drivenav.wire.client import ClientConfig, PeerUnavailableError
+from drivenav.wire.client import ClientConfig, PeerUnavailableError, Sent
 from drivenav.wire.protocol import Message, ProtocolError
 from drivenav.wire.security import check_endpoint, client_keys, is_loopback
 
@@ -66,9 +67,12 @@ class RemoteGrounder:
         self.info = info
         self._episode = ""
         self._vocabulary: CategoryVocabulary | None = None
+        self._frame: Observation | None = None  # the frame whose requests are out (:meth:`prefetch`)
+        self._out: dict[str, Sent] = {}  # its SEGMENTs sent ahead, by phrase
 
     def begin_episode(self, truth: GroundTruth | None, seed: int) -> None:
         """Begin an episode on the server; a server that does not answer (or refuses) stops the run (one line)."""
+        self._drop_prefetched()
         self._episode = uuid.uuid4().hex
         self._vocabulary = truth.vocabulary if truth is not None and self.info.labels else None
         request = (
@@ -81,17 +85,39 @@ class RemoteGrounder:
         except GrounderUnavailableError as error:
             raise GrounderGoneError(str(error)) from None
 
+    def prefetch(self, observation: Observation, phrases: Sequence[str]) -> None:
+        """Send the SEGMENTs of ``phrases`` in ``observation`` now, all at once (the server may batch them): the
+        server grounds the frame while the agent maps it, and :meth:`segment` then waits only for what is left.
+        Requests sent ahead for another frame and never asked for are dropped."""
+        if observation is not self._frame:
+            self._drop_prefetched()
+            self._frame = observation
+        for phrase in phrases:
+            if phrase not in self._out:
+                self._out[phrase] = self.client.submit(self._request(observation, phrase))
+
     def segment(self, observation: Observation, phrase: str) -> list[Detection]:
         """The server's detections of ``phrase`` in the frame (a :class:`GrounderUnavailableError` when it does
-        not answer in time or refuses)."""
-        request = segment_request(
-            self.client.next_id(), self._episode, observation, phrase, self.info.observes, self._vocabulary
-        )
-        reply = self.client.request(request)
+        not answer in time or refuses), from the request :meth:`prefetch` sent where it sent one."""
+        if observation is not self._frame:
+            self._drop_prefetched()
+        sent = self._out.pop(phrase, None)
+        reply = self.client.reply_to(sent or self.client.submit(self._request(observation, phrase)))
         if reply.type != "DETECTIONS":
             raise GrounderRefusedError(f"the grounder server answered {reply.type} to SEGMENT")
         height, width = observation.depth.shape[:2]
         return read_detections(reply, phrase, (height, width))
+
+    def _request(self, observation: Observation, phrase: str) -> Message:
+        return segment_request(
+            self.client.next_id(), self._episode, observation, phrase, self.info.observes, self._vocabulary
+        )
+
+    def _drop_prefetched(self) -> None:
+        for sent in self._out.values():
+            self.client.forget(sent)
+        self._out.clear()
+        self._frame = None
 
 
 @functools.cache
@@ -180,6 +206,11 @@ class ShadowedGrounder:
     def begin_episode(self, truth: GroundTruth | None, seed: int) -> None:
         self.grounder.begin_episode(truth, seed)
         self.shadow.begin_episode(truth, seed)
+
+    def prefetch(self, observation: Observation, phrases: Sequence[str]) -> None:
+        """The served copy's requests go out at once; the detector's own detections are made when asked for."""
+        self.shadow.prefetch(observation, phrases)
+        prefetch(self.grounder, observation, phrases)
 
     def segment(self, observation: Observation, phrase: str) -> list[Detection]:
         self.shadow.segment(observation, phrase)

@@ -23,6 +23,11 @@ SEGMENT    ``episode``, ``phrase``, the frame's ``height`` and      DETECTIONS: 
 PING       --                                                       PONG
 ========== ======================================================== ===============================================
 
+A client may have several SEGMENTs out at once: the agent body tells the grounder a frame's phrases before it maps
+the frame (:func:`~drivenav.semantics.protocols.prefetch`), the requests go out then, and each reply is collected
+when the search asks for it (:meth:`~drivenav.wire.client.WireClient.submit`,
+:meth:`~drivenav.wire.client.WireClient.reply_to`), so that the server grounds while the worker maps.
+
 A malformed or unknown request gets an ERROR naming what was wrong, and the server keeps serving. Images and
 scores travel exactly (depth as float32 metres, not the robot's millimetres), so served and in-process detections
 are the same: exactly at batch one in fp32, and within a batched matrix product's rounding when the server batched

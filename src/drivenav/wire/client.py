@@ -14,6 +14,10 @@ server than the one last heard fails the waiting request at once, as lost. After
 closed and re-created and the request re-sent under the same request id (the Lazy Pirate pattern; the robot never
 executes a STEP twice), up to ``retries`` times; then the dialect's :class:`PeerUnavailableError`. An ERROR reply
 raises the dialect's refusal (:class:`PeerRefusedError`), which names what the server refused.
+
+:meth:`WireClient.request` sends and waits; :meth:`WireClient.submit` sends and returns, and
+:meth:`WireClient.reply_to` waits later (the deadline still counts from the sending), so that a client works while
+the server answers, with several requests out at once (a reply that comes while another is awaited is kept).
 """
 
 from __future__ import annotations
@@ -94,6 +98,14 @@ class ClientConfig:
             raise ValueError(f"retries must be >= 0, got {self.retries}")
 
 
+@dataclass(frozen=True)
+class Sent:
+    """A request :meth:`WireClient.submit` sent, and when (``time.monotonic``): its deadline counts from then."""
+
+    message: Message
+    at: float
+
+
 class WireClient:
     """Requests to the server at ``address`` (CURVE with the keys in ``keys``) in the class's :attr:`dialect`."""
 
@@ -109,6 +121,8 @@ class WireClient:
         self._counter = itertools.count(1)
         self.server_id = ""
         """The id of the server last heard (empty until a reply names one)."""
+        self._outstanding: set[str] = set()  # the ids of the requests submitted and not yet answered or forgotten
+        self._early: dict[str, Message] = {}  # replies that came while another request's reply was awaited
 
     def _connect(self) -> zmq.Socket[Any]:
         sock: zmq.Socket[Any] = self._context.socket(zmq.DEALER)
@@ -126,23 +140,48 @@ class WireClient:
     def request(self, message: Message) -> Message:
         """Send ``message`` and return the server's reply to it. No reply by the deadline after every retry, or a
         restarted server, raises the dialect's :class:`PeerUnavailableError`; an ERROR reply its refusal (named)."""
-        dialect = self.dialect
-        for attempt in range(self.config.retries + 1):
-            if attempt:
-                log.warning(
-                    "no reply from %s in %.1f s: reconnecting (retry %d)", self.address, self.config.timeout_s, attempt
-                )
-                self._socket.close(linger=0)
-                self._socket = self._connect()
-            self._send(message)
-            reply = self._await(message)
-            if reply is not None:
-                if reply.type == "ERROR":
-                    error = reply.body.get("error", "?")
-                    raise dialect.refused(f"{dialect.peer} refused {message.type}: {error}", reply.body)
-                return reply
+        return self.reply_to(self.submit(message))
+
+    def submit(self, message: Message) -> Sent:
+        """Send ``message`` now and return at once: :meth:`reply_to` waits for its reply later, so that the caller
+        works while the server answers. Several may be out at once; their replies are kept as they arrive, until
+        each is asked for or :meth:`forget` drops it."""
+        self._send(message)
+        self._outstanding.add(message.request_id)
+        return Sent(message, time.monotonic())
+
+    def reply_to(self, sent: Sent) -> Message:
+        """The reply to the request :meth:`submit` sent (its deadline ``timeout_s`` after its sending), as
+        :meth:`request` returns it."""
+        dialect, message = self.dialect, sent.message
+        try:
+            for attempt in range(self.config.retries + 1):
+                if attempt:
+                    log.warning(
+                        "no reply from %s in %.1f s: reconnecting (retry %d)",
+                        self.address,
+                        self.config.timeout_s,
+                        attempt,
+                    )
+                    self._socket.close(linger=0)
+                    self._socket = self._connect()
+                    self._send(message)
+                    sent = Sent(message, time.monotonic())
+                reply = self._await(message, sent.at)
+                if reply is not None:
+                    if reply.type == "ERROR":
+                        error = reply.body.get("error", "?")
+                        raise dialect.refused(f"{dialect.peer} refused {message.type}: {error}", reply.body)
+                    return reply
+        finally:
+            self.forget(sent)
         waited = (self.config.retries + 1) * self.config.timeout_s
         raise dialect.error(f"no reply from {dialect.peer} at {self.address} to {message.type} in {waited:g} s")
+
+    def forget(self, sent: Sent) -> None:
+        """Drop a request whose reply is no longer wanted: a reply that came is dropped, one still to come will be."""
+        self._outstanding.discard(sent.message.request_id)
+        self._early.pop(sent.message.request_id, None)
 
     def _send(self, message: Message) -> None:
         """Queue ``message``; without a connection to queue it on (a refused CURVE handshake drops it), it is not
@@ -152,10 +191,14 @@ class WireClient:
         except zmq.Again:
             log.debug("no connection to %s to send %s on", self.address, message.type)
 
-    def _await(self, request: Message) -> Message | None:
-        """The reply to ``request``, just sent, or None when ``timeout_s`` passes without it. Other frames (the
-        PONGs of the heartbeats sent meanwhile, a late reply to an earlier request) never extend the wait."""
-        deadline = time.monotonic() + self.config.timeout_s
+    def _await(self, request: Message, sent_at: float) -> Message | None:
+        """The reply to ``request``, sent at ``sent_at``, or None when ``timeout_s`` passes from then without it.
+        Other frames (the PONGs of the heartbeats sent meanwhile, a late reply to an earlier request) never extend
+        the wait; a reply to another request still out is kept for it."""
+        early = self._early.pop(request.request_id, None)
+        if early is not None:
+            return early
+        deadline = sent_at + self.config.timeout_s
         next_ping = time.monotonic() + self.config.heartbeat_s
         while (now := time.monotonic()) < deadline:
             wait = min(next_ping, deadline) - now
@@ -166,6 +209,8 @@ class WireClient:
                     self._check_server(reply, request, own)
                     if own:
                         return reply
+                    if reply.request_id in self._outstanding:
+                        self._early[reply.request_id] = reply
             if time.monotonic() >= next_ping:
                 self._send(Message("PING", self.next_id()))
                 next_ping = time.monotonic() + self.config.heartbeat_s
