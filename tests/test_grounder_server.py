@@ -244,6 +244,65 @@ def test_the_server_batches_the_frames_of_concurrent_clients(
                 assert np.array_equal(got.mask, want.mask) and got.score == pytest.approx(want.score, abs=1e-6)
 
 
+def close_enough(got: list[Detection], want: list[Detection]) -> None:
+    """A batched forward's detections: the same masks and phrases, scores within a batched product's rounding."""
+    assert len(got) == len(want)
+    for a, b in zip(got, want, strict=True):
+        assert np.array_equal(a.mask, b.mask) and a.phrase == b.phrase and a.score == pytest.approx(b.score, abs=1e-6)
+
+
+def test_a_frame_asked_for_several_phrases_is_one_forward_and_encoded_once(
+    transformers_grounders: dict[str, tuple[str, Callable[[], Grounder]]],
+) -> None:
+    """A client's phrases of one frame, sent ahead together (ApexNav's step): one batch, one forward, the frame's
+    vision encoded once, each phrase's detections those of the phrase grounded alone in process."""
+    _, factory = transformers_grounders["sam3"]
+    local, frame = factory(), observation(9, 3)
+    expected = {phrase: local.segment(frame, phrase) for phrase in PHRASES}
+    with served(factory, "sam3", ServeConfig(batch=8, batch_ms=300.0)) as (server, info):
+        encoded: list[int] = []
+        model = server._model.threads[0].grounder  # type: ignore[union-attr]
+        encode = model.encode_vision
+        model.encode_vision = lambda pixels: encoded.append(len(pixels)) or encode(pixels)
+        with remote(server.endpoint, info) as grounder:
+            grounder.begin_episode(None, 0)
+            grounder.prefetch(frame, PHRASES)
+            answers = {phrase: grounder.segment(frame, phrase) for phrase in reversed(PHRASES)}
+    assert server.batch_sizes == {len(PHRASES): 1} and server.times.batches == 1 and encoded == [1]
+    assert sum(len(found) for found in answers.values()) > 0
+    for phrase in PHRASES:
+        close_enough(answers[phrase], expected[phrase])
+
+
+def test_workers_looking_for_different_objects_share_one_forward(
+    transformers_grounders: dict[str, tuple[str, Callable[[], Grounder]]],
+) -> None:
+    """Three clients, each its own frame and phrase, in one batch: one forward over the three frames, each client's
+    detections those of its phrase in its frame."""
+    _, factory = transformers_grounders["sam3"]
+    local = factory()
+    asked = [(observation(seed, seed), phrase) for seed, phrase in enumerate(("sofa", "chair", "television"))]
+    expected = [local.segment(frame, phrase) for frame, phrase in asked]
+    answers: dict[int, list[Detection]] = {}
+    with served(factory, "sam3", ServeConfig(batch=3, batch_ms=1000.0)) as (server, info):
+        barrier = threading.Barrier(3)
+
+        def work(index: int) -> None:
+            with remote(server.endpoint, info) as grounder:
+                grounder.begin_episode(None, 0)
+                barrier.wait()
+                answers[index] = grounder.segment(*asked[index])
+
+        threads = [threading.Thread(target=work, args=(i,)) for i in range(3)]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join()
+    assert server.batch_sizes == {3: 1} and server.times.batches == 1
+    for index, want in enumerate(expected):
+        close_enough(answers[index], want)
+
+
 # --- a server that stalls or is gone ---------------------------------------------------------------------------------
 
 

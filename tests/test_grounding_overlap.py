@@ -9,7 +9,9 @@ Every server binds 127.0.0.1 (a free port) and is stopped by its test. No timing
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Sequence
+from dataclasses import replace
 from functools import partial
 
 import pytest
@@ -23,12 +25,17 @@ from drivenav.envs.embedded.env import EmbeddedEnv
 from drivenav.eval.runner import run_episode
 from drivenav.semantics.embedded_detector import EmbeddedGrounder
 from drivenav.semantics.embedding import default_embedder
+from drivenav.semantics.grounder_server import serving
 from drivenav.semantics.protocols import Detection, Grounder, Prefetching, prefetch
 from drivenav.semantics.registry import make_grounder, make_reasoner, make_scorer
-from drivenav.semantics.served import segment_request
+from drivenav.semantics.remote import RemoteGrounder
+from drivenav.semantics.serve_config import ServeConfig
+from drivenav.semantics.served import GrounderClient, GrounderRefusedError, ServedInfo, segment_request
 from drivenav.settings import explorer_section, load_settings
 from drivenav.types import GroundTruth, Observation, SimConfig
+from drivenav.wire.protocol import Message
 from test_grounder_server import PHRASES, TRUTH, identical, observation, remote, served
+from test_served_throughput import SlowStaged, frame, staged_server
 from test_target_search import PhraseGrounder, _frame, _search
 
 SIM = SimConfig()
@@ -207,3 +214,42 @@ def test_the_body_tells_the_grounder_every_phrase_of_a_frame_before_it_grounds_i
         env, make_agent(settings), episode_for(scene, (12.0, 2.5), math.pi / 2, "plant"), 0, 150
     )
     assert reference_record.success == record.success and reference_record.steps == record.steps
+
+
+# --- one frame's requests in one batch --------------------------------------------------------------------------------
+
+
+def test_a_batch_waits_for_every_request_a_client_sent_of_its_frame_at_once() -> None:
+    """A frame's three SEGMENTs said to go together (``together`` 3), the last two sent 0.3 s after the first: the
+    server, whose batch may wait 1 s, runs the three as one batch rather than the first alone."""
+    grounder = SlowStaged(forward_s=0.0)
+    server = staged_server(grounder, ServeConfig(batch=8, batch_ms=1000.0))
+    with serving(server) as endpoint:
+        connection = GrounderClient(endpoint)
+        try:
+            info = ServedInfo.from_json(connection.request(Message("HELLO", connection.next_id())).body)
+            remote = RemoteGrounder(connection, info)
+            remote.begin_episode(None, 0)
+            shown = frame(7, 4)
+            requests = [
+                segment_request(connection.next_id(), remote._episode, shown, p, ("rgb",), None, 3) for p in "abc"
+            ]
+            sent = [connection.submit(requests[0])]
+            time.sleep(0.3)
+            sent += [connection.submit(request) for request in requests[1:]]
+            replies = [connection.reply_to(s) for s in sent]
+        finally:
+            connection.close()
+    assert [r.type for r in replies] == ["DETECTIONS"] * 3
+    assert server.batch_sizes == {3: 1}
+
+
+@pytest.mark.parametrize("together", [0, 65, "3", True])
+def test_a_together_that_is_not_a_count_of_requests_is_refused(together: object) -> None:
+    with served(embedded, "embedded") as (server, info), remote(server.endpoint, info) as grounder:
+        grounder.begin_episode(TRUTH, 1)
+        request = segment_request(grounder.client.next_id(), grounder._episode, observation(), "sofa", info.observes)
+        request = replace(request, body={**request.body, "together": together})
+        with pytest.raises(GrounderRefusedError, match=r"body\.together"):
+            grounder.client.request(request)
+        assert grounder.segment(observation(), "sofa") is not None  # the server goes on

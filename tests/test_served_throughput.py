@@ -321,7 +321,7 @@ def test_bench_eval_throughput_with_a_waiting_forward_serves_no_model(capsys: py
     assert result["detector"] == "wait" and result["device"] == "none" and result["errors"] == 0
     assert result["frames_served"] >= result["frames"] > 0
     assert result["server_stages_ms"]["forward"] >= 20.0 / result["mean_batch"] - 0.01  # slept, shared by a batch
-    assert result["server_stages_ms"]["preprocess"] == 0.0 and 0.0 < result["model_busy"] <= 1.0
+    assert result["server_stages_ms"]["preprocess"] < 1.0 and 0.0 < result["model_busy"] <= 1.0  # nothing to prepare
 
 
 @pytest.mark.parametrize(

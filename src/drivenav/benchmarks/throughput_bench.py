@@ -183,7 +183,8 @@ returns its exit status."""
 class WaitingGrounder:
     """A model's stand-in that measures serving and the workers without a model's compute (``--forward-ms``): each
     batch's forward is ``forward_ms`` milliseconds of waiting, whatever its size (a GPU's time as its host sees it,
-    below the GPU's saturation), and it finds nothing."""
+    below the GPU's saturation), and it finds nothing. It batches as a served SAM3 does
+    (:class:`~drivenav.semantics.serve_pipeline.RowGrounder`: every phrase of a batch in one forward)."""
 
     name = WAITING
 
@@ -197,8 +198,23 @@ class WaitingGrounder:
         return self.segment_batch([observation.rgb], phrase)[0]
 
     def segment_batch(self, frames: Sequence[NDArray[np.uint8]], phrase: str) -> list[list[Detection]]:
+        return self.segment_rows(self.preprocess(frames), frames, [(i, phrase) for i in range(len(frames))])
+
+    def preprocess(self, frames: Sequence[NDArray[np.uint8]]) -> int:
+        """Nothing to prepare: the number of frames stands for their pixels."""
+        return len(frames)
+
+    def segment_rows(
+        self,
+        pixels: Any,
+        frames: Sequence[NDArray[np.uint8]],
+        rows: Sequence[tuple[int, str]],
+        lap: Callable[[str], None] | None = None,
+    ) -> list[list[Detection]]:
         time.sleep(self.forward_ms / 1000.0)
-        return [[] for _ in frames]
+        if lap is not None:
+            lap("forward")
+        return [[] for _ in rows]
 
 
 def _served_model(

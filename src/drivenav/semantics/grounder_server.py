@@ -8,10 +8,15 @@ HELLO, BEGIN and PING are answered at once, between batches.
 A grounder that reads images (SAM3, OWLv2, Grounding DINO) is one shared copy: a batch's frames are grouped by
 phrase and frame size, and each group is one :meth:`~drivenav.semantics.hf_common.TransformersGrounder.segment_batch`
 forward (the text features of a phrase are encoded once for every worker; after ``phrases`` distinct phrases the
-cache is emptied). A stand-in that reads ground-truth labels (the embedded detector, the ground-truth one) is one
-instance per episode, begun by BEGIN with the episode's truth and seed as in process; what the episodes hold is
-bounded per client and in all (:class:`~drivenav.semantics.serve_config.ServeConfig`: labels a BEGIN, episodes and
-bytes kept), the least recently used forgotten past a bound.
+cache is emptied). SAM3, a :class:`~drivenav.semantics.serve_pipeline.RowGrounder`, takes every phrase at once: a
+batch's frames are grouped by size only, a frame a client sent for several phrases (one step's) is kept once, and
+each group is one forward whose vision encoder runs once a frame and whose rest runs once a request, each with its
+own phrase (workers looking for different objects share a forward).
+
+A stand-in that reads ground-truth labels (the embedded detector, the ground-truth one) is one instance per
+episode, begun by BEGIN with the episode's truth and seed as in process; what the episodes hold is bounded per
+client and in all (:class:`~drivenav.semantics.serve_config.ServeConfig`: labels a BEGIN, episodes and bytes kept),
+the least recently used forgotten past a bound.
 
 Nothing a client sends stops the server: a malformed or unknown request, or a grounder failing on one, is an ERROR
 reply naming it, and the server goes on.
@@ -29,6 +34,7 @@ from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import zmq
 
 from drivenav.errors import InputError, one_line
@@ -39,6 +45,7 @@ from drivenav.semantics.registry import BOX_DETECTORS, GROUNDER_BACKENDS
 from drivenav.semantics.serve_config import DEFAULT_BIND, ENTRY_BYTES, LABEL_BYTES, ServeConfig
 from drivenav.semantics.serve_pipeline import (
     ModelPool,
+    RowGrounder,
     ServerTimes,
     StagedGrounder,
     Work,
@@ -54,6 +61,7 @@ from drivenav.semantics.served import (
     read_begin,
     read_segment,
 )
+from drivenav.types import Observation
 from drivenav.wire.protocol import MAX_ARRAY_BYTES, Message, ProtocolError, decode
 from drivenav.wire.router import RouterSocket, error_reply, in_background, loose_id
 
@@ -154,17 +162,25 @@ class _Episodes:
 
 
 class _Clients:
-    """The clients grounding now: each seen sending a SEGMENT within the last ``active_s`` seconds, and how many
-    of each one's frames the model threads hold. A client waits for each reply before its next request, so when
-    every such client has a frame queued or in the model, no frame can come that a batch would wait for."""
+    """The clients grounding now: each seen sending a SEGMENT within the last ``active_s`` seconds, how many of each
+    one's frames the model threads hold, and how many of the SEGMENTs it sent of its last frame at once
+    (``together``) have come. A client sends a frame's SEGMENTs together and waits for their replies before its next
+    frame, so when every such client has a frame queued, all of its SEGMENTs in, or in the model, no frame can come
+    that a batch would wait for."""
 
     def __init__(self, active_s: float) -> None:
         self.active_s = active_s
         self._seen: dict[bytes, float] = {}
         self._held: Counter[bytes] = Counter()
+        self._frames: dict[bytes, tuple[tuple[str, int], int, int]] = {}  # the last frame: its key, expected, come
 
-    def saw(self, identity: bytes) -> None:
+    def saw(self, identity: bytes, request: SegmentRequest) -> None:
         self._seen[identity] = time.monotonic()
+        frame = (request.episode, request.observation.step)
+        last, expected, come = self._frames.get(identity, (frame, 0, 0))
+        if last != frame:
+            expected, come = 0, 0
+        self._frames[identity] = (frame, max(expected, request.together), come + 1)
 
     def hold(self, identities: list[bytes]) -> None:
         self._held.update(identities)
@@ -175,11 +191,20 @@ class _Clients:
             del self._held[identity]
 
     def all_waiting(self, queued: set[bytes]) -> bool:
-        """Whether every client grounding now has a frame ``queued`` or held by the model."""
+        """Whether every client grounding now has a frame ``queued`` (every SEGMENT it sent of it at once come) or
+        held by the model."""
         since = time.monotonic() - self.active_s
         for identity in [i for i, seen in self._seen.items() if seen < since]:
             del self._seen[identity]
-        return self._seen.keys() <= queued | self._held.keys()
+            self._frames.pop(identity, None)
+        if not self._seen.keys() <= queued | self._held.keys():
+            return False
+        return all(self._complete(identity) for identity in queued)
+
+    def _complete(self, identity: bytes) -> bool:
+        """Whether every SEGMENT the client sent of its last frame at once has come (or it is no longer known)."""
+        _, expected, come = self._frames.get(identity, (("", 0), 0, 0))
+        return come >= expected
 
 
 class GrounderServer:
@@ -312,7 +337,7 @@ class GrounderServer:
         if self._shared is None:
             self.episodes.get(segment.episode)  # an unknown episode is refused now, not after the batch
         self._pending.append(_Pending(identity, segment, time.monotonic()))
-        self._clients.saw(identity)
+        self._clients.saw(identity, segment)
         return None
 
     def _pong(self, identity: bytes, pong: Message) -> Message | None:
@@ -368,9 +393,10 @@ class GrounderServer:
             for pending in batch:
                 self._answer_alone(pending)
             return
+        rows = isinstance(self._shared, RowGrounder)  # one forward for every phrase of a frame size
         groups: dict[tuple[str, tuple[int, ...]], list[_Pending]] = {}
         for pending in batch:
-            key = (pending.request.phrase, pending.request.observation.depth.shape)
+            key = ("" if rows else pending.request.phrase, pending.request.observation.depth.shape)
             groups.setdefault(key, []).append(pending)
         work = [prepared for group in groups.values() if (prepared := self._prepared(group)) is not None]
         if work:
@@ -380,22 +406,37 @@ class GrounderServer:
     def _prepared(self, group: list[_Pending]) -> Work | None:
         """``group`` as the model thread's work, its frames preprocessed here where the grounder allows (a failure
         answers the group with one ERROR now)."""
-        requests = [p.request for p in group]
         replies = [(p.identity, p.request.request_id, _size(p.request)) for p in group]
-        work = Work(requests[0].phrase, replies, [r.observation for r in requests])
-        if not isinstance(self._shared, StagedGrounder):
+        work = self._frames_of(group, replies)
+        if not isinstance(self._shared, (StagedGrounder, RowGrounder)):
             return work
         start = time.perf_counter()
         try:
             work.pixels = self._shared.preprocess(work.frames)
         except Exception as error:
-            log.exception("preprocessing frames for %r failed", work.phrase)
+            log.exception("preprocessing frames for %s failed", ", ".join(map(repr, work.phrases)))
             for identity, request_id, _ in work.replies:
                 self._send(identity, error_reply(request_id, grounding_failed(error)))
             return None
         finally:
             self._times.seconds["preprocess"] += time.perf_counter() - start
         return work
+
+    def _frames_of(self, group: list[_Pending], replies: list[tuple[bytes, str, tuple[int, int]]]) -> Work:
+        """``group``'s work: for a :class:`RowGrounder`, a frame sent several times by a client (its phrases of one
+        step) is one frame, encoded once; else a frame per request."""
+        observations: list[Observation] = []
+        rows: list[tuple[int, str]] = []
+        seen: dict[tuple[bytes, str, int], int] = {}
+        for pending in group:
+            request, observation = pending.request, pending.request.observation
+            key = (pending.identity, request.episode, observation.step)
+            index = seen.get(key) if isinstance(self._shared, RowGrounder) else None
+            if index is None or not np.array_equal(observations[index].rgb, observation.rgb):
+                index = seen[key] = len(observations)
+                observations.append(observation)
+            rows.append((index, request.phrase))
+        return Work(replies, rows, observations)
 
     def _answer_alone(self, pending: _Pending) -> None:
         """A stand-in's episode grounds its one request, the phrase's category added to its vocabulary first; the
@@ -410,8 +451,8 @@ class GrounderServer:
             self._times.seconds["forward"] += time.perf_counter() - start
             return [found]
 
-        asked = [(request.request_id, _size(request))]
-        (reply,) = grounded_replies(request.phrase, asked, ground, self._check.checked)
+        asked = [(request.request_id, _size(request), request.phrase)]
+        (reply,) = grounded_replies(asked, ground, self._check.checked)
         self._send(pending.identity, reply)
         self._times.frames += 1
         self._times.batches += 1

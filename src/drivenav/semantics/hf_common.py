@@ -291,6 +291,22 @@ class TransformersGrounder(ABC):
         """The detections of each frame from the raw output, best score first."""
 
 
+def select_rows(value: Any, index: Any, batch: int) -> Any:
+    """``value`` (a model's output: tensors, tuples and lists of them, ``ModelOutput`` records) with every tensor of
+    ``batch`` rows re-indexed along its first dimension by ``index`` (a frame's features repeated for each row that
+    reads them); anything else is kept as it is."""
+    import torch
+    from transformers.utils.generic import ModelOutput
+
+    if isinstance(value, torch.Tensor):
+        return value.index_select(0, index) if value.dim() and value.shape[0] == batch else value
+    if isinstance(value, ModelOutput):
+        return type(value)(**{key: select_rows(item, index, batch) for key, item in value.items()})
+    if isinstance(value, (tuple, list)):
+        return type(value)(select_rows(item, index, batch) for item in value)
+    return value
+
+
 def ranked_detections(scores: NDArray[np.floating[Any]], masks: NDArray[np.bool_], phrase: str) -> list[Detection]:
     """One :class:`Detection` per instance, best score first; empty masks are dropped (nothing to approach)."""
     order = np.argsort(-scores, kind="stable")

@@ -92,9 +92,10 @@ class RemoteGrounder:
         if observation is not self._frame:
             self._drop_prefetched()
             self._frame = observation
-        for phrase in phrases:
-            if phrase not in self._out:
-                self._out[phrase] = self.client.submit(self._request(observation, phrase))
+        new = [phrase for phrase in dict.fromkeys(phrases) if phrase not in self._out]
+        requests = {phrase: self._request(observation, phrase, len(new)) for phrase in new}
+        for phrase, request in requests.items():  # made first, then sent back to back: one batch takes them all
+            self._out[phrase] = self.client.submit(request)
 
     def segment(self, observation: Observation, phrase: str) -> list[Detection]:
         """The server's detections of ``phrase`` in the frame (a :class:`GrounderUnavailableError` when it does
@@ -108,9 +109,9 @@ class RemoteGrounder:
         height, width = observation.depth.shape[:2]
         return read_detections(reply, phrase, (height, width))
 
-    def _request(self, observation: Observation, phrase: str) -> Message:
+    def _request(self, observation: Observation, phrase: str, together: int = 1) -> Message:
         return segment_request(
-            self.client.next_id(), self._episode, observation, phrase, self.info.observes, self._vocabulary
+            self.client.next_id(), self._episode, observation, phrase, self.info.observes, self._vocabulary, together
         )
 
     def _drop_prefetched(self) -> None:

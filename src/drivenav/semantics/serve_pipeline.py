@@ -56,6 +56,23 @@ class BatchGrounder(Protocol):
 
 
 @runtime_checkable
+class RowGrounder(Protocol):
+    """A grounder that segments a different phrase in each row of one forward: the vision encoder once over the
+    distinct frames, the rest once over the rows (SAM3's ``segment_rows``). A server batches the frames of workers
+    looking for different objects, and a frame asked for several phrases (one ApexNav step) is encoded once."""
+
+    def preprocess(self, frames: Sequence[NDArray[np.uint8]]) -> Any: ...
+
+    def segment_rows(
+        self,
+        pixels: Any,
+        frames: Sequence[NDArray[np.uint8]],
+        rows: Sequence[tuple[int, str]],
+        lap: Callable[[str], None] | None = None,
+    ) -> list[list[Detection]]: ...
+
+
+@runtime_checkable
 class StagedGrounder(BatchGrounder, Protocol):
     """A batch grounder whose preprocessing can run apart from the rest
     (:class:`~drivenav.semantics.hf_common.TransformersGrounder`)."""
@@ -100,18 +117,24 @@ class ServerTimes:
 
 @dataclass
 class Work:
-    """One phrase in frames of one size, to be grounded in one forward: the requests' ``replies`` (client
-    identity, request id, frame size), their observations, and the frames' pixels when the socket thread
-    preprocessed them."""
+    """Requests of frames of one size to be grounded in one forward: the requests' ``replies`` (client identity,
+    request id, frame size), each request's ``rows`` entry (its frame's index in ``observations``, its phrase), the
+    distinct frames' observations, and their pixels when the socket thread preprocessed them. One phrase throughout
+    unless the grounder is a :class:`RowGrounder`."""
 
-    phrase: str
     replies: list[tuple[bytes, str, tuple[int, int]]]
+    rows: list[tuple[int, str]]
     observations: list[Observation]
     pixels: Any = None
 
     @property
     def frames(self) -> list[NDArray[np.uint8]]:
         return [observation.rgb for observation in self.observations]
+
+    @property
+    def phrases(self) -> list[str]:
+        """The distinct phrases, in the order of the rows."""
+        return list(dict.fromkeys(phrase for _, phrase in self.rows))
 
 
 class ModelThread:
@@ -190,47 +213,51 @@ class ModelThread:
             self.times.seconds[stage] += now - mark
             mark = now
 
-        asked = [(request_id, size) for _, request_id, size in work.replies]
-        replies = grounded_replies(work.phrase, asked, lambda: self._segment(work, lap), self._check)
+        requests = zip(work.replies, work.rows, strict=True)
+        asked = [(request_id, size, phrase) for (_, request_id, size), (_, phrase) in requests]
+        replies = grounded_replies(asked, lambda: self._segment(work, lap), self._check)
         for (identity, _, _), reply in zip(work.replies, replies, strict=True):
             self.outbox.put((identity, self._encode(reply)))
         lap("reply")
-        self.times.frames += len(work.observations)
+        self.times.frames += len(work.rows)
         self.times.batches += 1
 
     def _segment(self, work: Work, lap: Callable[[str], None]) -> list[list[Detection]]:
-        """The frames' detections, in one forward where the grounder batches; the stages timed by ``lap``."""
-        self._admit(work.phrase)
+        """Each request's detections, in one forward where the grounder batches; the stages timed by ``lap``."""
+        for phrase in work.phrases:
+            self._admit(phrase)
+        if work.pixels is not None and isinstance(self.grounder, RowGrounder):
+            return self.grounder.segment_rows(work.pixels, work.frames, work.rows, lap)
+        (phrase,) = work.phrases
         if work.pixels is not None and isinstance(self.grounder, StagedGrounder):
-            return self.grounder.segment_pixels(work.pixels, work.frames, work.phrase, lap)
+            return self.grounder.segment_pixels(work.pixels, work.frames, phrase, lap)
         if isinstance(self.grounder, BatchGrounder):
-            found = self.grounder.segment_batch(work.frames, work.phrase)
+            found = self.grounder.segment_batch(work.frames, phrase)
         else:
-            found = [self.grounder.segment(observation, work.phrase) for observation in work.observations]
+            found = [self.grounder.segment(observation, phrase) for observation in work.observations]
         lap("forward")
         return found
 
 
 def grounded_replies(
-    phrase: str,
-    asked: Sequence[tuple[str, tuple[int, int]]],
+    asked: Sequence[tuple[str, tuple[int, int], str]],
     ground: Callable[[], list[list[Detection]]],
     check: Callable[[Sequence[object], tuple[int, int]], list[Detection]],
 ) -> list[Message]:
-    """The replies to requests of ``phrase`` (``asked``: each request's id and frame size): DETECTIONS of what
-    ``ground`` found in each frame, checked as in process (``check``), or, where grounding failed, an ERROR each
-    naming why (a request the server refuses, :class:`ProtocolError`, or the grounder's own failure, logged)."""
+    """The replies to requests (``asked``: each request's id, frame size and phrase): DETECTIONS of what ``ground``
+    found for each, checked as in process (``check``), or, where grounding failed, an ERROR each naming why (a
+    request the server refuses, :class:`ProtocolError`, or the grounder's own failure, logged)."""
     try:
         found = ground()
         return [
             detections_reply(request_id, phrase, check(d, size), size)
-            for (request_id, size), d in zip(asked, found, strict=True)
+            for (request_id, size, phrase), d in zip(asked, found, strict=True)
         ]
     except ProtocolError as error:
-        return [error_reply(request_id, str(error)) for request_id, _ in asked]
+        return [error_reply(request_id, str(error)) for request_id, _, _ in asked]
     except Exception as error:
-        log.exception("grounding %r failed", phrase)
-        return [error_reply(request_id, grounding_failed(error)) for request_id, _ in asked]
+        log.exception("grounding %s failed", ", ".join(repr(p) for p in dict.fromkeys(p for _, _, p in asked)))
+        return [error_reply(request_id, grounding_failed(error)) for request_id, _, _ in asked]
 
 
 def grounding_failed(error: Exception) -> str:

@@ -19,7 +19,8 @@ SEGMENT    ``episode``, ``phrase``, the frame's ``height`` and      DETECTIONS: 
            ``width``, ``canonical`` (the phrase's category, for a   N x H x ceil(W / 8), each row's bits packed,
            stand-in); step, pose, intrinsics; arrays: the images    ``numpy.packbits``) and ``scores`` (float64)
            WELCOME names (``rgb`` uint8, ``depth`` float32,
-           ``semantic`` int32)
+           ``semantic`` int32); ``together`` (optional, 1-64):
+           how many SEGMENTs of this frame were sent at once
 PING       --                                                       PONG
 ========== ======================================================== ===============================================
 
@@ -62,6 +63,8 @@ from drivenav.wire.protocol import JSON, Message, ProtocolError
 GROUNDER_PROTOCOL: Final[str] = "drivenav-grounder"
 REQUESTS: Final[tuple[str, ...]] = ("HELLO", "BEGIN", "SEGMENT", "PING")
 REPLIES: Final[tuple[str, ...]] = ("WELCOME", "BEGUN", "DETECTIONS", "PONG", "ERROR")
+MAX_TOGETHER: Final[int] = 64
+"""The most SEGMENTs a client may say it sends of one frame at once (``together``: one step's phrases)."""
 MAX_PHRASE_CHARS: Final[int] = 512
 """A phrase longer than this is refused (an enriched prompt is a few words; the text encoders keep 16-32 tokens)."""
 IMAGES: Final[dict[str, tuple[str, int]]] = {"rgb": ("|u1", 3), "depth": ("<f4", 2), "semantic": ("<i4", 2)}
@@ -246,13 +249,17 @@ def segment_request(
     phrase: str,
     observes: Sequence[str],
     vocabulary: CategoryVocabulary | None = None,
+    together: int = 1,
 ) -> Message:
     """SEGMENT of ``phrase`` in ``observation``, carrying only the images in ``observes`` (a deferred RGB image
-    is not rendered for a stand-in that reads none) and, with a ``vocabulary``, the phrase's category."""
+    is not rendered for a stand-in that reads none) and, with a ``vocabulary``, the phrase's category. ``together``
+    > 1: the number of SEGMENTs of this frame sent at once (the server batches them together)."""
     height, width = observation.depth.shape[:2]
     body: JsonObject = {"episode": episode, "phrase": phrase, "height": height, "width": width}
     if vocabulary is not None:
         body["canonical"] = vocabulary.canonical(phrase)
+    if together > 1:
+        body["together"] = together
     arrays = {name: image for name in observes if (image := _image(observation, name)) is not None}
     return Message(
         "SEGMENT",
@@ -283,6 +290,7 @@ class SegmentRequest:
     phrase: str
     canonical: Mapping[str, str | None]
     observation: Observation
+    together: int = 1
 
 
 def read_segment(message: Message) -> SegmentRequest:
@@ -318,8 +326,12 @@ def read_segment(message: Message) -> SegmentRequest:
         message.step,
         message.collided,
     )
+    together = body.get("together", 1)
+    if isinstance(together, bool) or not isinstance(together, int) or not 1 <= together <= MAX_TOGETHER:
+        expected = f"the number of SEGMENTs of this frame sent at once, 1-{MAX_TOGETHER}"
+        raise ProtocolError("body.together", expected, together)
     table = {phrase: canonical} if "canonical" in body else {}
-    return SegmentRequest(message.request_id, _episode(body), phrase, table, observation)
+    return SegmentRequest(message.request_id, _episode(body), phrase, table, observation, together)
 
 
 def _check_image(name: str, array: NDArray[Any], size: tuple[int, int]) -> None:
