@@ -9,8 +9,9 @@
 #   bash scripts/h100_grounding.sh [--cpu] [--budget S] [--window S] [--workers N] [STAGE ...]
 #
 # STAGE: sam3-fp32 sam3-bf16 owlv2-fp32 owlv2-bf16 gdino-fp32 gdino-bf16 throughput serve-eval serve-eval-x2
-# sam3-compile owlv2-compile gdino-compile (default: all, in this order; serve-eval: `drivenav bench eval-throughput`,
-# SAM3 served to the workers with one model copy, -x2 with two: episodes an hour and where a step's time goes). --cpu: a dry run of the script itself on this machine's CPU with the
+# serve-eval-apexnav sam3-compile owlv2-compile gdino-compile (default: all, in this order; serve-eval: `drivenav bench
+# eval-throughput`, SAM3 served to the workers with one model copy, -x2 with two, -apexnav to ApexNav's workers, five
+# phrases a frame: episodes an hour and where a step's time goes). --cpu: a dry run of the script itself on this machine's CPU with the
 # tests' tiny models (no wheels, no compile stages unless named). Writes every stage's JSON and log, env.json and
 # summary.json to $OUT (default /tmp/h100-grounding); the summary table comes last on stdout.
 #
@@ -43,12 +44,12 @@ mkdir -p "$OUT"
 START=$(date +%s)
 export DRIVENAV_KERNELS=jit HF_HUB_OFFLINE=1 TRANSFORMERS_OFFLINE=1 TOKENIZERS_PARALLELISM=false PYTHONUNBUFFERED=1
 ALL_STAGES=(sam3-fp32 sam3-bf16 owlv2-fp32 owlv2-bf16 gdino-fp32 gdino-bf16 throughput serve-eval serve-eval-x2
-    sam3-compile owlv2-compile gdino-compile)
+    serve-eval-apexnav sam3-compile owlv2-compile gdino-compile)
 
 if ((CPU)); then
     PYTHON=${PYTHON:-$([ -x .venv/bin/python ] && echo .venv/bin/python || echo python3)}
     DEVICE=cpu WEIGHTS=--tiny BUDGET=${BUDGET:-900} WINDOW=${WINDOW:-40} WORKERS=${WORKERS:-2}
-    ((${#STAGES[@]})) || STAGES=("${ALL_STAGES[@]:0:9}")  # inductor on a 2-core CPU takes minutes a model
+    ((${#STAGES[@]})) || STAGES=("${ALL_STAGES[@]:0:10}")  # inductor on a 2-core CPU takes minutes a model
 else
     PYTHON=${PYTHON:-python3}
     DEVICE=cuda WEIGHTS=--random-weights BUDGET=${BUDGET:-420} WINDOW=${WINDOW:-150} WORKERS=${WORKERS:-16}
@@ -167,9 +168,9 @@ run_bench() {  # run_bench STAGE (STACK-KIND)
 }
 
 # -- serve-eval: bench eval-throughput, SAM3 served (COPIES copies) to $WORKERS workers on 2 x $WORKERS episodes ---------
-serve_eval() {  # serve_eval NAME COPIES
+serve_eval() {  # serve_eval NAME COPIES [AGENT]
     BENCH=eval-throughput bench_stage "$1" 200 --detector sam3 --batch 16 --copies "$2" --workers "$WORKERS" \
-        -- --agent drive-nav --scenes procedural:16 --episodes $((2 * WORKERS)) --seed 2026
+        -- --agent "${3:-drive-nav}" --scenes procedural:16 --episodes $((2 * WORKERS)) --seed 2026
 }
 
 # -- throughput: 16 workers on v1 beside one served SAM3 ------------------------------------------------------------
@@ -233,6 +234,7 @@ for stage in "${STAGES[@]}"; do
     throughput) throughput ;;
     serve-eval) serve_eval "$stage" 1 ;;
     serve-eval-x2) serve_eval "$stage" 2 ;;
+    serve-eval-apexnav) serve_eval "$stage" 1 apexnav ;;
     sam3-* | owlv2-* | gdino-*) run_bench "$stage" ;;
     *) say "unknown stage $stage (one of ${ALL_STAGES[*]})"; record "$stage" unknown 0 0 "" ;;
     esac
