@@ -327,13 +327,10 @@ def _forward_ms(args: argparse.Namespace) -> float:
     if not (0.0 <= forward_ms <= MAX_FORWARD_MS):
         expected = f"0 (the model) or the milliseconds a batch's forward waits, at most {MAX_FORWARD_MS:g}"
         raise InputError("command line", "--forward-ms", expected, forward_ms)
-    from drivenav.semantics.registry import DEFAULT_SEGMENTER
+    from drivenav.cli.serve import first_model_option
 
-    unset = {"tiny": False, "random_weights": False, "compile": False, "detector_model": "", "device": None}
-    unset |= {"dtype": "auto", "segmenter": DEFAULT_SEGMENTER, "segmenter_model": ""}
-    given = [name for name, value in unset.items() if getattr(args, name) != value]
-    if forward_ms > 0.0 and given:
-        option = "--" + given[0].replace("_", "-")
+    option = first_model_option(args) if forward_ms > 0.0 else None
+    if option is not None:
         raise InputError("command line", option, "no model option with --forward-ms (it serves no model)", option)
     return forward_ms
 

@@ -140,25 +140,32 @@ def _refuse_model_options(args: argparse.Namespace) -> None:
     """A detector that loads no model (the embedded one, ground truth: not
     :func:`~drivenav.semantics.serve_config.takes_model_options`) honours none of the model options: the first one
     given is refused in one line naming it, as ``--tiny`` is, never ignored."""
-    from drivenav.semantics.registry import DEFAULT_SEGMENTER
     from drivenav.semantics.serve_config import takes_model_options
 
     if takes_model_options(args.detector):
         return
+    given = first_model_option(args) or ("--copies" if args.copies != 1 else None)
+    if given is not None:
+        raise _model_detector_only(given, args.detector)
+
+
+def first_model_option(args: argparse.Namespace) -> str | None:
+    """The first of the options that choose and place a model (``--detector-model``, ``--device``, ``--dtype``,
+    ``--compile``, ``--segmenter``, ``--segmenter-model``, ``--random-weights``, ``--tiny``) given a value of its
+    own, or None: what a command serving no model refuses."""
+    from drivenav.semantics.registry import DEFAULT_SEGMENTER
+
     options = (
         ("--detector-model", args.detector_model, ""),
-        ("--device", args.device, ""),
+        ("--device", args.device or "", ""),
         ("--dtype", args.dtype, "auto"),
         ("--compile", args.compile, False),
         ("--segmenter", args.segmenter, DEFAULT_SEGMENTER),
         ("--segmenter-model", args.segmenter_model, ""),
         ("--random-weights", args.random_weights, False),
         ("--tiny", args.tiny, False),
-        ("--copies", args.copies, 1),
     )
-    given = next((option for option, value, unset in options if value != unset), None)
-    if given is not None:
-        raise _model_detector_only(given, args.detector)
+    return next((option for option, value, unset in options if value != unset), None)
 
 
 def _model_detector_only(option: str, detector: str) -> InputError:

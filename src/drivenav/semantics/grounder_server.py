@@ -428,10 +428,11 @@ class GrounderServer:
         observations: list[Observation] = []
         rows: list[tuple[int, str]] = []
         seen: dict[tuple[bytes, str, int], int] = {}
+        shared_frames = isinstance(self._shared, RowGrounder)
         for pending in group:
             request, observation = pending.request, pending.request.observation
             key = (pending.identity, request.episode, observation.step)
-            index = seen.get(key) if isinstance(self._shared, RowGrounder) else None
+            index = seen.get(key) if shared_frames else None
             if index is None or not np.array_equal(observations[index].rgb, observation.rgb):
                 index = seen[key] = len(observations)
                 observations.append(observation)

@@ -90,13 +90,20 @@ class Sam3Grounder(TransformersGrounder):
         return self.model.get_vision_features(pixel_values=pixels)
 
     def decode(self, vision: Any, text: Sam3Text) -> Any:
+        return self._decode_rows(vision, [text] * vision.fpn_hidden_states[0].shape[0])
+
+    def _decode_rows(self, vision: Any, texts: Sequence[Sam3Text]) -> Any:
+        """The forward on each row's vision features and its own phrase's text features (the forward reads only
+        the pooled output)."""
+        import torch
         from transformers.modeling_outputs import BaseModelOutputWithPooling
 
-        batch = vision.fpn_hidden_states[0].shape[0]
-        features, mask = text.features, text.attention_mask
-        if batch > 1:  # one phrase for every frame of the batch (the forward reads only the pooled output)
-            features = BaseModelOutputWithPooling(pooler_output=features.pooler_output.expand(batch, -1, -1))
-            mask = mask.expand(batch, -1)
+        if len(texts) == 1:
+            features, mask = texts[0].features, texts[0].attention_mask
+        else:
+            pooled = torch.cat([text.features.pooler_output for text in texts])
+            features = BaseModelOutputWithPooling(pooler_output=pooled)
+            mask = torch.cat([text.attention_mask for text in texts])
         return self.model(vision_embeds=vision, text_embeds=features, attention_mask=mask)
 
     def segment_rows(
@@ -112,18 +119,13 @@ class Sam3Grounder(TransformersGrounder):
         phrases of one frame). The same layers on the same tensors as :meth:`segment_pixels` a phrase at a time.
         ``lap`` times the stages as there."""
         import torch
-        from transformers.modeling_outputs import BaseModelOutputWithPooling
 
         with torch.inference_mode():
             vision = self.encode_vision(pixels)
             index = [i for i, _ in rows]
             if index != list(range(len(frames))):
                 vision = select_rows(vision, torch.tensor(index, device=self.model.device), len(frames))
-            texts = [self.text_features(phrase) for _, phrase in rows]
-            pooled = torch.cat([text.features.pooler_output for text in texts])
-            mask = torch.cat([text.attention_mask for text in texts])
-            features = BaseModelOutputWithPooling(pooler_output=pooled)
-            outputs = self.model(vision_embeds=vision, text_embeds=features, attention_mask=mask)
+            outputs = self._decode_rows(vision, [self.text_features(phrase) for _, phrase in rows])
             if lap is not None:
                 lap("forward")
             found = self.postprocess(outputs, [frames[i] for i in index], [phrase for _, phrase in rows])
