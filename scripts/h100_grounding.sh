@@ -162,7 +162,7 @@ run_bench() {  # run_bench STAGE (STACK-KIND)
     esac
     case "${1##*-}" in
     fp32) bench_stage "$1" 75 "${args[@]}" --dtype float32 --frames 10 ;;
-    bf16) bench_stage "$1" 100 "${args[@]}" --dtype bfloat16 --frames 10 --batch 8 --clients 8 ;;
+    bf16) bench_stage "$1" 100 "${args[@]}" --dtype bfloat16 --frames 10 --batch 8 --clients 8 --phrases 8 ;;
     compile) bench_stage "$1" 170 "${args[@]}" --dtype bfloat16 --compile --frames 10 ;;
     esac
 }

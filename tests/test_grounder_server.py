@@ -252,19 +252,26 @@ def close_enough(got: list[Detection], want: list[Detection]) -> None:
         assert np.array_equal(a.mask, b.mask) and a.phrase == b.phrase and a.score == pytest.approx(b.score, abs=1e-6)
 
 
+def vision_encodings(server: GrounderServer) -> list[int]:
+    """The number of frames of each vision encoding the served model runs from now on."""
+    encoded: list[int] = []
+    model = server._model.threads[0].grounder  # type: ignore[union-attr]
+    encode = model.encode_vision
+    model.encode_vision = lambda pixels: encoded.append(len(pixels)) or encode(pixels)
+    return encoded
+
+
+@pytest.mark.parametrize("case", ["sam3", "owlv2+mobilesam", "grounding-dino"])
 def test_a_frame_asked_for_several_phrases_is_one_forward_and_encoded_once(
-    transformers_grounders: dict[str, tuple[str, Callable[[], Grounder]]],
+    case: str, transformers_grounders: dict[str, tuple[str, Callable[[], Grounder]]]
 ) -> None:
     """A client's phrases of one frame, sent ahead together (ApexNav's step): one batch, one forward, the frame's
     vision encoded once, each phrase's detections those of the phrase grounded alone in process."""
-    _, factory = transformers_grounders["sam3"]
+    detector, factory = transformers_grounders[case]
     local, frame = factory(), observation(9, 3)
     expected = {phrase: local.segment(frame, phrase) for phrase in PHRASES}
-    with served(factory, "sam3", ServeConfig(batch=8, batch_ms=1000.0)) as (server, info):
-        encoded: list[int] = []
-        model = server._model.threads[0].grounder  # type: ignore[union-attr]
-        encode = model.encode_vision
-        model.encode_vision = lambda pixels: encoded.append(len(pixels)) or encode(pixels)
+    with served(factory, detector, ServeConfig(batch=8, batch_ms=1000.0)) as (server, info):
+        encoded = vision_encodings(server)
         with remote(server.endpoint, info) as grounder:
             grounder.begin_episode(None, 0)
             grounder.prefetch(frame, PHRASES)
@@ -275,19 +282,21 @@ def test_a_frame_asked_for_several_phrases_is_one_forward_and_encoded_once(
         close_enough(answers[phrase], expected[phrase])
 
 
+@pytest.mark.parametrize("case", ["sam3", "owlv2+mobilesam", "grounding-dino"])
 def test_workers_looking_for_different_objects_share_one_forward(
-    transformers_grounders: dict[str, tuple[str, Callable[[], Grounder]]],
+    case: str, transformers_grounders: dict[str, tuple[str, Callable[[], Grounder]]]
 ) -> None:
     """Three clients grounding now (each has grounded once), each its own frame and phrase: one batch, one forward
-    over the three frames, each client's detections those of its phrase in its frame."""
-    _, factory = transformers_grounders["sam3"]
+    (the three frames' vision encoded together), each client's detections those of its phrase in its frame."""
+    detector, factory = transformers_grounders[case]
     local = factory()
     asked = [(observation(seed, seed), phrase) for seed, phrase in enumerate(("sofa", "chair", "television"))]
     expected = [local.segment(frame, phrase) for frame, phrase in asked]
     answers: dict[int, list[Detection]] = {}
-    with served(factory, "sam3", ServeConfig(batch=3, batch_ms=1000.0)) as (server, info):
+    with served(factory, detector, ServeConfig(batch=3, batch_ms=1000.0)) as (server, info):
         before: Counter[int] = Counter()
-        barrier = threading.Barrier(3, action=lambda: before.update(server.batch_sizes))
+        encoded = vision_encodings(server)
+        barrier = threading.Barrier(3, action=lambda: (before.update(server.batch_sizes), encoded.clear()))
 
         def work(index: int) -> None:
             with remote(server.endpoint, info) as grounder:
@@ -301,7 +310,7 @@ def test_workers_looking_for_different_objects_share_one_forward(
             thread.start()
         for thread in threads:
             thread.join()
-    assert server.batch_sizes - before == Counter({3: 1})
+    assert server.batch_sizes - before == Counter({3: 1}) and encoded == [3]
     for index, want in enumerate(expected):
         close_enough(answers[index], want)
 
@@ -548,3 +557,19 @@ def test_bench_grounder_measures_the_served_path(capsys: pytest.CaptureFixture[s
     assert isinstance(result["served_ms_per_frame"], float) and result["served_ms_per_frame"] > 0.0
     assert isinstance(result["served_overhead_ms"], float) and result["clients"] == 2
     assert "served" in result["notes"]
+
+
+def test_bench_grounder_clients_look_for_different_objects(capsys: pytest.CaptureFixture[str]) -> None:
+    pytest.importorskip("transformers")
+    args = ["bench", "grounder", "--tiny", "--device", "cpu", "--json", "--frames", "2", "--clients", "3"]
+    assert main([*args, "--phrases", "3"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["clients"] == 3 and result["client_phrases"] == 3 and result["served_ms_per_frame"] > 0.0
+
+
+@pytest.mark.parametrize("phrases", [["--phrases", "2"], ["--clients", "2", "--phrases", "17"], ["--phrases", "0"]])
+def test_bench_grounder_refuses_phrases_it_cannot_give(phrases: list[str], capsys: pytest.CaptureFixture[str]) -> None:
+    pytest.importorskip("transformers")
+    assert main(["bench", "grounder", "--tiny", "--device", "cpu", "--frames", "1", *phrases]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "--phrases" in err and len(err.splitlines()) == 1

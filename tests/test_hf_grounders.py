@@ -349,12 +349,13 @@ def test_grounding_dino_prompt_is_the_lower_cased_phrase_with_a_period(gdino: An
     text = gdino_grounder(gdino, 0.0).encode_text("Red Chair")
     tokens = gdino[1].tokenizer.convert_ids_to_tokens(text.input_ids[0].tolist())
     assert tokens[0] == "[CLS]" and tokens[-2:] == [".", "[SEP]"] and "r" in tokens
-    assert text.token_type_ids.shape == text.input_ids.shape and not text.encoded
+    assert text.token_type_ids.shape == text.input_ids.shape
+    assert text.encoded.shape[:2] == text.input_ids.shape  # the encoder's output, a token each
 
 
 def test_grounding_dino_text_recorded_in_a_batch_serves_a_single_frame(gdino: Any) -> None:
-    """The text encoder's output recorded at a batch of three frames is given back to a later single frame: the
-    plain forward's detections, the encoder not run again."""
+    """The phrase's text encoder output, computed for a batch of three frames, is given back to a later single
+    frame: the plain forward's detections, the encoder not run again."""
     grounder = gdino_grounder(gdino, 0.0)
     text_encoder, _ = encoders("grounding-dino", {"grounding-dino": gdino})
     with counting(text_encoder) as text_runs:
@@ -576,6 +577,24 @@ def test_a_batch_of_frames_gives_each_frame_its_detections(which: str, models: M
     assert len(batched) == 3
     for frame, detections in zip(frames, batched, strict=True):
         assert same_detections(detections, plain(which, models, frame, "chair"))
+
+
+@pytest.mark.parametrize("which", WHICH)
+def test_rows_of_different_phrases_share_one_forward_and_their_frames_encoding(which: str, models: Models) -> None:
+    """A server's batch (``segment_rows``): two frames, five rows each with its own phrase, one frame read by
+    three rows. The vision encoder runs once over the two frames; each row's detections are its phrase's in its
+    frame alone, the plain forward's (Grounding DINO pads the shorter prompts: scores within a batched product's
+    rounding)."""
+    grounder = fresh(which, models)
+    frames = [observation(seed) for seed in (4, 6)]
+    rows = [(0, "chair"), (1, "potted plant"), (0, "tv"), (1, "chair"), (0, "red chair")]
+    _, vision_encoder = encoders(which, models)
+    with counting(vision_encoder) as vision_runs:
+        found = grounder.segment_rows(grounder.preprocess([f.rgb for f in frames]), [f.rgb for f in frames], rows)
+    assert len(vision_runs) == 1 and len(found) == len(rows)
+    for (index, phrase), detections in zip(rows, found, strict=True):
+        assert detections and {d.phrase for d in detections} == {phrase}
+        assert same_detections(detections, plain(which, models, frames[index], phrase))
 
 
 def test_owlv2_masks_only_the_best_boxes(owl: tuple[Owlv2ForObjectDetection, Owlv2Processor]) -> None:

@@ -24,7 +24,7 @@ from drivenav.semantics.grounder_server import GrounderServer, serving
 from drivenav.semantics.protocols import Detection
 from drivenav.semantics.remote import RemoteGrounder
 from drivenav.semantics.serve_config import ServeConfig
-from drivenav.semantics.serve_pipeline import STAGES, ServerTimes, StagedGrounder
+from drivenav.semantics.serve_pipeline import STAGES, RowGrounder, ServerTimes
 from drivenav.semantics.served import GrounderClient, ServedInfo
 from drivenav.types import CameraIntrinsics, GroundTruth, Observation, Pose
 from drivenav.wire.protocol import Message
@@ -82,7 +82,7 @@ class SlowStaged:
         return self.segment_batch([observation.rgb], phrase)[0]
 
     def segment_batch(self, frames: Sequence[NDArray[np.uint8]], phrase: str) -> list[list[Detection]]:
-        return self.segment_pixels(self.preprocess(frames), frames, phrase)
+        return self.segment_rows(self.preprocess(frames), frames, [(i, phrase) for i in range(len(frames))])
 
     def preprocess(self, frames: Sequence[NDArray[np.uint8]]) -> Any:
         start = time.perf_counter()
@@ -90,18 +90,19 @@ class SlowStaged:
         self._span("preprocess", start)
         return pixels
 
-    def segment_pixels(
-        self, pixels: Any, frames: Sequence[NDArray[np.uint8]], phrase: str, lap: Callable[[str], None] | None = None
+    def segment_rows(
+        self,
+        pixels: Any,
+        frames: Sequence[NDArray[np.uint8]],
+        rows: Sequence[tuple[int, str]],
+        lap: Callable[[str], None] | None = None,
     ) -> list[list[Detection]]:
         start = time.perf_counter()
         time.sleep(self.forward_s)
         self._span("forward", start)
         if lap is not None:
             lap("forward")
-        found = [
-            [Detection(np.ones(frame.shape[:2], dtype=bool), score, phrase)]
-            for frame, score in zip(frames, pixels, strict=True)
-        ]
+        found = [[Detection(np.ones(frames[i].shape[:2], dtype=bool), pixels[i], phrase)] for i, phrase in rows]
         if lap is not None:
             lap("postprocess")
         return found
@@ -263,7 +264,7 @@ def test_a_ping_during_a_forward_is_answered_after_it() -> None:
             segmenting.close()
             pinging.close()
     assert waited >= 0.2
-    assert isinstance(grounder, StagedGrounder)
+    assert isinstance(grounder, RowGrounder)
 
 
 # --- the eval's rate -------------------------------------------------------------------------------------------------

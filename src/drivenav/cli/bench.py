@@ -127,6 +127,13 @@ def _add_bench_grounder(sub: Commands) -> None:
     parser.add_argument(
         "--clients", type=int, default=0, help="K > 0: also time the served path with K concurrent clients (loopback)"
     )
+    parser.add_argument(
+        "--phrases",
+        type=int,
+        default=1,
+        help="P: with --clients, the clients look for P different objects, as an eval's workers do (1 to 16; "
+        "default 1: all the same)",
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.set_defaults(handler=_cmd_bench_grounder)
 
@@ -288,6 +295,7 @@ def _cmd_bench_grounder(args: argparse.Namespace) -> int:
         frames=positive(args.frames, "--frames"),
         batch=positive(args.batch, "--batch"),
         clients=positive(args.clients, "--clients") if args.clients else 0,
+        phrases=args.phrases,
     )
     with _models_extra(args.detector):
         result = bench_grounder(options)

@@ -96,9 +96,12 @@ class BoxGrounder(TransformersGrounder):
         """Per frame, the scores ``(K,)`` and pixel corners ``(K, 4)`` (tensors) of the boxes scoring strictly above
         ``score_threshold``."""
 
-    def postprocess(self, outputs: Any, frames: Sequence[NDArray[np.uint8]], phrase: str) -> list[list[Detection]]:
+    def postprocess(
+        self, outputs: Any, frames: Sequence[NDArray[np.uint8]], phrases: Sequence[str]
+    ) -> list[list[Detection]]:
         found = self.scored_boxes(outputs, frames)
-        return [self.box_detections(s, b, frame, phrase) for (s, b), frame in zip(found, frames, strict=True)]
+        rows = zip(found, frames, phrases, strict=True)
+        return [self.box_detections(scores, boxes, frame, phrase) for (scores, boxes), frame, phrase in rows]
 
     def box_detections(self, scores: Any, boxes: Any, rgb: NDArray[np.uint8], phrase: str) -> list[Detection]:
         """The ``max_boxes`` best boxes of one frame as masks, then as detections."""

@@ -17,7 +17,9 @@ a synchronisation.
 
 ``--clients K`` also times the served path (:mod:`drivenav.semantics.grounder_server`), with the grounder served
 from this process on loopback: ``served_ms_per_frame`` is the throughput of K client threads each grounding
-``frames`` frames one after another through a server batching up to K frames (wall time over every frame), and
+``frames`` frames one after another through a server batching up to K frames (wall time over every frame; with
+``--phrases P`` the clients look for P different objects, as an eval's workers do, client ``i`` for the
+``(i mod P)``-th of :data:`CLIENT_PHRASES`; ``client_phrases`` says how many), and
 ``served_overhead_ms`` is what serving adds to one frame at batch 1 (one client, a server that never waits: the
 median latency of a served frame minus that of the same frame in process, both through ``segment_batch``). The
 clients share this process with the server, so on a CPU they also compete for its cores.
@@ -35,7 +37,7 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import partial
 from typing import Any, Final
@@ -65,6 +67,26 @@ FRAME_WIDTH: Final[int] = 640
 WARMUP_FRAMES: Final[int] = 2
 """Untimed frames first: lazy initialisation, allocator growth, kernel selection."""
 PHRASE: Final[str] = "chair"
+CLIENT_PHRASES: Final[tuple[str, ...]] = (
+    PHRASE,
+    "bed",
+    "sofa",
+    "toilet",
+    "tv monitor",
+    "potted plant",
+    "fire extinguisher",
+    "refrigerator",
+    "bathtub",
+    "towel",
+    "lamp",
+    "sink",
+    "fireplace",
+    "picture",
+    "clothes",
+    "kitchen counter",
+)
+"""The objects ``--phrases K`` gives the served path's clients, client ``i`` the ``(i mod K)``-th (the first
+HM3D-OVON-like categories that come to mind: an eval's workers each look for their own episode's object)."""
 BENCH_HFOV_DEG: Final[float] = 79.0
 """The HM3D-OVON camera's horizontal field of view (the served frame's intrinsics; the grounders do not read it)."""
 SERVED_NOTE: Final[str] = "served_ms_per_frame: --clients K times the served path (one model copy, K workers)"
@@ -81,7 +103,8 @@ class GrounderBenchOptions:
     detector's segmenter, MobileSAM from ``segmenter_checkpoint`` or with random weights. ``random_weights`` /
     ``tiny``: random weights whatever is cached, on the full-size / tiny configurations. ``device``: None for CUDA
     when visible. ``compile``: ``models.compile``. ``batch`` > 1 adds a batched forward of that many frames;
-    ``clients`` > 0 the served path with that many concurrent clients."""
+    ``clients`` > 0 the served path with that many concurrent clients, looking for ``phrases`` different objects
+    (:data:`CLIENT_PHRASES`)."""
 
     detector: str = "sam3"
     checkpoint: str = ""
@@ -95,6 +118,7 @@ class GrounderBenchOptions:
     frames: int = 10
     batch: int = 1
     clients: int = 0
+    phrases: int = 1
 
     def spec(self, device: str) -> ModelSpec:
         """The models' settings these options make, on ``device``."""
@@ -131,6 +155,7 @@ class GrounderBenchResult:
     batch: int
     batch_ms_per_frame: float | None
     clients: int
+    client_phrases: int
     served_ms_per_frame: float | None
     served_overhead_ms: float | None
     served_stages_ms: dict[str, float] | None
@@ -194,6 +219,7 @@ def bench_grounder(options: GrounderBenchOptions) -> GrounderBenchResult:
         batch=options.batch,
         batch_ms_per_frame=_batched(grounder, options, device) if options.batch > 1 else None,
         clients=options.clients,
+        client_phrases=options.phrases,
         served_ms_per_frame=served.ms_per_frame if served else None,
         served_overhead_ms=served.overhead_ms if served else None,
         served_stages_ms=served.times.per_frame_ms() if served else None,
@@ -277,8 +303,8 @@ def _time_frame(
     with torch.inference_mode():
         text = grounder.text_features(PHRASE)
         pixels, preprocess = _timed(lambda: grounder.preprocess([rgb]), device)
-        outputs, forward = _timed(lambda: grounder.decode(grounder.encode_vision(pixels), text), device)
-        _, postprocess = _timed(lambda: grounder.postprocess(outputs, [rgb], PHRASE), device)
+        outputs, forward = _timed(lambda: grounder.decode_rows(grounder.encode_vision(pixels), [text]), device)
+        _, postprocess = _timed(lambda: grounder.postprocess(outputs, [rgb], [PHRASE]), device)
     if segmenter is None:
         return _FrameTiming(preprocess, forward, postprocess, 0.0, 0)
     return _FrameTiming(preprocess, forward, postprocess, segmenter.seconds - seconds, segmenter.boxes - boxes)
@@ -319,7 +345,7 @@ def _served(grounder: TransformersGrounder, options: GrounderBenchOptions, devic
     overhead = np.median(remote[0]) - np.median(local[OVERHEAD_FRAMES:])
     concurrent = server(ServeConfig(batch=min(options.clients, MAX_BATCH)))
     with serving(concurrent) as endpoint:
-        wall = _concurrent_seconds(endpoint, frames, options.clients)
+        wall = _concurrent_seconds(endpoint, frames, options.clients, CLIENT_PHRASES[: options.phrases])
     encode_ms, decode_ms = _client_codec_ms(grounder, frames[-1])
     per_frame = _ms(wall / (options.clients * options.frames))
     return _Served(per_frame, _ms(overhead), concurrent.times, encode_ms, decode_ms)
@@ -353,9 +379,10 @@ def _client_codec_ms(grounder: TransformersGrounder, rgb: NDArray[np.uint8]) -> 
 
 
 def _served_seconds(
-    endpoint: str, frames: list[NDArray[np.uint8]], ready: threading.Barrier | None = None
+    endpoint: str, frames: list[NDArray[np.uint8]], ready: threading.Barrier | None = None, phrase: str = PHRASE
 ) -> list[float]:
-    """Each frame's seconds through a served grounder at ``endpoint``, one after another (after ``ready``)."""
+    """Each frame's seconds through a served grounder at ``endpoint``, one after another (after ``ready``), looking
+    for ``phrase``."""
     from drivenav.semantics.remote import RemoteGrounder
     from drivenav.semantics.served import GrounderClient, ServedInfo
 
@@ -367,18 +394,20 @@ def _served_seconds(
         if ready is not None:
             ready.wait()
         observations = [_observation(rgb, step) for step, rgb in enumerate(frames)]
-        return [_timed(partial(grounder.segment, frame, PHRASE), "cpu")[1] for frame in observations]
+        return [_timed(partial(grounder.segment, frame, phrase), "cpu")[1] for frame in observations]
     finally:
         client.close()
 
 
-def _concurrent_seconds(endpoint: str, frames: list[NDArray[np.uint8]], clients: int) -> float:
+def _concurrent_seconds(endpoint: str, frames: list[NDArray[np.uint8]], clients: int, phrases: Sequence[str]) -> float:
     """Wall seconds for ``clients`` threads each grounding ``frames`` (after the first :data:`OVERHEAD_FRAMES`)
-    through the server at ``endpoint``, all started together."""
+    through the server at ``endpoint``, all started together, client ``i`` looking for ``phrases[i mod len]``."""
     ready = threading.Barrier(clients + 1)
     threads = [
-        threading.Thread(target=_served_seconds, args=(endpoint, frames[OVERHEAD_FRAMES:], ready))
-        for _ in range(clients)
+        threading.Thread(
+            target=_served_seconds, args=(endpoint, frames[OVERHEAD_FRAMES:], ready, phrases[i % len(phrases)])
+        )
+        for i in range(clients)
     ]
     for thread in threads:
         thread.start()
@@ -423,13 +452,17 @@ def _ms(seconds: float | np.floating[Any]) -> float:
 
 def _check(options: GrounderBenchOptions) -> None:
     """The choices that argparse cannot check, one InputError each: a checkpoint goes without ``--random-weights``
-    and ``--tiny``; a segmenter other than the default with a box detector."""
+    and ``--tiny``; the clients' objects are 1 to :data:`CLIENT_PHRASES`' many, more than one only with clients; a
+    segmenter other than the default goes with a box detector only."""
     for option, checkpoint in (
         (DETECTOR_OPTION, options.checkpoint),
         ("--segmenter-model", options.segmenter_checkpoint),
     ):
         if checkpoint and (options.random_weights or options.tiny):
             raise InputError("command line", option, "no checkpoint with --random-weights or --tiny", checkpoint)
+    if not 1 <= options.phrases <= len(CLIENT_PHRASES) or (options.phrases > 1 and not options.clients):
+        expected = f"1 to {len(CLIENT_PHRASES)} different objects, more than 1 only with --clients"
+        raise InputError("command line", "--phrases", expected, str(options.phrases))
     if options.segmenter != DEFAULT_SEGMENTER and options.detector not in BOX_DETECTORS:
         expected = f"{DEFAULT_SEGMENTER} with --detector {options.detector} (it makes its own masks)"
         raise InputError("command line", "--segmenter", expected, options.segmenter)

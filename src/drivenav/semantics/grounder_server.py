@@ -5,13 +5,14 @@ loopback unless CURVE keys are given) and speaks :mod:`drivenav.semantics.served
 wait in a queue until ``batch`` of them are there or the oldest has waited ``batch_ms``, whichever comes first;
 HELLO, BEGIN and PING are answered at once, between batches.
 
-A grounder that reads images (SAM3, OWLv2, Grounding DINO) is one shared copy: a batch's frames are grouped by
-phrase and frame size, and each group is one :meth:`~drivenav.semantics.hf_common.TransformersGrounder.segment_batch`
-forward (the text features of a phrase are encoded once for every worker; after ``phrases`` distinct phrases the
-cache is emptied). SAM3, a :class:`~drivenav.semantics.serve_pipeline.RowGrounder`, takes every phrase at once: a
-batch's frames are grouped by size only, a frame a client sent for several phrases (one step's) is kept once, and
-each group is one forward whose vision encoder runs once a frame and whose rest runs once a request, each with its
-own phrase (workers looking for different objects share a forward).
+A grounder that reads images (SAM3, OWLv2, Grounding DINO) is one shared copy, a
+:class:`~drivenav.semantics.serve_pipeline.RowGrounder` that takes every phrase at once: a batch's frames are
+grouped by size only, a frame a client sent for several phrases (one step's) is kept once, and each group is one
+:meth:`~drivenav.semantics.hf_common.TransformersGrounder.segment_rows` forward whose vision encoder runs once a
+frame and whose rest runs once a request, each with its own phrase (workers looking for different objects share a
+forward; the text features of a phrase are encoded once for every worker, and after ``phrases`` distinct phrases
+the cache is emptied). Another shared grounder (a plug-in's) has its batch grouped by phrase and frame size, each
+group one ``segment_batch`` forward where it has one.
 
 A stand-in that reads ground-truth labels (the embedded detector, the ground-truth one) is one instance per
 episode, begun by BEGIN with the episode's truth and seed as in process; what the episodes hold is bounded per
@@ -47,7 +48,6 @@ from drivenav.semantics.serve_pipeline import (
     ModelPool,
     RowGrounder,
     ServerTimes,
-    StagedGrounder,
     Work,
     grounded_replies,
     grounding_failed,
@@ -408,7 +408,7 @@ class GrounderServer:
         answers the group with one ERROR now)."""
         replies = [(p.identity, p.request.request_id, _size(p.request)) for p in group]
         work = self._frames_of(group, replies)
-        if not isinstance(self._shared, (StagedGrounder, RowGrounder)):
+        if not isinstance(self._shared, RowGrounder):
             return work
         start = time.perf_counter()
         try:

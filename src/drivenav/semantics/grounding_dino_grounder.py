@@ -8,9 +8,10 @@ text's tokens (as ``post_process_grounded_object_detection`` computes it, withou
 box is in frame pixels; a box segmenter (:mod:`drivenav.semantics.boxes`) then turns each box into a mask.
 
 The fusion encoder mixes text and image, so only the two single-modality parts can be reused as SAM3's and OWLv2's
-are: the text encoder's output is recorded at a phrase's first forward in the episode and given back to the later
-ones, and the Swin backbone's feature maps are computed once per frame; the model's own forward runs the rest, with
-those two submodules answering from what was computed (:class:`_Given`), so the result is the plain forward's.
+are: the text encoder's output is computed once per phrase and episode (as the plain forward computes it), and the
+Swin backbone's feature maps once per frame; the model's own forward runs the rest, with those two submodules
+answering from what was computed (:class:`_Given`), so the result is the plain forward's. Rows with different
+phrases run in one forward with their prompts padded to the longest, as transformers batches prompts.
 ``models.compile`` compiles the backbone, the fusion encoder and the decoder.
 """
 
@@ -18,7 +19,7 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
@@ -37,15 +38,15 @@ GROUNDING_DINO_THRESHOLD: Final[float] = 0.35
 one phrase does not need)."""
 
 
-@dataclass
+@dataclass(frozen=True)
 class GroundingDinoText:
-    """One phrase's tokens (a batch of one) and the text encoder's output for them, filled at the phrase's first
-    forward (``encoded``: its last hidden state, ``(1, T, D)``)."""
+    """One phrase's prompt tokens (a batch of one: ids, attention mask, token types) and the text encoder's output
+    for them (``encoded``: its last hidden state, ``(1, T, D)``)."""
 
     input_ids: Any
     attention_mask: Any
     token_type_ids: Any
-    encoded: list[Any] = field(default_factory=list)
+    encoded: Any
 
 
 @dataclass(frozen=True)
@@ -123,11 +124,19 @@ class GroundingDinoGrounder(BoxGrounder):
         return int(min(config.max_text_len, config.text_config.max_position_embeddings)) - 1
 
     def encode_text(self, text: str) -> GroundingDinoText:
-        """The tokens of ``text`` as a prompt ("text."; the encoder runs at the first forward)."""
+        """The tokens of ``text`` as a prompt ("text.") and the text encoder's output for them, computed as the plain
+        forward computes it: on the attention mask and position ids it derives from the delimiter tokens."""
+        from transformers.models.grounding_dino.modeling_grounding_dino import (
+            generate_masks_with_special_tokens_and_transfer_map as delimited,
+        )
+
         batch = self.processor(text=[text], return_tensors="pt")
         device = self.model.device
         ids, mask, types = (batch[key].to(device) for key in ("input_ids", "attention_mask", "token_type_ids"))
-        return GroundingDinoText(ids, mask, types)
+        inner = self.model.model
+        blocks, positions = delimited(ids, inner.special_tokens)
+        encoded = inner.text_backbone(ids, blocks[:, None], types, positions, return_dict=True).last_hidden_state
+        return GroundingDinoText(ids, mask, types, encoded)
 
     def encode_vision(self, pixels: Any) -> GroundingDinoVision:
         """The backbone's feature maps of a pixel batch, with the all-valid pixel mask the plain forward makes."""
@@ -135,20 +144,23 @@ class GroundingDinoGrounder(BoxGrounder):
         pixel_mask = torch.ones((batch, height, width), dtype=torch.long, device=pixels.device)
         return GroundingDinoVision(pixels, self.model.model.backbone.conv_encoder(pixels, pixel_mask))
 
-    def decode(self, vision: GroundingDinoVision, text: GroundingDinoText) -> Any:
-        """The plain forward, its backbone answering with ``vision``'s feature maps and its text encoder with
-        ``text``'s output (recorded now at the phrase's first forward)."""
-        batch = vision.pixels.shape[0]
+    def decode_rows(self, vision: GroundingDinoVision, texts: Sequence[GroundingDinoText]) -> Any:
+        """The plain forward over the rows, each row's prompt padded to the longest one (pad tokens masked out, as
+        in a batch of prompts), its backbone answering with ``vision``'s feature maps and its text encoder with each
+        row's encoded phrase."""
+        from transformers.modeling_outputs import BaseModelOutput
+
+        length = max(text.input_ids.shape[1] for text in texts)
+        encoded = _padded([text.encoded for text in texts], length)
         inner = self.model.model
-        text_backbone = inner.text_backbone
         features = _Given(lambda *args, **kwargs: list(vision.features))
-        encoder = _Given(lambda *args, **kwargs: _text_output(text_backbone, text, batch, args, kwargs))
+        encoder = _Given(lambda *args, **kwargs: BaseModelOutput(last_hidden_state=encoded))
         with _standing_in(inner.backbone, "conv_encoder", features), _standing_in(inner, "text_backbone", encoder):
             return self.model(
                 pixel_values=vision.pixels,
-                input_ids=text.input_ids.expand(batch, -1),
-                attention_mask=text.attention_mask.expand(batch, -1),
-                token_type_ids=text.token_type_ids.expand(batch, -1),
+                input_ids=_padded([text.input_ids for text in texts], length),
+                attention_mask=_padded([text.attention_mask for text in texts], length),
+                token_type_ids=_padded([text.token_type_ids for text in texts], length),
             )
 
     def scored_boxes(self, outputs: Any, frames: Sequence[NDArray[np.uint8]]) -> list[tuple[Any, Any]]:
@@ -165,11 +177,9 @@ class GroundingDinoGrounder(BoxGrounder):
         return found
 
 
-def _text_output(text_backbone: Any, text: GroundingDinoText, batch: int, args: Any, kwargs: Any) -> Any:
-    """The text encoder's output for a batch of ``batch`` copies of ``text``: computed by ``text_backbone`` on the
-    forward's own arguments at its first use, recorded, and given back after."""
-    from transformers.modeling_outputs import BaseModelOutput
-
-    if not text.encoded:
-        text.encoded.append(text_backbone(*args, **kwargs).last_hidden_state[:1])
-    return BaseModelOutput(last_hidden_state=text.encoded[0].expand(batch, -1, -1))
+def _padded(rows: Sequence[Any], length: int) -> Any:
+    """Rows of one phrase each (``(1, T, ...)``) right-padded with zeros to ``length`` tokens, stacked (zero is the
+    pad token, and a pad's attention mask)."""
+    return torch.cat(
+        [torch.nn.functional.pad(row, (0, 0) * (row.dim() - 2) + (0, length - row.shape[1])) for row in rows]
+    )

@@ -18,6 +18,7 @@ enrichment, Sec. IV-B). ``models.compile`` (``--compile``) compiles the modules 
 
 from __future__ import annotations
 
+import dataclasses
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -190,8 +191,8 @@ class FrameFeatures:
 class TransformersGrounder(ABC):
     """A :class:`~drivenav.semantics.protocols.Grounder` over a transformers model, split into stages that a
     subclass fills in: :meth:`encode_text` (a phrase's features), :meth:`encode_vision` (a batch of preprocessed
-    frames' features), :meth:`decode` (both into the model's raw output) and :meth:`postprocess` (raw output into
-    detections per frame). :meth:`preprocess` is shared.
+    frames' features), :meth:`decode_rows` (both into the model's raw output, a phrase a row) and :meth:`postprocess`
+    (raw output into detections per row). :meth:`preprocess` is shared.
 
     :meth:`segment` caches: a phrase's text features for the episode (cleared by :meth:`begin_episode`), the last
     frame's vision features (:class:`FrameFeatures`). Every stage runs without gradients; results are the same as one
@@ -226,28 +227,39 @@ class TransformersGrounder(ABC):
         with torch.inference_mode():
             text = self.text_features(phrase)
             vision = self._frame.get(observation, lambda rgb: self.encode_vision(self.preprocess([rgb])))
-            return self.postprocess(self.decode(vision, text), [observation.rgb], phrase)[0]
+            return self.postprocess(self.decode_rows(vision, [text]), [observation.rgb], [phrase])[0]
 
     def segment_batch(self, frames: Sequence[NDArray[np.uint8]], phrase: str) -> list[list[Detection]]:
         """:meth:`segment` for several frames of one size in one forward (no frame cache): detections per frame."""
-        return self.segment_pixels(self.preprocess(frames), frames, phrase)
+        return self.segment_rows(self.preprocess(frames), frames, [(i, phrase) for i in range(len(frames))])
 
-    def segment_pixels(
-        self, pixels: Any, frames: Sequence[NDArray[np.uint8]], phrase: str, lap: Callable[[str], None] | None = None
+    def segment_rows(
+        self,
+        pixels: Any,
+        frames: Sequence[NDArray[np.uint8]],
+        rows: Sequence[tuple[int, str]],
+        lap: Callable[[str], None] | None = None,
     ) -> list[list[Detection]]:
-        """:meth:`segment_batch` of frames already preprocessed (``pixels``, :meth:`preprocess`'s batch): a server
-        preprocesses the next batch while this one runs. ``lap`` is called with ``"forward"`` once the model's
-        output is there and with ``"postprocess"`` once the detections are (a server's timing of its stages)."""
+        """Each row's phrase in its frame (``rows``: the frame's index in ``frames``, the phrase) in one forward: the
+        vision encoder once over ``frames`` (``pixels``, :meth:`preprocess`'s batch, so that a server preprocesses
+        the next batch while this one runs), then the rest over the rows, each with its own phrase's text features
+        (a server's batch of workers looking for different objects, or the phrases of one frame). ``lap`` is called
+        with ``"forward"`` once the model's output is there and with ``"postprocess"`` once the detections are (a
+        server's timing of its stages)."""
         import torch
 
         with torch.inference_mode():
-            outputs = self.decode(self.encode_vision(pixels), self.text_features(phrase))
+            vision = self.encode_vision(pixels)
+            index = [i for i, _ in rows]
+            if index != list(range(len(frames))):
+                vision = select_rows(vision, torch.tensor(index, device=self.model.device), len(frames))
+            outputs = self.decode_rows(vision, [self.text_features(phrase) for _, phrase in rows])
             if lap is not None:
                 lap("forward")
-            detections = self.postprocess(outputs, frames, phrase)
+            found = self.postprocess(outputs, [frames[i] for i in index], [phrase for _, phrase in rows])
         if lap is not None:
             lap("postprocess")
-        return detections
+        return found
 
     def text_features(self, phrase: str) -> Any:
         """``phrase``'s text features, encoded on its first use in the episode."""
@@ -283,18 +295,21 @@ class TransformersGrounder(ABC):
         """The vision features of a pixel batch."""
 
     @abstractmethod
-    def decode(self, vision: Any, text: Any) -> Any:
-        """The model's raw output for a batch of vision features and one phrase's text features."""
+    def decode_rows(self, vision: Any, texts: Sequence[Any]) -> Any:
+        """The model's raw output for a batch of vision features, each row with its own phrase's text features
+        (``texts``, one per row)."""
 
     @abstractmethod
-    def postprocess(self, outputs: Any, frames: Sequence[NDArray[np.uint8]], phrase: str) -> list[list[Detection]]:
-        """The detections of each frame from the raw output, best score first."""
+    def postprocess(
+        self, outputs: Any, frames: Sequence[NDArray[np.uint8]], phrases: Sequence[str]
+    ) -> list[list[Detection]]:
+        """The detections of each row from the raw output (its frame, its phrase), best score first."""
 
 
 def select_rows(value: Any, index: Any, batch: int) -> Any:
-    """``value`` (a model's output: tensors, tuples and lists of them, ``ModelOutput`` records) with every tensor of
-    ``batch`` rows re-indexed along its first dimension by ``index`` (a frame's features repeated for each row that
-    reads them); anything else is kept as it is."""
+    """``value`` (a model's output: tensors, tuples and lists of them, ``ModelOutput`` records, a grounder's own
+    dataclass records of them) with every tensor of ``batch`` rows re-indexed along its first dimension by ``index``
+    (a frame's features repeated for each row that reads them); anything else is kept as it is."""
     import torch
     from transformers.utils.generic import ModelOutput
 
@@ -302,6 +317,11 @@ def select_rows(value: Any, index: Any, batch: int) -> Any:
         return value.index_select(0, index) if value.dim() and value.shape[0] == batch else value
     if isinstance(value, ModelOutput):
         return type(value)(**{key: select_rows(item, index, batch) for key, item in value.items()})
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        fields = {
+            field.name: select_rows(getattr(value, field.name), index, batch) for field in dataclasses.fields(value)
+        }
+        return dataclasses.replace(value, **fields)
     if isinstance(value, (tuple, list)):
         return type(value)(select_rows(item, index, batch) for item in value)
     return value

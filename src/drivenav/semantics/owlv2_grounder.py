@@ -94,13 +94,14 @@ class Owlv2Grounder(BoxGrounder):
         image_feats = feature_map.reshape(batch, rows * cols, width)
         return Owlv2Vision(image_feats, self.model.box_predictor(image_feats, feature_map))
 
-    def decode(self, vision: Owlv2Vision, text: Owlv2Text) -> Any:
+    def decode_rows(self, vision: Owlv2Vision, texts: Sequence[Owlv2Text]) -> Any:
+        """The class head on each row's patch features and its own phrase's query embedding."""
+        import torch
         from transformers.models.owlv2.modeling_owlv2 import Owlv2ObjectDetectionOutput
 
-        batch = vision.image_feats.shape[0]
-        logits = self.model.class_predictor(
-            vision.image_feats, text.embeds.expand(batch, -1, -1), text.query_mask.expand(batch, -1)
-        )[0]
+        embeds = torch.cat([text.embeds for text in texts])
+        query_mask = torch.cat([text.query_mask for text in texts])
+        logits = self.model.class_predictor(vision.image_feats, embeds, query_mask)[0]
         return Owlv2ObjectDetectionOutput(logits=logits, pred_boxes=vision.boxes)
 
     def scored_boxes(self, outputs: Any, frames: Sequence[NDArray[np.uint8]]) -> list[tuple[Any, Any]]:

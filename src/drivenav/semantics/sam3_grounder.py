@@ -15,7 +15,7 @@ forward (the DETR encoder and decoder and the mask decoder).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -28,7 +28,6 @@ from drivenav.semantics.hf_common import (
     load_fast_processor,
     load_pair,
     ranked_detections,
-    select_rows,
 )
 from drivenav.semantics.protocols import Detection
 
@@ -89,10 +88,7 @@ class Sam3Grounder(TransformersGrounder):
     def encode_vision(self, pixels: Any) -> Any:
         return self.model.get_vision_features(pixel_values=pixels)
 
-    def decode(self, vision: Any, text: Sam3Text) -> Any:
-        return self._decode_rows(vision, [text] * vision.fpn_hidden_states[0].shape[0])
-
-    def _decode_rows(self, vision: Any, texts: Sequence[Sam3Text]) -> Any:
+    def decode_rows(self, vision: Any, texts: Sequence[Sam3Text]) -> Any:
         """The forward on each row's vision features and its own phrase's text features (the forward reads only
         the pooled output)."""
         import torch
@@ -106,44 +102,16 @@ class Sam3Grounder(TransformersGrounder):
             mask = torch.cat([text.attention_mask for text in texts])
         return self.model(vision_embeds=vision, text_embeds=features, attention_mask=mask)
 
-    def segment_rows(
-        self,
-        pixels: Any,
-        frames: Sequence[NDArray[np.uint8]],
-        rows: Sequence[tuple[int, str]],
-        lap: Callable[[str], None] | None = None,
-    ) -> list[list[Detection]]:
-        """Each row's phrase in its frame (``rows``: the frame's index in ``frames``, the phrase) in one forward: the
-        vision encoder once over ``frames`` (``pixels``, :meth:`preprocess`'s batch), then the rest over the rows,
-        each with its own phrase's text features (a server's batch of workers looking for different objects, or the
-        phrases of one frame). The same layers on the same tensors as :meth:`segment_pixels` a phrase at a time.
-        ``lap`` times the stages as there."""
-        import torch
-
-        with torch.inference_mode():
-            vision = self.encode_vision(pixels)
-            index = [i for i, _ in rows]
-            if index != list(range(len(frames))):
-                vision = select_rows(vision, torch.tensor(index, device=self.model.device), len(frames))
-            outputs = self._decode_rows(vision, [self.text_features(phrase) for _, phrase in rows])
-            if lap is not None:
-                lap("forward")
-            found = self.postprocess(outputs, [frames[i] for i in index], [phrase for _, phrase in rows])
-        if lap is not None:
-            lap("postprocess")
-        return found
-
     def postprocess(
-        self, outputs: Any, frames: Sequence[NDArray[np.uint8]], phrase: str | Sequence[str]
+        self, outputs: Any, frames: Sequence[NDArray[np.uint8]], phrases: Sequence[str]
     ) -> list[list[Detection]]:
-        """The detections of each frame, labelled ``phrase`` (or each frame's own, a sequence of phrases)."""
+        """The detections of each row, labelled with its phrase."""
         results = self.processor.post_process_instance_segmentation(
             outputs,
             threshold=self.score_threshold,
             mask_threshold=self.mask_threshold,
             target_sizes=[frame.shape[:2] for frame in frames],
         )
-        phrases = [phrase] * len(results) if isinstance(phrase, str) else list(phrase)
         return [
             ranked_detections(result["scores"].float().cpu().numpy(), result["masks"].bool().cpu().numpy(), label)
             for result, label in zip(results, phrases, strict=True)

@@ -57,9 +57,12 @@ class BatchGrounder(Protocol):
 
 @runtime_checkable
 class RowGrounder(Protocol):
-    """A grounder that segments a different phrase in each row of one forward: the vision encoder once over the
-    distinct frames, the rest once over the rows (SAM3's ``segment_rows``). A server batches the frames of workers
-    looking for different objects, and a frame asked for several phrases (one ApexNav step) is encoded once."""
+    """A grounder that segments a different phrase in each row of one forward, its frames preprocessed apart (so
+    that a server preprocesses the next batch while the model runs this one): the vision encoder once over the
+    distinct frames, the rest once over the rows (the transformers grounders'
+    :meth:`~drivenav.semantics.hf_common.TransformersGrounder.segment_rows`). A server batches the frames of
+    workers looking for different objects, and a frame asked for several phrases (one ApexNav step) is encoded
+    once."""
 
     def preprocess(self, frames: Sequence[NDArray[np.uint8]]) -> Any: ...
 
@@ -69,18 +72,6 @@ class RowGrounder(Protocol):
         frames: Sequence[NDArray[np.uint8]],
         rows: Sequence[tuple[int, str]],
         lap: Callable[[str], None] | None = None,
-    ) -> list[list[Detection]]: ...
-
-
-@runtime_checkable
-class StagedGrounder(BatchGrounder, Protocol):
-    """A batch grounder whose preprocessing can run apart from the rest
-    (:class:`~drivenav.semantics.hf_common.TransformersGrounder`)."""
-
-    def preprocess(self, frames: Sequence[NDArray[np.uint8]]) -> Any: ...
-
-    def segment_pixels(
-        self, pixels: Any, frames: Sequence[NDArray[np.uint8]], phrase: str, lap: Callable[[str], None] | None = None
     ) -> list[list[Detection]]: ...
 
 
@@ -229,8 +220,6 @@ class ModelThread:
         if work.pixels is not None and isinstance(self.grounder, RowGrounder):
             return self.grounder.segment_rows(work.pixels, work.frames, work.rows, lap)
         (phrase,) = work.phrases
-        if work.pixels is not None and isinstance(self.grounder, StagedGrounder):
-            return self.grounder.segment_pixels(work.pixels, work.frames, phrase, lap)
         if isinstance(self.grounder, BatchGrounder):
             found = self.grounder.segment_batch(work.frames, phrase)
         else:
