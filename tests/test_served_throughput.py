@@ -90,6 +90,9 @@ class SlowStaged:
         self._span("preprocess", start)
         return pixels
 
+    def join_pixels(self, parts: Sequence[list[float]]) -> list[float]:
+        return [value for part in parts for value in part]
+
     def segment_rows(
         self,
         pixels: Any,
@@ -166,6 +169,60 @@ def test_the_next_batch_is_preprocessed_on_the_socket_thread_while_the_model_run
     assert times.batches == sum(server.batch_sizes.values())
     assert times.seconds["forward"] >= 0.15 * times.batches * 0.9
     assert all(seconds >= 0.0 for seconds in times.seconds.values())
+
+
+def until(condition: Callable[[], bool], timeout_s: float = 10.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.005)
+
+
+def ground_on_cue(
+    endpoint: str, value: int, answers: dict[int, float], ready: threading.Barrier, go: threading.Event
+) -> None:
+    """One frame of ``value`` grounded once ``go`` is set, the client connected and its episode begun before
+    ``ready`` (a PING at an episode's start waits for the model's batches in hand)."""
+    client = GrounderClient(endpoint)
+    try:
+        info = ServedInfo.from_json(client.request(Message("HELLO", client.next_id())).body)
+        grounder = RemoteGrounder(client, info)
+        grounder.begin_episode(None, 0)
+        ready.wait()
+        go.wait(10.0)
+        (detection,) = grounder.segment(frame(value), "chair")
+        answers[value] = detection.score
+    finally:
+        client.close()
+
+
+def test_frames_that_come_while_the_next_batch_waits_for_the_model_join_it() -> None:
+    """A 1 s forward runs client A's frame; B's frame is then handed over as the next batch at once (batch_ms 0), and
+    C's and D's, coming while it waits for the model, join it: two batches (1 and 3 frames), not three, C's and D's
+    frames preprocessed while A's forward ran, and every client its own frame's answer."""
+    grounder = SlowStaged(forward_s=1.0)
+    server = staged_server(grounder, ServeConfig(batch=8, batch_ms=0.0))
+    answers: dict[int, float] = {}
+    ready, go = threading.Barrier(5), {value: threading.Event() for value in (1, 2, 3, 4)}
+    with serving(server) as endpoint:
+        threads = [threading.Thread(target=ground_on_cue, args=(endpoint, v, answers, ready, go[v])) for v in go]
+        for thread in threads:
+            thread.start()
+        model = server._model
+        assert model is not None
+        ready.wait()
+        go[1].set()
+        until(lambda: model.ticket() == (1,) and model.ready)  # A's batch taken
+        go[2].set()
+        until(lambda: model.waiting(8) is not None)  # B's batch handed over, waiting
+        go[3].set()
+        go[4].set()
+        for thread in threads:
+            thread.join()
+    assert answers == {v: pytest.approx(v / 255.0) for v in go}
+    assert server.batch_sizes == {1: 1, 3: 1}
+    a_done = min(end for stage, _, _, end in grounder.spans if stage == "forward")
+    assert all(end < a_done for stage, _, _, end in grounder.spans if stage == "preprocess")
 
 
 def test_two_copies_of_a_model_run_two_batches_at_once() -> None:
@@ -265,6 +322,38 @@ def test_a_ping_during_a_forward_is_answered_after_it() -> None:
             pinging.close()
     assert waited >= 0.2
     assert isinstance(grounder, RowGrounder)
+
+
+def test_a_ping_while_other_workers_keep_the_model_busy_waits_for_the_batches_in_hand_only() -> None:
+    """Two clients keep a 0.2 s forward busy without a pause for 2.5 s (each sends its next frame while the
+    other's batch runs). A PING sent meanwhile (a third worker's episode start) is answered once the batches the
+    model held when it came are done, about 0.4 s at most, not when the model is first idle (after 2.5 s)."""
+    grounder = SlowStaged(forward_s=0.2)
+    server = staged_server(grounder, ServeConfig(batch=1, batch_ms=0.0))
+    answers: dict[int, float] = {}
+    ready = threading.Barrier(3)
+    with serving(server) as endpoint:
+        busy = [
+            threading.Thread(target=ground, args=(endpoint, list(range(c, 24, 2)), answers, ready)) for c in range(2)
+        ]
+        for thread in busy:
+            thread.start()
+        pinging = GrounderClient(endpoint)
+        try:
+            ready.wait()
+            time.sleep(0.5)
+            model = server._model
+            assert model is not None and not model.passed(model.ticket())  # the model holds batches now
+            start = time.perf_counter()
+            assert pinging.request(Message("PING", pinging.next_id())).type == "PONG"
+            waited = time.perf_counter() - start
+        finally:
+            pinging.close()
+        still_busy = any(thread.is_alive() for thread in busy)
+        for thread in busy:
+            thread.join()
+    assert len(answers) == 24 and still_busy
+    assert 0.0 < waited < 1.0
 
 
 # --- the eval's rate -------------------------------------------------------------------------------------------------

@@ -204,6 +204,10 @@ class WaitingGrounder:
         """Nothing to prepare: the number of frames stands for their pixels."""
         return len(frames)
 
+    def join_pixels(self, parts: Sequence[int]) -> int:
+        """Frames preprocessed apart, joined: their number."""
+        return sum(parts)
+
     def segment_rows(
         self,
         pixels: Any,

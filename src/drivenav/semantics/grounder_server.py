@@ -45,6 +45,7 @@ from drivenav.semantics.protocols import Detection, Grounder
 from drivenav.semantics.registry import BOX_DETECTORS, GROUNDER_BACKENDS
 from drivenav.semantics.serve_config import DEFAULT_BIND, ENTRY_BYTES, LABEL_BYTES, ServeConfig
 from drivenav.semantics.serve_pipeline import (
+    JoinsPixels,
     ModelPool,
     RowGrounder,
     ServerTimes,
@@ -232,11 +233,11 @@ class GrounderServer:
         self._check = DetectionCheck(f"{info.detector} (served grounder)", self.config.max_detections)
         self._pending: list[_Pending] = []
         self._clients = _Clients(self.config.active_s)
-        self.batch_sizes: Counter[int] = Counter()
+        self._alone_sizes: Counter[int] = Counter()
         self._router = RouterSocket(bind, keys, MAX_ARRAY_BYTES)
         self.endpoint = self._router.endpoint
         self._times = ServerTimes()
-        self._deferred: list[tuple[bytes, Message]] = []
+        self._deferred: list[tuple[bytes, Message, tuple[int, ...]]] = []
         self._model = None if self._shared is None else self._model_pool(self._shared, factory)
 
     def _model_pool(self, shared: Grounder, factory: Callable[[], Grounder]) -> ModelPool:
@@ -255,6 +256,11 @@ class GrounderServer:
             import torch
 
             torch.cuda.synchronize()
+
+    @property
+    def batch_sizes(self) -> Counter[int]:
+        """The batches run so far, counted by their number of requests."""
+        return self._alone_sizes if self._model is None else self._model.batch_sizes
 
     @property
     def times(self) -> ServerTimes:
@@ -280,6 +286,8 @@ class GrounderServer:
                 self._drain()
             if self._due():
                 self._run_batch()
+            elif self._growing():
+                self._grow()
 
     def close(self) -> None:
         if self._model is not None:
@@ -294,10 +302,13 @@ class GrounderServer:
             self._router.send(identity, frames)
             self._clients.release(identity)
         self._times.seconds["send"] += time.perf_counter() - start
-        if not self._model.busy:
-            for identity, pong in self._deferred:
+        waiting = []
+        for identity, pong, ticket in self._deferred:
+            if self._model.passed(ticket):
                 self._send(identity, pong)
-            self._deferred.clear()
+            else:
+                waiting.append((identity, pong, ticket))
+        self._deferred = waiting
 
     # -- requests ------------------------------------------------------------------------------------------------
     def _drain(self) -> None:
@@ -341,11 +352,15 @@ class GrounderServer:
         return None
 
     def _pong(self, identity: bytes, pong: Message) -> Message | None:
-        """A PONG now, or once the model's batches in hand are done: as between batches of one thread, a PING
-        shows that the model answers, not only the socket (an episode's start does not begin on a stalled model)."""
-        if self._model is None or not self._model.busy:
+        """A PONG now, or once the batches the model holds now are done (later ones aside): as between batches of
+        one thread, a PING shows that the model answers, not only the socket (an episode's start does not begin on
+        a stalled model), and a model kept busy by other workers still answers it within a batch or two."""
+        if self._model is None:
             return pong
-        self._deferred.append((identity, pong))
+        ticket = self._model.ticket()
+        if self._model.passed(ticket):
+            return pong
+        self._deferred.append((identity, pong, ticket))
         return None
 
     def _begin(self, identity: bytes, request: Message) -> Message:
@@ -384,24 +399,56 @@ class GrounderServer:
         return self._clients.all_waiting({pending.identity for pending in self._pending})
 
     def _run_batch(self) -> None:
-        batch = self._pending[: self.config.batch]
-        del self._pending[: self.config.batch]
-        self.batch_sizes[len(batch)] += 1
-        now = time.monotonic()
-        self._times.seconds["wait"] += sum(now - pending.arrived for pending in batch)
+        batch = self._taken(self.config.batch)
         if self._model is None:
+            self._alone_sizes[len(batch)] += 1
             for pending in batch:
                 self._answer_alone(pending)
             return
+        work = self._works(batch)
+        if work:
+            self._model.put(work)
+
+    def _growing(self) -> bool:
+        """Whether requests wait that can join the batch waiting for the model (a grounder whose preprocessed
+        frames join, :class:`~drivenav.semantics.serve_pipeline.JoinsPixels`)."""
+        if not self._pending or self._model is None or not isinstance(self._shared, JoinsPixels):
+            return False
+        return self._model.waiting(self.config.batch) is not None
+
+    def _grow(self) -> None:
+        """The requests that came while the next batch waits for the model join it, up to ``batch`` requests,
+        preprocessed now: a batch is not closed while the model runs the one before, so it runs as full as one
+        formed when the model is free, its first frames preprocessed meanwhile. Where the model took the batch
+        first, they are the next one."""
+        assert self._model is not None
+        waiting = self._model.waiting(self.config.batch)
+        if waiting is None:
+            return
+        thread, room = waiting
+        work = self._works(self._taken(room))
+        if work and not thread.grow(work):
+            self._model.put(work)
+
+    def _taken(self, count: int) -> list[_Pending]:
+        """The first ``count`` queued requests, out of the queue, their wait counted."""
+        batch = self._pending[:count]
+        del self._pending[:count]
+        now = time.monotonic()
+        self._times.seconds["wait"] += sum(now - pending.arrived for pending in batch)
+        return batch
+
+    def _works(self, batch: list[_Pending]) -> list[Work]:
+        """``batch`` as the model's work, grouped by frame size (and phrase, for a grounder that takes one phrase a
+        forward) and preprocessed; its clients held."""
         rows = isinstance(self._shared, RowGrounder)  # one forward for every phrase of a frame size
         groups: dict[tuple[str, tuple[int, ...]], list[_Pending]] = {}
         for pending in batch:
             key = ("" if rows else pending.request.phrase, pending.request.observation.depth.shape)
             groups.setdefault(key, []).append(pending)
         work = [prepared for group in groups.values() if (prepared := self._prepared(group)) is not None]
-        if work:
-            self._clients.hold([identity for w in work for identity, _, _ in w.replies])
-            self._model.put(work)
+        self._clients.hold([identity for w in work for identity, _, _ in w.replies])
+        return work
 
     def _prepared(self, group: list[_Pending]) -> Work | None:
         """``group`` as the model thread's work, its frames preprocessed here where the grounder allows (a failure
@@ -412,7 +459,7 @@ class GrounderServer:
             return work
         start = time.perf_counter()
         try:
-            work.pixels = self._shared.preprocess(work.frames)
+            work.pixels = [self._shared.preprocess(work.frames)]
         except Exception as error:
             log.exception("preprocessing frames for %s failed", ", ".join(map(repr, work.phrases)))
             for identity, request_id, _ in work.replies:

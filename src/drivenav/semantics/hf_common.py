@@ -261,6 +261,12 @@ class TransformersGrounder(ABC):
             lap("postprocess")
         return found
 
+    def join_pixels(self, parts: Sequence[Any]) -> Any:
+        """Pixel batches of :meth:`preprocess` (frames of one size) as one batch, in their order."""
+        import torch
+
+        return torch.cat(list(parts))
+
     def text_features(self, phrase: str) -> Any:
         """``phrase``'s text features, encoded on its first use in the episode."""
         if phrase not in self._texts:

@@ -3,9 +3,12 @@
 A :class:`~drivenav.semantics.grounder_server.GrounderServer` of a model (not a stand-in) runs in two threads: its
 socket thread receives and decodes requests, forms the batches and preprocesses them, and sends the replies; the
 :class:`ModelThread` runs the model's forward and postprocessing and encodes the replies. The socket thread hands
-over one prepared batch at a time while the model runs the one before (a queue of one), so that receiving,
-decoding and preprocessing the next batch overlap the forward instead of following it. A served model's time is
-thus the forward's, plus the little the socket thread cannot overlap.
+over one prepared batch at a time while the model runs the one before, so that receiving, decoding and
+preprocessing the next batch overlap the forward instead of following it. Until the model takes that batch, the
+frames that come join it (:meth:`ModelThread.grow`, for a grounder whose preprocessed frames join,
+:class:`JoinsPixels`): a batch closed as soon as it was handed over would run small, and the frames behind it would
+wait a whole forward more. A served model's time is thus the forward's, plus the little the socket thread cannot
+overlap.
 
 :class:`ServerTimes` says where a served frame's time went: the server's busy seconds by stage (``decode``:
 receiving and decoding a request; ``preprocess``, ``forward``, ``postprocess``: the grounder's stages, the forward
@@ -20,6 +23,7 @@ import queue
 import threading
 import time
 import uuid
+from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Final, Protocol, runtime_checkable
@@ -75,6 +79,15 @@ class RowGrounder(Protocol):
     ) -> list[list[Detection]]: ...
 
 
+@runtime_checkable
+class JoinsPixels(Protocol):
+    """A :class:`RowGrounder` whose preprocessed frames can be joined into one batch (the transformers grounders:
+    pixel tensors concatenated). A server's next batch, handed over while the model runs the one before, then takes
+    the frames that come before the model is free (:meth:`ModelThread.grow`)."""
+
+    def join_pixels(self, parts: Sequence[Any]) -> Any: ...
+
+
 @dataclass
 class ServerTimes:
     """Seconds by stage (:data:`STAGES`; ``wait`` summed over frames, the others the server's busy time) over
@@ -110,13 +123,14 @@ class ServerTimes:
 class Work:
     """Requests of frames of one size to be grounded in one forward: the requests' ``replies`` (client identity,
     request id, frame size), each request's ``rows`` entry (its frame's index in ``observations``, its phrase), the
-    distinct frames' observations, and their pixels when the socket thread preprocessed them. One phrase throughout
-    unless the grounder is a :class:`RowGrounder`."""
+    distinct frames' observations, and their pixels where the socket thread preprocessed them: one part, or several
+    when frames joined the batch after it was handed over (:meth:`merge`). One phrase throughout unless the grounder
+    is a :class:`RowGrounder`."""
 
     replies: list[tuple[bytes, str, tuple[int, int]]]
     rows: list[tuple[int, str]]
     observations: list[Observation]
-    pixels: Any = None
+    pixels: list[Any] = field(default_factory=list)
 
     @property
     def frames(self) -> list[NDArray[np.uint8]]:
@@ -127,10 +141,26 @@ class Work:
         """The distinct phrases, in the order of the rows."""
         return list(dict.fromkeys(phrase for _, phrase in self.rows))
 
+    @property
+    def size(self) -> tuple[int, ...]:
+        """Its frames' size."""
+        return tuple(self.observations[0].rgb.shape[:2])
+
+    def merge(self, later: Work) -> None:
+        """``later``'s requests (frames of the same size, preprocessed apart) added after this work's."""
+        offset = len(self.observations)
+        self.replies += later.replies
+        self.rows += [(index + offset, phrase) for index, phrase in later.rows]
+        self.observations += later.observations
+        self.pixels += later.pixels
+
 
 class ModelThread:
     """Grounds the batches the socket thread prepares (:class:`Work` lists), one at a time, and leaves each reply,
-    encoded, in :attr:`outbox`; ``wake`` (an inproc PULL socket's address) is told when replies are there.
+    encoded, in :attr:`outbox`; ``wake`` (an inproc PULL socket's address) is told when replies are there. One batch
+    waits for the model at most, handed over (:meth:`put`) while the model runs the one before; until the model
+    takes it, frames that come may join it (:meth:`grow`). :attr:`batch_sizes` counts the batches the model took, by
+    their number of requests.
 
     ``check`` checks a frame's detections (as in process); ``encode`` makes a reply's frames; ``admit`` is called
     with a batch's phrase before it is grounded (the phrase cache); ``sync`` waits for the model's device."""
@@ -149,9 +179,11 @@ class ModelThread:
         self.grounder = grounder
         self.times = ServerTimes()
         self.outbox: queue.SimpleQueue[tuple[bytes, Encoded]] = queue.SimpleQueue()
-        self._inbox: queue.Queue[list[Work] | None] = queue.Queue(maxsize=1)
-        self._held = 0
-        self._lock = threading.Lock()
+        self._next: list[Work] | None = None
+        self._stopping = False
+        self._sizes: Counter[int] = Counter()
+        self._handed = self._done = 0
+        self._lock = threading.Condition()
         self._check, self._encode, self._admit, self._sync = check, encode, admit, sync
         self._signal = context.socket(zmq.PUSH)
         self._signal.setsockopt(zmq.LINGER, 0)
@@ -162,27 +194,72 @@ class ModelThread:
     @property
     def ready(self) -> bool:
         """Whether a prepared batch can be handed over now (the one before was taken)."""
-        return self._inbox.empty()
+        with self._lock:
+            return self._next is None
 
     @property
-    def busy(self) -> bool:
-        """Whether a batch is in hand or waiting (its replies not all in :attr:`outbox` yet)."""
+    def batch_sizes(self) -> Counter[int]:
         with self._lock:
-            return self._held > 0
+            return self._sizes.copy()
+
+    def room(self, batch: int) -> int:
+        """How many requests the batch waiting for the model can still take, up to ``batch`` (0 when none waits)."""
+        with self._lock:
+            return 0 if self._next is None else max(0, batch - sum(len(work.rows) for work in self._next))
+
+    @property
+    def handed(self) -> int:
+        """How many batches were handed over so far."""
+        with self._lock:
+            return self._handed
+
+    @property
+    def done(self) -> int:
+        """How many batches are done (their replies in :attr:`outbox`)."""
+        with self._lock:
+            return self._done
 
     def put(self, work: list[Work]) -> None:
+        """Hand over ``work`` (:attr:`ready` first)."""
         with self._lock:
-            self._held += 1
-        self._inbox.put(work)
+            self._handed += 1
+            self._next = work
+            self._lock.notify()
+
+    def grow(self, more: list[Work]) -> bool:
+        """``more`` joined to the batch waiting for the model, each part to the work of its frame size; False when
+        the model took the batch first."""
+        with self._lock:
+            if self._next is None:
+                return False
+            for work in more:
+                same = next((waiting for waiting in self._next if waiting.size == work.size), None)
+                if same is None:
+                    self._next.append(work)
+                else:
+                    same.merge(work)
+            return True
 
     def stop(self) -> None:
-        """Finish the batch in hand, then end the thread."""
-        self._inbox.put(None)
+        """Finish the batches handed over, then end the thread."""
+        with self._lock:
+            self._stopping = True
+            self._lock.notify()
         self._thread.join()
         self._signal.close(linger=0)
 
+    def _take(self) -> list[Work] | None:
+        """The next batch, once handed over (None once stopping with none left)."""
+        with self._lock:
+            while self._next is None and not self._stopping:
+                self._lock.wait()
+            work, self._next = self._next, None
+            if work is not None:
+                self._sizes[sum(len(part.rows) for part in work)] += 1
+            return work
+
     def _run(self) -> None:
-        while (work := self._inbox.get()) is not None:
+        while (work := self._take()) is not None:
             try:
                 for group in work:
                     self._ground(group)
@@ -190,7 +267,7 @@ class ModelThread:
                 log.exception("the model thread failed on a batch")
             finally:
                 with self._lock:
-                    self._held -= 1
+                    self._done += 1
                 self._signal.send(b"", copy=True)
 
     def _ground(self, work: Work) -> None:
@@ -217,8 +294,13 @@ class ModelThread:
         """Each request's detections, in one forward where the grounder batches; the stages timed by ``lap``."""
         for phrase in work.phrases:
             self._admit(phrase)
-        if work.pixels is not None and isinstance(self.grounder, RowGrounder):
-            return self.grounder.segment_rows(work.pixels, work.frames, work.rows, lap)
+        if work.pixels and isinstance(self.grounder, RowGrounder):
+            pixels = work.pixels[0]
+            if len(work.pixels) > 1:
+                assert isinstance(self.grounder, JoinsPixels)  # only such a grounder's batch grows
+                pixels = self.grounder.join_pixels(work.pixels)
+                lap("preprocess")
+            return self.grounder.segment_rows(pixels, work.frames, work.rows, lap)
         (phrase,) = work.phrases
         if isinstance(self.grounder, BatchGrounder):
             found = self.grounder.segment_batch(work.frames, phrase)
@@ -298,10 +380,13 @@ class ModelPool:
         """Whether a copy can take a prepared batch now."""
         return any(thread.ready for thread in self.threads)
 
-    @property
-    def busy(self) -> bool:
-        """Whether a copy holds a batch whose replies are not all out yet."""
-        return any(thread.busy for thread in self.threads)
+    def ticket(self) -> tuple[int, ...]:
+        """Each copy's batches handed over so far: :meth:`passed` once all of them are done."""
+        return tuple(thread.handed for thread in self.threads)
+
+    def passed(self, ticket: tuple[int, ...]) -> bool:
+        """Whether every batch each copy held at ``ticket`` is done (later ones aside)."""
+        return all(thread.done >= handed for thread, handed in zip(self.threads, ticket, strict=True))
 
     @property
     def times(self) -> ServerTimes:
@@ -313,6 +398,16 @@ class ModelPool:
     def put(self, work: list[Work]) -> None:
         """Hand ``work`` to the first copy ready for it (:attr:`ready` first)."""
         next(thread for thread in self.threads if thread.ready).put(work)
+
+    def waiting(self, batch: int) -> tuple[ModelThread, int] | None:
+        """A copy whose batch waiting for it can take more requests, and how many (up to ``batch``)."""
+        rooms = ((thread, thread.room(batch)) for thread in self.threads)
+        return next(((thread, room) for thread, room in rooms if room > 0), None)
+
+    @property
+    def batch_sizes(self) -> Counter[int]:
+        """The batches the copies took, by their number of requests."""
+        return sum((thread.batch_sizes for thread in self.threads), Counter())
 
     def replies(self) -> Iterator[tuple[bytes, Encoded]]:
         """Every reply encoded so far (the wake socket's signals read)."""
