@@ -7,10 +7,11 @@ No speed is asserted: the figures have to be there and add up; what overlaps is 
 
 from __future__ import annotations
 
+import contextlib
 import json
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +21,7 @@ from numpy.typing import NDArray
 
 from drivenav.cli import main
 from drivenav.eval.report import Summary, Throughput, rate_kept, summarize
+from drivenav.semantics import grounder_server
 from drivenav.semantics.grounder_server import GrounderServer, serving
 from drivenav.semantics.protocols import Detection
 from drivenav.semantics.remote import RemoteGrounder
@@ -223,6 +225,54 @@ def test_frames_that_come_while_the_next_batch_waits_for_the_model_join_it() -> 
     assert server.batch_sizes == {1: 1, 3: 1}
     a_done = min(end for stage, _, _, end in grounder.spans if stage == "forward")
     assert all(end < a_done for stage, _, _, end in grounder.spans if stage == "preprocess")
+
+
+class RecordingStreams:
+    """Stands in for a CUDA device's streams: records, in order, what each thread asked of them."""
+
+    def __init__(self, device: str) -> None:
+        self.calls: list[tuple[str, str]] = []
+        self.preprocessing_now = False
+
+    def _record(self, what: str) -> None:
+        self.calls.append((what, threading.current_thread().name))
+
+    @contextlib.contextmanager
+    def preprocessing(self) -> Iterator[None]:
+        self._record("preprocessing")
+        self.preprocessing_now = True
+        try:
+            yield
+        finally:
+            self.preprocessing_now = False
+
+    def await_pixels(self) -> None:
+        self._record("await_pixels")
+
+    def sync(self) -> None:
+        self._record("sync")
+
+
+def test_the_socket_thread_preprocesses_on_its_stream_and_the_model_awaits_it(monkeypatch: pytest.MonkeyPatch) -> None:
+    """On a GPU the frames are preprocessed on the socket thread's own stream, and the model thread's stream waits for
+    it before the forward reads the pixels, then times its stages by its own stream (DeviceStreams; a fake here)."""
+    made: list[RecordingStreams] = []
+    monkeypatch.setattr(
+        grounder_server, "DeviceStreams", lambda device: made.append(RecordingStreams(device)) or made[-1]
+    )
+    grounder = SlowStaged(forward_s=0.0)
+    inside: list[bool] = []
+    preprocess = grounder.preprocess
+    grounder.preprocess = lambda frames: inside.append(made[0].preprocessing_now) or preprocess(frames)  # type: ignore[method-assign]
+    server = staged_server(grounder, ServeConfig(batch=1, batch_ms=0.0))
+    answers: dict[int, float] = {}
+    with serving(server) as endpoint:
+        ground(endpoint, [7, 8], answers, threading.Barrier(1))
+    assert answers == {v: pytest.approx(v / 255.0) for v in (7, 8)} and inside == [True, True]
+    calls = made[0].calls
+    assert [what for what, name in calls if name == "drivenav-grounder-server"] == ["preprocessing"] * 2
+    model = [what for what, name in calls if name == "drivenav-grounder-model"]
+    assert model == ["await_pixels", "sync", "sync", "sync"] * 2  # then forward, postprocess, reply
 
 
 def test_two_copies_of_a_model_run_two_batches_at_once() -> None:

@@ -45,6 +45,7 @@ from drivenav.semantics.protocols import Detection, Grounder
 from drivenav.semantics.registry import BOX_DETECTORS, GROUNDER_BACKENDS
 from drivenav.semantics.serve_config import DEFAULT_BIND, ENTRY_BYTES, LABEL_BYTES, ServeConfig
 from drivenav.semantics.serve_pipeline import (
+    DeviceStreams,
     JoinsPixels,
     ModelPool,
     RowGrounder,
@@ -238,6 +239,7 @@ class GrounderServer:
         self.endpoint = self._router.endpoint
         self._times = ServerTimes()
         self._deferred: list[tuple[bytes, Message, tuple[int, ...]]] = []
+        self._streams = DeviceStreams(info.device)
         self._model = None if self._shared is None else self._model_pool(self._shared, factory)
 
     def _model_pool(self, shared: Grounder, factory: Callable[[], Grounder]) -> ModelPool:
@@ -248,14 +250,7 @@ class GrounderServer:
             return list(self._router.frames(reply, GROUNDER_PROTOCOL))
 
         context = self._router.context
-        return ModelPool(copies, context, self._check.checked, encode, self.config.phrases, self._sync)
-
-    def _sync(self) -> None:
-        """Wait for the model's device (a stage's time on a GPU is its kernels', not their launch)."""
-        if self.info.device.startswith("cuda"):
-            import torch
-
-            torch.cuda.synchronize()
+        return ModelPool(copies, context, self._check.checked, encode, self.config.phrases, self._streams)
 
     @property
     def batch_sizes(self) -> Counter[int]:
@@ -459,7 +454,8 @@ class GrounderServer:
             return work
         start = time.perf_counter()
         try:
-            work.pixels = [self._shared.preprocess(work.frames)]
+            with self._streams.preprocessing():
+                work.pixels = [self._shared.preprocess(work.frames)]
         except Exception as error:
             log.exception("preprocessing frames for %s failed", ", ".join(map(repr, work.phrases)))
             for identity, request_id, _ in work.replies:

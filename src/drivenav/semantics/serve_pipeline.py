@@ -18,6 +18,7 @@ and encoding the reply; ``send``), and the seconds each frame waited for its bat
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import queue
 import threading
@@ -86,6 +87,45 @@ class JoinsPixels(Protocol):
     the frames that come before the model is free (:meth:`ModelThread.grow`)."""
 
     def join_pixels(self, parts: Sequence[Any]) -> Any: ...
+
+
+class DeviceStreams:
+    """Where a served model's device work is queued (``device``; on the CPU each method does nothing).
+
+    On CUDA the socket thread preprocesses on a stream of its own (:meth:`preprocessing`): on the device's default
+    stream, its copy of the frames to the device (from pageable memory, which CUDA begins only once the stream's
+    earlier work is done) would wait for the forward the model thread queued there, and the socket thread with it.
+    A model thread makes its own stream wait for that one before it reads the pixels (:meth:`await_pixels`); a
+    stage's time is its own stream's kernels (:meth:`sync`), not the next batch's preprocessing."""
+
+    def __init__(self, device: str) -> None:
+        self._stream: Any = None
+        if device.startswith("cuda"):
+            import torch
+
+            self._stream = torch.cuda.Stream(device=device)  # type: ignore[no-untyped-call]
+
+    def preprocessing(self) -> contextlib.AbstractContextManager[Any]:
+        """The socket thread's preprocessing stream, current within the block."""
+        if self._stream is None:
+            return contextlib.nullcontext()
+        import torch
+
+        return torch.cuda.stream(self._stream)
+
+    def await_pixels(self) -> None:
+        """The calling thread's stream made to wait for every preprocessing queued so far (no host wait)."""
+        if self._stream is not None:
+            import torch
+
+            torch.cuda.current_stream(self._stream.device).wait_stream(self._stream)
+
+    def sync(self) -> None:
+        """Wait for the calling thread's stream (a stage's time on a GPU is its kernels', not their launch)."""
+        if self._stream is not None:
+            import torch
+
+            torch.cuda.current_stream(self._stream.device).synchronize()
 
 
 @dataclass
@@ -163,7 +203,7 @@ class ModelThread:
     their number of requests.
 
     ``check`` checks a frame's detections (as in process); ``encode`` makes a reply's frames; ``admit`` is called
-    with a batch's phrase before it is grounded (the phrase cache); ``sync`` waits for the model's device."""
+    with a batch's phrase before it is grounded (the phrase cache); ``streams`` orders and times its device work."""
 
     def __init__(
         self,
@@ -173,7 +213,7 @@ class ModelThread:
         check: Callable[[Sequence[object], tuple[int, int]], list[Detection]],
         encode: Callable[[Message], Encoded],
         admit: Callable[[str], None],
-        sync: Callable[[], None],
+        streams: DeviceStreams,
         name: str = "drivenav-grounder-model",
     ) -> None:
         self.grounder = grounder
@@ -184,7 +224,7 @@ class ModelThread:
         self._sizes: Counter[int] = Counter()
         self._handed = self._done = 0
         self._lock = threading.Condition()
-        self._check, self._encode, self._admit, self._sync = check, encode, admit, sync
+        self._check, self._encode, self._admit, self._streams = check, encode, admit, streams
         self._signal = context.socket(zmq.PUSH)
         self._signal.setsockopt(zmq.LINGER, 0)
         self._signal.connect(wake)
@@ -276,7 +316,7 @@ class ModelThread:
 
         def lap(stage: str) -> None:
             nonlocal mark
-            self._sync()
+            self._streams.sync()
             now = time.perf_counter()
             self.times.seconds[stage] += now - mark
             mark = now
@@ -295,6 +335,7 @@ class ModelThread:
         for phrase in work.phrases:
             self._admit(phrase)
         if work.pixels and isinstance(self.grounder, RowGrounder):
+            self._streams.await_pixels()
             pixels = work.pixels[0]
             if len(work.pixels) > 1:
                 assert isinstance(self.grounder, JoinsPixels)  # only such a grounder's batch grows
@@ -364,14 +405,14 @@ class ModelPool:
         check: Callable[[Sequence[object], tuple[int, int]], list[Detection]],
         encode: Callable[[Message], Encoded],
         phrases: int,
-        sync: Callable[[], None],
+        streams: DeviceStreams,
     ) -> None:
         address = f"inproc://drivenav-grounder-{uuid.uuid4().hex}"
         self.wake = context.socket(zmq.PULL)
         self.wake.setsockopt(zmq.LINGER, 0)
         self.wake.bind(address)
         self.threads = [
-            ModelThread(copy, context, address, check, encode, _admit(Phrases(phrases), copy), sync, _name(i))
+            ModelThread(copy, context, address, check, encode, _admit(Phrases(phrases), copy), streams, _name(i))
             for i, copy in enumerate(copies)
         ]
 
