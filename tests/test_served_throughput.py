@@ -335,6 +335,34 @@ def test_a_batch_runs_once_every_client_grounding_now_waits_on_it() -> None:
     assert alone < 1.0
 
 
+def test_a_batch_goes_to_an_idle_copy_not_behind_a_busy_one() -> None:
+    """Two copies, a 0.6 s forward: A's frame runs on the first copy; B's, coming while it runs, runs on the second
+    at once rather than waiting behind A's forward on the first."""
+    first, second = SlowStaged(forward_s=0.6), SlowStaged(forward_s=0.6)
+    second.spans, second.lock = first.spans, first.lock
+    copies = iter([first, second])
+    info = ServedInfo("slow-staged", "-", "cpu", "float32", ("rgb",), False, 8, 0.0)
+    server = GrounderServer(lambda: next(copies), info, LOOPBACK, None, ServeConfig(batch=8, batch_ms=0.0, copies=2))
+    answers: dict[int, float] = {}
+    ready, go = threading.Barrier(3), {value: threading.Event() for value in (1, 2)}
+    with serving(server) as endpoint:
+        threads = [threading.Thread(target=ground_on_cue, args=(endpoint, v, answers, ready, go[v])) for v in go]
+        for thread in threads:
+            thread.start()
+        model = server._model
+        assert model is not None
+        ready.wait()
+        go[1].set()
+        until(lambda: model.ticket() == (1, 0) and model.ready)  # A's batch taken by the first copy
+        go[2].set()
+        for thread in threads:
+            thread.join()
+    assert answers == {v: pytest.approx(v / 255.0) for v in go}
+    forwards = sorted((start, end, name) for stage, name, start, end in first.spans if stage == "forward")
+    (_, a_end, a_copy), (b_start, _, b_copy) = forwards
+    assert (a_copy, b_copy) == ("drivenav-grounder-model", "drivenav-grounder-model-2") and b_start < a_end
+
+
 @pytest.mark.parametrize("copies", ["0", "9"])
 def test_serve_grounder_copies_out_of_range_is_one_line(copies: str, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["serve", "grounder", "--detector", "ground-truth", "--copies", copies]) == 2

@@ -248,6 +248,12 @@ class ModelThread:
             return 0 if self._next is None else max(0, batch - sum(len(work.rows) for work in self._next))
 
     @property
+    def idle(self) -> bool:
+        """Whether it holds no batch, running or waiting."""
+        with self._lock:
+            return self._done == self._handed
+
+    @property
     def handed(self) -> int:
         """How many batches were handed over so far."""
         with self._lock:
@@ -395,8 +401,9 @@ class Phrases:
 
 class ModelPool:
     """One :class:`ModelThread` per copy of the model (``copies``: several fill a GPU that one leaves idle), their
-    replies announced on :attr:`wake` (a PULL socket the socket thread polls). A prepared batch goes to the first
-    copy ready for one; each copy keeps its own phrases (``phrases`` at most)."""
+    replies announced on :attr:`wake` (a PULL socket the socket thread polls). A prepared batch goes to an idle copy
+    where there is one, else to the first copy ready for one; each copy keeps its own phrases (``phrases`` at
+    most)."""
 
     def __init__(
         self,
@@ -437,11 +444,16 @@ class ModelPool:
         return total
 
     def put(self, work: list[Work]) -> None:
-        """Hand ``work`` to the first copy ready for it (:attr:`ready` first)."""
-        next(thread for thread in self.threads if thread.ready).put(work)
+        """Hand ``work`` to an idle copy, else to the first copy ready for it (:attr:`ready` first): a batch does not
+        wait behind another copy's forward while one is free."""
+        ready = [thread for thread in self.threads if thread.ready]
+        next((thread for thread in ready if thread.idle), ready[0]).put(work)
 
     def waiting(self, batch: int) -> tuple[ModelThread, int] | None:
-        """A copy whose batch waiting for it can take more requests, and how many (up to ``batch``)."""
+        """A copy whose batch waiting for it can take more requests, and how many (up to ``batch``); none while a
+        copy is idle (the requests are its next batch)."""
+        if any(thread.idle for thread in self.threads):
+            return None
         rooms = ((thread, thread.room(batch)) for thread in self.threads)
         return next(((thread, room) for thread, room in rooms if room > 0), None)
 
