@@ -315,6 +315,41 @@ def test_workers_looking_for_different_objects_share_one_forward(
         close_enough(answers[index], want)
 
 
+def test_a_batch_counts_frames_not_phrases(
+    transformers_grounders: dict[str, tuple[str, Callable[[], Grounder]]],
+) -> None:
+    """``batch`` counts frames: two clients each send one frame's five phrases together (ApexNav's step) to a server
+    of batches of 2: one batch of ten requests, one forward, the two frames' vision encoded once, not five batches
+    of two requests."""
+    _, factory = transformers_grounders["sam3"]
+    local = factory()
+    frames = [observation(seed, seed) for seed in (11, 12)]
+    expected = [{phrase: local.segment(frame, phrase) for phrase in PHRASES} for frame in frames]
+    answers: dict[int, dict[str, list[Detection]]] = {}
+    with served(factory, "sam3", ServeConfig(batch=2, batch_ms=1000.0)) as (server, info):
+        before: Counter[int] = Counter()
+        encoded = vision_encodings(server)
+        barrier = threading.Barrier(2, action=lambda: (before.update(server.batch_sizes), encoded.clear()))
+
+        def work(index: int) -> None:
+            with remote(server.endpoint, info) as grounder:
+                grounder.begin_episode(None, 0)
+                grounder.segment(observation(0), "chair")  # seen grounding: the server waits for its next frame
+                barrier.wait()
+                grounder.prefetch(frames[index], PHRASES)
+                answers[index] = {phrase: grounder.segment(frames[index], phrase) for phrase in PHRASES}
+
+        threads = [threading.Thread(target=work, args=(i,)) for i in range(2)]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join()
+    assert server.batch_sizes - before == Counter({2 * len(PHRASES): 1}) and encoded == [2]
+    for index, want in enumerate(expected):
+        for phrase in PHRASES:
+            close_enough(answers[index][phrase], want[phrase])
+
+
 # --- a server that stalls or is gone ---------------------------------------------------------------------------------
 
 

@@ -76,6 +76,11 @@ class _Pending:
     request: SegmentRequest
     arrived: float
 
+    @property
+    def frame(self) -> tuple[bytes, str, int]:
+        """Its frame: the client, the episode, the step (a frame's phrases are one frame of a batch)."""
+        return self.identity, self.request.episode, self.request.observation.step
+
 
 @dataclass
 class _Session:
@@ -233,6 +238,8 @@ class GrounderServer:
         self.episodes = _Episodes(self.config)
         self._check = DetectionCheck(f"{info.detector} (served grounder)", self.config.max_detections)
         self._pending: list[_Pending] = []
+        self._queued: Counter[tuple[bytes, str, int]] = Counter()  # the requests queued of each frame
+        self._together: dict[tuple[bytes, str, int], int] = {}  # how many its client sent at once
         self._clients = _Clients(self.config.active_s)
         self._alone_sizes: Counter[int] = Counter()
         self._router = RouterSocket(bind, keys, MAX_ARRAY_BYTES)
@@ -308,7 +315,7 @@ class GrounderServer:
     # -- requests ------------------------------------------------------------------------------------------------
     def _drain(self) -> None:
         """Every request already here, up to a full batch."""
-        while len(self._pending) < self.config.batch and self._router.socket.poll(0, zmq.POLLIN):
+        while not self._full() and self._router.socket.poll(0, zmq.POLLIN):
             self._receive()
 
     def _receive(self) -> None:
@@ -342,7 +349,10 @@ class GrounderServer:
         segment = read_segment(request)
         if self._shared is None:
             self.episodes.get(segment.episode)  # an unknown episode is refused now, not after the batch
-        self._pending.append(_Pending(identity, segment, time.monotonic()))
+        pending = _Pending(identity, segment, time.monotonic())
+        self._pending.append(pending)
+        self._queued[pending.frame] += 1
+        self._together[pending.frame] = max(self._together.get(pending.frame, 1), segment.together)
         self._clients.saw(identity, segment)
         return None
 
@@ -383,13 +393,19 @@ class GrounderServer:
     def _model_ready(self) -> bool:
         return self._model is None or self._model.ready
 
+    def _full(self) -> bool:
+        """Whether ``batch`` frames are queued whole (every SEGMENT their client sent of them at once)."""
+        whole = sum(count >= self._together[frame] for frame, count in self._queued.items())
+        return whole >= self.config.batch
+
     def _due(self) -> bool:
-        """A batch runs when a model copy is ready for it and the batch is full, or its oldest frame has waited
-        ``batch_ms``, or every client grounding now is waiting on it or on the model (no frame can come)."""
+        """A batch runs when a model copy is ready for it and ``batch`` whole frames are queued, or its oldest frame
+        has waited ``batch_ms``, or every client grounding now is waiting on it or on the model (no frame can
+        come)."""
         if not self._pending or not self._model_ready():
             return False
         waited = time.monotonic() - self._pending[0].arrived
-        if len(self._pending) >= self.config.batch or waited * 1000.0 >= self.config.batch_ms:
+        if self._full() or waited * 1000.0 >= self.config.batch_ms:
             return True
         return self._clients.all_waiting({pending.identity for pending in self._pending})
 
@@ -412,7 +428,7 @@ class GrounderServer:
         return self._model.waiting(self.config.batch) is not None
 
     def _grow(self) -> None:
-        """The requests that came while the next batch waits for the model join it, up to ``batch`` requests,
+        """The requests that came while the next batch waits for the model join it, up to ``batch`` frames,
         preprocessed now: a batch is not closed while the model runs the one before, so it runs as full as one
         formed when the model is free, its first frames preprocessed meanwhile. Where the model took the batch
         first, they are the next one."""
@@ -426,9 +442,13 @@ class GrounderServer:
             self._model.put(work)
 
     def _taken(self, count: int) -> list[_Pending]:
-        """The first ``count`` queued requests, out of the queue, their wait counted."""
-        batch = self._pending[:count]
-        del self._pending[:count]
+        """The requests of the first ``count`` frames queued (every phrase of each), out of the queue, their wait
+        counted."""
+        frames = set(list(self._queued)[:count])
+        batch = [pending for pending in self._pending if pending.frame in frames]
+        self._pending = [pending for pending in self._pending if pending.frame not in frames]
+        for frame in frames:
+            del self._queued[frame], self._together[frame]
         now = time.monotonic()
         self._times.seconds["wait"] += sum(now - pending.arrived for pending in batch)
         return batch

@@ -243,9 +243,9 @@ class ModelThread:
             return self._sizes.copy()
 
     def room(self, batch: int) -> int:
-        """How many requests the batch waiting for the model can still take, up to ``batch`` (0 when none waits)."""
+        """How many more frames the batch waiting for the model can take, up to ``batch`` (0 when none waits)."""
         with self._lock:
-            return 0 if self._next is None else max(0, batch - sum(len(work.rows) for work in self._next))
+            return 0 if self._next is None else max(0, batch - sum(len(work.observations) for work in self._next))
 
     @property
     def idle(self) -> bool:
@@ -450,8 +450,8 @@ class ModelPool:
         next((thread for thread in ready if thread.idle), ready[0]).put(work)
 
     def waiting(self, batch: int) -> tuple[ModelThread, int] | None:
-        """A copy whose batch waiting for it can take more requests, and how many (up to ``batch``); none while a
-        copy is idle (the requests are its next batch)."""
+        """A copy whose batch waiting for it can take more frames, and how many (up to ``batch``); none while a copy
+        is idle (the frames are its next batch)."""
         if any(thread.idle for thread in self.threads):
             return None
         rooms = ((thread, thread.room(batch)) for thread in self.threads)
