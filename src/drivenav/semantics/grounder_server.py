@@ -493,13 +493,12 @@ class GrounderServer:
         seen: dict[tuple[bytes, str, int], int] = {}
         shared_frames = isinstance(self._shared, RowGrounder)
         for pending in group:
-            request, observation = pending.request, pending.request.observation
-            key = (pending.identity, request.episode, observation.step)
-            index = seen.get(key) if shared_frames else None
+            observation = pending.request.observation
+            index = seen.get(pending.frame) if shared_frames else None
             if index is None or not np.array_equal(observations[index].rgb, observation.rgb):
-                index = seen[key] = len(observations)
+                index = seen[pending.frame] = len(observations)
                 observations.append(observation)
-            rows.append((index, request.phrase))
+            rows.append((index, pending.request.phrase))
         return Work(replies, rows, observations)
 
     def _answer_alone(self, pending: _Pending) -> None:
