@@ -26,7 +26,7 @@ from drivenav.semantics.grounder_server import GrounderServer, serving
 from drivenav.semantics.protocols import Detection
 from drivenav.semantics.remote import RemoteGrounder
 from drivenav.semantics.serve_config import ServeConfig
-from drivenav.semantics.serve_pipeline import STAGES, RowGrounder, ServerTimes
+from drivenav.semantics.serve_pipeline import STAGES, ModelPool, RowGrounder, ServerTimes
 from drivenav.semantics.served import GrounderClient, ServedInfo
 from drivenav.types import CameraIntrinsics, GroundTruth, Observation, Pose
 from drivenav.wire.protocol import Message
@@ -198,29 +198,39 @@ def ground_on_cue(
         client.close()
 
 
+@contextlib.contextmanager
+def cued_clients(
+    server: GrounderServer, values: Sequence[int]
+) -> Iterator[tuple[ModelPool, dict[int, threading.Event], dict[int, float]]]:
+    """``server`` serving a client for each value, each connected and its episode begun; within the block, setting
+    a value's event makes its client ground one frame of it (its answer in the dict). The clients are joined at the
+    block's end."""
+    answers: dict[int, float] = {}
+    ready, go = threading.Barrier(len(values) + 1), {value: threading.Event() for value in values}
+    with serving(server) as endpoint:
+        threads = [threading.Thread(target=ground_on_cue, args=(endpoint, v, answers, ready, go[v])) for v in values]
+        for thread in threads:
+            thread.start()
+        assert server._model is not None
+        ready.wait()
+        yield server._model, go, answers
+        for thread in threads:
+            thread.join()
+
+
 def test_frames_that_come_while_the_next_batch_waits_for_the_model_join_it() -> None:
     """A 1 s forward runs client A's frame; B's frame is then handed over as the next batch at once (batch_ms 0), and
     C's and D's, coming while it waits for the model, join it: two batches (1 and 3 frames), not three, C's and D's
     frames preprocessed while A's forward ran, and every client its own frame's answer."""
     grounder = SlowStaged(forward_s=1.0)
     server = staged_server(grounder, ServeConfig(batch=8, batch_ms=0.0))
-    answers: dict[int, float] = {}
-    ready, go = threading.Barrier(5), {value: threading.Event() for value in (1, 2, 3, 4)}
-    with serving(server) as endpoint:
-        threads = [threading.Thread(target=ground_on_cue, args=(endpoint, v, answers, ready, go[v])) for v in go]
-        for thread in threads:
-            thread.start()
-        model = server._model
-        assert model is not None
-        ready.wait()
+    with cued_clients(server, (1, 2, 3, 4)) as (model, go, answers):
         go[1].set()
         until(lambda: model.ticket() == (1,) and model.ready)  # A's batch taken
         go[2].set()
         until(lambda: model.waiting(8) is not None)  # B's batch handed over, waiting
         go[3].set()
         go[4].set()
-        for thread in threads:
-            thread.join()
     assert answers == {v: pytest.approx(v / 255.0) for v in go}
     assert server.batch_sizes == {1: 1, 3: 1}
     a_done = min(end for stage, _, _, end in grounder.spans if stage == "forward")
@@ -343,20 +353,10 @@ def test_a_batch_goes_to_an_idle_copy_not_behind_a_busy_one() -> None:
     copies = iter([first, second])
     info = ServedInfo("slow-staged", "-", "cpu", "float32", ("rgb",), False, 8, 0.0)
     server = GrounderServer(lambda: next(copies), info, LOOPBACK, None, ServeConfig(batch=8, batch_ms=0.0, copies=2))
-    answers: dict[int, float] = {}
-    ready, go = threading.Barrier(3), {value: threading.Event() for value in (1, 2)}
-    with serving(server) as endpoint:
-        threads = [threading.Thread(target=ground_on_cue, args=(endpoint, v, answers, ready, go[v])) for v in go]
-        for thread in threads:
-            thread.start()
-        model = server._model
-        assert model is not None
-        ready.wait()
+    with cued_clients(server, (1, 2)) as (model, go, answers):
         go[1].set()
         until(lambda: model.ticket() == (1, 0) and model.ready)  # A's batch taken by the first copy
         go[2].set()
-        for thread in threads:
-            thread.join()
     assert answers == {v: pytest.approx(v / 255.0) for v in go}
     forwards = sorted((start, end, name) for stage, name, start, end in first.spans if stage == "forward")
     (_, a_end, a_copy), (b_start, _, b_copy) = forwards
