@@ -130,13 +130,24 @@ def staged_server(grounder: SlowStaged, config: ServeConfig) -> GrounderServer:
     return GrounderServer(lambda: grounder, info, LOOPBACK, None, config)
 
 
-def ground(endpoint: str, values: list[int], answers: dict[int, float], ready: threading.Barrier) -> None:
+def ground(
+    endpoint: str,
+    values: list[int],
+    answers: dict[int, float],
+    ready: threading.Barrier,
+    go: threading.Event | None = None,
+) -> None:
+    """A frame of each value grounded in turn (its score in ``answers``), the client connected and its episode begun
+    before ``ready`` (a PING at an episode's start waits for the model's batches in hand), and after ``go`` is set
+    where given."""
     client = GrounderClient(endpoint)
     try:
         info = ServedInfo.from_json(client.request(Message("HELLO", client.next_id())).body)
         grounder = RemoteGrounder(client, info)
         grounder.begin_episode(None, 0)
         ready.wait()
+        if go is not None:
+            go.wait(10.0)
         for step, value in enumerate(values):
             (detection,) = grounder.segment(frame(value, step), "chair")
             answers[value] = detection.score
@@ -180,24 +191,6 @@ def until(condition: Callable[[], bool], timeout_s: float = 10.0) -> None:
         time.sleep(0.005)
 
 
-def ground_on_cue(
-    endpoint: str, value: int, answers: dict[int, float], ready: threading.Barrier, go: threading.Event
-) -> None:
-    """One frame of ``value`` grounded once ``go`` is set, the client connected and its episode begun before
-    ``ready`` (a PING at an episode's start waits for the model's batches in hand)."""
-    client = GrounderClient(endpoint)
-    try:
-        info = ServedInfo.from_json(client.request(Message("HELLO", client.next_id())).body)
-        grounder = RemoteGrounder(client, info)
-        grounder.begin_episode(None, 0)
-        ready.wait()
-        go.wait(10.0)
-        (detection,) = grounder.segment(frame(value), "chair")
-        answers[value] = detection.score
-    finally:
-        client.close()
-
-
 @contextlib.contextmanager
 def cued_clients(
     server: GrounderServer, values: Sequence[int]
@@ -208,7 +201,7 @@ def cued_clients(
     answers: dict[int, float] = {}
     ready, go = threading.Barrier(len(values) + 1), {value: threading.Event() for value in values}
     with serving(server) as endpoint:
-        threads = [threading.Thread(target=ground_on_cue, args=(endpoint, v, answers, ready, go[v])) for v in values]
+        threads = [threading.Thread(target=ground, args=(endpoint, [v], answers, ready, go[v])) for v in values]
         for thread in threads:
             thread.start()
         assert server._model is not None
