@@ -13,7 +13,9 @@
 # eval-throughput`, SAM3 served to the workers with one model copy, -x2 with two, -apexnav to ApexNav's workers, five
 # phrases a frame: episodes an hour and where a step's time goes). --cpu: a dry run of the script itself on this machine's CPU with the
 # tests' tiny models (no wheels, no compile stages unless named). Writes every stage's JSON and log, env.json and
-# summary.json to $OUT (default /tmp/h100-grounding); the summary table comes last on stdout.
+# summary.json to $OUT (default /tmp/h100-grounding); the summary table comes last on stdout, then issue 61's verdict
+# for each serve-eval stage (its frames a second against the sam3-bf16 stage's batch-8 speed; an OVON val split's
+# GPU-hours at that rate).
 #
 # On the GPU machine (no network): the wheels of what it lacks are in .whl/ (mobilesam-mirror, omegaconf, pyzmq,
 # and scikit-fmm's source, built here with the C++ compiler: it publishes no wheels); numba's JIT serves the kernels
@@ -287,9 +289,28 @@ def throughput() -> dict:
     }
 
 
+OVON_VAL_FRAMES = 900_000  # one HM3D-OVON val split: about 3,000 episodes of about 300 steps (docs/benchmarks.md)
+
+
+def goals() -> list[dict]:
+    """Issue 61's verdict for each served eval: its frames a second against SAM3 bf16's batch-8 speed (the sam3-bf16
+    stage of the same run; goal >= 80 %) and one OVON val split's GPU-hours at that rate (goal <= 3)."""
+    reference = next((s["result"] for s in stages if s["stage"] == "sam3-bf16" and s.get("result")), None)
+    batch8 = 1000.0 / reference["batch_ms_per_frame"] if reference and reference.get("batch_ms_per_frame") else None
+    verdicts = []
+    for stage in stages:
+        fps = (stage.get("result") or {}).get("frames_per_second")
+        if stage["stage"].startswith("serve-eval") and fps:
+            share = round(fps / batch8, 3) if batch8 else None
+            verdicts.append({"stage": stage["stage"], "frames_per_second": fps, "batch8_frames_per_second":
+                             round(batch8, 2) if batch8 else None, "share_of_batch8": share,
+                             "ovon_val_gpu_hours": round(OVON_VAL_FRAMES / fps / 3600.0, 2)})
+    return verdicts
+
+
 env = json.loads((out / "env.json").read_text() or "{}") if (out / "env.json").is_file() else {}
 summary = {"env": env, "budget_s": int(os.environ["BUDGET"]), "wall_s": int(time.time()) - int(os.environ["START"]),
-           "stages": stages, "throughput": throughput()}
+           "stages": stages, "throughput": throughput(), "goals": goals()}
 (out / "summary.json").write_text(json.dumps(summary, indent=2))
 
 cols = ("median_ms", "forward_ms", "segment_ms", "batch_ms_per_frame", "served_ms_per_frame", "served_overhead_ms",
@@ -312,6 +333,11 @@ if tp:
     print(f"throughput: {tp['episodes_finished']} episodes in {tp['eval_wall_s']} s = {tp['episodes_per_hour']} "
           f"episodes/h ({tp['episodes_per_hour_after_first']} after the first, at {tp['first_episode_s']} s); "
           f"errors {tp['errors']}, SR {tp['success_rate']}, mean steps {tp['steps_mean']}; server {tp['served']}")
+for goal in summary["goals"]:
+    share = "-" if goal["share_of_batch8"] is None else f"{goal['share_of_batch8']:.0%}"
+    print(f"issue 61, {goal['stage']}: {goal['frames_per_second']} frames/s = {share} of SAM3 bf16's batch-8 speed "
+          f"({goal['batch8_frames_per_second']} frames/s, stage sam3-bf16; goal >= 80 %); one OVON val split "
+          f"({OVON_VAL_FRAMES:,} frames) in {goal['ovon_val_gpu_hours']} GPU-hours (goal <= 3)")
 skipped = [s["stage"] for s in stages if s["rc"] != "0"]
 if skipped:
     print(f"not completed (rerun by name: bash scripts/h100_grounding.sh {' '.join(skipped)}): {', '.join(skipped)}")
