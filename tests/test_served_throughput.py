@@ -338,6 +338,35 @@ def test_a_batch_runs_once_every_client_grounding_now_waits_on_it() -> None:
     assert alone < 1.0
 
 
+def test_a_full_queue_no_copy_can_take_does_not_spin_the_socket_thread(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Batches of one frame, a 0.1 s forward, six clients: most of the time a full batch is queued behind the one the
+    model runs and the one handed over. The socket thread then waits for the model instead of waking at once, again
+    and again, on requests it would only queue (before: hundreds of thousands of turns of its loop)."""
+    grounder = SlowStaged(forward_s=0.1)
+    server = staged_server(grounder, ServeConfig(batch=1, batch_ms=0.0))
+    turns = [0]
+    wait_ms = server._wait_ms
+
+    def counted() -> int:
+        turns[0] += 1
+        return wait_ms()
+
+    monkeypatch.setattr(server, "_wait_ms", counted)
+    answers: dict[int, float] = {}
+    ready = threading.Barrier(6)
+    with serving(server) as endpoint:
+        threads = [
+            threading.Thread(target=ground, args=(endpoint, [10 * c + 1, 10 * c + 2], answers, ready)) for c in range(6)
+        ]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join()
+    assert answers == {v: pytest.approx(v / 255.0) for c in range(6) for v in (10 * c + 1, 10 * c + 2)}
+    assert server.batch_sizes == {1: 12}
+    assert turns[0] < 1000
+
+
 def test_a_batch_goes_to_an_idle_copy_not_behind_a_busy_one() -> None:
     """Two copies, a 0.6 s forward: A's frame runs on the first copy; B's, coming while it runs, runs on the second
     at once rather than waiting behind A's forward on the first."""

@@ -279,6 +279,7 @@ class GrounderServer:
             poller.register(self._model.wake, zmq.POLLIN)
         log.info("serving the grounder %s on %s", self.info.detector, self.endpoint)
         while not stop.is_set():
+            poller.modify(self._router.socket, 0 if self._holding() else zmq.POLLIN)
             events = dict(poller.poll(self._wait_ms()))
             if self._router.monitor in events:
                 _log_socket_event(self._router)
@@ -397,6 +398,12 @@ class GrounderServer:
         """Whether ``batch`` frames are queued whole (every SEGMENT their client sent of them at once)."""
         whole = sum(count >= self._together[frame] for frame, count in self._queued.items())
         return whole >= self.config.batch
+
+    def _holding(self) -> bool:
+        """Whether a full batch is queued that no model copy can take yet: the requests that come would only queue
+        behind it, so the socket is not read until a copy takes a batch or finishes one (a readable socket would
+        wake the loop at once, again and again, for nothing)."""
+        return self._model is not None and self._full() and not self._model_ready()
 
     def _due(self) -> bool:
         """A batch runs when a model copy is ready for it and ``batch`` whole frames are queued, or its oldest frame

@@ -197,7 +197,8 @@ class Work:
 
 class ModelThread:
     """Grounds the batches the socket thread prepares (:class:`Work` lists), one at a time, and leaves each reply,
-    encoded, in :attr:`outbox`; ``wake`` (an inproc PULL socket's address) is told when replies are there. One batch
+    encoded, in :attr:`outbox`; ``wake`` (an inproc PULL socket's address) is told when it takes a batch and when
+    replies are there. One batch
     waits for the model at most, handed over (:meth:`put`) while the model runs the one before; until the model
     takes it, frames that come may join it (:meth:`grow`). :attr:`batch_sizes` counts the batches the model took, by
     their number of requests.
@@ -302,7 +303,9 @@ class ModelThread:
             work, self._next = self._next, None
             if work is not None:
                 self._sizes[sum(len(part.rows) for part in work)] += 1
-            return work
+        if work is not None:
+            self._signal.send(b"", copy=True)  # the socket thread may hand over the next batch
+        return work
 
     def _run(self) -> None:
         while (work := self._take()) is not None:
