@@ -138,7 +138,7 @@ def test_a_grounder_restarted_on_the_same_endpoint_fails_the_waiting_request_at_
     with serving(first):
         grounder.begin_episode(TRUTH, 0)
         waiting = outcome_of(lambda: grounder.segment(observation(), "sofa"))
-        wait_until(lambda: bool(first._pending))  # the request reached the first server
+        wait_until(lambda: bool(first._queue.pending))  # the request reached the first server
     with serving(ground_truth_server(endpoint)):
         outcome = waiting()
         assert isinstance(outcome, GrounderUnavailableError) and not isinstance(outcome, GrounderRefusedError)

@@ -338,6 +338,30 @@ def test_a_batch_runs_once_every_client_grounding_now_waits_on_it() -> None:
     assert alone < 1.0
 
 
+def test_the_queue_counts_frames_and_gives_whole_ones_first_where_asked() -> None:
+    """The server's queue: a frame is a client's step, whole once every SEGMENT its client sent together is in; a
+    growing batch takes whole frames only (a frame joined in parts would be encoded once a part), a batch that is
+    due takes the first frames whatever they hold."""
+    from drivenav.semantics.grounder_server import _Pending, _Queue
+    from drivenav.semantics.served import SegmentRequest
+
+    def request(client: bytes, step: int, phrase: str, together: int) -> _Pending:
+        segment = SegmentRequest(f"{client!r}{step}{phrase}", "e", phrase, {}, frame(step, step), together)
+        return _Pending(client, segment, time.monotonic())
+
+    queue = _Queue()
+    for pending in (request(b"a", 1, "sofa", 3), request(b"a", 1, "chair", 3), request(b"b", 4, "tv", 1)):
+        queue.add(pending)
+    assert queue.whole() == [(b"b", "e", 4)]
+    assert [p.request.phrase for p in queue.take(1, whole=True)] == ["tv"]
+    assert queue.take(1, whole=True) == [] and len(queue.pending) == 2  # a's step waits for its third phrase
+    queue.add(request(b"a", 1, "bed", 3))
+    queue.add(request(b"a", 2, "sofa", 3))
+    assert queue.whole() == [(b"a", "e", 1)]
+    assert [p.request.phrase for p in queue.take(8)] == ["sofa", "chair", "bed", "sofa"]  # due: every frame
+    assert queue.pending == [] and queue.whole() == []
+
+
 def test_a_full_queue_no_copy_can_take_does_not_spin_the_socket_thread(monkeypatch: pytest.MonkeyPatch) -> None:
     """Batches of one frame, a 0.1 s forward, six clients: most of the time a full batch is queued behind the one the
     model runs and the one handed over. The socket thread then waits for the model instead of waking at once, again

@@ -82,6 +82,34 @@ class _Pending:
         return self.identity, self.request.episode, self.request.observation.step
 
 
+class _Queue:
+    """The SEGMENT requests waiting for a batch, in arrival order, counted by frame (:attr:`_Pending.frame`: a
+    client's step, whose phrases its client sends together, ``together`` of them)."""
+
+    def __init__(self) -> None:
+        self.pending: list[_Pending] = []
+        self._counts: Counter[tuple[bytes, str, int]] = Counter()
+        self._together: dict[tuple[bytes, str, int], int] = {}
+
+    def add(self, pending: _Pending) -> None:
+        self.pending.append(pending)
+        self._counts[pending.frame] += 1
+        self._together[pending.frame] = max(self._together.get(pending.frame, 1), pending.request.together)
+
+    def whole(self) -> list[tuple[bytes, str, int]]:
+        """The frames all of whose requests sent together are here, in arrival order."""
+        return [frame for frame, count in self._counts.items() if count >= self._together[frame]]
+
+    def take(self, count: int, whole: bool = False) -> list[_Pending]:
+        """Every request of the first ``count`` frames (only those queued whole, with ``whole``), out of the queue."""
+        frames = set((self.whole() if whole else list(self._counts))[:count])
+        taken = [pending for pending in self.pending if pending.frame in frames]
+        self.pending = [pending for pending in self.pending if pending.frame not in frames]
+        for frame in frames:
+            del self._counts[frame], self._together[frame]
+        return taken
+
+
 @dataclass
 class _Session:
     """A stand-in's episode: its grounder, the vocabulary each SEGMENT's phrase extends (``phrases`` added so far),
@@ -237,9 +265,7 @@ class GrounderServer:
         self._shared = None if info.labels else factory()
         self.episodes = _Episodes(self.config)
         self._check = DetectionCheck(f"{info.detector} (served grounder)", self.config.max_detections)
-        self._pending: list[_Pending] = []
-        self._queued: Counter[tuple[bytes, str, int]] = Counter()  # the requests queued of each frame
-        self._together: dict[tuple[bytes, str, int], int] = {}  # how many its client sent at once
+        self._queue = _Queue()
         self._clients = _Clients(self.config.active_s)
         self._alone_sizes: Counter[int] = Counter()
         self._router = RouterSocket(bind, keys, MAX_ARRAY_BYTES)
@@ -351,9 +377,7 @@ class GrounderServer:
         if self._shared is None:
             self.episodes.get(segment.episode)  # an unknown episode is refused now, not after the batch
         pending = _Pending(identity, segment, time.monotonic())
-        self._pending.append(pending)
-        self._queued[pending.frame] += 1
-        self._together[pending.frame] = max(self._together.get(pending.frame, 1), segment.together)
+        self._queue.add(pending)
         self._clients.saw(identity, segment)
         return None
 
@@ -386,9 +410,9 @@ class GrounderServer:
     def _wait_ms(self) -> int:
         """How long to wait for a request: until the oldest queued one's batch is due, at most ``poll_ms`` (while the
         model holds a batch in hand and another ready, until it says it is done)."""
-        if not self._pending or not self._model_ready():
+        if not self._queue.pending or not self._model_ready():
             return self.config.poll_ms
-        left = self._pending[0].arrived + self.config.batch_ms / 1000.0 - time.monotonic()
+        left = self._queue.pending[0].arrived + self.config.batch_ms / 1000.0 - time.monotonic()
         return max(0, min(self.config.poll_ms, math.ceil(left * 1000.0)))
 
     def _model_ready(self) -> bool:
@@ -396,8 +420,7 @@ class GrounderServer:
 
     def _full(self) -> bool:
         """Whether ``batch`` frames are queued whole (every SEGMENT their client sent of them at once)."""
-        whole = sum(count >= self._together[frame] for frame, count in self._queued.items())
-        return whole >= self.config.batch
+        return len(self._queue.whole()) >= self.config.batch
 
     def _holding(self) -> bool:
         """Whether a full batch is queued that no model copy can take yet: the requests that come would only queue
@@ -409,12 +432,12 @@ class GrounderServer:
         """A batch runs when a model copy is ready for it and ``batch`` whole frames are queued, or its oldest frame
         has waited ``batch_ms``, or every client grounding now is waiting on it or on the model (no frame can
         come)."""
-        if not self._pending or not self._model_ready():
+        if not self._queue.pending or not self._model_ready():
             return False
-        waited = time.monotonic() - self._pending[0].arrived
+        waited = time.monotonic() - self._queue.pending[0].arrived
         if self._full() or waited * 1000.0 >= self.config.batch_ms:
             return True
-        return self._clients.all_waiting({pending.identity for pending in self._pending})
+        return self._clients.all_waiting({pending.identity for pending in self._queue.pending})
 
     def _run_batch(self) -> None:
         batch = self._taken(self.config.batch)
@@ -428,34 +451,31 @@ class GrounderServer:
             self._model.put(work)
 
     def _growing(self) -> bool:
-        """Whether requests wait that can join the batch waiting for the model (a grounder whose preprocessed
+        """Whether whole frames wait that can join the batch waiting for the model (a grounder whose preprocessed
         frames join, :class:`~drivenav.semantics.serve_pipeline.JoinsPixels`)."""
-        if not self._pending or self._model is None or not isinstance(self._shared, JoinsPixels):
+        if not self._queue.whole() or self._model is None or not isinstance(self._shared, JoinsPixels):
             return False
         return self._model.waiting(self.config.batch) is not None
 
     def _grow(self) -> None:
-        """The requests that came while the next batch waits for the model join it, up to ``batch`` frames,
+        """The frames that came whole while the next batch waits for the model join it, up to ``batch`` frames,
         preprocessed now: a batch is not closed while the model runs the one before, so it runs as full as one
-        formed when the model is free, its first frames preprocessed meanwhile. Where the model took the batch
+        formed when the model is free, its first frames preprocessed meanwhile. A frame whose phrases are not all
+        here waits for the rest (joined in parts, it would be encoded once a part). Where the model took the batch
         first, they are the next one."""
         assert self._model is not None
         waiting = self._model.waiting(self.config.batch)
         if waiting is None:
             return
         thread, room = waiting
-        work = self._works(self._taken(room))
+        work = self._works(self._taken(room, whole=True))
         if work and not thread.grow(work):
             self._model.put(work)
 
-    def _taken(self, count: int) -> list[_Pending]:
-        """The requests of the first ``count`` frames queued (every phrase of each), out of the queue, their wait
-        counted."""
-        frames = set(list(self._queued)[:count])
-        batch = [pending for pending in self._pending if pending.frame in frames]
-        self._pending = [pending for pending in self._pending if pending.frame not in frames]
-        for frame in frames:
-            del self._queued[frame], self._together[frame]
+    def _taken(self, count: int, whole: bool = False) -> list[_Pending]:
+        """The requests of the first ``count`` frames queued (only those queued whole, with ``whole``), out of the
+        queue, their wait counted."""
+        batch = self._queue.take(count, whole)
         now = time.monotonic()
         self._times.seconds["wait"] += sum(now - pending.arrived for pending in batch)
         return batch
