@@ -155,22 +155,29 @@ def ground(
         client.close()
 
 
-def test_the_next_batch_is_preprocessed_on_the_socket_thread_while_the_model_runs() -> None:
-    """Four clients, batches of up to 2 frames, a 150 ms forward: the model runs on its own thread, and a batch's
-    preprocessing overlaps the forward of the batch before; every client gets its own frame's answer."""
-    grounder = SlowStaged(forward_s=0.15)
-    server = staged_server(grounder, ServeConfig(batch=2, batch_ms=0.0))
+def two_frames_each(server: GrounderServer, clients: int) -> None:
+    """``clients`` clients at ``server``, started together, each grounding two frames of its own (client ``c``: 10c + 1
+    and 10c + 2); each gets its own frames' answers."""
     answers: dict[int, float] = {}
-    ready = threading.Barrier(4)
+    ready = threading.Barrier(clients)
     with serving(server) as endpoint:
         threads = [
-            threading.Thread(target=ground, args=(endpoint, [10 * c + 1, 10 * c + 2], answers, ready)) for c in range(4)
+            threading.Thread(target=ground, args=(endpoint, [10 * c + 1, 10 * c + 2], answers, ready))
+            for c in range(clients)
         ]
         for thread in threads:
             thread.start()
         for thread in threads:
             thread.join()
-    assert answers == {v: pytest.approx(v / 255.0) for c in range(4) for v in (10 * c + 1, 10 * c + 2)}
+    assert answers == {v: pytest.approx(v / 255.0) for c in range(clients) for v in (10 * c + 1, 10 * c + 2)}
+
+
+def test_the_next_batch_is_preprocessed_on_the_socket_thread_while_the_model_runs() -> None:
+    """Four clients, batches of up to 2 frames, a 150 ms forward: the model runs on its own thread, and a batch's
+    preprocessing overlaps the forward of the batch before; every client gets its own frame's answer."""
+    grounder = SlowStaged(forward_s=0.15)
+    server = staged_server(grounder, ServeConfig(batch=2, batch_ms=0.0))
+    two_frames_each(server, 4)
     forwards = [(start, end) for stage, _, start, end in grounder.spans if stage == "forward"]
     preprocessed = [(name, start, end) for stage, name, start, end in grounder.spans if stage == "preprocess"]
     assert {name for stage, name, _, _ in grounder.spans if stage == "forward"} == {"drivenav-grounder-model"}
@@ -376,17 +383,7 @@ def test_a_full_queue_no_copy_can_take_does_not_spin_the_socket_thread(monkeypat
         return wait_ms()
 
     monkeypatch.setattr(server, "_wait_ms", counted)
-    answers: dict[int, float] = {}
-    ready = threading.Barrier(6)
-    with serving(server) as endpoint:
-        threads = [
-            threading.Thread(target=ground, args=(endpoint, [10 * c + 1, 10 * c + 2], answers, ready)) for c in range(6)
-        ]
-        for thread in threads:
-            thread.start()
-        for thread in threads:
-            thread.join()
-    assert answers == {v: pytest.approx(v / 255.0) for c in range(6) for v in (10 * c + 1, 10 * c + 2)}
+    two_frames_each(server, 6)
     assert server.batch_sizes == {1: 12}
     assert turns[0] < 1000
 
