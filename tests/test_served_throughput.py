@@ -349,24 +349,33 @@ def test_the_queue_counts_frames_and_gives_whole_ones_first_where_asked() -> Non
     """The server's queue: a frame is a client's step, whole once every SEGMENT its client sent together is in; a
     growing batch takes whole frames only (a frame joined in parts would be encoded once a part), a batch that is
     due takes the first frames whatever they hold."""
-    from drivenav.semantics.grounder_server import _Pending, _Queue
+    from drivenav.semantics.grounder_server import _Pending
     from drivenav.semantics.served import SegmentRequest
 
-    def request(client: bytes, step: int, phrase: str, together: int) -> _Pending:
-        segment = SegmentRequest(f"{client!r}{step}{phrase}", "e", phrase, {}, frame(step, step), together)
-        return _Pending(client, segment, time.monotonic())
+    server = staged_server(SlowStaged(forward_s=0.0), ServeConfig(batch=8, batch_ms=0.0))
 
-    queue = _Queue()
-    for pending in (request(b"a", 1, "sofa", 3), request(b"a", 1, "chair", 3), request(b"b", 4, "tv", 1)):
-        queue.add(pending)
-    assert queue.whole() == [(b"b", "e", 4)]
-    assert [p.request.phrase for p in queue.take(1, whole=True)] == ["tv"]
-    assert queue.take(1, whole=True) == [] and len(queue.pending) == 2  # a's step waits for its third phrase
-    queue.add(request(b"a", 1, "bed", 3))
-    queue.add(request(b"a", 2, "sofa", 3))
-    assert queue.whole() == [(b"a", "e", 1)]
-    assert [p.request.phrase for p in queue.take(8)] == ["sofa", "chair", "bed", "sofa"]  # due: every frame
-    assert queue.pending == [] and queue.whole() == []
+    def queued(client: bytes, step: int, phrase: str, together: int) -> None:
+        segment = SegmentRequest(f"{client!r}{step}{phrase}", "e", phrase, {}, frame(step, step), together)
+        server._queue.pending.append(_Pending(client, segment, time.monotonic()))
+        server._clients.saw(client, segment)
+
+    def phrases(pendings: list[_Pending]) -> list[str]:
+        return [pending.request.phrase for pending in pendings]
+
+    try:
+        queued(b"a", 1, "sofa", 3)
+        queued(b"a", 1, "chair", 3)
+        queued(b"b", 4, "tv", 1)
+        assert server._whole() == [(b"b", "e", 4)]
+        assert phrases(server._taken(1, whole=True)) == ["tv"]
+        assert server._taken(1, whole=True) == [] and len(server._queue.pending) == 2  # a's step waits for its third
+        queued(b"a", 1, "bed", 3)
+        queued(b"a", 2, "sofa", 3)
+        assert server._whole() == [(b"a", "e", 1)]
+        assert phrases(server._taken(8)) == ["sofa", "chair", "bed", "sofa"]  # due: every frame
+        assert server._queue.pending == [] and server._whole() == []
+    finally:
+        server.close()
 
 
 def test_a_full_queue_no_copy_can_take_does_not_spin_the_socket_thread(monkeypatch: pytest.MonkeyPatch) -> None:

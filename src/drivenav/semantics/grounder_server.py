@@ -31,7 +31,7 @@ import math
 import threading
 import time
 from collections import Counter, OrderedDict
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -70,6 +70,10 @@ from drivenav.wire.router import RouterSocket, error_reply, in_background, loose
 log = logging.getLogger(__name__)
 
 
+Frame = tuple[bytes, str, int]
+"""A client's step (:attr:`_Pending.frame`): the client, the episode, the step."""
+
+
 @dataclass
 class _Pending:
     identity: bytes
@@ -77,36 +81,26 @@ class _Pending:
     arrived: float
 
     @property
-    def frame(self) -> tuple[bytes, str, int]:
+    def frame(self) -> Frame:
         """Its frame: the client, the episode, the step (a frame's phrases are one frame of a batch)."""
         return self.identity, self.request.episode, self.request.observation.step
 
 
 class _Queue:
-    """The SEGMENT requests waiting for a batch, in arrival order, counted by frame (:attr:`_Pending.frame`: a
-    client's step, whose phrases its client sends together, ``together`` of them)."""
+    """The SEGMENT requests waiting for a batch, in arrival order, taken a frame at a time (every phrase of it)."""
 
     def __init__(self) -> None:
         self.pending: list[_Pending] = []
-        self._counts: Counter[tuple[bytes, str, int]] = Counter()
-        self._together: dict[tuple[bytes, str, int], int] = {}
 
-    def add(self, pending: _Pending) -> None:
-        self.pending.append(pending)
-        self._counts[pending.frame] += 1
-        self._together[pending.frame] = max(self._together.get(pending.frame, 1), pending.request.together)
+    def frames(self) -> list[Frame]:
+        """The frames queued, in arrival order."""
+        return list(dict.fromkeys(pending.frame for pending in self.pending))
 
-    def whole(self) -> list[tuple[bytes, str, int]]:
-        """The frames all of whose requests sent together are here, in arrival order."""
-        return [frame for frame, count in self._counts.items() if count >= self._together[frame]]
-
-    def take(self, count: int, whole: bool = False) -> list[_Pending]:
-        """Every request of the first ``count`` frames (only those queued whole, with ``whole``), out of the queue."""
-        frames = set((self.whole() if whole else list(self._counts))[:count])
-        taken = [pending for pending in self.pending if pending.frame in frames]
-        self.pending = [pending for pending in self.pending if pending.frame not in frames]
-        for frame in frames:
-            del self._counts[frame], self._together[frame]
+    def take(self, frames: Sequence[Frame]) -> list[_Pending]:
+        """Every request of ``frames``, out of the queue."""
+        chosen = set(frames)
+        taken = [pending for pending in self.pending if pending.frame in chosen]
+        self.pending = [pending for pending in self.pending if pending.frame not in chosen]
         return taken
 
 
@@ -225,21 +219,23 @@ class _Clients:
         if self._held[identity] <= 0:
             del self._held[identity]
 
-    def all_waiting(self, queued: set[bytes]) -> bool:
+    def all_waiting(self, queued: set[Frame]) -> bool:
         """Whether every client grounding now has a frame ``queued`` (every SEGMENT it sent of it at once come) or
         held by the model."""
         since = time.monotonic() - self.active_s
         for identity in [i for i, seen in self._seen.items() if seen < since]:
             del self._seen[identity]
             self._frames.pop(identity, None)
-        if not self._seen.keys() <= queued | self._held.keys():
+        if not self._seen.keys() <= {identity for identity, _, _ in queued} | self._held.keys():
             return False
-        return all(self._complete(identity) for identity in queued)
+        return all(self.complete(frame) for frame in queued)
 
-    def _complete(self, identity: bytes) -> bool:
-        """Whether every SEGMENT the client sent of its last frame at once has come (or it is no longer known)."""
-        _, expected, come = self._frames.get(identity, (("", 0), 0, 0))
-        return come >= expected
+    def complete(self, frame: Frame) -> bool:
+        """Whether every SEGMENT its client sent of ``frame`` at once has come (so has every one of an earlier frame
+        of the client's, or of a client no longer known)."""
+        identity, episode, step = frame
+        last, expected, come = self._frames.get(identity, (("", -1), 0, 0))
+        return last != (episode, step) or come >= expected
 
 
 class GrounderServer:
@@ -377,7 +373,7 @@ class GrounderServer:
         if self._shared is None:
             self.episodes.get(segment.episode)  # an unknown episode is refused now, not after the batch
         pending = _Pending(identity, segment, time.monotonic())
-        self._queue.add(pending)
+        self._queue.pending.append(pending)
         self._clients.saw(identity, segment)
         return None
 
@@ -418,9 +414,13 @@ class GrounderServer:
     def _model_ready(self) -> bool:
         return self._model is None or self._model.ready
 
+    def _whole(self) -> list[Frame]:
+        """The frames queued whole (every SEGMENT their client sent of them at once), in arrival order."""
+        return [frame for frame in self._queue.frames() if self._clients.complete(frame)]
+
     def _full(self) -> bool:
-        """Whether ``batch`` frames are queued whole (every SEGMENT their client sent of them at once)."""
-        return len(self._queue.whole()) >= self.config.batch
+        """Whether ``batch`` frames are queued whole."""
+        return len(self._whole()) >= self.config.batch
 
     def _holding(self) -> bool:
         """Whether a full batch is queued that no model copy can take yet: the requests that come would only queue
@@ -437,7 +437,7 @@ class GrounderServer:
         waited = time.monotonic() - self._queue.pending[0].arrived
         if self._full() or waited * 1000.0 >= self.config.batch_ms:
             return True
-        return self._clients.all_waiting({pending.identity for pending in self._queue.pending})
+        return self._clients.all_waiting({pending.frame for pending in self._queue.pending})
 
     def _run_batch(self) -> None:
         batch = self._taken(self.config.batch)
@@ -453,7 +453,7 @@ class GrounderServer:
     def _growing(self) -> bool:
         """Whether whole frames wait that can join the batch waiting for the model (a grounder whose preprocessed
         frames join, :class:`~drivenav.semantics.serve_pipeline.JoinsPixels`)."""
-        if not self._queue.whole() or self._model is None or not isinstance(self._shared, JoinsPixels):
+        if self._model is None or not isinstance(self._shared, JoinsPixels) or not self._whole():
             return False
         return self._model.waiting(self.config.batch) is not None
 
@@ -475,7 +475,7 @@ class GrounderServer:
     def _taken(self, count: int, whole: bool = False) -> list[_Pending]:
         """The requests of the first ``count`` frames queued (only those queued whole, with ``whole``), out of the
         queue, their wait counted."""
-        batch = self._queue.take(count, whole)
+        batch = self._queue.take((self._whole() if whole else self._queue.frames())[:count])
         now = time.monotonic()
         self._times.seconds["wait"] += sum(now - pending.arrived for pending in batch)
         return batch
@@ -517,7 +517,7 @@ class GrounderServer:
         step) is one frame, encoded once; else a frame per request."""
         observations: list[Observation] = []
         rows: list[tuple[int, str]] = []
-        seen: dict[tuple[bytes, str, int], int] = {}
+        seen: dict[Frame, int] = {}
         shared_frames = isinstance(self._shared, RowGrounder)
         for pending in group:
             observation = pending.request.observation
