@@ -6,6 +6,7 @@ near)."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from types import SimpleNamespace
 from typing import cast
 
@@ -28,6 +29,7 @@ from drivenav.agent.floors import (
 )
 from drivenav.agent.handles import StepHandles
 from drivenav.agent.state import BodyState
+from drivenav.agent.trace import FloorDropped
 from drivenav.directions.types import DirectionResult
 from drivenav.grid import GridSpec
 from drivenav.mapping.stairs import StairCandidate
@@ -207,12 +209,44 @@ def test_a_way_whose_entry_the_map_cannot_reach_rests_before_it_is_tried_again()
     f = floors_with_a_portal(config)
     way = (StairCandidate((10.0, 0.0), 0.0, True), 1)
     f.trip = StairTrip(way[0], 1)
-    state = SimpleNamespace(goal=None, planner=SimpleNamespace(reset=lambda: None))
-    handles = cast(StepHandles, SimpleNamespace(step=200, state=state))
-    assert f._drop(handles, remember=False) is None and f.trip is None
+    handles, events = trip_handles(200)
+    assert f._drop(handles, "unreachable", remember=False) is None and f.trip is None
     assert not f._usable(way, 200) and not f._usable(way, 239)
     assert f._usable(way, 240)  # tried again 40 steps on
     assert f._usable((StairCandidate((12.0, 0.0), 0.0, True), 1), 200)  # another way is not resting
+    assert events == [FloorDropped(200, 0, (10.0, 0.0), "unreachable")] and not f.dropped
+
+
+def trip_handles(step: int) -> tuple[StepHandles, list[object]]:
+    """A step's handles for the floors' trips (a goal, a planner to reset, a turn of 30 deg) and the events traced."""
+    events: list[object] = []
+    state = SimpleNamespace(goal=None, planner=SimpleNamespace(reset=lambda: None))
+    tuning = SimpleNamespace(turn=np.radians(30.0))
+    handles = SimpleNamespace(step=step, state=state, tuning=tuning, trace=SimpleNamespace(add=events.append))
+    return cast(StepHandles, handles), events
+
+
+def test_a_way_not_reached_within_approach_steps_is_dropped_for_good_and_traced() -> None:
+    f = floors_with_a_portal(FloorsConfig(approach_steps=150))
+    way = StairCandidate((10.0, 0.0), 0.0, True)
+    f.trip = StairTrip(way, 1, steps=150)
+    handles, events = trip_handles(321)
+    assert f.heading_for_stairs(handles, observation(321), cast(StepContext, None)) is None and f.trip is None
+    assert f.dropped == [way] and not f._usable((way, 1), 10_000)
+    assert events == [FloorDropped(321, 0, (10.0, 0.0), "approach_steps")]
+
+
+def test_stairs_given_up_between_levels_are_dropped_and_the_agent_turns_back() -> None:
+    """Past ``climb_steps`` on a flight (off the level, no level reached): the way is dropped for good and traced,
+    and the trip goes on back down it, toward the floor the agent left."""
+    f = floors_with_a_portal(FloorsConfig(climb_steps=120))
+    way = StairCandidate((10.0, 0.0), 0.0, True)
+    f.trip = StairTrip(way, 1, phase="climb", steps=120, left_level=True, last_height=1.5)
+    handles, events = trip_handles(400)
+    on_flight = replace(observation(400), pose=Pose(11.0, 0.0, 0.0, z=1.5))
+    assert f.climb(handles, on_flight) in (Action.TURN_LEFT, Action.TURN_RIGHT)  # about: back down the flight
+    assert f.trip is not None and f.trip.to == 0 and not f.trip.way.up and f.dropped == [way]
+    assert events == [FloorDropped(400, 0, (10.0, 0.0), "climb_steps")]
 
 
 def test_an_entry_with_no_floor_behind_it_sets_out_from_the_nearest_navigable_point() -> None:

@@ -15,6 +15,7 @@ from drivenav.agent.trace import (
     DetectionEvent,
     DirectionSelected,
     Event,
+    FloorDropped,
     FloorJudged,
     FloorLooked,
     FloorReached,
@@ -53,6 +54,7 @@ EXAMPLES: tuple[Event, ...] = (
     FloorJudged(14, 0, "other", "0.00 of the goal's rooms among kitchen, living room, dining room"),
     FloorSetOff(15, 0, (4.5, -2.0), True, "judged"),
     FloorLooked(20, 0, (6.6, 2.4)),
+    FloorDropped(30, 0, (4.5, -2.0), "approach_steps"),
     FloorReached(40, 1, 0, True),
 )
 

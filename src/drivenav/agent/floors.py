@@ -53,7 +53,7 @@ import numpy as np
 
 from drivenav.agent.config import FloorsConfig
 from drivenav.agent.context import Point, StepContext, replan
-from drivenav.agent.trace import FloorJudged, FloorLooked, FloorReached, FloorSetOff
+from drivenav.agent.trace import FloorDropped, FloorJudged, FloorLooked, FloorReached, FloorSetOff
 from drivenav.inspection import turn_toward
 from drivenav.inspection.views import frame_view
 from drivenav.mapping.stairs import StairCandidate, find_railings, find_stairs
@@ -335,7 +335,7 @@ class Floors:
         assert trip is not None
         trip.steps += 1
         if trip.steps > self.config.approach_steps:
-            return self._drop(handles)
+            return self._drop(handles, "approach_steps")
         if trip.phase == "approach":
             action = self._approach(handles, observation, ctx, trip)
             if action is not None:
@@ -384,7 +384,7 @@ class Floors:
         here = (pose.x, pose.y)
         goal = _navigable_near(ctx, trip.way)
         if goal is None:
-            return self._drop(handles, remember=False)
+            return self._drop(handles, "unreachable", remember=False)
         trip.blocked += trip.stuck(observation)
         trip.last_xy = here
         near = math.dist(here, goal)
@@ -395,7 +395,7 @@ class Floors:
         state.goal = goal
         planned = replan(state.pipeline, ctx, goal)
         action = state.planner.act(planned.goal_path, ctx.pose, observation.collided, planned.free)
-        return action if action is not None else self._drop(handles, remember=False)
+        return action if action is not None else self._drop(handles, "no_path", remember=False)
 
     def _turn(self, handles: StepHandles, observation: Observation, trip: StairTrip) -> Action:
         action = turn_toward(observation.pose.yaw, _line_heading(observation, trip), handles.tuning.turn)
@@ -436,13 +436,13 @@ class Floors:
         trip.steps += 1
         moved = abs(z - self.floor.level) >= self.config.stairs.climb / 2.0
         if not trip.left_level and not moved and trip.forward >= self.config.probe_steps:
-            self._drop(handles)
+            self._drop(handles, "no_climb")
             return None
         if trip.steps > self.config.climb_steps:
-            self._turn_back(trip)
+            self._turn_back(handles, trip)
         return self._along(handles, observation, trip)
 
-    def _turn_back(self, trip: StairTrip) -> None:
+    def _turn_back(self, handles: StepHandles, trip: StairTrip) -> None:
         """Stairs given up between two levels: back the way the agent came, to the floor it left (once; after
         that it goes on as it can)."""
         if trip.to == self.current:
@@ -450,6 +450,7 @@ class Floors:
         way = trip.way
         back = StairCandidate(way.entry, math.remainder(way.heading + math.pi, 2.0 * math.pi), not way.up)
         self.dropped.append(way)
+        handles.trace.add(FloorDropped(handles.step, self.current, way.entry, "climb_steps"))
         trip.way, trip.to, trip.steps = back, self.current, 0
 
     def _along(self, handles: StepHandles, observation: Observation, trip: StairTrip) -> Action:
@@ -505,12 +506,13 @@ class Floors:
         floor.exhausted = False
         self._switch(floor)
 
-    def _drop(self, handles: StepHandles, remember: bool = True) -> Action | None:
-        """Give the way up and go on exploring the floor (which STOPs again if nothing is left); ``remember``: never
-        take it again (else, for an entry the map cannot reach yet, not for :attr:`FloorsConfig.retry_steps`: it
-        may be reached later)."""
+    def _drop(self, handles: StepHandles, reason: str, remember: bool = True) -> Action | None:
+        """Give the way up for ``reason`` (traced: :class:`FloorDropped`) and go on exploring the floor (which STOPs
+        again if nothing is left); ``remember``: never take it again (else, for an entry the map cannot reach yet,
+        not for :attr:`FloorsConfig.retry_steps`: it may be reached later)."""
         trip = self.trip
         assert trip is not None
+        handles.trace.add(FloorDropped(handles.step, self.current, trip.way.entry, reason))
         if remember:
             self.dropped.append(trip.way)
         else:

@@ -190,6 +190,20 @@ class FloorLooked(Event):
 
 
 @dataclass(frozen=True)
+class FloorDropped(Event):
+    """On floor ``floor`` the agent gave up the way whose entry is ``entry`` (episode frame; docs/floors.md) for
+    ``reason``: ``approach_steps`` (not reached within that many steps) or ``no_climb`` (no rise within
+    ``probe_steps`` forward steps on it), both for good; ``unreachable`` (no navigable point near its entry on the
+    map) or ``no_path`` (the planner found none), both tried again ``retry_steps`` later; ``climb_steps`` (still
+    between two levels after that many steps: back down the way it came, the way given up for good)."""
+
+    floor: int
+    entry: Point
+    reason: str
+    kind: ClassVar[str] = "floor_dropped"
+
+
+@dataclass(frozen=True)
 class FloorReached(Event):
     """The agent arrived on floor ``floor`` (``new``: first reached) by stairs from floor ``came_from``."""
 
