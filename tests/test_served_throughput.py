@@ -9,11 +9,15 @@ from __future__ import annotations
 
 import contextlib
 import json
+import signal
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import Any
+from types import SimpleNamespace
+from typing import Any, cast
 
 import numpy as np
 import pytest
@@ -26,8 +30,8 @@ from drivenav.semantics.grounder_server import GrounderServer, serving
 from drivenav.semantics.protocols import Detection
 from drivenav.semantics.remote import RemoteGrounder
 from drivenav.semantics.serve_config import ServeConfig
-from drivenav.semantics.serve_pipeline import STAGES, ModelPool, RowGrounder, ServerTimes
-from drivenav.semantics.served import GrounderClient, ServedInfo
+from drivenav.semantics.serve_pipeline import STAGES, ModelPool, RowGrounder, ServerTimes, SteadyRate
+from drivenav.semantics.served import GrounderClient, SegmentRequest, ServedInfo
 from drivenav.types import CameraIntrinsics, GroundTruth, Observation, Pose
 from drivenav.wire.protocol import Message
 
@@ -531,6 +535,72 @@ def test_bench_eval_throughput_runs_an_eval_beside_a_served_model(capsys: pytest
     assert step["wall_ms"] == pytest.approx(step["agent_ms"] + step["grounding_ms"] + step["other_ms"], abs=0.01)
     assert set(result["server_stages_ms"]) == set(STAGES) and result["server_added_ms"] >= 0.0
     assert 0.0 < result["model_busy"] <= 1.0 and result["mean_batch"] >= 1.0
+    assert result["interrupted"] is False and result["steady_window_s"] is None  # a few seconds: no steady window
+
+
+def test_the_steady_rate_counts_the_whole_seconds_when_every_client_grounds() -> None:
+    """Client a grounds from 100.2 s to 130.2 s, b from 104.5 s to 120.5 s (start 100): every client grounds in
+    seconds 5 to 20 of the server's life (from b's first frame, rounded up, to b's last, rounded down), 15 whole
+    seconds, in which a sent one frame a second (105.2 ... 119.2) and b two (105.0 and 105.5 ... 119.0 and 119.5)."""
+    rate = SteadyRate(100.0)
+    for k in range(31):
+        rate.arrived(b"a", 100.2 + k)
+    for k in range(33):
+        rate.arrived(b"b", 104.5 + k / 2)
+    steady = rate.steady()
+    assert steady is not None and (steady.window_s, steady.clients) == (15, 2)
+    assert steady.frames_per_second == pytest.approx((15 + 30) / 15)
+    assert steady.line() == "steady 3 frames a second over 15 s, 2 clients"
+    short = SteadyRate(0.0)
+    short.arrived(b"a", 0.5)
+    short.arrived(b"a", 10.2)  # the window [1, 10): 9 s, under the 10 it takes
+    assert short.steady() is None and SteadyRate(0.0).steady() is None
+
+
+def test_the_server_counts_a_frame_once_however_many_phrases_it_is_sent_for(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A client's frame sent for five phrases (one ApexNav step) is one frame of the steady rate, at its first."""
+    now = [50.0]
+    clock = SimpleNamespace(monotonic=lambda: now[0], perf_counter=time.perf_counter)
+    monkeypatch.setattr(grounder_server, "time", clock)
+    clients = grounder_server._Clients(10.0)
+    for step in range(12):
+        now[0] = 50.0 + step
+        for phrase in ("sofa", "chair", "bed", "tv", "sink"):
+            clients.saw(
+                b"w",
+                cast(
+                    SegmentRequest,
+                    SimpleNamespace(episode="e", phrase=phrase, together=5, observation=SimpleNamespace(step=step)),
+                ),
+            )
+    steady = clients.rate.steady()
+    assert steady is not None and (steady.frames_per_second, steady.window_s, steady.clients) == (1.0, 11, 1)
+
+
+def test_an_interrupted_eval_gives_the_bench_its_finished_episodes(tmp_path: Path) -> None:
+    """Ctrl-C (or the SIGTERM of a timeout) during ``bench eval-throughput`` stops the eval, its finished episodes
+    saved; the bench still prints its figures, of those episodes, says it was interrupted and exits 130."""
+    out = tmp_path / "run"
+    run = [*RUN[1:]]
+    run[run.index("--episodes") + 1] = "40"
+    args = ["bench", "eval-throughput", "--forward-ms", "5", "--workers", "1", "--out", str(out), "--json", "--", *run]
+    process = subprocess.Popen(
+        [sys.executable, "-m", "drivenav.cli", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    results = out / "episodes.jsonl"
+    deadline = time.monotonic() + 240
+    while time.monotonic() < deadline and process.poll() is None:
+        if results.exists() and len(results.read_text().splitlines()) >= 2:
+            break
+        time.sleep(0.05)
+    process.send_signal(signal.SIGINT)
+    stdout, stderr = process.communicate(timeout=120)
+    assert process.returncode == 130, stderr
+    result = json.loads(stdout.strip().splitlines()[-1])
+    finished = len(results.read_text().splitlines())
+    assert result["interrupted"] is True and 2 <= result["episodes"] == finished < 40 and result["errors"] == 0
+    assert result["frames"] > 0 and result["frames_per_second"] > 0 and result["frames_served"] >= result["frames"]
+    assert "steady_frames_per_second" in result and "steady_window_s" in result
 
 
 def test_bench_eval_throughput_with_a_waiting_forward_serves_no_model(capsys: pytest.CaptureFixture[str]) -> None:

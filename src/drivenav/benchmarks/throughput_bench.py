@@ -30,17 +30,19 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Final
+from typing import TYPE_CHECKING, Any, Final, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
 from drivenav.errors import InputError
+from drivenav.eval.records import ERROR
+from drivenav.eval.report import Throughput
 from drivenav.eval.rundir import EPISODES_FILE, SUMMARY_FILE, trace_path
 from drivenav.eval.timings import COMPUTE_KEYS
 from drivenav.eval.trace import EpisodeTrace, read_trace
 from drivenav.semantics.protocols import Detection
-from drivenav.semantics.serve_pipeline import MODEL_STAGES, ServerTimes
+from drivenav.semantics.serve_pipeline import MODEL_STAGES, ServerTimes, Steady
 from drivenav.types import GroundTruth, Observation
 
 if TYPE_CHECKING:
@@ -50,6 +52,8 @@ if TYPE_CHECKING:
 
 WAITING: Final[str] = "wait"
 """The detector name of :class:`WaitingGrounder` (``--forward-ms``) in the bench's figures."""
+INTERRUPTED: Final[int] = 130
+"""The exit status of an eval stopped by Ctrl-C or SIGTERM (its finished episodes saved)."""
 GROUNDING_KEY: Final[str] = "grounding"
 """The traces' per-step timing of the agent's grounding (the detector's call, a served model's round trip)."""
 
@@ -67,7 +71,10 @@ class WorkerSteps:
 
 @dataclass(frozen=True)
 class ThroughputResult:
-    """An eval beside a served grounder (module docstring). ``server_stages_ms``: milliseconds a frame by stage;
+    """An eval beside a served grounder (module docstring). ``steady_frames_per_second``: the frames a second the
+    server took while every worker was grounding, over ``steady_window_s`` seconds (None for a window under 10 s:
+    :class:`~drivenav.semantics.serve_pipeline.SteadyRate`); ``interrupted``: the eval was stopped (Ctrl-C,
+    SIGTERM), its figures those of the episodes it finished; ``server_stages_ms``: milliseconds a frame by stage;
     ``server_added_ms``: what serving adds to a frame beyond the grounder's stages."""
 
     detector: str
@@ -84,6 +91,9 @@ class ThroughputResult:
     wall_s: float
     episodes_per_hour: float | None
     frames_per_second: float | None
+    steady_frames_per_second: float | None
+    steady_window_s: int | None
+    interrupted: bool
     worker_step: WorkerSteps | None
     frames_served: int
     mean_batch: float | None
@@ -140,16 +150,18 @@ class ServedModel:
 
 
 def throughput_result(
-    served: ServedModel, times: ServerTimes, run_dir: Path, workers: int, wall_s: float
+    served: ServedModel, server: ServerFigures, run_dir: Path, workers: int, wall_s: float, interrupted: bool = False
 ) -> ThroughputResult:
-    """The bench's figures from the finished eval in ``run_dir`` and its server's ``times``: a worker's step and the
-    model's busy share over the eval's own wall time (its summary's rate), ``wall_s`` the bench's (start-up
-    included)."""
-    summary: dict[str, Any] = json.loads((run_dir / SUMMARY_FILE).read_text(encoding="utf-8"))
+    """The bench's figures from the eval in ``run_dir`` and its server's: a worker's step and the model's busy share
+    over the eval's own wall time (its summary's rate), ``wall_s`` the bench's (start-up included). An
+    ``interrupted`` eval wrote no summary: its rate is its finished episodes' over ``wall_s``."""
+    times = server.times
     traces = run_traces(run_dir)
     frames = sum(len(trace.actions) for trace in traces)
+    summary = _summary(run_dir, frames, wall_s) if interrupted else read_summary(run_dir)
     rate = summary.get("frames_per_second")
     eval_s = frames / rate if isinstance(rate, (int, float)) and rate > 0 else wall_s
+    steady = server.steady
     return ThroughputResult(
         detector=served.detector,
         model=served.model,
@@ -165,6 +177,9 @@ def throughput_result(
         wall_s=round(wall_s, 3),
         episodes_per_hour=summary.get("episodes_per_hour"),
         frames_per_second=summary.get("frames_per_second"),
+        steady_frames_per_second=None if steady is None else steady.frames_per_second,
+        steady_window_s=None if steady is None else steady.window_s,
+        interrupted=interrupted,
         worker_step=worker_steps(traces, workers, eval_s),
         frames_served=times.frames,
         mean_batch=round(times.frames / times.batches, 2) if times.batches else None,
@@ -173,6 +188,36 @@ def throughput_result(
         model_busy=model_busy(times, eval_s),
         run_dir=str(run_dir),
     )
+
+
+def read_summary(run_dir: Path) -> dict[str, Any]:
+    """The finished eval's ``summary.json``."""
+    summary: dict[str, Any] = json.loads((run_dir / SUMMARY_FILE).read_text(encoding="utf-8"))
+    return summary
+
+
+def _summary(run_dir: Path, frames: int, wall_s: float) -> dict[str, Any]:
+    """What an interrupted eval's summary would say of its finished episodes (its records), over ``wall_s``."""
+    path = run_dir / EPISODES_FILE
+    lines = path.read_text(encoding="utf-8").splitlines() if path.is_file() else []
+    records = [json.loads(line) for line in lines]
+    rate = Throughput(len(records), frames, wall_s)
+    return {
+        "episodes": len(records),
+        "errors": sum(record.get("stop_reason") == ERROR for record in records),
+        "episodes_per_hour": rate.episodes_per_hour,
+        "frames_per_second": rate.frames_per_second,
+    }
+
+
+class ServerFigures(Protocol):
+    """What the bench reads of its server when the eval is over."""
+
+    @property
+    def times(self) -> ServerTimes: ...
+
+    @property
+    def steady(self) -> Steady | None: ...
 
 
 RunEval = Callable[[str, Path], int]
@@ -268,6 +313,7 @@ def served_eval(
         start = time.perf_counter()
         status = run_eval(endpoint, run_dir)
         wall_s = time.perf_counter() - start
-    if status != 0:
-        raise InputError("command line", "eval-throughput -- ...", "an eval that runs (exit 0)", f"exit {status}")
-    return throughput_result(served, server.times, run_dir, workers, wall_s)
+    if status not in (0, INTERRUPTED):
+        expected = f"an eval that runs (exit 0) or is stopped (exit {INTERRUPTED})"
+        raise InputError("command line", "eval-throughput -- ...", expected, f"exit {status}")
+    return throughput_result(served, server, run_dir, workers, wall_s, status == INTERRUPTED)

@@ -308,7 +308,7 @@ def _cmd_bench_eval_throughput(args: argparse.Namespace) -> int:
     import tempfile
     from dataclasses import asdict
 
-    from drivenav.benchmarks.throughput_bench import served_eval
+    from drivenav.benchmarks.throughput_bench import INTERRUPTED, served_eval
     from drivenav.cli.serve import serve_config
 
     eval_args = _throughput_eval_args(args.eval_args)
@@ -326,7 +326,8 @@ def _cmd_bench_eval_throughput(args: argparse.Namespace) -> int:
             return main(["eval", *eval_args, *own])
 
         result = served_eval(options, config, workers, out, run_eval, forward_ms)
-        return print_bench(asdict(result), args.json)
+        status = print_bench(asdict(result), args.json)
+        return INTERRUPTED if result.interrupted else status
 
 
 def _forward_ms(args: argparse.Namespace) -> float:

@@ -50,6 +50,8 @@ from drivenav.semantics.serve_pipeline import (
     ModelPool,
     RowGrounder,
     ServerTimes,
+    Steady,
+    SteadyRate,
     Work,
     grounded_replies,
     grounding_failed,
@@ -202,10 +204,13 @@ class _Clients:
         self._seen: dict[bytes, float] = {}
         self._held: Counter[bytes] = Counter()
         self._frames: dict[bytes, tuple[tuple[str, int], int, int]] = {}  # the last frame: its key, expected, come
+        self.rate = SteadyRate(time.monotonic())
 
     def saw(self, identity: bytes, request: SegmentRequest) -> None:
-        self._seen[identity] = time.monotonic()
+        now = self._seen[identity] = time.monotonic()
         frame = (request.episode, request.observation.step)
+        if identity not in self._frames or self._frames[identity][0] != frame:
+            self.rate.arrived(identity, now)
         last, expected, come = self._frames.get(identity, (frame, 0, 0))
         if last != frame:
             expected, come = 0, 0
@@ -285,6 +290,11 @@ class GrounderServer:
     def batch_sizes(self) -> Counter[int]:
         """The batches run so far, counted by their number of requests."""
         return self._alone_sizes if self._model is None else self._model.batch_sizes
+
+    @property
+    def steady(self) -> Steady | None:
+        """The frames a second it served while every client that grounded was grounding (:class:`SteadyRate`)."""
+        return self._clients.rate.steady()
 
     @property
     def times(self) -> ServerTimes:
@@ -644,7 +654,9 @@ def run_server(server: GrounderServer, curve: bool) -> None:
         server.serve()
     finally:
         server.close()
-        print(f"{batches_line(server.batch_sizes)}; {server.times.line()}", flush=True)
+        steady = server.steady
+        rate = "" if steady is None else f"; {steady.line()}"
+        print(f"{batches_line(server.batch_sizes)}; {server.times.line()}{rate}", flush=True)
 
 
 def _copies(copies: int) -> str:

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import math
 import queue
 import threading
 import time
@@ -157,6 +158,53 @@ class ServerTimes:
         """The breakdown in words (a server's last line)."""
         shown = ", ".join(f"{stage} {ms:g}" for stage, ms in self.per_frame_ms().items())
         return f"ms a frame: {shown}; added by serving {self.added_ms():g}" if self.frames else "no frames"
+
+
+STEADY_MIN_S: Final[int] = 10
+"""The shortest window, in seconds, over which :class:`SteadyRate` gives a rate."""
+
+
+@dataclass(frozen=True)
+class Steady:
+    """Frames a second while every one of ``clients`` clients was grounding, over ``window_s`` whole seconds."""
+
+    frames_per_second: float
+    window_s: int
+    clients: int
+
+    def line(self) -> str:
+        return f"steady {self.frames_per_second:g} frames a second over {self.window_s} s, {self.clients} clients"
+
+
+class SteadyRate:
+    """The frames (a client's steps) as they come, by client and by whole second since ``start`` (monotonic): the
+    rate while every client that grounded was grounding, from the last one's first frame to the first one's last,
+    leaves out an eval's start-up (workers still starting) and its tail (workers done, batches shrinking), which the
+    eval's own rate includes: the rate a served model sustains (issue 61). A few numbers a client and one a second."""
+
+    def __init__(self, start: float) -> None:
+        self._start = start
+        self._first: dict[bytes, float] = {}
+        self._last: dict[bytes, float] = {}
+        self._by_second: Counter[int] = Counter()
+
+    def arrived(self, identity: bytes, now: float) -> None:
+        """A frame of ``identity``'s (its first SEGMENT) came at ``now``."""
+        self._first.setdefault(identity, now)
+        self._last[identity] = now
+        self._by_second[int(now - self._start)] += 1
+
+    def steady(self) -> Steady | None:
+        """The frames that came in the whole seconds when every client was grounding, a second; None when that
+        window is shorter than :data:`STEADY_MIN_S`."""
+        if not self._first:
+            return None
+        begin = math.ceil(max(self._first.values()) - self._start)
+        end = math.floor(min(self._last.values()) - self._start)
+        if end - begin < STEADY_MIN_S:
+            return None
+        frames = sum(self._by_second[second] for second in range(begin, end))
+        return Steady(round(frames / (end - begin), 2), end - begin, len(self._first))
 
 
 @dataclass
