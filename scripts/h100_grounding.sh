@@ -337,7 +337,7 @@ summary = {"env": env, "budget_s": int(os.environ["BUDGET"]), "wall_s": int(time
 (out / "summary.json").write_text(json.dumps(summary, indent=2))
 
 cols = ("median_ms", "forward_ms", "segment_ms", "batch_ms_per_frame", "served_ms_per_frame", "served_overhead_ms",
-        "gpu_memory_mb")
+        "detections_per_frame", "gpu_memory_mb")
 print(f"\n== grounding on {env.get('gpu') or 'cpu'} (torch {env.get('torch')}, transformers {env.get('transformers')});"
       f" {summary['wall_s']} s of a {summary['budget_s']} s budget; JSON: {out / 'summary.json'}")
 print(f"{'stage':<15}{'rc':>8}{'wall':>6}" + "".join(f"{c.replace('_ms', '').replace('_per_frame', '/f'):>16}" for c in cols))

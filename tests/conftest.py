@@ -9,6 +9,7 @@ limit_blas_threads()  # before numpy loads
 import importlib.metadata
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
 from functools import cache
 from pathlib import Path
@@ -64,6 +65,15 @@ def run_cli(*args: str, timeout: float = 600.0) -> subprocess.CompletedProcess[s
         cwd=REPO,
         check=False,
     )
+
+
+def until_records(process: subprocess.Popen[Any], results: Path, count: int, timeout: float = 240.0) -> None:
+    """Wait until the run ``process`` runs has ``count`` records in ``results`` (or it ended, or ``timeout``)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and process.poll() is None:
+        if results.exists() and len(results.read_text().splitlines()) >= count:
+            return
+        time.sleep(0.05)
 
 
 def registries() -> dict[str, Registry[Any]]:

@@ -26,6 +26,7 @@ KEYS = (
     "forward_ms",
     "postprocess_ms",
     "segment_ms",
+    "detections_per_frame",
     "device",
     "dtype",
     "served_ms_per_frame",
@@ -59,6 +60,9 @@ def test_bench_grounder_tiny_prints_the_figures(detector: str, capsys: pytest.Ca
     else:  # the filled box: a part of postprocessing
         assert 0.0 <= result["segment_ms"] <= result["postprocess_ms"]
         assert "boxes to masks: filled-box, a median of" in result["notes"]
+        boxes = float(result["notes"].split("a median of ")[1].split(" boxes")[0])
+        assert result["detections_per_frame"] <= boxes  # a detection a box at most (random weights: noise boxes)
+    assert isinstance(result["detections_per_frame"], float) and result["detections_per_frame"] >= 0.0
 
 
 @pytest.mark.parametrize("detector", ["owlv2", "grounding-dino"])

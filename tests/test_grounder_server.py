@@ -38,6 +38,8 @@ from drivenav.semantics.served import (
     GrounderClient,
     GrounderUnavailableError,
     ServedInfo,
+    detections_reply,
+    read_detections,
     segment_request,
 )
 from drivenav.types import SEMANTIC, CameraIntrinsics, GroundTruth, Observation, Pose
@@ -145,6 +147,22 @@ def transformers_grounders() -> dict[str, tuple[str, Callable[[], Grounder]]]:
         "owlv2+mobilesam": ("owlv2", make_owl),
         "grounding-dino": ("grounding-dino", make_gdino),
     }
+
+
+@pytest.mark.parametrize("size", [(24, 32), (7, 13), (480, 641)])
+@pytest.mark.parametrize("count", [0, 1, 5])
+def test_masks_travel_bit_packed_and_come_back_exact(size: tuple[int, int], count: int) -> None:
+    """Each mask's rows packed to ceil(width / 8) bytes (a width not a multiple of 8 padded), decoded to the same
+    boolean masks and the same scores, through the wire's encoding."""
+    rng = np.random.default_rng(count)
+    sent = [Detection(rng.random(size) > 0.6, float(rng.random()), "sofa") for _ in range(count)]
+    reply = detections_reply("r1", "sofa", sent, size)
+    assert reply.arrays["masks"].shape == (count, size[0], (size[1] + 7) // 8)
+    back = read_detections(decode(encode(reply, GROUNDER_PROTOCOL), REPLIES, GROUNDER_PROTOCOL), "sofa", size)
+    assert [d.score for d in back] == [d.score for d in sent]
+    assert all(d.mask.dtype == bool and np.array_equal(d.mask, s.mask) for d, s in zip(back, sent, strict=True))
+    with pytest.raises(ValueError, match="not the frame's"):
+        detections_reply("r2", "sofa", [Detection(np.zeros((2, 2), bool), 0.5, "sofa")], size)
 
 
 @pytest.mark.parametrize("case", ["sam3", "owlv2+mobilesam", "grounding-dino"])

@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
+from conftest import until_records
 from drivenav.cli import main
 from drivenav.eval.report import Summary, Throughput, rate_kept, summarize
 from drivenav.semantics import grounder_server
@@ -588,11 +589,7 @@ def test_an_interrupted_eval_gives_the_bench_its_finished_episodes(tmp_path: Pat
         [sys.executable, "-m", "drivenav.cli", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
     )
     results = out / "episodes.jsonl"
-    deadline = time.monotonic() + 240
-    while time.monotonic() < deadline and process.poll() is None:
-        if results.exists() and len(results.read_text().splitlines()) >= 2:
-            break
-        time.sleep(0.05)
+    until_records(process, results, 2)
     process.send_signal(signal.SIGINT)
     stdout, stderr = process.communicate(timeout=120)
     assert process.returncode == 130, stderr

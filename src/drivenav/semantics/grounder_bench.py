@@ -12,8 +12,10 @@ once, as in an episode); frames are random pixels. One frame is split into the g
 (:meth:`~drivenav.semantics.hf_common.TransformersGrounder.preprocess`), forward (vision features and decoding) and
 postprocessing (masks at the frame's size, detections); ``segment_ms`` is the part of postprocessing that a box
 detector's segmenter takes (MobileSAM's encoder and decoder; null for SAM3, which makes its own masks), on as many
-boxes as the detector passed (the notes give their median: random weights pass many). On CUDA every stage ends with
-a synchronisation.
+boxes as the detector passed (the notes give their median: random weights pass many). ``detections_per_frame``: the
+median of the detections a timed frame gave (each one's mask is copied, checked and packed when served: random
+weights give more than a trained model, which the reply's cost follows). On CUDA every stage ends with a
+synchronisation.
 
 ``--clients K`` also times the served path (:mod:`drivenav.semantics.grounder_server`), with the grounder served
 from this process on loopback: ``served_ms_per_frame`` is the throughput of K client threads each grounding
@@ -152,6 +154,7 @@ class GrounderBenchResult:
     forward_ms: float
     postprocess_ms: float
     segment_ms: float | None
+    detections_per_frame: float
     batch: int
     batch_ms_per_frame: float | None
     clients: int
@@ -174,6 +177,7 @@ class _FrameTiming:
     postprocess: float
     segment: float
     boxes: int
+    detections: int
 
     @property
     def total(self) -> float:
@@ -216,6 +220,7 @@ def bench_grounder(options: GrounderBenchOptions) -> GrounderBenchResult:
         forward_ms=_ms(np.median([t.forward for t in timings])),
         postprocess_ms=_ms(np.median([t.postprocess for t in timings])),
         segment_ms=_ms(np.median([t.segment for t in timings])) if timed is not None else None,
+        detections_per_frame=float(np.median([t.detections for t in timings])),
         batch=options.batch,
         batch_ms_per_frame=_batched(grounder, options, device) if options.batch > 1 else None,
         clients=options.clients,
@@ -304,10 +309,12 @@ def _time_frame(
         text = grounder.text_features(PHRASE)
         pixels, preprocess = _timed(lambda: grounder.preprocess([rgb]), device)
         outputs, forward = _timed(lambda: grounder.decode_rows(grounder.encode_vision(pixels), [text]), device)
-        _, postprocess = _timed(lambda: grounder.postprocess(outputs, [rgb], [PHRASE]), device)
+        detections, postprocess = _timed(lambda: grounder.postprocess(outputs, [rgb], [PHRASE]), device)
+    found = len(detections[0])
     if segmenter is None:
-        return _FrameTiming(preprocess, forward, postprocess, 0.0, 0)
-    return _FrameTiming(preprocess, forward, postprocess, segmenter.seconds - seconds, segmenter.boxes - boxes)
+        return _FrameTiming(preprocess, forward, postprocess, 0.0, 0, found)
+    segment = segmenter.seconds - seconds
+    return _FrameTiming(preprocess, forward, postprocess, segment, segmenter.boxes - boxes, found)
 
 
 def _batched(grounder: TransformersGrounder, options: GrounderBenchOptions, device: str) -> float:
