@@ -15,14 +15,15 @@
 # time goes; each eval is stopped after --serve-window S, 90 by default, its workers never out of episodes before).
 # --cpu: a dry run of the script itself on this machine's CPU with the tests' tiny models (no wheels, no compile
 # stages unless named; a 40 s serve window). Issue 61's check, within one device call:
-#   bash scripts/h100_grounding.sh --budget 540 sam3-bf16 serve-eval serve-eval-apexnav serve-eval-x2 Writes every stage's JSON and log, env.json and
-# summary.json to $OUT (default /tmp/h100-grounding); the summary table comes last on stdout, then issue 61's verdict
-# for each serve-eval stage (its frames a second against the sam3-bf16 stage's batch-8 speed; an OVON val split's
-# GPU-hours at that rate).
+#   bash scripts/h100_grounding.sh --budget 540 sam3-bf16 serve-eval serve-eval-apexnav serve-eval-x2
+# Writes every stage's JSON and log, env.json and summary.json to $OUT (default /tmp/h100-grounding); the summary
+# table comes last on stdout, then issue 61's verdict for each serve-eval stage (its steady frames a second against
+# the sam3-bf16 stage's batch-8 speed; an OVON val split's GPU-hours at that rate).
 #
 # On the GPU machine (no network): the wheels of what it lacks are in .whl/ (mobilesam-mirror, omegaconf, pyzmq,
-# and scikit-fmm's source, built here with the C++ compiler: it publishes no wheels); numba's JIT serves the kernels
-# (DRIVENAV_KERNELS=jit), its cache warmed by one short episode while the GPU stages run.
+# and scikit-fmm's source, built here with the C++ compiler: it publishes no wheels; `bash scripts/h100_wheels.sh`
+# downloads them beforehand, and the device call carries the ignored folder: carry [".whl"]); numba's JIT serves
+# the kernels (DRIVENAV_KERNELS=jit), its cache warmed by one short episode of each agent while the GPU stages run.
 set -uo pipefail
 
 CPU=0
@@ -38,7 +39,7 @@ while (($#)); do
     --window) WINDOW=$2; shift ;;
     --serve-window) SERVE_WINDOW=$2; shift ;;
     --workers) WORKERS=$2; shift ;;
-    -h | --help) sed -n '2,24p' "$0"; exit 0 ;;
+    -h | --help) sed -n '2,26p' "$0"; exit 0 ;;
     -*) echo "h100_grounding: unknown option $1 (see --help)" >&2; exit 2 ;;
     *) STAGES+=("$1") ;;
     esac
