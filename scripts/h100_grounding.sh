@@ -12,10 +12,10 @@
 # serve-eval-apexnav sam3-compile owlv2-compile gdino-compile (default: all, in this order; serve-eval: `drivenav bench
 # eval-throughput`, SAM3 served to the workers with one model copy, -x2 with two, -apexnav to ApexNav's workers, five
 # phrases a frame: episodes an hour, the frames a second sustained while every worker grounds, and where a step's
-# time goes; each eval is stopped after --serve-window S, 90 by default, its workers never out of episodes before).
+# time goes; each eval is stopped --serve-window S after it starts, 90 by default, its workers never out of episodes).
 # --cpu: a dry run of the script itself on this machine's CPU with the tests' tiny models (no wheels, no compile
 # stages unless named; a 40 s serve window). Issue 61's check, within one device call:
-#   bash scripts/h100_grounding.sh --budget 540 sam3-bf16 serve-eval serve-eval-apexnav serve-eval-x2
+#   bash scripts/h100_grounding.sh --budget 560 sam3-bf16 serve-eval serve-eval-apexnav serve-eval-x2
 # Writes every stage's JSON and log, env.json and summary.json to $OUT (default /tmp/h100-grounding); the summary
 # table comes last on stdout, then issue 61's verdict for each serve-eval stage (its steady frames a second against
 # the sam3-bf16 stage's batch-8 speed; an OVON val split's GPU-hours at that rate).
@@ -191,10 +191,12 @@ run_bench() {  # run_bench STAGE (STACK-KIND)
 }
 
 # -- serve-eval: bench eval-throughput, SAM3 served (COPIES copies) to $WORKERS workers on 4 x $WORKERS episodes ---------
-serve_eval() {  # serve_eval NAME COPIES [AGENT]: stopped (SIGINT) after $SERVE_WINDOW s with every worker still busy
+serve_eval() {  # serve_eval NAME COPIES [AGENT]: the eval stopped after $SERVE_WINDOW s with every worker still busy
+    # (the bench's --window, from the eval's start; 60 s more for building the model and stopping, else SIGINT)
     warmed
-    STOP=INT BENCH=eval-throughput bench_stage "$1" "$SERVE_WINDOW" --detector sam3 --batch 16 --copies "$2" \
-        --workers "$WORKERS" -- --agent "${3:-drive-nav}" --scenes procedural:16 --episodes $((4 * WORKERS)) --seed 2026
+    STOP=INT BENCH=eval-throughput bench_stage "$1" $((SERVE_WINDOW + 60)) --detector sam3 --batch 16 --copies "$2" \
+        --workers "$WORKERS" --window "$SERVE_WINDOW" -- --agent "${3:-drive-nav}" --scenes procedural:16 \
+        --episodes $((4 * WORKERS)) --seed 2026
 }
 
 # -- throughput: 16 workers on v1 beside one served SAM3 ------------------------------------------------------------

@@ -23,7 +23,8 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from conftest import until_records
+from conftest import run_cli, until_records
+from drivenav.benchmarks.throughput_bench import run_for
 from drivenav.cli import main
 from drivenav.eval.report import Summary, Throughput, rate_kept, summarize
 from drivenav.semantics import grounder_server
@@ -536,7 +537,7 @@ def test_bench_eval_throughput_runs_an_eval_beside_a_served_model(capsys: pytest
     assert step["wall_ms"] == pytest.approx(step["agent_ms"] + step["grounding_ms"] + step["other_ms"], abs=0.01)
     assert set(result["server_stages_ms"]) == set(STAGES) and result["server_added_ms"] >= 0.0
     assert 0.0 < result["model_busy"] <= 1.0 and result["mean_batch"] >= 1.0
-    assert result["interrupted"] is False and result["steady_window_s"] is None  # a few seconds: no steady window
+    assert result["stopped"] is None and result["steady_window_s"] is None  # a few seconds: no steady window
 
 
 def test_the_steady_rate_counts_the_whole_seconds_when_every_client_grounds() -> None:
@@ -580,7 +581,7 @@ def test_the_server_counts_a_frame_once_however_many_phrases_it_is_sent_for(monk
 
 def test_an_interrupted_eval_gives_the_bench_its_finished_episodes(tmp_path: Path) -> None:
     """Ctrl-C (or the SIGTERM of a timeout) during ``bench eval-throughput`` stops the eval, its finished episodes
-    saved; the bench still prints its figures, of those episodes, says it was interrupted and exits 130."""
+    saved; the bench still prints its figures, of those episodes, says a signal stopped it and exits 130."""
     out = tmp_path / "run"
     run = [*RUN[1:]]
     run[run.index("--episodes") + 1] = "40"
@@ -595,9 +596,35 @@ def test_an_interrupted_eval_gives_the_bench_its_finished_episodes(tmp_path: Pat
     assert process.returncode == 130, stderr
     result = json.loads(stdout.strip().splitlines()[-1])
     finished = len(results.read_text().splitlines())
-    assert result["interrupted"] is True and 2 <= result["episodes"] == finished < 40 and result["errors"] == 0
+    assert result["stopped"] == "signal" and 2 <= result["episodes"] == finished < 40 and result["errors"] == 0
     assert result["frames"] > 0 and result["frames_per_second"] > 0 and result["frames_served"] >= result["frames"]
     assert "steady_frames_per_second" in result and "steady_window_s" in result
+
+
+def test_bench_eval_throughput_window_stops_the_eval_and_says_so(tmp_path: Path) -> None:
+    """``--window S``: the eval is stopped S seconds after it starts, as Ctrl-C stops it; the bench prints the
+    figures of the episodes it finished, says the window stopped it, and exits 0 (what was asked)."""
+    run = [*RUN[1:]]
+    run[run.index("--episodes") + 1] = "60"
+    out = tmp_path / "run"
+    args = ["bench", "eval-throughput", "--forward-ms", "5", "--window", "6", "--out", str(out), "--json", "--", *run]
+    result = run_cli(*args, timeout=300)
+    assert result.returncode == 0, result.stderr
+    figures = json.loads(result.stdout.strip().splitlines()[-1])
+    finished = len((out / "episodes.jsonl").read_text().splitlines())
+    assert figures["stopped"] == "window" and figures["episodes"] == finished < 60 and figures["errors"] == 0
+
+
+def test_run_for_without_a_window_or_ended_before_it_is_the_runs_own_status() -> None:
+    assert run_for(lambda: 0, None) == (0, False)
+    assert run_for(lambda: 3, 60.0) == (3, False)  # ended first: the timer cancelled, nothing sent
+
+
+@pytest.mark.parametrize("window", ["0", "-1", "nan", "1e9"])
+def test_bench_eval_throughput_window_out_of_range_is_one_line(window: str, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["bench", "eval-throughput", "--forward-ms", "5", "--window", window]) == 2
+    error = capsys.readouterr().err.strip()
+    assert len(error.splitlines()) == 1 and "field '--window'" in error
 
 
 def test_bench_eval_throughput_with_a_waiting_forward_serves_no_model(capsys: pytest.CaptureFixture[str]) -> None:

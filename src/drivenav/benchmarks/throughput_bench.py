@@ -25,6 +25,8 @@ overlaps, how batches form) without a model's compute competing with the workers
 from __future__ import annotations
 
 import json
+import signal
+import threading
 import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
@@ -73,9 +75,10 @@ class WorkerSteps:
 class ThroughputResult:
     """An eval beside a served grounder (module docstring). ``steady_frames_per_second``: the frames a second the
     server took while every worker was grounding, over ``steady_window_s`` seconds (None for a window under 10 s:
-    :class:`~drivenav.semantics.serve_pipeline.SteadyRate`); ``interrupted``: the eval was stopped (Ctrl-C,
-    SIGTERM), its figures those of the episodes it finished; ``server_stages_ms``: milliseconds a frame by stage;
-    ``server_added_ms``: what serving adds to a frame beyond the grounder's stages."""
+    :class:`~drivenav.semantics.serve_pipeline.SteadyRate`); ``stopped``: what stopped the eval before its end
+    (``window``: ``--window``; ``signal``: Ctrl-C, SIGTERM), its figures then those of the episodes it finished;
+    ``server_stages_ms``: milliseconds a frame by stage; ``server_added_ms``: what serving adds to a frame beyond
+    the grounder's stages."""
 
     detector: str
     model: str
@@ -93,7 +96,7 @@ class ThroughputResult:
     frames_per_second: float | None
     steady_frames_per_second: float | None
     steady_window_s: int | None
-    interrupted: bool
+    stopped: str | None
     worker_step: WorkerSteps | None
     frames_served: int
     mean_batch: float | None
@@ -150,15 +153,15 @@ class ServedModel:
 
 
 def throughput_result(
-    served: ServedModel, server: ServerFigures, run_dir: Path, workers: int, wall_s: float, interrupted: bool = False
+    served: ServedModel, server: ServerFigures, run_dir: Path, workers: int, wall_s: float, stopped: str | None = None
 ) -> ThroughputResult:
     """The bench's figures from the eval in ``run_dir`` and its server's: a worker's step and the model's busy share
     over the eval's own wall time (its summary's rate), ``wall_s`` the bench's (start-up included). An
-    ``interrupted`` eval wrote no summary: its rate is its finished episodes' over ``wall_s``."""
+    eval ``stopped`` wrote no summary: its rate is its finished episodes' over ``wall_s``."""
     times = server.times
     traces = run_traces(run_dir)
     frames = sum(len(trace.actions) for trace in traces)
-    summary = _summary(run_dir, frames, wall_s) if interrupted else read_summary(run_dir)
+    summary = _summary(run_dir, frames, wall_s) if stopped else read_summary(run_dir)
     rate = summary.get("frames_per_second")
     eval_s = frames / rate if isinstance(rate, (int, float)) and rate > 0 else wall_s
     steady = server.steady
@@ -179,7 +182,7 @@ def throughput_result(
         frames_per_second=summary.get("frames_per_second"),
         steady_frames_per_second=None if steady is None else steady.frames_per_second,
         steady_window_s=None if steady is None else steady.window_s,
-        interrupted=interrupted,
+        stopped=stopped,
         worker_step=worker_steps(traces, workers, eval_s),
         frames_served=times.frames,
         mean_batch=round(times.frames / times.batches, 2) if times.batches else None,
@@ -197,7 +200,7 @@ def read_summary(run_dir: Path) -> dict[str, Any]:
 
 
 def _summary(run_dir: Path, frames: int, wall_s: float) -> dict[str, Any]:
-    """What an interrupted eval's summary would say of its finished episodes (its records), over ``wall_s``."""
+    """What a stopped eval's summary would say of its finished episodes (its records), over ``wall_s``."""
     path = run_dir / EPISODES_FILE
     lines = path.read_text(encoding="utf-8").splitlines() if path.is_file() else []
     records = [json.loads(line) for line in lines]
@@ -218,6 +221,35 @@ class ServerFigures(Protocol):
 
     @property
     def steady(self) -> Steady | None: ...
+
+
+def run_for(run: Callable[[], int], window_s: float | None) -> tuple[int, bool]:
+    """``run()``'s exit status, and whether the window stopped it: with ``window_s``, the eval it runs is stopped
+    that many seconds after it starts, as Ctrl-C stops it (the eval's own handling: the episodes it finished saved,
+    :data:`INTERRUPTED`). The stop is a SIGINT this process sends itself; its handler runs in the main thread. One
+    that comes as the eval ends, after it returned, is caught here: the eval then counts as stopped, its figures
+    still those of its records."""
+    if window_s is None:
+        return run(), False
+    fired = threading.Event()
+
+    def stop() -> None:
+        fired.set()
+        signal.raise_signal(signal.SIGINT)
+
+    timer = threading.Timer(window_s, stop)
+    timer.start()
+    try:
+        try:
+            status = run()
+        finally:
+            timer.cancel()
+            timer.join()  # the handler of a stop sent meanwhile runs here at the latest, inside this try
+    except KeyboardInterrupt:
+        if not fired.is_set():
+            raise
+        status = INTERRUPTED
+    return status, fired.is_set()
 
 
 RunEval = Callable[[str, Path], int]
@@ -297,10 +329,12 @@ def served_eval(
     run_dir: Path,
     run_eval: RunEval,
     forward_ms: float = 0.0,
+    window_s: float | None = None,
 ) -> ThroughputResult:
     """``options``' model (with ``forward_ms`` > 0, a :class:`WaitingGrounder` instead) served as ``config`` says
-    (its batching, its copies) beside the eval ``run_eval`` runs into ``run_dir`` with ``workers`` workers; an eval
-    that fails is an :class:`~drivenav.errors.InputError`."""
+    (its batching, its copies) beside the eval ``run_eval`` runs into ``run_dir`` with ``workers`` workers, stopped
+    ``window_s`` seconds after it starts where given (:func:`run_for`); an eval that fails is an
+    :class:`~drivenav.errors.InputError`."""
     from drivenav.semantics.grounder_server import GrounderServer, serving
     from drivenav.semantics.served import ServedInfo
 
@@ -311,9 +345,10 @@ def served_eval(
     server = GrounderServer(factory, info, "tcp://127.0.0.1:*", None, config)
     with serving(server) as endpoint:
         start = time.perf_counter()
-        status = run_eval(endpoint, run_dir)
+        status, windowed = run_for(lambda: run_eval(endpoint, run_dir), window_s)
         wall_s = time.perf_counter() - start
     if status not in (0, INTERRUPTED):
         expected = f"an eval that runs (exit 0) or is stopped (exit {INTERRUPTED})"
         raise InputError("command line", "eval-throughput -- ...", expected, f"exit {status}")
-    return throughput_result(served, server, run_dir, workers, wall_s, status == INTERRUPTED)
+    stopped = ("window" if windowed else "signal") if status == INTERRUPTED else None
+    return throughput_result(served, server, run_dir, workers, wall_s, stopped)

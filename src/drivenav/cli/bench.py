@@ -156,6 +156,13 @@ def _add_bench_eval_throughput(sub: Commands) -> None:
         help="serve no model: each batch's forward waits MS ms and computes nothing (a GPU's time as the host sees "
         f"it; up to {MAX_FORWARD_MS:g} ms), to measure serving and the workers without a GPU",
     )
+    parser.add_argument(
+        "--window",
+        type=float,
+        default=None,
+        help="stop the eval S seconds after it starts, as Ctrl-C does (its finished episodes kept): the figures of "
+        "what ran, the served model's steady rate over nearly all of it (default: the eval runs to its end)",
+    )
     parser.add_argument("--out", type=path, default=None, help="the eval's run directory (default: a temporary one)")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument(
@@ -166,6 +173,8 @@ def _add_bench_eval_throughput(sub: Commands) -> None:
     parser.set_defaults(handler=_cmd_bench_eval_throughput)
 
 
+MAX_WINDOW_S = 86_400.0
+"""``bench eval-throughput --window``'s largest window: a day."""
 THROUGHPUT_EVAL = ("--agent", "drive-nav", "--scenes", "procedural:4", "--episodes", "8", "--seed", "2026")
 """``bench eval-throughput``'s eval without arguments of its own: eight episodes in four procedural houses."""
 MAX_FORWARD_MS = 10_000.0
@@ -325,9 +334,17 @@ def _cmd_bench_eval_throughput(args: argparse.Namespace) -> int:
             own = ["--workers", str(workers), "--detector-shadow-url", endpoint, "--out", str(run_dir)]
             return main(["eval", *eval_args, *own])
 
-        result = served_eval(options, config, workers, out, run_eval, forward_ms)
+        result = served_eval(options, config, workers, out, run_eval, forward_ms, _window(args))
         status = print_bench(asdict(result), args.json)
-        return INTERRUPTED if result.interrupted else status
+        return INTERRUPTED if result.stopped == "signal" else status
+
+
+def _window(args: argparse.Namespace) -> float | None:
+    """``--window``: seconds > 0, or None (the eval runs to its end)."""
+    window: float | None = args.window
+    if window is not None and not (0.0 < window <= MAX_WINDOW_S):
+        raise InputError("command line", "--window", f"seconds in (0, {MAX_WINDOW_S:g}]", window)
+    return window
 
 
 def _forward_ms(args: argparse.Namespace) -> float:
