@@ -57,12 +57,12 @@ ALL_STAGES=(sam3-fp32 sam3-bf16 owlv2-fp32 owlv2-bf16 gdino-fp32 gdino-bf16 thro
 if ((CPU)); then
     PYTHON=${PYTHON:-$([ -x .venv/bin/python ] && echo .venv/bin/python || echo python3)}
     DEVICE=cpu WEIGHTS=--tiny BUDGET=${BUDGET:-900} WINDOW=${WINDOW:-40} WORKERS=${WORKERS:-2}
-    SERVE_WINDOW=${SERVE_WINDOW:-40}
+    SERVE_WINDOW=${SERVE_WINDOW:-40} PER_WORKER=8  # serve-eval episodes a worker: more than a window holds
     ((${#STAGES[@]})) || STAGES=("${ALL_STAGES[@]:0:10}")  # inductor on a 2-core CPU takes minutes a model
 else
     PYTHON=${PYTHON:-python3}
     DEVICE=cuda WEIGHTS=--random-weights BUDGET=${BUDGET:-420} WINDOW=${WINDOW:-150} WORKERS=${WORKERS:-16}
-    SERVE_WINDOW=${SERVE_WINDOW:-90}
+    SERVE_WINDOW=${SERVE_WINDOW:-90} PER_WORKER=4
     ((${#STAGES[@]})) || STAGES=("${ALL_STAGES[@]}")
 fi
 DEADLINE=$((START + BUDGET))
@@ -190,13 +190,13 @@ run_bench() {  # run_bench STAGE (STACK-KIND)
     esac
 }
 
-# -- serve-eval: bench eval-throughput, SAM3 served (COPIES copies) to $WORKERS workers on 4 x $WORKERS episodes ---------
+# -- serve-eval: bench eval-throughput, SAM3 served (COPIES copies) to $WORKERS workers, $PER_WORKER episodes each -------
 serve_eval() {  # serve_eval NAME COPIES [AGENT]: the eval stopped after $SERVE_WINDOW s with every worker still busy
     # (the bench's --window, from the eval's start; 60 s more for building the model and stopping, else SIGINT)
     warmed
     STOP=INT BENCH=eval-throughput bench_stage "$1" $((SERVE_WINDOW + 60)) --detector sam3 --batch 16 --copies "$2" \
         --workers "$WORKERS" --window "$SERVE_WINDOW" -- --agent "${3:-drive-nav}" --scenes procedural:16 \
-        --episodes $((4 * WORKERS)) --seed 2026
+        --episodes $((PER_WORKER * WORKERS)) --seed 2026
 }
 
 # -- throughput: 16 workers on v1 beside one served SAM3 ------------------------------------------------------------

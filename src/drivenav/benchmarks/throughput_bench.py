@@ -226,16 +226,20 @@ class ServerFigures(Protocol):
 def run_for(run: Callable[[], int], window_s: float | None) -> tuple[int, bool]:
     """``run()``'s exit status, and whether the window stopped it: with ``window_s``, the eval it runs is stopped
     that many seconds after it starts, as Ctrl-C stops it (the eval's own handling: the episodes it finished saved,
-    :data:`INTERRUPTED`). The stop is a SIGINT this process sends itself; its handler runs in the main thread. One
-    that comes as the eval ends, after it returned, is caught here: the eval then counts as stopped, its figures
-    still those of its records."""
+    :data:`INTERRUPTED`). The stop is a SIGINT sent to this process's main thread, which runs its handler: sent to
+    the process from the timer's thread, the main thread, blocked waiting for an episode, would see it only when the
+    next episode ended (seconds late). One that comes as the eval ends, after it returned, is caught here: the eval
+    then counts as stopped, its figures still those of its records."""
     if window_s is None:
         return run(), False
     fired = threading.Event()
 
+    main = threading.main_thread().ident
+    assert main is not None
+
     def stop() -> None:
         fired.set()
-        signal.raise_signal(signal.SIGINT)
+        signal.pthread_kill(main, signal.SIGINT)  # to the main thread: a wait it is blocked in ends at once
 
     timer = threading.Timer(window_s, stop)
     timer.start()
