@@ -38,8 +38,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivenav.errors import InputError
-from drivenav.eval.records import ERROR
-from drivenav.eval.report import Throughput
+from drivenav.eval.records import EpisodeRecord, read_records
+from drivenav.eval.report import Throughput, summarize
 from drivenav.eval.rundir import EPISODES_FILE, SUMMARY_FILE, trace_path
 from drivenav.eval.timings import COMPUTE_KEYS
 from drivenav.eval.trace import EpisodeTrace, read_trace
@@ -131,10 +131,9 @@ def model_busy(times: ServerTimes, wall_s: float) -> float | None:
     return round(sum(times.seconds[stage] for stage in MODEL_STAGES) / wall_s, 3)
 
 
-def run_traces(run_dir: Path) -> list[EpisodeTrace]:
-    """The traces of the run's finished episodes (a torn or missing one is left out)."""
-    lines = (run_dir / EPISODES_FILE).read_text(encoding="utf-8").splitlines()
-    read = (read_trace(trace_path(run_dir, str(json.loads(line)["episode_id"]))) for line in lines)
+def run_traces(run_dir: Path, records: Iterable[EpisodeRecord]) -> list[EpisodeTrace]:
+    """The traces of the run's finished episodes, its ``records`` (a torn or missing trace is left out)."""
+    read = (read_trace(trace_path(run_dir, record.episode_id)) for record in records)
     return [trace for trace in read if trace is not None]
 
 
@@ -159,9 +158,12 @@ def throughput_result(
     over the eval's own wall time (its summary's rate), ``wall_s`` the bench's (start-up included). An
     eval ``stopped`` wrote no summary: its rate is its finished episodes' over ``wall_s``."""
     times = server.times
-    traces = run_traces(run_dir)
+    records = read_records(run_dir / EPISODES_FILE)
+    traces = run_traces(run_dir, records)
     frames = sum(len(trace.actions) for trace in traces)
-    summary = _summary(run_dir, frames, wall_s) if stopped else read_summary(run_dir)
+    summary = (
+        summarize(records, Throughput(len(records), frames, wall_s)).to_json() if stopped else read_summary(run_dir)
+    )
     rate = summary.get("frames_per_second")
     eval_s = frames / rate if isinstance(rate, (int, float)) and rate > 0 else wall_s
     steady = server.steady
@@ -199,20 +201,6 @@ def read_summary(run_dir: Path) -> dict[str, Any]:
     return summary
 
 
-def _summary(run_dir: Path, frames: int, wall_s: float) -> dict[str, Any]:
-    """What a stopped eval's summary would say of its finished episodes (its records), over ``wall_s``."""
-    path = run_dir / EPISODES_FILE
-    lines = path.read_text(encoding="utf-8").splitlines() if path.is_file() else []
-    records = [json.loads(line) for line in lines]
-    rate = Throughput(len(records), frames, wall_s)
-    return {
-        "episodes": len(records),
-        "errors": sum(record.get("stop_reason") == ERROR for record in records),
-        "episodes_per_hour": rate.episodes_per_hour,
-        "frames_per_second": rate.frames_per_second,
-    }
-
-
 class ServerFigures(Protocol):
     """What the bench reads of its server when the eval is over."""
 
@@ -233,7 +221,6 @@ def run_for(run: Callable[[], int], window_s: float | None) -> tuple[int, bool]:
     if window_s is None:
         return run(), False
     fired = threading.Event()
-
     main = threading.main_thread().ident
     assert main is not None
 

@@ -209,11 +209,12 @@ class _Clients:
     def saw(self, identity: bytes, request: SegmentRequest) -> None:
         now = self._seen[identity] = time.monotonic()
         frame = (request.episode, request.observation.step)
-        if identity not in self._frames or self._frames[identity][0] != frame:
+        known = self._frames.get(identity)
+        if known is None or known[0] != frame:  # a new frame: its first SEGMENT
             self.rate.arrived(identity, now)
-        last, expected, come = self._frames.get(identity, (frame, 0, 0))
-        if last != frame:
             expected, come = 0, 0
+        else:
+            _, expected, come = known
         self._frames[identity] = (frame, max(expected, request.together), come + 1)
 
     def hold(self, identities: list[bytes]) -> None:

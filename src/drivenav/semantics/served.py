@@ -357,7 +357,7 @@ def _sent_rgb(rgb: NDArray[np.uint8] | None) -> Callable[[], NDArray[np.uint8]]:
 def detections_reply(request_id: str, phrase: str, detections: Sequence[Detection], size: tuple[int, int]) -> Message:
     """DETECTIONS: the masks' rows bit-packed into one uint8 array, the scores as float64 (exact). Each mask is
     packed straight into its place (stacking the masks first copied each one whole: 2.5 times slower)."""
-    masks = np.empty((len(detections), size[0], (size[1] + 7) // 8), dtype=np.uint8)
+    masks = np.empty(_packed_shape(len(detections), size), dtype=np.uint8)
     for k, detection in enumerate(detections):
         if detection.mask.shape != size:
             raise ValueError(f"a detection mask of {detection.mask.shape}, not the frame's {size}")
@@ -369,6 +369,11 @@ def detections_reply(request_id: str, phrase: str, detections: Sequence[Detectio
     return Message("DETECTIONS", request_id, body={"phrase": phrase}, arrays=arrays)
 
 
+def _packed_shape(count: int, size: tuple[int, int]) -> tuple[int, int, int]:
+    """The shape of ``count`` masks of a frame of ``size`` with their rows bit-packed (a row's last byte padded)."""
+    return count, size[0], (size[1] + 7) // 8
+
+
 def read_detections(message: Message, phrase: str, size: tuple[int, int]) -> list[Detection]:
     """The detections of a DETECTIONS reply to ``phrase`` on a frame of ``size`` (a malformed one is a
     :class:`~drivenav.wire.protocol.ProtocolError`). Their scores are checked as an in-process grounder's are, by
@@ -377,7 +382,7 @@ def read_detections(message: Message, phrase: str, size: tuple[int, int]) -> lis
     masks, scores = message.arrays.get("masks"), message.arrays.get("scores")
     if scores is None or scores.dtype != np.float64 or scores.ndim != 1:
         raise ProtocolError("arrays.scores", "a float64 vector of scores")
-    packed = (len(scores), size[0], (size[1] + 7) // 8)
+    packed = _packed_shape(len(scores), size)
     if masks is None or masks.dtype != np.uint8 or masks.shape != packed:
         raise ProtocolError("arrays.masks", f"uint8 {packed}", None if masks is None else masks.shape)
     if message.body.get("phrase") != phrase:
