@@ -25,7 +25,7 @@ from drivenav.envs.embedded.env import EmbeddedEnv
 from drivenav.eval.runner import run_episode
 from drivenav.semantics.embedded_detector import EmbeddedGrounder
 from drivenav.semantics.embedding import default_embedder
-from drivenav.semantics.grounder_server import serving
+from drivenav.semantics.grounder_server import GrounderServer, serving
 from drivenav.semantics.protocols import Detection, Grounder, Prefetching, prefetch
 from drivenav.semantics.registry import make_grounder, make_reasoner, make_scorer
 from drivenav.semantics.remote import RemoteGrounder
@@ -219,11 +219,10 @@ def test_the_body_tells_the_grounder_every_phrase_of_a_frame_before_it_grounds_i
 # --- one frame's requests in one batch --------------------------------------------------------------------------------
 
 
-def test_a_batch_waits_for_every_request_a_client_sent_of_its_frame_at_once() -> None:
-    """A frame's three SEGMENTs said to go together (``together`` 3), the last two sent 0.3 s after the first: the
-    server, whose batch may wait 1 s, runs the three as one batch rather than the first alone."""
-    grounder = SlowStaged(forward_s=0.0)
-    server = staged_server(grounder, ServeConfig(batch=8, batch_ms=1000.0))
+def sent_apart(config: ServeConfig, sent: int, gap_s: float) -> tuple[GrounderServer, list[Message], float]:
+    """A frame's three SEGMENTs said to go together (``together`` 3), the first sent alone and ``sent`` - 1 more
+    ``gap_s`` later, to a server with ``config``: the server, the replies and the seconds the first one took."""
+    server = staged_server(SlowStaged(forward_s=0.0), config)
     with serving(server) as endpoint:
         connection = GrounderClient(endpoint)
         try:
@@ -234,14 +233,36 @@ def test_a_batch_waits_for_every_request_a_client_sent_of_its_frame_at_once() ->
             requests = [
                 segment_request(connection.next_id(), remote._episode, shown, p, ("rgb",), None, 3) for p in "abc"
             ]
-            sent = [connection.submit(requests[0])]
-            time.sleep(0.3)
-            sent += [connection.submit(request) for request in requests[1:]]
-            replies = [connection.reply_to(s) for s in sent]
+            start = time.monotonic()
+            out = [connection.submit(requests[0])]
+            if sent > 1:
+                time.sleep(gap_s)
+                out += [connection.submit(request) for request in requests[1:sent]]
+            replies = [connection.reply_to(out[0])]
+            first_s = time.monotonic() - start
+            replies += [connection.reply_to(s) for s in out[1:]]
         finally:
             connection.close()
+    return server, replies, first_s
+
+
+@pytest.mark.parametrize("batch_ms", [1000.0, 0.0])
+def test_a_batch_waits_for_every_request_a_client_sent_of_its_frame_at_once(batch_ms: float) -> None:
+    """A frame's three SEGMENTs, the last two sent 0.3 s after the first (a sender descheduled between them): the
+    server runs the three as one batch rather than the first alone, whether its batch may wait 1 s or not at all (a
+    frame in parts is no batch's until its rest come; before, a batch due took the first alone and the frame was
+    encoded twice)."""
+    server, replies, _ = sent_apart(ServeConfig(batch=8, batch_ms=batch_ms), 3, 0.3)
     assert [r.type for r in replies] == ["DETECTIONS"] * 3
     assert server.batch_sizes == {3: 1}
+
+
+def test_a_frame_whose_client_sent_fewer_requests_than_it_said_is_grounded_after_parts_s() -> None:
+    """A client said three SEGMENTs of a frame go together and sent one: the server grounds it once it has waited
+    ``parts_s`` for the others, and goes on."""
+    server, replies, first_s = sent_apart(ServeConfig(batch=8, batch_ms=0.0, parts_s=0.5), 1, 0.0)
+    assert [r.type for r in replies] == ["DETECTIONS"] and server.batch_sizes == {1: 1}
+    assert 0.5 <= first_s < 5.0
 
 
 @pytest.mark.parametrize("together", [0, 65, "3", True])

@@ -351,10 +351,10 @@ def test_a_batch_runs_once_every_client_grounding_now_waits_on_it() -> None:
     assert alone < 1.0
 
 
-def test_the_queue_counts_frames_and_gives_whole_ones_first_where_asked() -> None:
+def test_the_queue_counts_frames_and_takes_them_whole() -> None:
     """The server's queue: a frame is a client's step, whole once every SEGMENT its client sent together is in; a
-    growing batch takes whole frames only (a frame joined in parts would be encoded once a part), a batch that is
-    due takes the first frames whatever they hold."""
+    batch takes whole frames only (a frame taken in parts would be encoded once a part), or one in parts once it has
+    waited ``parts_s`` for the rest."""
     from drivenav.semantics.grounder_server import _Pending
     from drivenav.semantics.served import SegmentRequest
 
@@ -373,12 +373,16 @@ def test_the_queue_counts_frames_and_gives_whole_ones_first_where_asked() -> Non
         queued(b"a", 1, "chair", 3)
         queued(b"b", 4, "tv", 1)
         assert server._whole() == [(b"b", "e", 4)]
-        assert phrases(server._taken(1, whole=True)) == ["tv"]
+        assert phrases(server._taken(1)) == ["tv"]  # due: b's whole frame, not a's first in parts
         assert server._taken(1, whole=True) == [] and len(server._queue.pending) == 2  # a's step waits for its third
         queued(b"a", 1, "bed", 3)
         queued(b"a", 2, "sofa", 3)
         assert server._whole() == [(b"a", "e", 1)]
-        assert phrases(server._taken(8)) == ["sofa", "chair", "bed", "sofa"]  # due: every frame
+        assert phrases(server._taken(8)) == ["sofa", "chair", "bed"]  # due: the whole frames, a's step 2 waits
+        assert server._taken(8) == [] and not server._due()  # for its other phrases
+        (waiting,) = server._queue.pending
+        waiting.arrived -= server.config.parts_s  # its client sent one of the three it said
+        assert server._due() and phrases(server._taken(8)) == ["sofa"]
         assert server._queue.pending == [] and server._whole() == []
     finally:
         server.close()
@@ -532,6 +536,7 @@ def test_bench_eval_throughput_runs_an_eval_beside_a_served_model(capsys: pytest
     result = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert result["episodes"] == 2 and result["errors"] == 0 and result["workers"] == 1
     assert result["frames"] > 0 and result["frames_served"] >= result["frames"]  # every step grounded once at least
+    assert result["frames"] <= result["frames_encoded"] <= result["frames_served"]  # an image encoded once a batch
     assert result["episodes_per_hour"] > 0 and result["frames_per_second"] > 0
     step = result["worker_step"]
     assert step["wall_ms"] == pytest.approx(step["agent_ms"] + step["grounding_ms"] + step["other_ms"], abs=0.01)

@@ -77,8 +77,11 @@ class ThroughputResult:
     server took while every worker was grounding, over ``steady_window_s`` seconds (None for a window under 10 s:
     :class:`~drivenav.semantics.serve_pipeline.SteadyRate`); ``stopped``: what stopped the eval before its end
     (``window``: ``--window``; ``signal``: Ctrl-C, SIGTERM), its figures then those of the episodes it finished;
-    ``server_stages_ms``: milliseconds a frame by stage; ``server_added_ms``: what serving adds to a frame beyond
-    the grounder's stages."""
+    ``frames_served``: the requests the server answered (one a phrase: ApexNav sends a frame for several);
+    ``frames_encoded``: the images its forwards encoded, ``frames`` where each frame's requests were grounded in one
+    batch (of an eval stopped early, also those of the episodes it did not finish); ``server_stages_ms``:
+    milliseconds a frame by stage; ``server_added_ms``: what serving adds to a frame beyond the grounder's
+    stages."""
 
     detector: str
     model: str
@@ -99,6 +102,7 @@ class ThroughputResult:
     stopped: str | None
     worker_step: WorkerSteps | None
     frames_served: int
+    frames_encoded: int
     mean_batch: float | None
     server_stages_ms: dict[str, float]
     server_added_ms: float | None
@@ -187,6 +191,7 @@ def throughput_result(
         stopped=stopped,
         worker_step=worker_steps(traces, workers, eval_s),
         frames_served=times.frames,
+        frames_encoded=times.encoded,
         mean_batch=round(times.frames / times.batches, 2) if times.batches else None,
         server_stages_ms=times.per_frame_ms(),
         server_added_ms=times.added_ms(),

@@ -96,7 +96,14 @@ class _Queue:
 
     def frames(self) -> list[Frame]:
         """The frames queued, in arrival order."""
-        return list(dict.fromkeys(pending.frame for pending in self.pending))
+        return list(self.arrivals())
+
+    def arrivals(self) -> dict[Frame, float]:
+        """The frames queued, in arrival order, each with its first request's arrival."""
+        first: dict[Frame, float] = {}
+        for pending in self.pending:
+            first.setdefault(pending.frame, pending.arrived)
+        return first
 
     def take(self, frames: Sequence[Frame]) -> list[_Pending]:
         """Every request of ``frames``, out of the queue."""
@@ -415,11 +422,16 @@ class GrounderServer:
 
     # -- batches -------------------------------------------------------------------------------------------------
     def _wait_ms(self) -> int:
-        """How long to wait for a request: until the oldest queued one's batch is due, at most ``poll_ms`` (while the
-        model holds a batch in hand and another ready, until it says it is done)."""
+        """How long to wait for a request: until the oldest runnable frame's batch is due (or the oldest frame in
+        parts runnable), at most ``poll_ms`` (while the model holds a batch in hand and another ready, until it says
+        it is done)."""
         if not self._queue.pending or not self._model_ready():
             return self.config.poll_ms
-        left = self._queue.pending[0].arrived + self.config.batch_ms / 1000.0 - time.monotonic()
+        runnable = self._runnable()
+        if runnable:
+            left = next(iter(runnable.values())) + self.config.batch_ms / 1000.0 - time.monotonic()
+        else:
+            left = self._queue.pending[0].arrived + self.config.parts_s - time.monotonic()
         return max(0, min(self.config.poll_ms, math.ceil(left * 1000.0)))
 
     def _model_ready(self) -> bool:
@@ -428,6 +440,18 @@ class GrounderServer:
     def _whole(self) -> list[Frame]:
         """The frames queued whole (every SEGMENT their client sent of them at once), in arrival order."""
         return [frame for frame in self._queue.frames() if self._clients.complete(frame)]
+
+    def _runnable(self) -> dict[Frame, float]:
+        """The frames a batch may take, in arrival order with their first request's arrival: those queued whole, and
+        those still in parts whose first request came ``parts_s`` ago (a client that sent fewer SEGMENTs of a frame
+        than it said it sent at once). A frame in parts is otherwise left for its other phrases, which its client
+        sent with it: taken, it would be encoded again with them in a later batch."""
+        since = time.monotonic() - self.config.parts_s
+        return {
+            frame: arrived
+            for frame, arrived in self._queue.arrivals().items()
+            if arrived <= since or self._clients.complete(frame)
+        }
 
     def _full(self) -> bool:
         """Whether ``batch`` frames are queued whole."""
@@ -440,15 +464,18 @@ class GrounderServer:
         return self._model is not None and self._full() and not self._model_ready()
 
     def _due(self) -> bool:
-        """A batch runs when a model copy is ready for it and ``batch`` whole frames are queued, or its oldest frame
-        has waited ``batch_ms``, or every client grounding now is waiting on it or on the model (no frame can
-        come)."""
+        """A batch runs when a model copy is ready for it and ``batch`` whole frames are queued, or its oldest
+        runnable frame has waited ``batch_ms``, or every client grounding now is waiting on it or on the model (no
+        frame can come)."""
         if not self._queue.pending or not self._model_ready():
             return False
-        waited = time.monotonic() - self._queue.pending[0].arrived
+        runnable = self._runnable()
+        if not runnable:
+            return False
+        waited = time.monotonic() - next(iter(runnable.values()))
         if self._full() or waited * 1000.0 >= self.config.batch_ms:
             return True
-        return self._clients.all_waiting({pending.frame for pending in self._queue.pending})
+        return self._clients.all_waiting(set(self._queue.frames()))
 
     def _run_batch(self) -> None:
         batch = self._taken(self.config.batch)
@@ -484,9 +511,9 @@ class GrounderServer:
             self._model.put(work)
 
     def _taken(self, count: int, whole: bool = False) -> list[_Pending]:
-        """The requests of the first ``count`` frames queued (only those queued whole, with ``whole``), out of the
-        queue, their wait counted."""
-        batch = self._queue.take((self._whole() if whole else self._queue.frames())[:count])
+        """The requests of the first ``count`` runnable frames (:meth:`_runnable`; only those queued whole, with
+        ``whole``), out of the queue, their wait counted."""
+        batch = self._queue.take((self._whole() if whole else list(self._runnable()))[:count])
         now = time.monotonic()
         self._times.seconds["wait"] += sum(now - pending.arrived for pending in batch)
         return batch

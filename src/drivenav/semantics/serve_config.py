@@ -48,7 +48,9 @@ class ServeConfig:
     ``copies`` copies, each in a thread of its own (one fills a GPU only when its batches keep it busy). A batch
     also runs, before ``batch_ms``, once every client that sent a frame in the last ``active_s`` seconds has one
     queued or in the model: a client waits for its reply before its next frame, so none can come (a worker that
-    grounds every step, or every few seconds behind a VLM's answer, is such a client).
+    grounds every step, or every few seconds behind a VLM's answer, is such a client). A frame whose SEGMENTs its
+    client sent at once (``together``) waits for all of them, at most ``parts_s`` after the first came: a batch that
+    took it in parts would leave the rest to a later batch and encode the frame twice.
     """
 
     batch: int = 8
@@ -63,10 +65,12 @@ class ServeConfig:
     max_detections: int = DEFAULT_MAX_DETECTIONS
     copies: int = 1
     active_s: float = 10.0
+    parts_s: float = 1.0
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.active_s) and self.active_s > 0.0):
-            raise ValueError(f"active_s must be a positive number of seconds, got {self.active_s}")
+        for name, seconds in (("active_s", self.active_s), ("parts_s", self.parts_s)):
+            if not (math.isfinite(seconds) and seconds > 0.0):
+                raise ValueError(f"{name} must be a positive number of seconds, got {seconds}")
         if not 1 <= self.copies <= MAX_COPIES:
             raise ValueError(f"copies must be 1-{MAX_COPIES}, got {self.copies}")
         if not 1 <= self.batch <= MAX_BATCH:

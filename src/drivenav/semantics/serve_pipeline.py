@@ -132,15 +132,19 @@ class DeviceStreams:
 @dataclass
 class ServerTimes:
     """Seconds by stage (:data:`STAGES`; ``wait`` summed over frames, the others the server's busy time) over
-    ``frames`` frames in ``batches`` batches."""
+    ``frames`` frames (requests: one a phrase) in ``batches`` batches, whose forwards encoded ``encoded`` images (a
+    frame sent for several phrases once, where its requests came in one batch)."""
 
     frames: int = 0
     batches: int = 0
     seconds: dict[str, float] = field(default_factory=lambda: dict.fromkeys(STAGES, 0.0))
+    encoded: int = 0
 
     def add(self, other: ServerTimes) -> ServerTimes:
         seconds = {stage: self.seconds[stage] + other.seconds[stage] for stage in STAGES}
-        return ServerTimes(self.frames + other.frames, self.batches + other.batches, seconds)
+        return ServerTimes(
+            self.frames + other.frames, self.batches + other.batches, seconds, self.encoded + other.encoded
+        )
 
     def per_frame_ms(self) -> dict[str, float]:
         """Each stage's milliseconds a frame (none without frames)."""
@@ -386,6 +390,7 @@ class ModelThread:
         lap("reply")
         self.times.frames += len(work.rows)
         self.times.batches += 1
+        self.times.encoded += len(work.observations)
 
     def _segment(self, work: Work, lap: Callable[[str], None]) -> list[list[Detection]]:
         """Each request's detections, in one forward where the grounder batches; the stages timed by ``lap``."""
