@@ -14,6 +14,7 @@ equivalence tests compare them exactly with one plain forward of the model, in f
 from __future__ import annotations
 
 import copy
+import logging
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -452,6 +453,22 @@ def test_fit_phrase_drops_trailing_words_only_as_needed() -> None:
     assert fit_phrase(tokenizer, LONG_PHRASE, 3) == "tall"  # one word is always kept
 
 
+def test_fit_phrase_does_not_warn_of_the_length_it_fits() -> None:
+    """The tokenizer's warning that a sequence is longer than the model's (transformers' logger, once a tokenizer)
+    is not given while fitting: the phrase it measures is cut to fit before the model sees it."""
+    told: list[str] = []
+    listener = logging.Handler()
+    listener.emit = lambda record: told.append(record.getMessage())  # type: ignore[method-assign]
+    library = logging.getLogger("transformers")
+    library.addHandler(listener)
+    try:
+        assert fit_phrase(letter_tokenizer(8), LONG_PHRASE, 8) == "tall"
+        letter_tokenizer(8)(LONG_PHRASE)  # the warning this listener hears
+    finally:
+        library.removeHandler(listener)
+    assert sum("longer than the specified maximum" in message for message in told) == 1  # the plain call's only
+
+
 # --- the split, cached forward against one plain forward (fp32, CPU: exact) ---
 
 
@@ -631,3 +648,23 @@ def test_bfloat16_casts_the_model_and_still_grounds(which: str, models: Models) 
     assert grounder.model.dtype == torch.bfloat16
     assert grounder.preprocess([observation().rgb]).dtype == torch.bfloat16
     assert_well_formed(grounder.segment(observation(), "chair"), "chair")
+
+
+@pytest.mark.parametrize(("detector", "segmenter"), [("sam3", "filled-box"), ("grounding-dino", "mobilesam")])
+def test_the_random_weights_of_a_bench_or_server_are_the_same_every_time(detector: str, segmenter: str) -> None:
+    """Two random grounders of one spec (two runs of a bench, or a server's two copies) hold the same weights, their
+    MobileSAM too, and building them leaves torch's own generator as it was."""
+    from drivenav.semantics.model_spec import ModelSpec
+    from drivenav.semantics.random_grounders import random_grounder
+
+    spec = ModelSpec(detector=detector, segmenter=segmenter, detector_device="cpu")
+    before = torch.get_rng_state()
+    first, second = (random_grounder(spec, tiny=True) for _ in range(2))
+    assert torch.equal(torch.get_rng_state(), before)
+    modules = [(first.model, second.model)]
+    if segmenter == "mobilesam":
+        modules.append((first.segmenter.model, second.segmenter.model))  # type: ignore[attr-defined]
+    for one, other in modules:
+        weights, again = one.state_dict(), other.state_dict()
+        assert weights.keys() == again.keys()
+        assert all(torch.equal(weights[name], again[name]) for name in weights)

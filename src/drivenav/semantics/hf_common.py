@@ -83,10 +83,11 @@ def fit_phrase(tokenizer: Any, phrase: str, max_tokens: int) -> str:
 
     The text encoders have fixed position tables (OWLv2 16 tokens, SAM3 32) and the processors do not truncate, so
     a long enriched prompt (Sec. IV-B) would fail; like CLIP's own truncation this keeps the start. One word is
-    always kept.
+    always kept. The measuring is quiet: the tokenizer's warning that a sequence is longer than the model's is for
+    sequences the model would see, which a fitted phrase is not.
     """
     words = phrase.split()
-    while len(words) > 1 and len(tokenizer(" ".join(words))["input_ids"]) > max_tokens:
+    while len(words) > 1 and len(tokenizer(" ".join(words), verbose=False)["input_ids"]) > max_tokens:
         words.pop()
     return " ".join(words)
 

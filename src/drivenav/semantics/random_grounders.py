@@ -21,9 +21,10 @@ without it, OWLv2's and Grounding DINO's PIL processors and, for SAM3 (whose pro
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 import string
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any, Final
 
 import torch
@@ -297,20 +298,42 @@ GROUNDERS: dict[str, Callable[..., TransformersGrounder]] = {
 """The grounder of each transformers detector."""
 
 
+RANDOM_WEIGHTS_SEED: Final[int] = 0
+"""The seed of the random weights that ``bench grounder``, ``bench eval-throughput`` and ``serve grounder
+--random-weights`` / ``--tiny`` build (:func:`random_grounder`, :func:`random_segmenter`): the same weights in every
+run and in every copy a server runs (``--copies``), so that a served frame's detections do not depend on the copy
+that grounded it, and the detections a frame, which a reply's cost follows, are the same from run to run."""
+
+
+@contextlib.contextmanager
+def seeded_weights(device: str) -> Iterator[None]:
+    """torch's generators (the CPU's and, on CUDA, ``device``'s) seeded with :data:`RANDOM_WEIGHTS_SEED` within the
+    block, and as they were after it."""
+    chosen = torch.device(device)
+    cuda = [chosen.index if chosen.index is not None else torch.cuda.current_device()] if chosen.type == "cuda" else []
+    with torch.random.fork_rng(devices=cuda):
+        torch.manual_seed(RANDOM_WEIGHTS_SEED)
+        yield
+
+
 def random_segmenter(spec: ModelSpec, tiny: bool) -> BoxSegmenter:
-    """``spec``'s box segmenter, MobileSAM with random weights (tiny or ``vit_t``) placed as ``spec`` says."""
+    """``spec``'s box segmenter, MobileSAM with random weights (tiny or ``vit_t``, :func:`seeded_weights`) placed as
+    ``spec`` says."""
     if spec.segmenter == "filled-box":
         return FilledBoxSegmenter()
     device = pick_device(spec.detector_device or None)
-    model = random_mobile_sam(tiny, device)
+    with seeded_weights(device):
+        model = random_mobile_sam(tiny, device)
     return MobileSamSegmenter(model, device, spec.dtype, compile_backend_for(spec.compile))
 
 
 def random_grounder(spec: ModelSpec, tiny: bool, segmenter: BoxSegmenter | None = None) -> TransformersGrounder:
-    """``spec``'s detector (one of :data:`RANDOM_DETECTORS`) with random weights, on ``spec``'s device in its dtype,
-    compiled when it says; a box detector's segmenter is ``segmenter``, else ``spec``'s with random weights."""
+    """``spec``'s detector (one of :data:`RANDOM_DETECTORS`) with random weights (:func:`seeded_weights`), on
+    ``spec``'s device in its dtype, compiled when it says; a box detector's segmenter is ``segmenter``, else
+    ``spec``'s with random weights."""
     device = pick_device(spec.detector_device or None)
-    model, processor = RANDOM_DETECTORS[spec.detector](tiny, device)
+    with seeded_weights(device):
+        model, processor = RANDOM_DETECTORS[spec.detector](tiny, device)
     options: dict[str, Any] = {"dtype": spec.dtype, "compile_backend": compile_backend_for(spec.compile)}
     if spec.detector in BOX_DETECTORS:
         options["segmenter"] = segmenter if segmenter is not None else random_segmenter(spec, tiny)
