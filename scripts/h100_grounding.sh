@@ -350,7 +350,7 @@ for stage in stages:
         print(f"{stage['stage']:<15}{stage['rc']:>8}{stage['wall_s']:>6}  {result['episodes_per_hour']} episodes/h, "
               f"{result['frames_per_second']} frames/s (steady {result.get('steady_frames_per_second')} over "
               f"{result.get('steady_window_s')} s), mean batch {result['mean_batch']}, "
-              f"{result.get('frames_encoded')} images encoded for {result['frames']} frames, model busy "
+              f"{result.get('encodings_per_frame')} images encoded a frame, model busy "
               f"{result['model_busy']}, server ms a frame {result['server_stages_ms']}, a worker's step "
               f"{result['worker_step']}")
         continue

@@ -295,7 +295,8 @@ def test_a_frame_asked_for_several_phrases_is_one_forward_and_encoded_once(
             grounder.prefetch(frame, PHRASES)
             answers = {phrase: grounder.segment(frame, phrase) for phrase in reversed(PHRASES)}
     assert server.batch_sizes == {len(PHRASES): 1} and server.times.batches == 1 and encoded == [1]
-    assert (server.times.frames, server.times.encoded) == (len(PHRASES), 1)  # the server's own count
+    assert (server.times.frames, server.times.encoded, server.times.received) == (len(PHRASES), 1, 1)
+    assert server.times.encodings_per_frame() == 1.0
     assert sum(len(found) for found in answers.values()) > 0
     for phrase in PHRASES:
         close_enough(answers[phrase], expected[phrase])

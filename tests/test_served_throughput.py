@@ -536,7 +536,7 @@ def test_bench_eval_throughput_runs_an_eval_beside_a_served_model(capsys: pytest
     result = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert result["episodes"] == 2 and result["errors"] == 0 and result["workers"] == 1
     assert result["frames"] > 0 and result["frames_served"] >= result["frames"]  # every step grounded once at least
-    assert result["frames"] <= result["frames_encoded"] <= result["frames_served"]  # an image encoded once a batch
+    assert result["encodings_per_frame"] >= 1.0  # an image encoded once a batch at least
     assert result["episodes_per_hour"] > 0 and result["frames_per_second"] > 0
     step = result["worker_step"]
     assert step["wall_ms"] == pytest.approx(step["agent_ms"] + step["grounding_ms"] + step["other_ms"], abs=0.01)

@@ -78,8 +78,8 @@ class ThroughputResult:
     :class:`~drivenav.semantics.serve_pipeline.SteadyRate`); ``stopped``: what stopped the eval before its end
     (``window``: ``--window``; ``signal``: Ctrl-C, SIGTERM), its figures then those of the episodes it finished;
     ``frames_served``: the requests the server answered (one a phrase: ApexNav sends a frame for several);
-    ``frames_encoded``: the images its forwards encoded, ``frames`` where each frame's requests were grounded in one
-    batch (of an eval stopped early, also those of the episodes it did not finish); ``server_stages_ms``:
+    ``encodings_per_frame``: the images its forwards encoded a frame it received
+    (:meth:`~drivenav.semantics.serve_pipeline.ServerTimes.encodings_per_frame`); ``server_stages_ms``:
     milliseconds a frame by stage; ``server_added_ms``: what serving adds to a frame beyond the grounder's
     stages."""
 
@@ -102,7 +102,7 @@ class ThroughputResult:
     stopped: str | None
     worker_step: WorkerSteps | None
     frames_served: int
-    frames_encoded: int
+    encodings_per_frame: float | None
     mean_batch: float | None
     server_stages_ms: dict[str, float]
     server_added_ms: float | None
@@ -191,7 +191,7 @@ def throughput_result(
         stopped=stopped,
         worker_step=worker_steps(traces, workers, eval_s),
         frames_served=times.frames,
-        frames_encoded=times.encoded,
+        encodings_per_frame=times.encodings_per_frame(),
         mean_batch=round(times.frames / times.batches, 2) if times.batches else None,
         server_stages_ms=times.per_frame_ms(),
         server_added_ms=times.added_ms(),

@@ -213,16 +213,18 @@ class _Clients:
         self._frames: dict[bytes, tuple[tuple[str, int], int, int]] = {}  # the last frame: its key, expected, come
         self.rate = SteadyRate(time.monotonic())
 
-    def saw(self, identity: bytes, request: SegmentRequest) -> None:
+    def saw(self, identity: bytes, request: SegmentRequest) -> bool:
+        """``request`` of ``identity``'s come; whether it is a new frame's first."""
         now = self._seen[identity] = time.monotonic()
         frame = (request.episode, request.observation.step)
         known = self._frames.get(identity)
-        if known is None or known[0] != frame:  # a new frame: its first SEGMENT
+        if known is not None and known[0] == frame:
+            _, expected, come = known
+        else:  # a new frame: its first SEGMENT
             self.rate.arrived(identity, now)
             expected, come = 0, 0
-        else:
-            _, expected, come = known
         self._frames[identity] = (frame, max(expected, request.together), come + 1)
+        return come == 0
 
     def hold(self, identities: list[bytes]) -> None:
         self._held.update(identities)
@@ -392,7 +394,8 @@ class GrounderServer:
             self.episodes.get(segment.episode)  # an unknown episode is refused now, not after the batch
         pending = _Pending(identity, segment, time.monotonic())
         self._queue.pending.append(pending)
-        self._clients.saw(identity, segment)
+        if self._clients.saw(identity, segment):
+            self._times.received += 1
         return None
 
     def _pong(self, identity: bytes, pong: Message) -> Message | None:

@@ -132,19 +132,26 @@ class DeviceStreams:
 @dataclass
 class ServerTimes:
     """Seconds by stage (:data:`STAGES`; ``wait`` summed over frames, the others the server's busy time) over
-    ``frames`` frames (requests: one a phrase) in ``batches`` batches, whose forwards encoded ``encoded`` images (a
-    frame sent for several phrases once, where its requests came in one batch)."""
+    ``frames`` frames (requests: one a phrase) in ``batches`` batches, whose forwards encoded ``encoded`` images; of
+    the ``received`` frames that came (a client's steps), each is encoded once where its requests came in one batch
+    (a frame's phrases sent together, :meth:`encodings_per_frame`)."""
 
     frames: int = 0
     batches: int = 0
     seconds: dict[str, float] = field(default_factory=lambda: dict.fromkeys(STAGES, 0.0))
     encoded: int = 0
+    received: int = 0
 
     def add(self, other: ServerTimes) -> ServerTimes:
         seconds = {stage: self.seconds[stage] + other.seconds[stage] for stage in STAGES}
-        return ServerTimes(
-            self.frames + other.frames, self.batches + other.batches, seconds, self.encoded + other.encoded
-        )
+        counts = (self.frames + other.frames, self.batches + other.batches)
+        return ServerTimes(*counts, seconds, self.encoded + other.encoded, self.received + other.received)
+
+    def encodings_per_frame(self) -> float | None:
+        """The images encoded a frame received: 1 where each frame's phrases were grounded in one batch, more where
+        a frame was asked for a phrase later (prompt enrichment, Sec. IV-B: a new phrase on the same frame) or split
+        between batches (none without frames)."""
+        return round(self.encoded / self.received, 3) if self.received else None
 
     def per_frame_ms(self) -> dict[str, float]:
         """Each stage's milliseconds a frame (none without frames)."""
