@@ -302,6 +302,34 @@ def test_a_frame_asked_for_several_phrases_is_one_forward_and_encoded_once(
         close_enough(answers[phrase], expected[phrase])
 
 
+def grounding_now(
+    server: GrounderServer,
+    info: ServedInfo,
+    clients: int,
+    first: Callable[[RemoteGrounder, int], object],
+    then: Callable[[RemoteGrounder, int], None],
+) -> tuple[Counter[int], list[int]]:
+    """``clients`` clients of ``server``, each (``index``) grounding ``first`` (seen grounding: the server then waits
+    for every client's next frame), then, once all have, ``then``: the batches run and the images encoded since."""
+    before: Counter[int] = Counter()
+    encoded = vision_encodings(server)
+    barrier = threading.Barrier(clients, action=lambda: (before.update(server.batch_sizes), encoded.clear()))
+
+    def work(index: int) -> None:
+        with remote(server.endpoint, info) as grounder:
+            grounder.begin_episode(None, 0)
+            first(grounder, index)
+            barrier.wait()
+            then(grounder, index)
+
+    threads = [threading.Thread(target=work, args=(i,)) for i in range(clients)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    return server.batch_sizes - before, encoded
+
+
 @pytest.mark.parametrize("case", ["sam3", "owlv2+mobilesam", "grounding-dino"])
 def test_workers_looking_for_different_objects_share_one_forward(
     case: str, transformers_grounders: dict[str, tuple[str, Callable[[], Grounder]]]
@@ -313,24 +341,13 @@ def test_workers_looking_for_different_objects_share_one_forward(
     asked = [(observation(seed, seed), phrase) for seed, phrase in enumerate(("sofa", "chair", "television"))]
     expected = [local.segment(frame, phrase) for frame, phrase in asked]
     answers: dict[int, list[Detection]] = {}
+
+    def then(grounder: RemoteGrounder, index: int) -> None:
+        answers[index] = grounder.segment(*asked[index])
+
     with served(factory, detector, ServeConfig(batch=3, batch_ms=1000.0)) as (server, info):
-        before: Counter[int] = Counter()
-        encoded = vision_encodings(server)
-        barrier = threading.Barrier(3, action=lambda: (before.update(server.batch_sizes), encoded.clear()))
-
-        def work(index: int) -> None:
-            with remote(server.endpoint, info) as grounder:
-                grounder.begin_episode(None, 0)
-                grounder.segment(*asked[index])  # seen grounding: the server waits for its next frame
-                barrier.wait()
-                answers[index] = grounder.segment(*asked[index])
-
-        threads = [threading.Thread(target=work, args=(i,)) for i in range(3)]
-        for thread in threads:
-            thread.start()
-        for thread in threads:
-            thread.join()
-    assert server.batch_sizes - before == Counter({3: 1}) and encoded == [3]
+        batches, encoded = grounding_now(server, info, 3, lambda g, i: g.segment(*asked[i]), then)
+    assert batches == Counter({3: 1}) and encoded == [3]
     for index, want in enumerate(expected):
         close_enough(answers[index], want)
 
@@ -346,25 +363,14 @@ def test_a_batch_counts_frames_not_phrases(
     frames = [observation(seed, seed) for seed in (11, 12)]
     expected = [{phrase: local.segment(frame, phrase) for phrase in PHRASES} for frame in frames]
     answers: dict[int, dict[str, list[Detection]]] = {}
+
+    def then(grounder: RemoteGrounder, index: int) -> None:
+        grounder.prefetch(frames[index], PHRASES)
+        answers[index] = {phrase: grounder.segment(frames[index], phrase) for phrase in PHRASES}
+
     with served(factory, "sam3", ServeConfig(batch=2, batch_ms=1000.0)) as (server, info):
-        before: Counter[int] = Counter()
-        encoded = vision_encodings(server)
-        barrier = threading.Barrier(2, action=lambda: (before.update(server.batch_sizes), encoded.clear()))
-
-        def work(index: int) -> None:
-            with remote(server.endpoint, info) as grounder:
-                grounder.begin_episode(None, 0)
-                grounder.segment(observation(0), "chair")  # seen grounding: the server waits for its next frame
-                barrier.wait()
-                grounder.prefetch(frames[index], PHRASES)
-                answers[index] = {phrase: grounder.segment(frames[index], phrase) for phrase in PHRASES}
-
-        threads = [threading.Thread(target=work, args=(i,)) for i in range(2)]
-        for thread in threads:
-            thread.start()
-        for thread in threads:
-            thread.join()
-    assert server.batch_sizes - before == Counter({2 * len(PHRASES): 1}) and encoded == [2]
+        batches, encoded = grounding_now(server, info, 2, lambda g, _: g.segment(observation(0), "chair"), then)
+    assert batches == Counter({2 * len(PHRASES): 1}) and encoded == [2]
     for index, want in enumerate(expected):
         for phrase in PHRASES:
             close_enough(answers[index][phrase], want[phrase])
