@@ -384,6 +384,12 @@ def test_the_queue_counts_frames_and_takes_them_whole() -> None:
         waiting.arrived -= server.config.parts_s  # its client sent one of the three it said
         assert server._due() and phrases(server._taken(8)) == ["sofa"]
         assert server._queue.pending == [] and server._whole() == []
+        queued(b"c", 5, "lamp", 1)  # c's step asked for one phrase, then for two more at once (a second burst)
+        assert phrases(server._taken(8)) == ["lamp"]
+        queued(b"c", 5, "desk lamp", 2)
+        assert server._whole() == [] and server._taken(8) == []  # the burst's second is still to come
+        queued(b"c", 5, "table lamp", 2)
+        assert phrases(server._taken(8)) == ["desk lamp", "table lamp"]
     finally:
         server.close()
 

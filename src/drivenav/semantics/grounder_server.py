@@ -214,7 +214,9 @@ class _Clients:
         self.rate = SteadyRate(time.monotonic())
 
     def saw(self, identity: bytes, request: SegmentRequest) -> bool:
-        """``request`` of ``identity``'s come; whether it is a new frame's first."""
+        """``request`` of ``identity``'s come; whether it is a new frame's first. A SEGMENT of a frame whose
+        SEGMENTs sent at once have all come begins another burst of it (phrases asked later of the same frame: a
+        second prefetch, a prompt-enrichment round), whose ``together`` counts from there."""
         now = self._seen[identity] = time.monotonic()
         frame = (request.episode, request.observation.step)
         known = self._frames.get(identity)
@@ -223,7 +225,9 @@ class _Clients:
         else:  # a new frame: its first SEGMENT
             self.rate.arrived(identity, now)
             expected, come = 0, 0
-        self._frames[identity] = (frame, max(expected, request.together), come + 1)
+        if come >= expected:
+            expected = come + request.together
+        self._frames[identity] = (frame, expected, come + 1)
         return come == 0
 
     def hold(self, identities: list[bytes]) -> None:
