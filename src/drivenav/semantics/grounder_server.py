@@ -32,7 +32,7 @@ import threading
 import time
 from collections import Counter, OrderedDict
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -213,8 +213,8 @@ class _Clients:
         self._frames: dict[bytes, tuple[tuple[str, int], int, int]] = {}  # the last frame: its key, expected, come
         self.rate = SteadyRate(time.monotonic())
 
-    def saw(self, identity: bytes, request: SegmentRequest) -> bool:
-        """``request`` of ``identity``'s come; whether it is a new frame's first. A SEGMENT of a frame whose
+    def saw(self, identity: bytes, request: SegmentRequest) -> None:
+        """``request`` of ``identity``'s come (a new frame's first counted by :attr:`rate`). A SEGMENT of a frame whose
         SEGMENTs sent at once have all come begins another burst of it (phrases asked later of the same frame: a
         second prefetch, a prompt-enrichment round), whose ``together`` counts from there."""
         now = self._seen[identity] = time.monotonic()
@@ -228,7 +228,6 @@ class _Clients:
         if come >= expected:
             expected = come + request.together
         self._frames[identity] = (frame, expected, come + 1)
-        return come == 0
 
     def hold(self, identities: list[bytes]) -> None:
         self._held.update(identities)
@@ -312,8 +311,10 @@ class GrounderServer:
 
     @property
     def times(self) -> ServerTimes:
-        """Where the frames served so far spent their time (:class:`~drivenav.semantics.serve_pipeline.ServerTimes`)."""
-        return self._times if self._model is None else self._times.add(self._model.times)
+        """Where the frames served so far spent their time (:class:`~drivenav.semantics.serve_pipeline.ServerTimes`),
+        with the frames that came (:class:`~drivenav.semantics.serve_pipeline.SteadyRate`'s count)."""
+        total = self._times if self._model is None else self._times.add(self._model.times)
+        return replace(total, received=self._clients.rate.frames)
 
     def serve(self, stop: threading.Event | None = None) -> None:
         """Answer requests until ``stop`` is set (or Ctrl-C)."""
@@ -398,8 +399,7 @@ class GrounderServer:
             self.episodes.get(segment.episode)  # an unknown episode is refused now, not after the batch
         pending = _Pending(identity, segment, time.monotonic())
         self._queue.pending.append(pending)
-        if self._clients.saw(identity, segment):
-            self._times.received += 1
+        self._clients.saw(identity, segment)
         return None
 
     def _pong(self, identity: bytes, pong: Message) -> Message | None:
@@ -434,9 +434,9 @@ class GrounderServer:
         it is done)."""
         if not self._queue.pending or not self._model_ready():
             return self.config.poll_ms
-        runnable = self._runnable()
-        if runnable:
-            left = next(iter(runnable.values())) + self.config.batch_ms / 1000.0 - time.monotonic()
+        oldest = self._oldest_runnable()
+        if oldest is not None:
+            left = oldest + self.config.batch_ms / 1000.0 - time.monotonic()
         else:
             left = self._queue.pending[0].arrived + self.config.parts_s - time.monotonic()
         return max(0, min(self.config.poll_ms, math.ceil(left * 1000.0)))
@@ -460,6 +460,10 @@ class GrounderServer:
             if arrived <= since or self._clients.complete(frame)
         }
 
+    def _oldest_runnable(self) -> float | None:
+        """When the first request of the oldest runnable frame came (None: no frame is runnable)."""
+        return next(iter(self._runnable().values()), None)
+
     def _full(self) -> bool:
         """Whether ``batch`` frames are queued whole."""
         return len(self._whole()) >= self.config.batch
@@ -476,10 +480,10 @@ class GrounderServer:
         frame can come)."""
         if not self._queue.pending or not self._model_ready():
             return False
-        runnable = self._runnable()
-        if not runnable:
+        oldest = self._oldest_runnable()
+        if oldest is None:
             return False
-        waited = time.monotonic() - next(iter(runnable.values()))
+        waited = time.monotonic() - oldest
         if self._full() or waited * 1000.0 >= self.config.batch_ms:
             return True
         return self._clients.all_waiting(set(self._queue.frames()))

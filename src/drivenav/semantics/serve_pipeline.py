@@ -144,8 +144,13 @@ class ServerTimes:
 
     def add(self, other: ServerTimes) -> ServerTimes:
         seconds = {stage: self.seconds[stage] + other.seconds[stage] for stage in STAGES}
-        counts = (self.frames + other.frames, self.batches + other.batches)
-        return ServerTimes(*counts, seconds, self.encoded + other.encoded, self.received + other.received)
+        return ServerTimes(
+            frames=self.frames + other.frames,
+            batches=self.batches + other.batches,
+            seconds=seconds,
+            encoded=self.encoded + other.encoded,
+            received=self.received + other.received,
+        )
 
     def encodings_per_frame(self) -> float | None:
         """The images encoded a frame received: 1 where each frame's phrases were grounded in one batch, more where
@@ -204,6 +209,11 @@ class SteadyRate:
         self._first.setdefault(identity, now)
         self._last[identity] = now
         self._by_second[int(now - self._start)] += 1
+
+    @property
+    def frames(self) -> int:
+        """The frames that came so far."""
+        return sum(self._by_second.values())
 
     def steady(self) -> Steady | None:
         """The frames that came in the whole seconds when every client was grounding, a second; None when that
